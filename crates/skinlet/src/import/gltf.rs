@@ -1,0 +1,449 @@
+//! glTF 2.0 import (.glb, and .gltf with embedded data URIs or external buffers) into the
+//! [`Asset`] model. Follows the spec's rules for skins (missing inverse bind matrices mean
+//! identity), animation (key times non-decreasing; CUBICSPLINE outputs as in-tangent,
+//! value, out-tangent triples), and primitives (strips and fans become lists; points and
+//! lines are skipped with a warning). Weights are normalized and every change is reported
+//! in [`ImportReport`]; malformed data is an [`Error`] naming where it is.
+
+use super::accessor::{Buffers, read_floats, read_uints};
+use crate::clip::{Channel, Clip, Interpolation};
+use crate::model::{Asset, ImportReport, Influences, Instance, Mesh, Node, Primitive, Skeleton, Skin, SkinnedMesh, Trs};
+use crate::{Error, Result};
+use base64::Engine as _;
+use gltf::accessor::Dimensions;
+use gltf::mesh::Mode;
+use glam::{Mat4, Quat, Vec3, Vec4};
+use std::collections::HashSet;
+use std::path::Path;
+
+/// Extensions that do not change geometry, skins or animation: safe to ignore when required.
+const HARMLESS_EXTENSIONS: &[&str] = &["KHR_texture_transform", "KHR_materials_", "KHR_mesh_quantization", "KHR_texture_basisu"];
+
+/// Parses a .glb or .gltf file held in memory. `base_dir` resolves external buffer URIs.
+pub fn load_gltf_slice(bytes: &[u8], base_dir: Option<&Path>) -> Result<Asset> {
+    // The gltf crate's parser is third-party code fed with untrusted bytes: contain any panic.
+    let parsed = std::panic::catch_unwind(|| gltf::Gltf::from_slice(bytes))
+        .map_err(|_| Error::invalid("glTF", "the file is malformed (the glTF parser could not read it)"))?;
+    let gltf = parsed.map_err(|e| Error::invalid("glTF", e.to_string()))?;
+    for ext in gltf.document.extensions_required() {
+        if !HARMLESS_EXTENSIONS.iter().any(|h| ext.starts_with(h)) {
+            return Err(Error::unsupported("glTF extensionsRequired", format!("extension {ext}")));
+        }
+    }
+    let buffers = load_buffers(&gltf, base_dir)?;
+    let doc = &gltf.document;
+    let mut report = ImportReport::default();
+
+    let animated: HashSet<usize> = doc.animations().flat_map(|a| a.channels().map(|c| c.target().node().index())).collect();
+    let skeleton = load_nodes(doc, &animated, &mut report)?;
+    let skins = doc.skins().map(|s| load_skin(&s, &buffers, &mut report)).collect::<Result<Vec<_>>>()?;
+    let meshes = doc.meshes().map(|m| load_mesh(&m, &buffers, &mut report)).collect::<Result<Vec<_>>>()?;
+    let instances = load_instances(doc, &skins, &meshes, &mut report)?;
+    let clips = doc.animations().map(|a| load_clip(&a, &buffers, &mut report)).collect::<Result<Vec<_>>>()?;
+    Ok(Asset { skeleton, skins, meshes, instances, clips, report })
+}
+
+fn load_buffers(gltf: &gltf::Gltf, base_dir: Option<&Path>) -> Result<Vec<Vec<u8>>> {
+    let mut out = Vec::new();
+    for b in gltf.document.buffers() {
+        let loc = format!("buffer {}", b.index());
+        let data = match b.source() {
+            gltf::buffer::Source::Bin => gltf
+                .blob
+                .clone()
+                .ok_or_else(|| Error::invalid(&loc, "refers to the GLB binary chunk, but the file has none"))?,
+            gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
+                let (_, payload) = uri
+                    .split_once(";base64,")
+                    .ok_or_else(|| Error::unsupported(&loc, "data URI that is not base64-encoded"))?;
+                base64::engine::general_purpose::STANDARD
+                    .decode(payload)
+                    .map_err(|e| Error::invalid(&loc, format!("bad base64 data URI: {e}")))?
+            }
+            gltf::buffer::Source::Uri(uri) => {
+                let dir = base_dir.ok_or_else(|| {
+                    Error::invalid(&loc, format!("external buffer {uri:?} cannot be resolved without the file's folder"))
+                })?;
+                let path = dir.join(percent_decode(uri));
+                std::fs::read(&path).map_err(|source| Error::Io { path, source })?
+            }
+        };
+        if data.len() < b.length() {
+            return Err(Error::invalid(
+                loc,
+                format!("holds {} bytes but byteLength says {} (truncated file?)", data.len(), b.length()),
+            ));
+        }
+        out.push(data);
+    }
+    Ok(out)
+}
+
+fn percent_decode(s: &str) -> String {
+    let hex = |c: u8| (c as char).to_digit(16).map(|d| d as u8);
+    let b = s.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        if let (b'%', Some(&h), Some(&l)) = (b[i], b.get(i + 1), b.get(i + 2)) {
+            if let (Some(h), Some(l)) = (hex(h), hex(l)) {
+                out.push(h * 16 + l);
+                i += 3;
+                continue;
+            }
+        }
+        out.push(b[i]);
+        i += 1;
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+fn finite(loc: &str, what: &str, v: &[f32]) -> Result<()> {
+    if v.iter().all(|x| x.is_finite()) { Ok(()) } else { Err(Error::invalid(loc, format!("{what} has a NaN or infinite value"))) }
+}
+
+fn load_nodes(doc: &gltf::Document, animated: &HashSet<usize>, report: &mut ImportReport) -> Result<Skeleton> {
+    let mut nodes: Vec<Node> = doc
+        .nodes()
+        .map(|n| Node { name: n.name().unwrap_or("").to_string(), parent: None, rest: Trs::IDENTITY, matrix: None })
+        .collect();
+    for n in doc.nodes() {
+        let loc = format!("node {} ({:?})", n.index(), n.name().unwrap_or(""));
+        for c in n.children() {
+            let child = &mut nodes[c.index()];
+            if let Some(p) = child.parent {
+                return Err(Error::invalid(
+                    format!("node {} ({:?})", c.index(), child.name),
+                    format!("has two parents, nodes {p} and {}", n.index()),
+                ));
+            }
+            child.parent = Some(n.index() as u32);
+        }
+        let node = &mut nodes[n.index()];
+        match n.transform() {
+            gltf::scene::Transform::Matrix { matrix } => {
+                let m = Mat4::from_cols_array_2d(&matrix);
+                finite(&loc, "matrix", &m.to_cols_array())?;
+                if m.row(3) != Vec4::W {
+                    return Err(Error::invalid(&loc, "matrix is not affine (last row must be 0 0 0 1)"));
+                }
+                let (s, r, t) = m.to_scale_rotation_translation();
+                node.rest = Trs { translation: t, rotation: r.normalize(), scale: s };
+                if animated.contains(&n.index()) {
+                    report.warnings.push(format!(
+                        "{loc}: is animated but given by a matrix (the spec forbids this); its matrix was decomposed into TRS"
+                    ));
+                } else {
+                    node.matrix = Some(m);
+                }
+            }
+            gltf::scene::Transform::Decomposed { translation, rotation, scale } => {
+                finite(&loc, "TRS", &[translation.as_slice(), &rotation, &scale].concat())?;
+                let q = Quat::from_array(rotation);
+                node.rest = Trs { translation: translation.into(), rotation: normalize_quat(q, &loc)?, scale: scale.into() };
+            }
+        }
+    }
+    Skeleton::new(nodes)
+}
+
+fn normalize_quat(q: Quat, loc: &str) -> Result<Quat> {
+    let len = q.length();
+    if !(len > 1e-6) {
+        return Err(Error::invalid(loc, "rotation quaternion has zero length"));
+    }
+    Ok(if len == 1.0 { q } else { q / len })
+}
+
+fn load_skin(skin: &gltf::Skin, buffers: &Buffers, report: &mut ImportReport) -> Result<Skin> {
+    let loc = format!("skin {} ({:?})", skin.index(), skin.name().unwrap_or(""));
+    let joints: Vec<u32> = skin.joints().map(|j| j.index() as u32).collect();
+    if joints.is_empty() {
+        return Err(Error::invalid(loc, "has no joints"));
+    }
+    if joints.len() > u16::MAX as usize {
+        return Err(Error::unsupported(loc, format!("{} joints (at most 65535)", joints.len())));
+    }
+    let inverse_bind = match skin.inverse_bind_matrices() {
+        Some(acc) => {
+            let m = read_floats(&acc, &[Dimensions::Mat4], buffers, &format!("{loc} inverseBindMatrices"))?;
+            if m.len() / 16 < joints.len() {
+                return Err(Error::invalid(
+                    loc,
+                    format!("{} inverse bind matrices for {} joints", m.len() / 16, joints.len()),
+                ));
+            }
+            let mats: Vec<Mat4> = m.chunks_exact(16).take(joints.len()).map(Mat4::from_cols_slice).collect();
+            if let Some(i) = mats.iter().position(|m| (m.row(3) - Vec4::W).abs().max_element() > 1e-4) {
+                return Err(Error::invalid(loc, format!("inverse bind matrix {i} is not affine (last row must be 0 0 0 1)")));
+            }
+            mats
+        }
+        None => {
+            report.warnings.push(format!("{loc}: no inverseBindMatrices; using identity matrices as the spec says"));
+            vec![Mat4::IDENTITY; joints.len()]
+        }
+    };
+    Ok(Skin { name: skin.name().unwrap_or("").to_string(), joints, inverse_bind })
+}
+
+fn load_mesh(mesh: &gltf::Mesh, buffers: &Buffers, report: &mut ImportReport) -> Result<Mesh> {
+    let mut primitives = Vec::new();
+    for p in mesh.primitives() {
+        let loc = format!("mesh {} ({:?}) primitive {}", mesh.index(), mesh.name().unwrap_or(""), p.index());
+        if matches!(p.mode(), Mode::Points | Mode::Lines | Mode::LineLoop | Mode::LineStrip) {
+            report.warnings.push(format!("{loc}: {:?} primitive skipped (only triangles are used)", p.mode()));
+            continue;
+        }
+        let geometry = load_primitive(&p, buffers, &loc, report)?;
+        let morph_targets = p.morph_targets().count();
+        if morph_targets > 0 {
+            report.warnings.push(format!(
+                "{loc}: {morph_targets} morph targets loaded as the base shape only; bounds ignore morphs for now"
+            ));
+        }
+        primitives.push(Primitive { index: p.index(), geometry, morph_targets });
+    }
+    Ok(Mesh { name: mesh.name().unwrap_or("").to_string(), primitives })
+}
+
+fn vec3s(v: Vec<f32>) -> Vec<Vec3> {
+    v.chunks_exact(3).map(Vec3::from_slice).collect()
+}
+
+fn load_primitive(p: &gltf::Primitive, buffers: &Buffers, loc: &str, report: &mut ImportReport) -> Result<SkinnedMesh> {
+    use gltf::Semantic;
+    let pos = p.get(&Semantic::Positions).ok_or_else(|| Error::invalid(loc, "has no POSITION attribute"))?;
+    let positions = vec3s(read_floats(&pos, &[Dimensions::Vec3], buffers, &format!("{loc} POSITION"))?);
+    let n = positions.len();
+    let normals = match p.get(&Semantic::Normals) {
+        Some(acc) => {
+            let v = vec3s(read_floats(&acc, &[Dimensions::Vec3], buffers, &format!("{loc} NORMAL"))?);
+            if v.len() != n {
+                return Err(Error::invalid(loc, format!("NORMAL has {} elements but POSITION has {n}", v.len())));
+            }
+            v
+        }
+        None => Vec::new(),
+    };
+    let indices: Vec<u32> = match p.indices() {
+        Some(acc) => read_uints(&acc, &[Dimensions::Scalar], buffers, &format!("{loc} indices"))?,
+        None => (0..n as u32).collect(),
+    };
+    if let Some((i, &v)) = indices.iter().enumerate().find(|(_, v)| **v as usize >= n) {
+        return Err(Error::invalid(loc, format!("index {i} is {v}, but there are only {n} vertices")));
+    }
+    let triangles = assemble_triangles(p.mode(), &indices, loc)?;
+    report.degenerate_triangles += triangles
+        .iter()
+        .filter(|t| {
+            let [a, b, c] = t.map(|i| positions[i as usize]);
+            t[0] == t[1] || t[1] == t[2] || t[0] == t[2] || (b - a).cross(c - a) == Vec3::ZERO
+        })
+        .count();
+    let influences = load_influences(p, buffers, n, loc, report)?;
+    Ok(SkinnedMesh { positions, normals, triangles, influences })
+}
+
+fn assemble_triangles(mode: Mode, idx: &[u32], loc: &str) -> Result<Vec<[u32; 3]>> {
+    Ok(match mode {
+        Mode::Triangles => {
+            if idx.len() % 3 != 0 {
+                return Err(Error::invalid(loc, format!("{} indices is not a multiple of 3", idx.len())));
+            }
+            idx.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
+        }
+        // glTF 2.0 section 3.7.2.1: strip triangle i is (i, i+1+i%2, i+2-i%2); fan is (i+1, i+2, 0).
+        Mode::TriangleStrip => (0..idx.len().saturating_sub(2))
+            .map(|i| [idx[i], idx[i + 1 + i % 2], idx[i + 2 - i % 2]])
+            .collect(),
+        Mode::TriangleFan => (0..idx.len().saturating_sub(2)).map(|i| [idx[i + 1], idx[i + 2], idx[0]]).collect(),
+        _ => Vec::new(),
+    })
+}
+
+fn load_influences(
+    p: &gltf::Primitive,
+    buffers: &Buffers,
+    n: usize,
+    loc: &str,
+    report: &mut ImportReport,
+) -> Result<Option<Influences>> {
+    use gltf::Semantic;
+    let mut sets = Vec::new();
+    for set in 0..2u32 {
+        match (p.get(&Semantic::Joints(set)), p.get(&Semantic::Weights(set))) {
+            (None, None) => break,
+            (Some(j), Some(w)) => {
+                let jl = format!("{loc} JOINTS_{set}");
+                let wl = format!("{loc} WEIGHTS_{set}");
+                let joints = read_uints(&j, &[Dimensions::Vec4], buffers, &jl)?;
+                let weights = read_floats(&w, &[Dimensions::Vec4], buffers, &wl)?;
+                if joints.len() != 4 * n || weights.len() != 4 * n {
+                    return Err(Error::invalid(
+                        loc,
+                        format!(
+                            "JOINTS_{set}/WEIGHTS_{set} have {}/{} elements but POSITION has {n}",
+                            joints.len() / 4,
+                            weights.len() / 4
+                        ),
+                    ));
+                }
+                sets.push((joints, weights));
+            }
+            _ => return Err(Error::invalid(loc, format!("JOINTS_{set} and WEIGHTS_{set} must come together"))),
+        }
+    }
+    if sets.is_empty() {
+        return Ok(None);
+    }
+    if p.get(&Semantic::Joints(2)).is_some() {
+        report.warnings.push(format!("{loc}: JOINTS_2 and beyond ignored (at most 8 influences are used)"));
+    }
+    let stride = 4 * sets.len();
+    let mut inf = Influences { stride, joints: vec![0; n * stride], weights: vec![0.0; n * stride] };
+    let mut pairs: Vec<(u32, f32)> = Vec::with_capacity(stride);
+    for v in 0..n {
+        pairs.clear();
+        let first_joint = sets[0].0[4 * v];
+        for (s, (js, ws)) in sets.iter().enumerate() {
+            for k in 0..4 {
+                let (j, w) = (js[4 * v + k], ws[4 * v + k]);
+                if w < 0.0 {
+                    return Err(Error::invalid(loc, format!("vertex {v}: WEIGHTS_{s} component {k} is negative ({w})")));
+                }
+                if w == 0.0 {
+                    continue;
+                }
+                if j > u16::MAX as u32 {
+                    return Err(Error::invalid(loc, format!("vertex {v}: joint index {j} is too large")));
+                }
+                match pairs.iter_mut().find(|(pj, _)| *pj == j) {
+                    Some(p) => p.1 += w,
+                    None => pairs.push((j, w)),
+                }
+            }
+        }
+        let sum: f32 = pairs.iter().map(|p| p.1).sum();
+        if pairs.is_empty() {
+            report.zero_weight_vertices += 1;
+            pairs.push((first_joint, 1.0));
+        } else if (sum - 1.0).abs() > 1e-3 {
+            report.renormalized_vertices += 1;
+        }
+        if sum != 1.0 && sum > 0.0 {
+            pairs.iter_mut().for_each(|p| p.1 /= sum);
+        }
+        pairs.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+        for (k, &(j, w)) in pairs.iter().enumerate() {
+            inf.joints[v * stride + k] = j as u16;
+            inf.weights[v * stride + k] = w;
+        }
+    }
+    Ok(Some(inf))
+}
+
+fn load_instances(doc: &gltf::Document, skins: &[Skin], meshes: &[Mesh], report: &mut ImportReport) -> Result<Vec<Instance>> {
+    let mut out = Vec::new();
+    for node in doc.nodes() {
+        let Some(mesh) = node.mesh() else { continue };
+        let loc = format!("node {} ({:?})", node.index(), node.name().unwrap_or(""));
+        let skin = node.skin().map(|s| s.index() as u32);
+        let m = &meshes[mesh.index()];
+        match skin {
+            Some(s) => {
+                let count = skins[s as usize].joints.len();
+                for p in &m.primitives {
+                    let Some(inf) = &p.geometry.influences else {
+                        report.warnings.push(format!(
+                            "{loc}: has skin {s} but mesh {} primitive {} has no JOINTS_0/WEIGHTS_0; it stays at the rest pose",
+                            mesh.index(),
+                            p.index
+                        ));
+                        continue;
+                    };
+                    if let Some(v) = (0..inf.vertex_count()).find(|&v| inf.of(v).any(|(j, _)| j as usize >= count)) {
+                        let j = inf.of(v).map(|(j, _)| j).max().unwrap_or(0);
+                        return Err(Error::invalid(
+                            format!("mesh {} primitive {} vertex {v}", mesh.index(), p.index),
+                            format!("joint index {j} is out of range: skin {s} used by {loc} has {count} joints"),
+                        ));
+                    }
+                }
+            }
+            None if m.primitives.iter().any(|p| p.geometry.influences.is_some()) => {
+                report.warnings.push(format!("{loc}: mesh {} has joint weights but the node has no skin; drawn rigid", mesh.index()));
+            }
+            None => {}
+        }
+        out.push(Instance { node: node.index() as u32, mesh: mesh.index() as u32, skin });
+    }
+    Ok(out)
+}
+
+fn load_clip(anim: &gltf::Animation, buffers: &Buffers, report: &mut ImportReport) -> Result<Clip> {
+    use gltf::animation::Property;
+    let name = anim.name().unwrap_or("").to_string();
+    let mut clip = Clip { name: name.clone(), start: f32::INFINITY, end: f32::NEG_INFINITY, ..Clip::default() };
+    for ch in anim.channels() {
+        let loc = format!("animation {} ({name:?}) channel {}", anim.index(), ch.index());
+        let sampler = ch.sampler();
+        let times = read_floats(&sampler.input(), &[Dimensions::Scalar], buffers, &format!("{loc} input"))?;
+        if times.is_empty() {
+            report.warnings.push(format!("{loc}: no keyframes; channel ignored"));
+            continue;
+        }
+        if let Some(i) = times.windows(2).position(|w| w[1] < w[0]) {
+            return Err(Error::invalid(&loc, format!("key times decrease at key {}: {} after {}", i + 1, times[i + 1], times[i])));
+        }
+        clip.start = clip.start.min(times[0]);
+        clip.end = clip.end.max(times[times.len() - 1]);
+        let interpolation = match sampler.interpolation() {
+            gltf::animation::Interpolation::Linear => Interpolation::Linear,
+            gltf::animation::Interpolation::Step => Interpolation::Step,
+            gltf::animation::Interpolation::CubicSpline => Interpolation::CubicSpline,
+        };
+        let per_key = if interpolation == Interpolation::CubicSpline { 3 } else { 1 };
+        let node = ch.target().node().index() as u32;
+        let output = sampler.output();
+        let out_loc = format!("{loc} output");
+        let check_count = |values: usize| -> Result<()> {
+            if values != per_key * times.len() {
+                return Err(Error::invalid(
+                    &loc,
+                    format!("{} keys need {} output values ({}), found {values}", times.len(), per_key * times.len(), interpolation.name()),
+                ));
+            }
+            Ok(())
+        };
+        match ch.target().property() {
+            Property::Translation | Property::Scale => {
+                let values = vec3s(read_floats(&output, &[Dimensions::Vec3], buffers, &out_loc)?);
+                check_count(values.len())?;
+                let c = Channel { node, interpolation, times, values };
+                if ch.target().property() == Property::Translation { clip.translations.push(c) } else { clip.scales.push(c) }
+            }
+            Property::Rotation => {
+                let raw = read_floats(&output, &[Dimensions::Vec4], buffers, &out_loc)?;
+                let mut values: Vec<Quat> = raw.chunks_exact(4).map(Quat::from_slice).collect();
+                check_count(values.len())?;
+                for (i, q) in values.iter_mut().enumerate() {
+                    let is_tangent = interpolation == Interpolation::CubicSpline && i % 3 != 1;
+                    if !is_tangent {
+                        *q = normalize_quat(*q, &format!("{out_loc} key {}", i / per_key))?;
+                    }
+                }
+                clip.rotations.push(Channel { node, interpolation, times, values });
+            }
+            Property::MorphTargetWeights => clip.weight_channels += 1,
+        }
+    }
+    if clip.weight_channels > 0 {
+        report.warnings.push(format!("animation {} ({name:?}): {} morph-weight channels ignored", anim.index(), clip.weight_channels));
+    }
+    if clip.start > clip.end {
+        clip.start = 0.0;
+        clip.end = 0.0;
+    }
+    Ok(clip)
+}

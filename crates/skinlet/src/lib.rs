@@ -1,0 +1,24 @@
+//! skinlet: make skinned (skeletally animated) meshes cheap to render.
+//!
+//! This crate holds the algorithms and never prints. Modules, one algorithm each:
+//! - [`model`]: the character data model (hierarchy, skins, meshes, instances).
+//! - [`clip`]: animation clips and their exact glTF sampling.
+//! - [`pose`]: global transforms and skinning matrices.
+//! - [`skinning`]: reference linear blend skinning (the ground truth of every bound).
+//! - [`import`]: glTF 2.0 and OBJ loading with errors that say what and where.
+//! - [`weld`]: merging vertices that are equal in position and skin data.
+//! - [`summary`]: the facts `skinlet inspect` reports.
+//! - [`demo`]: the built-in procedural demo character.
+
+pub mod clip;
+pub mod demo;
+pub mod error;
+pub mod import;
+pub mod model;
+pub mod pose;
+pub mod skinning;
+pub mod summary;
+pub mod weld;
+
+pub use error::{Error, Result};
+pub use model::{Asset, Influences, Instance, Mesh, Node, Skeleton, Skin, SkinnedMesh, Trs};

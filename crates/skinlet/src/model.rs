@@ -1,0 +1,212 @@
+//! The skinned-character data model: node hierarchy, skins, triangle meshes with up to
+//! eight joint influences per vertex, and the instances that tie a mesh to a skin.
+//!
+//! Node indices are the glTF node indices of the source file, so every report and JSON
+//! output can be matched against the file. Clips live in [`crate::clip`].
+
+use glam::{Mat4, Quat, Vec3};
+
+/// A local transform as glTF stores it: `T * R * S`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Trs {
+    pub translation: Vec3,
+    pub rotation: Quat,
+    pub scale: Vec3,
+}
+
+impl Trs {
+    pub const IDENTITY: Trs = Trs { translation: Vec3::ZERO, rotation: Quat::IDENTITY, scale: Vec3::ONE };
+
+    pub fn to_mat4(&self) -> Mat4 {
+        Mat4::from_scale_rotation_translation(self.scale, self.rotation, self.translation)
+    }
+
+    /// `T * R * S` in double precision (used by the reference pose).
+    pub fn to_dmat4(&self) -> glam::DMat4 {
+        glam::DMat4::from_scale_rotation_translation(
+            self.scale.as_dvec3(),
+            self.rotation.as_dquat().normalize(),
+            self.translation.as_dvec3(),
+        )
+    }
+}
+
+impl Default for Trs {
+    fn default() -> Self {
+        Trs::IDENTITY
+    }
+}
+
+/// One node of the scene hierarchy: a joint, or any node above or beside joints.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Node {
+    pub name: String,
+    pub parent: Option<u32>,
+    /// Rest (non-animated) local transform.
+    pub rest: Trs,
+    /// glTF nodes given by `matrix` keep it here: their local transform is this matrix
+    /// (which may hold shear) and `rest` is ignored. Animated nodes never have one.
+    pub matrix: Option<Mat4>,
+}
+
+impl Node {
+    pub fn rest_local(&self) -> Mat4 {
+        self.matrix.unwrap_or_else(|| self.rest.to_mat4())
+    }
+}
+
+/// The node hierarchy of one file (or the demo character).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Skeleton {
+    pub nodes: Vec<Node>,
+    /// Every node index once, parents before their children.
+    pub order: Vec<u32>,
+}
+
+impl Skeleton {
+    /// Builds the hierarchy from nodes whose `parent` fields are set; checks that the parent
+    /// links form a forest (no cycle, parents in range) and computes the traversal order.
+    pub fn new(nodes: Vec<Node>) -> crate::Result<Self> {
+        let n = nodes.len();
+        let mut children: Vec<Vec<u32>> = vec![Vec::new(); n];
+        let mut roots = Vec::new();
+        for (i, node) in nodes.iter().enumerate() {
+            match node.parent {
+                None => roots.push(i as u32),
+                Some(p) if (p as usize) < n && p as usize != i => children[p as usize].push(i as u32),
+                Some(p) => {
+                    return Err(crate::Error::invalid(
+                        format!("node {i} ({:?})", node.name),
+                        format!("parent {p} is not a valid node (there are {n} nodes)"),
+                    ));
+                }
+            }
+        }
+        let mut order = Vec::with_capacity(n);
+        let mut stack: Vec<u32> = roots.into_iter().rev().collect();
+        while let Some(i) = stack.pop() {
+            order.push(i);
+            stack.extend(children[i as usize].iter().rev());
+        }
+        if order.len() != n {
+            let mut reached = vec![false; n];
+            order.iter().for_each(|&i| reached[i as usize] = true);
+            let bad = reached.iter().position(|r| !r).unwrap_or(0);
+            return Err(crate::Error::invalid(
+                format!("node {bad} ({:?})", nodes[bad].name),
+                "the node hierarchy has a cycle through this node",
+            ));
+        }
+        Ok(Skeleton { nodes, order })
+    }
+
+    /// Number of parent links from `node` up to its root.
+    pub fn depth(&self, node: u32) -> usize {
+        let mut d = 0;
+        let mut cur = self.nodes[node as usize].parent;
+        while let Some(p) = cur {
+            d += 1;
+            cur = self.nodes[p as usize].parent;
+        }
+        d
+    }
+
+    /// `node` and all its ancestors, from `node` up to the root.
+    pub fn ancestry(&self, node: u32) -> impl Iterator<Item = u32> + '_ {
+        std::iter::successors(Some(node), move |&n| self.nodes[n as usize].parent)
+    }
+}
+
+/// A skin: the joints (node indices) a mesh's JOINTS attribute refers to, and their
+/// inverse bind matrices (identity where the file gives none, as glTF specifies).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Skin {
+    pub name: String,
+    pub joints: Vec<u32>,
+    pub inverse_bind: Vec<Mat4>,
+}
+
+/// Per-vertex joint influences, `stride` (4 or 8) slots per vertex. Within a vertex the
+/// non-zero weights come first, sorted by decreasing weight, and sum to 1; unused slots
+/// have weight 0 and joint 0. Joint numbers index [`Skin::joints`].
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Influences {
+    pub stride: usize,
+    pub joints: Vec<u16>,
+    pub weights: Vec<f32>,
+}
+
+impl Influences {
+    pub fn vertex_count(&self) -> usize {
+        if self.stride == 0 { 0 } else { self.joints.len() / self.stride }
+    }
+
+    /// The non-zero influences of vertex `v` as (joint, weight) pairs.
+    pub fn of(&self, v: usize) -> impl Iterator<Item = (u16, f32)> + '_ {
+        let r = v * self.stride..(v + 1) * self.stride;
+        self.joints[r.clone()].iter().zip(&self.weights[r]).take_while(|(_, w)| **w != 0.0).map(|(j, w)| (*j, *w))
+    }
+
+    /// Number of non-zero weights of vertex `v`.
+    pub fn count(&self, v: usize) -> usize {
+        self.weights[v * self.stride..(v + 1) * self.stride].iter().take_while(|w| **w != 0.0).count()
+    }
+}
+
+/// A triangle mesh (one glTF primitive), optionally skinned.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SkinnedMesh {
+    pub positions: Vec<Vec3>,
+    /// Empty when the source has no normals.
+    pub normals: Vec<Vec3>,
+    pub triangles: Vec<[u32; 3]>,
+    /// `None` for a mesh with no JOINTS/WEIGHTS attributes.
+    pub influences: Option<Influences>,
+}
+
+/// One glTF mesh: its triangle primitives (points and lines are skipped at import).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Mesh {
+    pub name: String,
+    pub primitives: Vec<Primitive>,
+}
+
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Primitive {
+    /// Index of the primitive in the glTF mesh.
+    pub index: usize,
+    pub geometry: SkinnedMesh,
+    /// Number of morph targets in the file (loaded geometry ignores them).
+    pub morph_targets: usize,
+}
+
+/// A node that draws a mesh, with the skin that deforms it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Instance {
+    pub node: u32,
+    pub mesh: u32,
+    pub skin: Option<u32>,
+}
+
+/// Everything skinlet reads from one file.
+#[derive(Clone, Debug, Default)]
+pub struct Asset {
+    pub skeleton: Skeleton,
+    pub skins: Vec<Skin>,
+    pub meshes: Vec<Mesh>,
+    pub instances: Vec<Instance>,
+    pub clips: Vec<crate::clip::Clip>,
+    pub report: ImportReport,
+}
+
+/// What the importer changed or skipped, so nothing is hidden from the user.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ImportReport {
+    pub warnings: Vec<String>,
+    /// Vertices whose weights did not sum to 1 (beyond 1e-3) and were renormalized.
+    pub renormalized_vertices: usize,
+    /// Vertices whose weights were all zero; they were bound fully to their first joint slot.
+    pub zero_weight_vertices: usize,
+    /// Triangles with a repeated index or zero area (kept; they draw nothing).
+    pub degenerate_triangles: usize,
+}
