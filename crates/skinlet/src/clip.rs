@@ -106,10 +106,10 @@ pub struct Segment<T> {
 impl<T: Keyable> Segment<T> {
     /// Value at time `t` (clamped to the segment).
     pub fn eval(&self, t: f32) -> T {
-        if !(t > self.t0) {
+        if t <= self.t0 || t.is_nan() {
             return self.v0;
         }
-        if !(t < self.t1) {
+        if t >= self.t1 {
             return self.v1;
         }
         let dt = self.t1 - self.t0;
@@ -383,7 +383,8 @@ mod tests {
             -2.0 * s_.powi(3) + 3.0 * s_ * s_,
             s_.powi(3) - s_ * s_,
         ];
-        let v = glam::Vec4::from(Quat::IDENTITY) * h[0] + glam::Vec4::from(t) * (h[1] + h[3]) + glam::Vec4::from(q) * h[2];
+        let v =
+            glam::Vec4::from(Quat::IDENTITY) * h[0] + glam::Vec4::from(t) * (h[1] + h[3]) + glam::Vec4::from(q) * h[2];
         assert!(same_rotation(s, Quat::from_vec4(v.normalize()), 1e-7));
     }
 
@@ -393,9 +394,19 @@ mod tests {
         let node = |parent| Node { name: String::new(), parent, rest: Trs::IDENTITY, matrix: None };
         let sk = Skeleton::new(vec![node(None), node(Some(0)), node(Some(1)), node(Some(0))]).unwrap();
         let clip = Clip {
-            rotations: vec![Channel { node: 0, interpolation: Interpolation::Linear, times: vec![0.0, 2.0], values: vec![Quat::IDENTITY; 2] }],
+            rotations: vec![Channel {
+                node: 0,
+                interpolation: Interpolation::Linear,
+                times: vec![0.0, 2.0],
+                values: vec![Quat::IDENTITY; 2],
+            }],
             translations: vec![
-                Channel { node: 2, interpolation: Interpolation::Step, times: vec![0.5, 1.0], values: vec![Vec3::ZERO; 2] },
+                Channel {
+                    node: 2,
+                    interpolation: Interpolation::Step,
+                    times: vec![0.5, 1.0],
+                    values: vec![Vec3::ZERO; 2],
+                },
                 Channel { node: 3, interpolation: Interpolation::Step, times: vec![0.7], values: vec![Vec3::ZERO] },
             ],
             ..Clip::default()

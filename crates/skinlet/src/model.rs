@@ -138,7 +138,7 @@ pub struct Influences {
 
 impl Influences {
     pub fn vertex_count(&self) -> usize {
-        if self.stride == 0 { 0 } else { self.joints.len() / self.stride }
+        self.joints.len().checked_div(self.stride).unwrap_or(0)
     }
 
     /// The non-zero influences of vertex `v` as (joint, weight) pairs.

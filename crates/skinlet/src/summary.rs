@@ -12,6 +12,8 @@ pub struct Summary {
     /// Distinct joint nodes over all skins.
     pub joints: usize,
     pub vertices: usize,
+    /// Vertices left after welding equal position + skin data (see [`crate::weld`]).
+    pub welded_vertices: usize,
     pub triangles: usize,
     /// `influence_histogram[k - 1]`: skinned vertices with `k` non-zero weights (k = 1..8).
     pub influence_histogram: [usize; 8],
@@ -22,8 +24,18 @@ pub struct Summary {
 #[derive(Clone, Debug, PartialEq)]
 pub struct MeshSummary {
     pub name: String,
-    /// Per triangle primitive: (glTF primitive index, vertices, triangles, skinned, morph targets).
-    pub primitives: Vec<(usize, usize, usize, bool, usize)>,
+    pub primitives: Vec<PrimitiveSummary>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PrimitiveSummary {
+    /// Index of the primitive in the glTF mesh.
+    pub index: usize,
+    pub vertices: usize,
+    pub welded_vertices: usize,
+    pub triangles: usize,
+    pub skinned: bool,
+    pub morph_targets: usize,
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -52,6 +64,7 @@ pub struct ClipSummary {
 pub fn summarize(asset: &Asset) -> Summary {
     let mut histogram = [0usize; 8];
     let mut vertices = 0;
+    let mut welded_vertices = 0;
     let mut triangles = 0;
     let meshes = asset
         .meshes
@@ -73,7 +86,16 @@ pub fn summarize(asset: &Asset) -> Summary {
                             }
                         }
                     }
-                    (p.index, g.positions.len(), g.triangles.len(), g.influences.is_some(), p.morph_targets)
+                    let welded = crate::weld::weld(g).2.output_vertices;
+                    welded_vertices += welded;
+                    PrimitiveSummary {
+                        index: p.index,
+                        vertices: g.positions.len(),
+                        welded_vertices: welded,
+                        triangles: g.triangles.len(),
+                        skinned: g.influences.is_some(),
+                        morph_targets: p.morph_targets,
+                    }
                 })
                 .collect(),
         })
@@ -121,6 +143,7 @@ pub fn summarize(asset: &Asset) -> Summary {
         skins,
         joints: joint_nodes.len(),
         vertices,
+        welded_vertices,
         triangles,
         influence_histogram: histogram,
         instances: asset.instances.len(),

@@ -15,6 +15,11 @@ fn assets_dir() -> Option<PathBuf> {
     if dir.join("skinned").is_dir() {
         Some(dir)
     } else {
+        assert!(
+            std::env::var_os("SKINLET_REQUIRE_ASSETS").is_none(),
+            "no assets at {} but SKINLET_REQUIRE_ASSETS is set",
+            dir.display()
+        );
         eprintln!("note: no assets at {} (set SKINLET_ASSETS); skipping", dir.display());
         None
     }
@@ -95,7 +100,9 @@ fn bind_pose_reproduces_input_positions() {
 fn key_pose(asset: &Asset, clip: &Clip, t: f32) -> Vec<Trs> {
     let mut locals: Vec<Trs> = asset.skeleton.nodes.iter().map(|n| n.rest).collect();
     let at = |times: &[f32]| times.iter().position(|&x| x == t);
-    let value = |c: skinlet::clip::Interpolation, k: usize| if c == skinlet::clip::Interpolation::CubicSpline { 3 * k + 1 } else { k };
+    let value = |c: skinlet::clip::Interpolation, k: usize| {
+        if c == skinlet::clip::Interpolation::CubicSpline { 3 * k + 1 } else { k }
+    };
     for c in &clip.translations {
         if let Some(k) = at(&c.times) {
             locals[c.node as usize].translation = c.values[value(c.interpolation, k)];
@@ -120,8 +127,14 @@ fn pose_at_key_time_is_the_key_pose() {
     let mut checked = 0;
     for (name, asset) in skinned_assets() {
         for clip in &asset.clips {
-            let all = clip.translations.iter().map(|c| &c.times).chain(clip.rotations.iter().map(|c| &c.times)).chain(clip.scales.iter().map(|c| &c.times));
-            let shared: Vec<f32> = clip.key_times().into_iter().filter(|t| all.clone().all(|ts| ts.contains(t))).collect();
+            let all = clip
+                .translations
+                .iter()
+                .map(|c| &c.times)
+                .chain(clip.rotations.iter().map(|c| &c.times))
+                .chain(clip.scales.iter().map(|c| &c.times));
+            let shared: Vec<f32> =
+                clip.key_times().into_iter().filter(|t| all.clone().all(|ts| ts.contains(t))).collect();
             for &t in shared.iter().step_by(shared.len().div_ceil(5).max(1)) {
                 let mut poser = Poser::default();
                 let sampled = poser.globals(&asset.skeleton, Some(clip), t).to_vec();
@@ -170,4 +183,38 @@ fn poses_are_finite_and_continuous() {
         }
         assert!(max_step < 0.05 * size, "{name}: a vertex moved {max_step} in 1/1000 of a step (size {size})");
     }
+}
+
+/// A .gltf whose buffers live in external .bin files loads the same as with data URIs.
+#[test]
+fn external_buffers_load_like_embedded_ones() {
+    use base64::Engine as _;
+    let Some(dir) = assets_dir() else { return };
+    let text = std::fs::read_to_string(dir.join("skinned/SimpleSkin.gltf")).unwrap();
+    let tmp = std::env::temp_dir().join(format!("skinlet-ext-{}", std::process::id()));
+    std::fs::create_dir_all(tmp.join("bin files")).unwrap();
+    let mut out = String::new();
+    let mut rest = text.as_str();
+    let mut k = 0;
+    while let Some(i) = rest.find("\"data:application/gltf-buffer;base64,") {
+        out.push_str(&rest[..i]);
+        let body = &rest[i + 1..];
+        let end = body.find('"').unwrap();
+        let payload = body[..end].split_once(";base64,").unwrap().1;
+        let bytes = base64::engine::general_purpose::STANDARD.decode(payload).unwrap();
+        std::fs::write(tmp.join(format!("bin files/b{k}.bin")), bytes).unwrap();
+        out.push_str(&format!("\"bin%20files/b{k}.bin\""));
+        rest = &body[end + 1..];
+        k += 1;
+    }
+    out.push_str(rest);
+    assert!(k >= 1, "SimpleSkin.gltf has embedded buffers");
+    let path = tmp.join("SimpleSkin.gltf");
+    std::fs::write(&path, out).unwrap();
+    let external = skinlet::import::load(&path).unwrap();
+    let embedded = skinlet::import::load(&dir.join("skinned/SimpleSkin.gltf")).unwrap();
+    assert_eq!(external.meshes, embedded.meshes);
+    assert_eq!(external.clips, embedded.clips);
+    assert_eq!(external.skins, embedded.skins);
+    std::fs::remove_dir_all(&tmp).ok();
 }

@@ -1,0 +1,355 @@
+//! `skinlet`: the command-line front end. The library computes; this file talks to people
+//! (tables, `--json` for machines) and turns errors into messages and exit codes.
+
+use anyhow::{Context, Result, bail};
+use clap::{Parser, Subcommand};
+use serde_json::{Value, json};
+use skinlet::Asset;
+use skinlet::clip::Clip;
+use skinlet::demo::{DemoParams, demo_character};
+use skinlet::pose::Poser;
+use skinlet::summary::summarize;
+use std::path::Path;
+
+#[derive(Parser)]
+#[command(
+    name = "skinlet",
+    version,
+    about = "Make skinned (skeletally animated) meshes cheap to render",
+    long_about = "skinlet bakes glTF characters into GPU-ready data for culling and rendering \
+skinned meshes, and checks every guarantee it makes against reference skinning.\n\n\
+FILE arguments take .glb, .gltf or .obj files, or `@demo` (optionally `@demo:TRIANGLES`) \
+for the built-in procedural demo character.",
+    after_help = "Examples:\n  skinlet demo\n  skinlet inspect character.glb\n  skinlet inspect character.glb --json\n  skinlet pose character.glb --clip walk --time 0.5 --json > pose.json"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Show what a file holds: meshes, skins, influences, import fixes and clips.
+    ///
+    /// Counts are as stored: every glTF mesh is counted once however many nodes draw it.
+    /// The influence histogram counts vertices by their number of non-zero weights.
+    Inspect {
+        /// .glb, .gltf or .obj file, or @demo[:TRIANGLES].
+        file: String,
+        /// Print one JSON object with stable field names instead of tables.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Skin every vertex at one time of a clip and print positions and normals.
+    ///
+    /// Output is in the space glTF defines for skinned meshes: joint transforms are global
+    /// (scene) transforms and the transform of the node that draws the mesh is ignored.
+    /// One entry per skinned node and primitive, one vertex per input vertex in accessor
+    /// order (no welding). `normals` is null for primitives without normals.
+    Pose {
+        /// .glb or .gltf file, or @demo[:TRIANGLES].
+        file: String,
+        /// Clip name or index (default: the first clip). Without clips the rest pose is used.
+        #[arg(long)]
+        clip: Option<String>,
+        /// Time in seconds on the clip's own timeline (key times as stored in the file).
+        #[arg(long)]
+        time: f32,
+        /// Print JSON (the default prints a short summary per primitive).
+        #[arg(long)]
+        json: bool,
+    },
+    /// Describe the built-in demo character and pose it through each clip.
+    Demo {
+        /// Approximate triangle count (1000 to 1000000).
+        #[arg(long, default_value_t = 20_000)]
+        triangles: usize,
+        /// Seed of the procedural generator.
+        #[arg(long, default_value_t = 7)]
+        seed: u64,
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+fn main() {
+    // Die quietly when the reader of our output goes away (`skinlet inspect x.glb | head`),
+    // as Unix tools do, instead of panicking on a broken pipe.
+    #[cfg(unix)]
+    // SAFETY: restoring the default action of SIGPIPE before any thread is started.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Inspect { file, json } => inspect(&file, json),
+        Command::Pose { file, clip, time, json } => pose(&file, clip.as_deref(), time, json),
+        Command::Demo { triangles, seed, json } => demo(triangles, seed, json),
+    };
+    if let Err(e) = result {
+        eprintln!("error: {e:#}");
+        std::process::exit(2);
+    }
+}
+
+/// Loads a file, or the demo character for `@demo[:TRIANGLES]`.
+fn load(file: &str) -> Result<Asset> {
+    if let Some(rest) = file.strip_prefix("@demo") {
+        let triangles = match rest.strip_prefix(':') {
+            Some(n) => n.parse().with_context(|| format!("bad triangle count in {file:?}"))?,
+            None if rest.is_empty() => DemoParams::default().triangles,
+            None => bail!("unknown built-in {file:?} (did you mean @demo or @demo:20000?)"),
+        };
+        return Ok(demo_character(&DemoParams { triangles, ..DemoParams::default() }));
+    }
+    Ok(skinlet::import::load(Path::new(file))?)
+}
+
+fn interp_names(c: &skinlet::summary::ClipSummary) -> Vec<&'static str> {
+    c.interpolation.iter().map(|i| i.name()).collect()
+}
+
+fn inspect(file: &str, json: bool) -> Result<()> {
+    let asset = load(file)?;
+    let s = summarize(&asset);
+    let r = &asset.report;
+    if json {
+        let out = json!({
+            "file": file,
+            "vertices": s.vertices,
+            "welded_vertices": s.welded_vertices,
+            "triangles": s.triangles,
+            "joints": s.joints,
+            "instances": s.instances,
+            "meshes": s.meshes.iter().map(|m| json!({
+                "name": m.name,
+                "primitives": m.primitives.iter().map(|p| json!({
+                    "index": p.index, "vertices": p.vertices, "welded_vertices": p.welded_vertices,
+                    "triangles": p.triangles, "skinned": p.skinned, "morph_targets": p.morph_targets,
+                })).collect::<Vec<_>>(),
+            })).collect::<Vec<_>>(),
+            "skins": s.skins.iter().map(|k| json!({"name": k.name, "joints": k.joints, "depth": k.depth})).collect::<Vec<_>>(),
+            "influence_histogram": s.influence_histogram,
+            "renormalized_vertices": r.renormalized_vertices,
+            "zero_weight_vertices": r.zero_weight_vertices,
+            "degenerate_triangles": r.degenerate_triangles,
+            "warnings": r.warnings,
+            "clips": s.clips.iter().map(|c| json!({
+                "name": c.name,
+                "start": c.start,
+                "end": c.end,
+                "duration": c.duration,
+                "keys": c.keys,
+                "max_channel_keys": c.max_channel_keys,
+                "channels": {"translation": c.channels[0], "rotation": c.channels[1], "scale": c.channels[2], "weights": c.channels[3]},
+                "animated_nodes": c.animated_nodes,
+                "interpolation": interp_names(c),
+            })).collect::<Vec<_>>(),
+        });
+        println!("{}", serde_json::to_string_pretty(&out)?);
+        return Ok(());
+    }
+    println!("{file}");
+    println!(
+        "  {} vertices, {} triangles, {} joints, {} mesh instances",
+        s.vertices, s.triangles, s.joints, s.instances
+    );
+    for (i, m) in s.meshes.iter().enumerate() {
+        println!("  mesh {i} {:?}", m.name);
+        for p in &m.primitives {
+            let extra =
+                if p.morph_targets > 0 { format!(", {} morph targets", p.morph_targets) } else { String::new() };
+            println!(
+                "    primitive {}: {} vertices ({} after welding position + skin), {} triangles{}{extra}",
+                p.index,
+                p.vertices,
+                p.welded_vertices,
+                p.triangles,
+                if p.skinned { ", skinned" } else { "" }
+            );
+        }
+    }
+    for (i, k) in s.skins.iter().enumerate() {
+        println!("  skin {i} {:?}: {} joints, hierarchy depth {}", k.name, k.joints, k.depth);
+    }
+    if s.influence_histogram.iter().any(|&c| c > 0) {
+        let h: Vec<String> = s
+            .influence_histogram
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| **c > 0)
+            .map(|(k, c)| format!("{}:{c}", k + 1))
+            .collect();
+        println!("  influences per vertex (count:vertices): {}", h.join("  "));
+    }
+    println!(
+        "  weights renormalized: {} vertices; all-zero weights: {} vertices; degenerate triangles: {}",
+        r.renormalized_vertices, r.zero_weight_vertices, r.degenerate_triangles
+    );
+    if !s.clips.is_empty() {
+        println!("  clips:");
+        println!(
+            "    {:<32} {:>9} {:>9} {:>6} {:>16}  interpolation",
+            "name", "start s", "dur s", "keys", "channels T/R/S/W"
+        );
+        for (i, c) in s.clips.iter().enumerate() {
+            let name = if c.name.is_empty() { format!("(unnamed #{i})") } else { c.name.clone() };
+            let ch = format!("{}/{}/{}/{}", c.channels[0], c.channels[1], c.channels[2], c.channels[3]);
+            println!(
+                "    {:<32} {:>9.4} {:>9.4} {:>6} {:>16}  {}",
+                name,
+                c.start,
+                c.duration,
+                c.keys,
+                ch,
+                interp_names(c).join(",")
+            );
+        }
+    }
+    for w in &r.warnings {
+        println!("  warning: {w}");
+    }
+    Ok(())
+}
+
+fn find_clip<'a>(asset: &'a Asset, name: Option<&str>) -> Result<Option<&'a Clip>> {
+    let Some(name) = name else { return Ok(asset.clips.first()) };
+    if let Some(c) = asset.clips.iter().find(|c| c.name == name) {
+        return Ok(Some(c));
+    }
+    if let Ok(i) = name.parse::<usize>() {
+        if let Some(c) = asset.clips.get(i) {
+            return Ok(Some(c));
+        }
+    }
+    let names: Vec<String> = asset.clips.iter().enumerate().map(|(i, c)| format!("{i}: {:?}", c.name)).collect();
+    bail!("no clip {name:?}; the file has {}", if names.is_empty() { "no clips".into() } else { names.join(", ") })
+}
+
+fn vec3_rows(v: &[glam::Vec3]) -> Value {
+    Value::Array(v.iter().map(|p| json!([p.x, p.y, p.z])).collect())
+}
+
+fn pose(file: &str, clip: Option<&str>, time: f32, json: bool) -> Result<()> {
+    if !time.is_finite() {
+        bail!("--time must be a finite number of seconds");
+    }
+    let asset = load(file)?;
+    let clip = find_clip(&asset, clip)?;
+    let mut poser = Poser::default();
+    let mut mats = Vec::new();
+    let mut entries = Vec::new();
+    for inst in &asset.instances {
+        let Some(skin) = inst.skin else { continue };
+        poser.skinning_matrices(&asset.skeleton, &asset.skins[skin as usize], clip, time, &mut mats);
+        for prim in &asset.meshes[inst.mesh as usize].primitives {
+            let g = &prim.geometry;
+            let Some(inf) = &g.influences else { continue };
+            let mut p = vec![glam::Vec3::ZERO; g.positions.len()];
+            let mut n = vec![glam::Vec3::ZERO; g.normals.len()];
+            skinlet::skinning::skin(inf, &g.positions, &g.normals, &mats, &mut p, &mut n)?;
+            entries.push((inst.node, inst.mesh, prim.index, p, n));
+        }
+    }
+    if json {
+        let prims: Vec<Value> = entries
+            .iter()
+            .map(|(node, mesh, prim, p, n)| {
+                json!({
+                    "node": node, "mesh": mesh, "primitive": prim,
+                    "positions": vec3_rows(p),
+                    "normals": if n.is_empty() { Value::Null } else { vec3_rows(n) },
+                })
+            })
+            .collect();
+        println!(
+            "{}",
+            serde_json::to_string(&json!({ "clip": clip.map(|c| c.name.clone()), "time": time, "primitives": prims }))?
+        );
+        return Ok(());
+    }
+    let clip_name = clip.map_or("(rest pose)".to_string(), |c| format!("{:?}", c.name));
+    println!("{file}: clip {clip_name} at t = {time} s");
+    for (node, mesh, prim, p, _) in &entries {
+        let (lo, hi) = bbox(p);
+        println!("  node {node} mesh {mesh} primitive {prim}: {} vertices, bounds {lo:.4} .. {hi:.4}", p.len());
+    }
+    if entries.is_empty() {
+        println!("  no skinned mesh instances");
+    }
+    Ok(())
+}
+
+fn bbox(p: &[glam::Vec3]) -> (glam::Vec3, glam::Vec3) {
+    p.iter().fold((glam::Vec3::INFINITY, glam::Vec3::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)))
+}
+
+fn demo(triangles: usize, seed: u64, json: bool) -> Result<()> {
+    if !(100..=5_000_000).contains(&triangles) {
+        bail!("--triangles must be between 100 and 5000000");
+    }
+    let started = std::time::Instant::now();
+    let asset = demo_character(&DemoParams { seed, triangles });
+    let build_s = started.elapsed().as_secs_f64();
+    let s = summarize(&asset);
+    let skin = &asset.skins[0];
+    let prim = &asset.meshes[0].primitives[0].geometry;
+    let inf = prim.influences.as_ref().context("demo character has no skin weights")?;
+    let mut poser = Poser::default();
+    let mut mats = Vec::new();
+    let mut p = vec![glam::Vec3::ZERO; prim.positions.len()];
+    let (rest_lo, rest_hi) = bbox(&prim.positions);
+    let mut clips = Vec::new();
+    for clip in &asset.clips {
+        // Pose at 33 evenly spaced times and report the swept bounding box.
+        let (mut lo, mut hi) = (glam::Vec3::INFINITY, glam::Vec3::NEG_INFINITY);
+        for k in 0..=32 {
+            let t = clip.start + clip.duration() * k as f32 / 32.0;
+            poser.skinning_matrices(&asset.skeleton, skin, Some(clip), t, &mut mats);
+            skinlet::skinning::skin(inf, &prim.positions, &[], &mats, &mut p, &mut [])?;
+            let (a, b) = bbox(&p);
+            lo = lo.min(a);
+            hi = hi.max(b);
+        }
+        clips.push((clip, lo, hi));
+    }
+    if json {
+        let out = json!({
+            "seed": seed,
+            "vertices": s.vertices,
+            "triangles": s.triangles,
+            "joints": s.joints,
+            "influence_histogram": s.influence_histogram,
+            "build_s": build_s,
+            "clips": clips.iter().map(|(c, lo, hi)| json!({
+                "name": c.name, "duration": c.duration(), "keys": c.key_times().len(),
+                "interpolation": c.interpolations().iter().map(|i| i.name()).collect::<Vec<_>>(),
+                "swept_min": lo.to_array(), "swept_max": hi.to_array(),
+            })).collect::<Vec<_>>(),
+        });
+        println!("{}", serde_json::to_string_pretty(&out)?);
+        return Ok(());
+    }
+    println!("skinlet demo character (seed {seed}), built in {:.2} s", build_s);
+    println!(
+        "  a procedural creature: {} joints in a branching skeleton, {} vertices, {} triangles",
+        s.joints, s.vertices, s.triangles
+    );
+    let h: Vec<String> =
+        s.influence_histogram.iter().take(4).enumerate().map(|(k, c)| format!("{}:{c}", k + 1)).collect();
+    println!("  soft skinning, vertices by influence count: {}", h.join("  "));
+    println!("  rest-pose bounds {rest_lo:.3} .. {rest_hi:.3}");
+    println!("  clips (bounds swept over 33 poses per clip):");
+    for (c, lo, hi) in &clips {
+        let modes: Vec<&str> = c.interpolations().iter().map(|i| i.name()).collect();
+        println!(
+            "    {:<8} {:>5.2} s, {:>3} keys, {:<12} swept {lo:.3} .. {hi:.3}",
+            c.name,
+            c.duration(),
+            c.key_times().len(),
+            modes.join(","),
+        );
+    }
+    println!("  next: `skinlet inspect @demo`, `skinlet pose @demo --clip walk --time 0.5`");
+    Ok(())
+}

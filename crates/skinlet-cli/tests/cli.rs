@@ -1,0 +1,207 @@
+//! End-to-end tests of the `skinlet` binary. `inspect --json` is checked against the facts
+//! that ../shared/assets/SOURCES.md records for every skinned asset (measured there by an
+//! independent script), and `pose --json` against the library's reference skinning.
+
+use serde_json::Value;
+use std::path::PathBuf;
+use std::process::Command;
+
+fn assets_dir() -> Option<PathBuf> {
+    let dir = std::env::var_os("SKINLET_ASSETS")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/assets")));
+    if dir.join("SOURCES.md").is_file() {
+        Some(dir)
+    } else {
+        assert!(
+            std::env::var_os("SKINLET_REQUIRE_ASSETS").is_none(),
+            "no assets at {} but SKINLET_REQUIRE_ASSETS is set",
+            dir.display()
+        );
+        eprintln!("note: no assets at {} (set SKINLET_ASSETS); skipping", dir.display());
+        None
+    }
+}
+
+fn skinlet(args: &[&str]) -> (i32, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_skinlet")).args(args).output().unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into(),
+        String::from_utf8_lossy(&out.stderr).into(),
+    )
+}
+
+fn json_of(args: &[&str]) -> Value {
+    let (code, out, err) = skinlet(args);
+    assert_eq!(code, 0, "skinlet {args:?} failed: {err}");
+    serde_json::from_str(&out).unwrap_or_else(|e| panic!("skinlet {args:?}: bad JSON ({e}): {out}"))
+}
+
+fn num(s: &str) -> f64 {
+    s.trim().replace(',', "").parse().unwrap_or_else(|_| panic!("not a number: {s:?}"))
+}
+
+/// Facts of one file as SOURCES.md states them.
+#[derive(Debug, Default)]
+struct Facts {
+    triangles: f64,
+    joints: f64,
+    clip_count: f64,
+    vertices: f64,
+    histogram: Vec<(usize, f64)>,
+    /// name, start, duration, channels T/R/S/W, max keys
+    clips: Vec<(String, f64, f64, [f64; 4], f64)>,
+}
+
+fn parse_sources(text: &str, file: &str) -> Facts {
+    let mut f = Facts::default();
+    let row = text.lines().find(|l| l.starts_with(&format!("| skinned/{file} |"))).expect("summary row");
+    let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+    let first_word = |c: &str| num(c.split_whitespace().next().unwrap_or(""));
+    (f.triangles, f.joints, f.clip_count) = (num(cells[2]), num(cells[3]), first_word(cells[4]));
+    let section = text.split(&format!("### skinned/{file}\n")).nth(1).expect("section").split("\n### ").next().unwrap();
+    for line in section.lines() {
+        if let Some(g) = line.strip_prefix("- Geometry:") {
+            let stored = g.split(';').nth(1).unwrap();
+            f.vertices = num(stored.split("vertices").next().unwrap());
+        }
+        if let Some(h) = line.split('→').nth(1) {
+            for part in h.split(';').next().unwrap().split(',') {
+                let (k, n) = part.trim().split_once(':').unwrap();
+                f.histogram.push((k.parse().unwrap(), num(n)));
+            }
+        }
+        let c: Vec<&str> = line.split('|').map(str::trim).collect();
+        if c.len() == 8 && c[0].is_empty() && c[2].contains('–') {
+            let start = num(c[2].split('–').next().unwrap());
+            let trsw: Vec<f64> = c[4].split('(').nth(1).unwrap().trim_end_matches(')').split('/').map(num).collect();
+            let name = if c[1] == "(unnamed)" { String::new() } else { c[1].to_string() };
+            f.clips.push((name, start, num(c[3]), [trsw[0], trsw[1], trsw[2], trsw[3]], num(c[6])));
+        }
+    }
+    f
+}
+
+#[test]
+fn inspect_json_matches_sources_md() {
+    let Some(dir) = assets_dir() else { return };
+    let sources = std::fs::read_to_string(dir.join("SOURCES.md")).unwrap();
+    let mut files: Vec<String> = std::fs::read_dir(dir.join("skinned"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    files.sort();
+    assert!(files.len() >= 8);
+    for file in files {
+        let facts = parse_sources(&sources, &file);
+        let path = dir.join("skinned").join(&file);
+        let j = json_of(&["inspect", path.to_str().unwrap(), "--json"]);
+        let ctx = |what: &str| format!("{file}: {what}");
+        assert_eq!(j["triangles"].as_f64().unwrap(), facts.triangles, "{}", ctx("triangles"));
+        assert_eq!(j["vertices"].as_f64().unwrap(), facts.vertices, "{}", ctx("vertices"));
+        assert_eq!(j["joints"].as_f64().unwrap(), facts.joints, "{}", ctx("joints"));
+        let clips = j["clips"].as_array().unwrap();
+        assert_eq!(clips.len() as f64, facts.clip_count, "{}", ctx("clip count"));
+        assert_eq!(clips.len(), facts.clips.len(), "{}", ctx("clip table rows"));
+        for (c, (name, start, duration, trsw, max_keys)) in clips.iter().zip(&facts.clips) {
+            assert_eq!(c["name"].as_str().unwrap(), name, "{}", ctx("clip name"));
+            assert!((c["start"].as_f64().unwrap() - start).abs() < 1e-4, "{}", ctx("clip start"));
+            assert!((c["duration"].as_f64().unwrap() - duration).abs() < 1e-4, "{}", ctx("clip duration"));
+            let ch = &c["channels"];
+            let got = ["translation", "rotation", "scale", "weights"].map(|k| ch[k].as_f64().unwrap());
+            assert_eq!(&got, trsw, "{}", ctx("channels"));
+            assert_eq!(c["max_channel_keys"].as_f64().unwrap(), *max_keys, "{}", ctx("max keys"));
+            assert!(c["keys"].as_u64().unwrap() as f64 >= *max_keys, "{}", ctx("keys"));
+            assert_eq!(c["interpolation"], serde_json::json!(["LINEAR"]), "{}", ctx("interpolation"));
+        }
+        let hist = j["influence_histogram"].as_array().unwrap();
+        for (k, n) in &facts.histogram {
+            assert_eq!(hist[k - 1].as_f64().unwrap(), *n, "{}", ctx(&format!("vertices with {k} influences")));
+        }
+        let total: f64 = facts.histogram.iter().map(|h| h.1).sum();
+        assert_eq!(hist.iter().map(|h| h.as_f64().unwrap()).sum::<f64>(), total, "{}", ctx("histogram total"));
+    }
+}
+
+#[test]
+fn inspect_reads_static_obj() {
+    let Some(dir) = assets_dir() else { return };
+    let j = json_of(&["inspect", dir.join("static/spot.obj").to_str().unwrap(), "--json"]);
+    assert_eq!(j["triangles"], 5856);
+    assert_eq!(j["vertices"], 2930);
+    assert_eq!(j["joints"], 0);
+}
+
+#[test]
+fn pose_json_matches_library_skinning() {
+    let Some(dir) = assets_dir() else { return };
+    let path = dir.join("skinned/CesiumMan.glb");
+    let j = json_of(&["pose", path.to_str().unwrap(), "--time", "1.0", "--json"]);
+    let asset = skinlet::import::load(&path).unwrap();
+    let prims = j["primitives"].as_array().unwrap();
+    assert_eq!(prims.len(), 1);
+    let p = &prims[0];
+    let inst = asset.instances[0];
+    assert_eq!(
+        (p["node"].as_u64().unwrap(), p["mesh"].as_u64().unwrap(), p["primitive"].as_u64().unwrap()),
+        (inst.node as u64, 0, 0)
+    );
+    let g = &asset.meshes[0].primitives[0].geometry;
+    let mut mats = Vec::new();
+    skinlet::pose::Poser::default().skinning_matrices(
+        &asset.skeleton,
+        &asset.skins[0],
+        asset.clips.first(),
+        1.0,
+        &mut mats,
+    );
+    let mut out = vec![glam::Vec3::ZERO; g.positions.len()];
+    skinlet::skinning::skin(g.influences.as_ref().unwrap(), &g.positions, &[], &mats, &mut out, &mut []).unwrap();
+    let pos = p["positions"].as_array().unwrap();
+    assert_eq!(pos.len(), 3273);
+    assert_eq!(p["normals"].as_array().unwrap().len(), 3273);
+    for (a, b) in pos.iter().zip(&out) {
+        let a: Vec<f32> = a.as_array().unwrap().iter().map(|x| x.as_f64().unwrap() as f32).collect();
+        assert_eq!(a, b.to_array().to_vec(), "JSON must round-trip f32 exactly");
+    }
+    // Fox has no normals: they are null, not invented.
+    let fox =
+        json_of(&["pose", dir.join("skinned/Fox.glb").to_str().unwrap(), "--clip", "Run", "--time", "0.3", "--json"]);
+    assert!(fox["primitives"][0]["normals"].is_null());
+    assert_eq!(fox["primitives"][0]["positions"].as_array().unwrap().len(), 1728);
+}
+
+#[test]
+fn errors_are_messages_not_panics() {
+    let (code, _, err) = skinlet(&["inspect", "/nonexistent/file.glb"]);
+    assert_eq!(code, 2);
+    assert!(err.contains("cannot read /nonexistent/file.glb"), "{err}");
+    let Some(dir) = assets_dir() else { return };
+    let (code, _, err) =
+        skinlet(&["pose", dir.join("skinned/Fox.glb").to_str().unwrap(), "--clip", "Fly", "--time", "0"]);
+    assert_eq!(code, 2);
+    assert!(err.contains("no clip \"Fly\"") && err.contains("\"Survey\""), "{err}");
+}
+
+#[test]
+fn demo_runs_and_describes_the_character() {
+    let j = json_of(&["demo", "--triangles", "3000", "--json"]);
+    assert!(j["joints"].as_u64().unwrap() >= 30);
+    let tris = j["triangles"].as_f64().unwrap();
+    assert!((tris - 3000.0).abs() <= 300.0, "{tris}");
+    let modes: Vec<String> = j["clips"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|c| c["interpolation"].as_array().unwrap().iter().map(|m| m.as_str().unwrap().to_string()))
+        .collect();
+    for m in ["STEP", "LINEAR", "CUBICSPLINE"] {
+        assert!(modes.iter().any(|x| x == m), "demo lacks a {m} clip");
+    }
+    let (code, out, _) = skinlet(&["demo", "--triangles", "2000"]);
+    assert_eq!(code, 0);
+    assert!(out.contains("joints") && out.contains("walk"), "{out}");
+    let j = json_of(&["inspect", "@demo:2000", "--json"]);
+    assert!(j["joints"].as_u64().unwrap() >= 30);
+}
