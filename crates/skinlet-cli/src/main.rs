@@ -7,6 +7,7 @@ use serde_json::{Value, json};
 use skinlet::Asset;
 use skinlet::clip::Clip;
 use skinlet::demo::{DemoParams, demo_character};
+use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::Poser;
 use skinlet::summary::summarize;
 use std::path::Path;
@@ -59,6 +60,32 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Split a character into meshlets with one or all builders and compare them.
+    ///
+    /// All primitives drawn with the first skin (or, for static meshes, all of them) are
+    /// merged, welded (equal position + skin data) and vertex-cache ordered, then split.
+    /// Builders: scan (index order, thesis listing 4.1), common-influences (per shared joint
+    /// set, thesis listing 4.2), meshopt (meshoptimizer's greedy builder), skin-aware (ours:
+    /// meshlets that move with one joint). Columns: meshlet count, average vertices and
+    /// triangles, vertex references per unique vertex, % meshlets whose vertices share one
+    /// joint set, % with one joint carrying >= 0.9 of the weight, bytes of meshlet data +
+    /// vertices (slim vertices where possible; fat in parentheses), % backface-culled by
+    /// meshoptimizer's cone from 6 axis views in the rest pose, build time.
+    Meshlets {
+        /// .glb, .gltf or .obj file, or @demo[:TRIANGLES].
+        file: String,
+        #[arg(long, default_value = "all", value_parser = ["scan", "common-influences", "meshopt", "skin-aware", "all"])]
+        builder: String,
+        /// At most this many vertices per meshlet (<= 256).
+        #[arg(long, default_value_t = 64)]
+        max_vertices: usize,
+        /// At most this many triangles per meshlet (<= 512, a multiple of 4).
+        #[arg(long, default_value_t = 124)]
+        max_triangles: usize,
+        /// Print a JSON array, one object per builder.
+        #[arg(long)]
+        json: bool,
+    },
     /// Describe the built-in demo character and pose it through each clip.
     Demo {
         /// Approximate triangle count (1000 to 1000000).
@@ -84,6 +111,9 @@ fn main() {
     let result = match cli.command {
         Command::Inspect { file, json } => inspect(&file, json),
         Command::Pose { file, clip, time, json } => pose(&file, clip.as_deref(), time, json),
+        Command::Meshlets { file, builder, max_vertices, max_triangles, json } => {
+            meshlets(&file, &builder, MeshletLimits { max_vertices, max_triangles }, json)
+        }
         Command::Demo { triangles, seed, json } => demo(triangles, seed, json),
     };
     if let Err(e) = result {
@@ -217,10 +247,8 @@ fn find_clip<'a>(asset: &'a Asset, name: Option<&str>) -> Result<Option<&'a Clip
     if let Some(c) = asset.clips.iter().find(|c| c.name == name) {
         return Ok(Some(c));
     }
-    if let Ok(i) = name.parse::<usize>() {
-        if let Some(c) = asset.clips.get(i) {
-            return Ok(Some(c));
-        }
+    if let Some(c) = name.parse::<usize>().ok().and_then(|i| asset.clips.get(i)) {
+        return Ok(Some(c));
     }
     let names: Vec<String> = asset.clips.iter().enumerate().map(|(i, c)| format!("{i}: {:?}", c.name)).collect();
     bail!("no clip {name:?}; the file has {}", if names.is_empty() { "no clips".into() } else { names.join(", ") })
@@ -351,5 +379,71 @@ fn demo(triangles: usize, seed: u64, json: bool) -> Result<()> {
         );
     }
     println!("  next: `skinlet inspect @demo`, `skinlet pose @demo --clip walk --time 0.5`");
+    Ok(())
+}
+
+fn meshlets(file: &str, builder: &str, limits: MeshletLimits, json: bool) -> Result<()> {
+    let asset = load(file)?;
+    let skin = asset.instances.iter().find_map(|i| i.skin);
+    let mesh = asset.combined_mesh(skin);
+    if mesh.triangles.is_empty() {
+        bail!("{file} has no triangles to split");
+    }
+    let prepared = skinlet::meshlet::prepare(&mesh);
+    let builders: Vec<Builder> = match Builder::from_name(builder) {
+        Some(b) => vec![b],
+        None => Builder::ALL.to_vec(),
+    };
+    let mut rows = Vec::new();
+    for b in builders {
+        let started = std::time::Instant::now();
+        let m = skinlet::meshlet::build(&prepared, b, limits)?;
+        let build_ms = started.elapsed().as_secs_f64() * 1e3;
+        m.validate(&prepared.mesh.triangles, limits)?;
+        rows.push((b, skinlet::meshlet::stats::compute(&prepared.mesh, &m), build_ms));
+    }
+    if json {
+        let out: Vec<Value> = rows
+            .iter()
+            .map(|(b, s, ms)| {
+                json!({
+                    "builder": b.name(), "meshlets": s.meshlets, "avg_vertices": s.avg_vertices,
+                    "avg_triangles": s.avg_triangles, "vertex_refs_ratio": s.vertex_refs_ratio,
+                    "single_joint_set_pct": s.single_joint_set_pct, "dominant_joint_pct": s.dominant_joint_pct,
+                    "bytes": s.bytes, "bytes_fat": s.bytes_fat, "cone_cull_pct": s.cone_cull_pct, "build_ms": ms,
+                })
+            })
+            .collect();
+        println!("{}", serde_json::to_string_pretty(&out)?);
+        return Ok(());
+    }
+    let w = &prepared.weld;
+    println!(
+        "{file}: {} triangles, {} vertices ({} after welding), limits {}/{}",
+        prepared.mesh.triangles.len(),
+        w.input_vertices,
+        w.output_vertices,
+        limits.max_vertices,
+        limits.max_triangles
+    );
+    println!(
+        "  {:<18} {:>8} {:>7} {:>7} {:>6} {:>9} {:>9} {:>22} {:>8} {:>9}",
+        "builder", "meshlets", "avg v", "avg t", "refs", "1 set %", "dom. %", "bytes slim (fat)", "cone %", "build ms"
+    );
+    for (b, s, ms) in &rows {
+        println!(
+            "  {:<18} {:>8} {:>7.1} {:>7.1} {:>6.2} {:>9.1} {:>9.1} {:>22} {:>8.1} {:>9.1}",
+            b.name(),
+            s.meshlets,
+            s.avg_vertices,
+            s.avg_triangles,
+            s.vertex_refs_ratio,
+            s.single_joint_set_pct,
+            s.dominant_joint_pct,
+            format!("{} ({})", s.bytes, s.bytes_fat),
+            s.cone_cull_pct,
+            ms
+        );
+    }
     Ok(())
 }

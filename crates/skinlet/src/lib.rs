@@ -6,6 +6,7 @@
 //! - [`pose`]: global transforms and skinning matrices.
 //! - [`skinning`]: reference linear blend skinning (the ground truth of every bound).
 //! - [`import`]: glTF 2.0 and OBJ loading with errors that say what and where.
+//! - [`meshlet`]: meshlet layout, four builders (incl. skin-aware), flat GPU form, metrics.
 //! - [`weld`]: merging vertices that are equal in position and skin data.
 //! - [`summary`]: the facts `skinlet inspect` reports.
 //! - [`demo`]: the built-in procedural demo character.
@@ -14,6 +15,7 @@ pub mod clip;
 pub mod demo;
 pub mod error;
 pub mod import;
+pub mod meshlet;
 pub mod model;
 pub mod pose;
 pub mod skinning;

@@ -210,3 +210,49 @@ pub struct ImportReport {
     /// Triangles with a repeated index or zero area (kept; they draw nothing).
     pub degenerate_triangles: usize,
 }
+
+/// Merged copy of several meshes (indices offset), e.g. every primitive drawn with one skin.
+pub fn concat(meshes: &[&SkinnedMesh]) -> SkinnedMesh {
+    let mut out = SkinnedMesh::default();
+    let stride = meshes.iter().filter_map(|m| m.influences.as_ref().map(|i| i.stride)).max();
+    let with_normals = meshes.iter().all(|m| !m.normals.is_empty());
+    let mut inf = stride.map(|stride| Influences { stride, joints: Vec::new(), weights: Vec::new() });
+    for m in meshes {
+        let base = out.positions.len() as u32;
+        out.positions.extend_from_slice(&m.positions);
+        if with_normals {
+            out.normals.extend_from_slice(&m.normals);
+        }
+        out.triangles.extend(m.triangles.iter().map(|t| t.map(|i| i + base)));
+        if let Some(dst) = &mut inf {
+            for v in 0..m.positions.len() {
+                let src = m.influences.as_ref();
+                for k in 0..dst.stride {
+                    let (j, w) = src
+                        .and_then(|s| (k < s.stride).then(|| (s.joints[v * s.stride + k], s.weights[v * s.stride + k])))
+                        .unwrap_or((0, 0.0));
+                    dst.joints.push(j);
+                    dst.weights.push(w);
+                }
+            }
+        }
+    }
+    out.influences = inf;
+    out
+}
+
+impl Asset {
+    /// Every triangle primitive drawn with skin `skin` (or, for `None`, every primitive of
+    /// every instance without a skin) merged into one mesh; each glTF mesh counted once.
+    pub fn combined_mesh(&self, skin: Option<u32>) -> SkinnedMesh {
+        let mut meshes: Vec<u32> = self.instances.iter().filter(|i| i.skin == skin).map(|i| i.mesh).collect();
+        meshes.sort_unstable();
+        meshes.dedup();
+        let parts: Vec<&SkinnedMesh> = meshes
+            .iter()
+            .flat_map(|&m| self.meshes[m as usize].primitives.iter().map(|p| &p.geometry))
+            .filter(|g| skin.is_none() || g.influences.is_some())
+            .collect();
+        concat(&parts)
+    }
+}

@@ -1,0 +1,290 @@
+//! Meshlets: small clusters of triangles (at most `max_vertices` vertices and
+//! `max_triangles` triangles) with a local vertex list and local u8 triangle indices, the
+//! unit of mesh-shader rendering and of skinlet's culling.
+//!
+//! Four builders share one layout ([`Meshlets`]) and one entry point ([`build`]):
+//! [`scan`] (thesis listing 4.1), [`common_influences`] (thesis listing 4.2 / A.2),
+//! [`greedy`] (meshoptimizer's builder) and [`skin_aware`] (ours). Every builder works on a
+//! [`prepare`]d mesh (welded, vertex-cache ordered). Every meshlet whose vertices all have
+//! the same set of influencing joints carries that set once ([`Meshlet::joint_count`] > 0),
+//! so those vertices can use a slim format without joint IDs (thesis section 3.1.1).
+//!
+//! Guarantee (checked by [`Meshlets::validate`] and the tests): every triangle of the
+//! prepared mesh is in exactly one meshlet, with its winding, and no limit is exceeded.
+
+pub mod common_influences;
+pub mod flat;
+pub mod greedy;
+pub mod prepare;
+pub mod scan;
+pub mod skin_aware;
+pub mod stats;
+
+pub use prepare::{PreparedMesh, prepare};
+
+use crate::model::Influences;
+use crate::{Error, Result};
+
+/// Size limits of one meshlet.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MeshletLimits {
+    pub max_vertices: usize,
+    pub max_triangles: usize,
+}
+
+impl MeshletLimits {
+    /// NVIDIA's recommendation (64 vertices, 126 triangles), rounded to 124 triangles as
+    /// meshoptimizer requires a multiple of 4.
+    pub const NVIDIA: MeshletLimits = MeshletLimits { max_vertices: 64, max_triangles: 124 };
+    /// Common on AMD RDNA and in UE5 Nanite-style renderers.
+    pub const LARGE: MeshletLimits = MeshletLimits { max_vertices: 128, max_triangles: 256 };
+    /// Small square meshlets (e.g. Apple / mobile mesh shading).
+    pub const SMALL: MeshletLimits = MeshletLimits { max_vertices: 64, max_triangles: 64 };
+
+    pub fn check(&self) -> Result<()> {
+        if !(3..=256).contains(&self.max_vertices) || !(1..=512).contains(&self.max_triangles) {
+            return Err(Error::invalid(
+                "meshlet limits",
+                format!(
+                    "{} vertices / {} triangles: need 3..=256 vertices and 1..=512 triangles",
+                    self.max_vertices, self.max_triangles
+                ),
+            ));
+        }
+        if !self.max_triangles.is_multiple_of(4) {
+            return Err(Error::invalid(
+                "meshlet limits",
+                format!("max triangles {} must be a multiple of 4 (meshoptimizer requires it)", self.max_triangles),
+            ));
+        }
+        Ok(())
+    }
+}
+
+impl Default for MeshletLimits {
+    fn default() -> Self {
+        MeshletLimits::NVIDIA
+    }
+}
+
+/// One meshlet: ranges into [`Meshlets::vertices`], [`Meshlets::triangles`] (3 bytes per
+/// triangle) and [`Meshlets::joints`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Meshlet {
+    pub vertex_offset: u32,
+    pub triangle_offset: u32,
+    pub joint_offset: u32,
+    pub vertex_count: u16,
+    pub triangle_count: u16,
+    /// Number of joints shared by every vertex of the meshlet; 0 when they differ.
+    pub joint_count: u16,
+}
+
+impl Meshlet {
+    /// True when all vertices have the same joint set (the thesis' "optimal" meshlet).
+    pub fn single_joint_set(&self) -> bool {
+        self.joint_count > 0
+    }
+}
+
+/// A mesh split into meshlets.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Meshlets {
+    pub meshlets: Vec<Meshlet>,
+    /// Mesh vertex index of each meshlet-local vertex.
+    pub vertices: Vec<u32>,
+    /// Local vertex indices, three per triangle.
+    pub triangles: Vec<u8>,
+    /// Shared joint sets (ascending joint numbers) of single-joint-set meshlets.
+    pub joints: Vec<u16>,
+}
+
+impl Meshlets {
+    pub fn len(&self) -> usize {
+        self.meshlets.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.meshlets.is_empty()
+    }
+
+    pub fn vertices_of(&self, m: &Meshlet) -> &[u32] {
+        &self.vertices[m.vertex_offset as usize..m.vertex_offset as usize + m.vertex_count as usize]
+    }
+
+    pub fn triangles_of(&self, m: &Meshlet) -> &[u8] {
+        &self.triangles[m.triangle_offset as usize..m.triangle_offset as usize + 3 * m.triangle_count as usize]
+    }
+
+    pub fn joints_of(&self, m: &Meshlet) -> &[u16] {
+        &self.joints[m.joint_offset as usize..m.joint_offset as usize + m.joint_count as usize]
+    }
+
+    /// The meshlet's triangles as mesh vertex indices.
+    pub fn mesh_triangles<'a>(&'a self, m: &'a Meshlet) -> impl Iterator<Item = [u32; 3]> + 'a {
+        let v = self.vertices_of(m);
+        self.triangles_of(m).chunks_exact(3).map(move |t| [v[t[0] as usize], v[t[1] as usize], v[t[2] as usize]])
+    }
+
+    /// Appends a meshlet given its local vertices and local triangles.
+    pub fn push(&mut self, vertices: &[u32], triangles: &[u8]) {
+        self.meshlets.push(Meshlet {
+            vertex_offset: self.vertices.len() as u32,
+            triangle_offset: self.triangles.len() as u32,
+            joint_offset: self.joints.len() as u32,
+            vertex_count: vertices.len() as u16,
+            triangle_count: (triangles.len() / 3) as u16,
+            joint_count: 0,
+        });
+        self.vertices.extend_from_slice(vertices);
+        self.triangles.extend_from_slice(triangles);
+    }
+
+    /// Checks the guarantee: limits kept, local indices in range, and the meshlets' triangles
+    /// are exactly `triangles` (each once, same winding up to rotation).
+    pub fn validate(&self, triangles: &[[u32; 3]], limits: MeshletLimits) -> Result<()> {
+        let fail = |i: usize, msg: String| Err(Error::invalid(format!("meshlet {i}"), msg));
+        let mut got: Vec<[u32; 3]> = Vec::with_capacity(triangles.len());
+        for (i, m) in self.meshlets.iter().enumerate() {
+            if m.vertex_count as usize > limits.max_vertices || m.triangle_count as usize > limits.max_triangles {
+                return fail(
+                    i,
+                    format!("{} vertices / {} triangles exceed the limits", m.vertex_count, m.triangle_count),
+                );
+            }
+            if m.triangle_count == 0 {
+                return fail(i, "is empty".into());
+            }
+            if self.triangles_of(m).iter().any(|&t| t as u16 >= m.vertex_count) {
+                return fail(i, "local index out of range".into());
+            }
+            got.extend(self.mesh_triangles(m).map(canonical));
+        }
+        let mut want: Vec<[u32; 3]> = triangles.iter().copied().map(canonical).collect();
+        got.sort_unstable();
+        want.sort_unstable();
+        if got != want {
+            return Err(Error::invalid("meshlets", "the meshlets' triangles differ from the mesh's"));
+        }
+        Ok(())
+    }
+}
+
+/// A triangle rotated so its smallest index comes first (winding kept).
+pub fn canonical(t: [u32; 3]) -> [u32; 3] {
+    let k = (0..3).min_by_key(|&k| t[k]).unwrap_or(0);
+    [t[k], t[(k + 1) % 3], t[(k + 2) % 3]]
+}
+
+/// Which meshlet builder to use.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Builder {
+    Scan,
+    CommonInfluences,
+    Meshopt,
+    SkinAware,
+}
+
+impl Builder {
+    pub const ALL: [Builder; 4] = [Builder::Scan, Builder::CommonInfluences, Builder::Meshopt, Builder::SkinAware];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Builder::Scan => "scan",
+            Builder::CommonInfluences => "common-influences",
+            Builder::Meshopt => "meshopt",
+            Builder::SkinAware => "skin-aware",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<Builder> {
+        Builder::ALL.into_iter().find(|b| b.name() == name)
+    }
+}
+
+/// Splits a prepared mesh into meshlets with the chosen builder and records shared joint sets.
+pub fn build(prepared: &PreparedMesh, builder: Builder, limits: MeshletLimits) -> Result<Meshlets> {
+    limits.check()?;
+    let mesh = &prepared.mesh;
+    let mut meshlets = match builder {
+        Builder::Scan => scan::build(&mesh.triangles, mesh.positions.len(), limits),
+        Builder::CommonInfluences => common_influences::build(mesh, limits),
+        Builder::Meshopt => greedy::build(&mesh.triangles, &mesh.positions, limits, greedy::CONE_WEIGHT),
+        Builder::SkinAware => skin_aware::build(mesh, limits, &skin_aware::Params::default()),
+    };
+    if let Some(inf) = &mesh.influences {
+        annotate_joint_sets(&mut meshlets, inf);
+    }
+    Ok(meshlets)
+}
+
+/// Sorted non-zero joints of vertex `v`.
+pub fn joint_set(inf: &Influences, v: usize) -> Vec<u16> {
+    let mut s: Vec<u16> = inf.of(v).map(|(j, _)| j).collect();
+    s.sort_unstable();
+    s
+}
+
+/// Sets `joint_count`/`joint_offset` of every meshlet whose vertices share one joint set.
+pub fn annotate_joint_sets(meshlets: &mut Meshlets, inf: &Influences) {
+    meshlets.joints.clear();
+    for i in 0..meshlets.meshlets.len() {
+        let m = meshlets.meshlets[i];
+        let verts = meshlets.vertices_of(&m);
+        let first = joint_set(inf, verts[0] as usize);
+        let shared = verts.iter().all(|&v| joint_set(inf, v as usize) == first);
+        let m = &mut meshlets.meshlets[i];
+        m.joint_offset = meshlets.joints.len() as u32;
+        m.joint_count = if shared { first.len() as u16 } else { 0 };
+        if shared {
+            meshlets.joints.extend_from_slice(&first);
+        }
+    }
+}
+
+/// Local packing shared by the scan-style builders: adds triangles in order, closing the
+/// current meshlet when the next triangle would exceed a limit.
+pub(crate) struct Packer {
+    limits: MeshletLimits,
+    local: Vec<u16>,
+    verts: Vec<u32>,
+    tris: Vec<u8>,
+}
+
+impl Packer {
+    const NONE: u16 = u16::MAX;
+
+    pub(crate) fn new(vertex_count: usize, limits: MeshletLimits) -> Packer {
+        Packer { limits, local: vec![Self::NONE; vertex_count], verts: Vec::new(), tris: Vec::new() }
+    }
+
+    pub(crate) fn add(&mut self, t: [u32; 3], out: &mut Meshlets) {
+        let new = t
+            .iter()
+            .enumerate()
+            .filter(|&(k, &v)| self.local[v as usize] == Self::NONE && !t[..k].contains(&v))
+            .count();
+        if self.verts.len() + new > self.limits.max_vertices || self.tris.len() / 3 >= self.limits.max_triangles {
+            self.flush(out);
+        }
+        for v in t {
+            if self.local[v as usize] == Self::NONE {
+                self.local[v as usize] = self.verts.len() as u16;
+                self.verts.push(v);
+            }
+            self.tris.push(self.local[v as usize] as u8);
+        }
+    }
+
+    pub(crate) fn flush(&mut self, out: &mut Meshlets) {
+        if self.tris.is_empty() {
+            return;
+        }
+        out.push(&self.verts, &self.tris);
+        for &v in &self.verts {
+            self.local[v as usize] = Self::NONE;
+        }
+        self.verts.clear();
+        self.tris.clear();
+    }
+}
