@@ -431,8 +431,9 @@ mod tests {
         #[test]
         fn linear_rotation_equals_slerp(a in unit_quat(), b in unit_quat(), s in 0f32..=1.0, t0 in -5f32..5.0, dt in 0.01f32..3.0) {
             let c = ch(Interpolation::Linear, vec![t0, t0 + dt], vec![a, b]);
-            let t = t0 + s * dt;
-            let s_eff = ((t - t0) / dt).clamp(0.0, 1.0) as f64;
+            let (t, t1) = (t0 + s * dt, t0 + dt);
+            // The interpolation parameter as the stored key times define it.
+            let s_eff = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0) as f64;
             let (da, mut db) = (a.as_dquat().normalize(), b.as_dquat().normalize());
             if da.dot(db) < 0.0 { db = -db; }
             let (axis, angle) = (da.inverse() * db).normalize().to_axis_angle();

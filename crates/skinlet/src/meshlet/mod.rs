@@ -288,3 +288,134 @@ impl Packer {
         self.tris.clear();
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::SkinnedMesh;
+    use glam::Vec3;
+    use proptest::prelude::*;
+
+    /// A random skinned triangle soup: arbitrary connectivity (also non-manifold and
+    /// repeated triangles), 1–4 influences per vertex over `joints` joints.
+    fn random_mesh(seed: u64, vertices: usize, triangles: usize, joints: u16) -> SkinnedMesh {
+        let mut s = seed | 1;
+        let mut next = move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            s
+        };
+        let positions: Vec<Vec3> =
+            (0..vertices).map(|_| Vec3::new(next() as f32, next() as f32, next() as f32) / u64::MAX as f32).collect();
+        let tris = (0..triangles)
+            .map(|_| {
+                let a = (next() % vertices as u64) as u32;
+                // Mostly local triangles, like real meshes, plus some long ones.
+                let near = |x: u64| ((a as u64 + x % 16) % vertices as u64) as u32;
+                let (b, c) = if next() % 8 == 0 {
+                    ((next() % vertices as u64) as u32, (next() % vertices as u64) as u32)
+                } else {
+                    (near(1 + next()), near(1 + next()))
+                };
+                [a, b, c]
+            })
+            .filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
+            .collect();
+        let mut inf = Influences { stride: 4, joints: vec![0; 4 * vertices], weights: vec![0.0; 4 * vertices] };
+        for v in 0..vertices {
+            let k = 1 + (next() % 4) as usize;
+            let base = (v * joints as usize / vertices) as u16;
+            let mut w: Vec<f32> = (0..k).map(|i| 1.0 / (i + 1) as f32).collect();
+            let sum: f32 = w.iter().sum();
+            w.iter_mut().for_each(|x| *x /= sum);
+            for i in 0..k {
+                inf.joints[4 * v + i] = (base + i as u16 * (1 + (next() % 2) as u16)) % joints;
+                inf.weights[4 * v + i] = w[i];
+            }
+            // Joints must be distinct within a vertex.
+            let js = &mut inf.joints[4 * v..4 * v + k];
+            let mut seen = Vec::new();
+            for j in js.iter_mut() {
+                while seen.contains(j) {
+                    *j = (*j + 1) % joints;
+                }
+                seen.push(*j);
+            }
+        }
+        SkinnedMesh { positions, normals: Vec::new(), triangles: tris, influences: Some(inf) }
+    }
+
+    fn check_all_builders(mesh: &SkinnedMesh, limits: MeshletLimits) {
+        let prepared = prepare(mesh);
+        for b in Builder::ALL {
+            let m = build(&prepared, b, limits).unwrap();
+            m.validate(&prepared.mesh.triangles, limits).unwrap_or_else(|e| panic!("{}: {e}", b.name()));
+            let inf = prepared.mesh.influences.as_ref().unwrap();
+            for h in &m.meshlets {
+                if h.single_joint_set() {
+                    assert!(m.vertices_of(h).iter().all(|&v| joint_set(inf, v as usize) == m.joints_of(h)));
+                }
+            }
+            assert_eq!(flat::from_bytes(&flat::to_bytes(&m)).unwrap(), m, "{}: flat layout round trip", b.name());
+            assert_eq!(flat::to_bytes(&m).len(), flat::byte_len(&m));
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
+        #[test]
+        fn every_builder_is_valid_on_random_meshes(
+            seed in any::<u64>(),
+            vertices in 3usize..3000,
+            tri_factor in 1usize..4,
+            joints in 1u16..40,
+            limits in prop_oneof![
+                Just(MeshletLimits::NVIDIA), Just(MeshletLimits::LARGE), Just(MeshletLimits::SMALL),
+                (3usize..=256, 1usize..=128).prop_map(|(v, t)| MeshletLimits { max_vertices: v, max_triangles: 4 * t }),
+            ],
+        ) {
+            check_all_builders(&random_mesh(seed, vertices, vertices * tri_factor, joints), limits);
+        }
+    }
+
+    #[test]
+    fn welding_and_degenerate_triangles_are_handled() {
+        // Two triangles sharing an edge through duplicated vertices, plus a degenerate one.
+        let p = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::X, Vec3::Y, Vec3::ONE];
+        let inf = Influences { stride: 4, joints: vec![0; 24], weights: [1.0, 0.0, 0.0, 0.0].repeat(6) };
+        let mesh = SkinnedMesh {
+            positions: p.to_vec(),
+            normals: Vec::new(),
+            triangles: vec![[0, 1, 2], [3, 5, 4], [0, 0, 1]],
+            influences: Some(inf),
+        };
+        let prepared = prepare(&mesh);
+        assert_eq!(prepared.weld.output_vertices, 4);
+        assert_eq!(prepared.dropped_triangles, 1);
+        for b in Builder::ALL {
+            let m = build(&prepared, b, MeshletLimits::NVIDIA).unwrap();
+            assert_eq!(m.len(), 1);
+            assert!(m.meshlets[0].single_joint_set());
+            assert_eq!(m.joints, vec![0]);
+        }
+    }
+
+    #[test]
+    fn bad_limits_and_corrupt_flat_buffers_are_errors() {
+        let prepared = prepare(&random_mesh(3, 100, 200, 4));
+        for limits in [
+            MeshletLimits { max_vertices: 300, max_triangles: 124 },
+            MeshletLimits { max_vertices: 64, max_triangles: 126 },
+        ] {
+            assert!(build(&prepared, Builder::Scan, limits).is_err());
+        }
+        let bytes = flat::to_bytes(&build(&prepared, Builder::Meshopt, MeshletLimits::NVIDIA).unwrap());
+        for cut in [0, 3, 16, bytes.len() - 1] {
+            assert!(flat::from_bytes(&bytes[..cut]).is_err());
+        }
+        let mut bad = bytes.clone();
+        bad[16..20].copy_from_slice(&u32::MAX.to_le_bytes()); // first meshlet's vertex offset
+        assert!(flat::from_bytes(&bad).unwrap_err().to_string().contains("meshlet 0"));
+    }
+}

@@ -1,0 +1,70 @@
+//! Meshlet builders on the real assets: validity for every builder and limit preset, and
+//! the targets on Xbot.glb (meshoptimizer parity, skin-aware rigidity at small cost).
+
+use skinlet::meshlet::{Builder, MeshletLimits, build, flat, prepare, stats};
+use std::path::PathBuf;
+
+fn assets_dir() -> Option<PathBuf> {
+    let dir = std::env::var_os("SKINLET_ASSETS")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/assets")));
+    if dir.join("skinned").is_dir() {
+        return Some(dir);
+    }
+    assert!(std::env::var_os("SKINLET_REQUIRE_ASSETS").is_none(), "no assets at {}", dir.display());
+    eprintln!("note: no assets at {} (set SKINLET_ASSETS); skipping", dir.display());
+    None
+}
+
+fn files(dir: &std::path::Path) -> Vec<PathBuf> {
+    let mut f: Vec<PathBuf> = ["skinned", "static"]
+        .iter()
+        .flat_map(|d| std::fs::read_dir(dir.join(d)).unwrap().map(|e| e.unwrap().path()))
+        .collect();
+    f.sort();
+    f
+}
+
+#[test]
+fn every_builder_is_valid_on_every_asset() {
+    let Some(dir) = assets_dir() else { return };
+    for path in files(&dir) {
+        let asset = skinlet::import::load(&path).unwrap();
+        let skin = asset.instances.iter().find_map(|i| i.skin);
+        let prepared = prepare(&asset.combined_mesh(skin));
+        assert!(!prepared.mesh.triangles.is_empty(), "{}", path.display());
+        for limits in [MeshletLimits::NVIDIA, MeshletLimits::LARGE, MeshletLimits::SMALL] {
+            for b in Builder::ALL {
+                let m = build(&prepared, b, limits).unwrap();
+                m.validate(&prepared.mesh.triangles, limits)
+                    .unwrap_or_else(|e| panic!("{} {} {limits:?}: {e}", path.display(), b.name()));
+                assert_eq!(flat::from_bytes(&flat::to_bytes(&m)).unwrap(), m);
+            }
+        }
+    }
+}
+
+#[test]
+fn xbot_meshopt_parity_and_skin_aware_targets() {
+    let Some(dir) = assets_dir() else { return };
+    let asset = skinlet::import::load(&dir.join("skinned/Xbot.glb")).unwrap();
+    let prepared = prepare(&asset.combined_mesh(Some(0)));
+    let limits = MeshletLimits { max_vertices: 64, max_triangles: 124 };
+    let ours = build(&prepared, Builder::Meshopt, limits).unwrap();
+    // meshoptimizer called directly on the same prepared index buffer.
+    let indices: Vec<u32> = prepared.mesh.triangles.iter().flatten().copied().collect();
+    let bytes = meshopt::typed_to_bytes(&prepared.mesh.positions);
+    let adapter = meshopt::VertexDataAdapter::new(bytes, 12, 0).unwrap();
+    let direct = meshopt::build_meshlets(&indices, &adapter, 64, 124, 0.25).len();
+    let ratio = ours.len() as f64 / direct as f64;
+    assert!((ratio - 1.0).abs() <= 0.02, "meshopt builder {} vs meshoptimizer {direct}", ours.len());
+
+    let skin_aware = build(&prepared, Builder::SkinAware, limits).unwrap();
+    let (so, ss) = (stats::compute(&prepared.mesh, &ours), stats::compute(&prepared.mesh, &skin_aware));
+    eprintln!(
+        "meshopt {} meshlets {:.1}% dominant; skin-aware {} meshlets {:.1}% dominant",
+        so.meshlets, so.dominant_joint_pct, ss.meshlets, ss.dominant_joint_pct
+    );
+    assert!(ss.dominant_joint_pct > so.dominant_joint_pct, "skin-aware must be more rigid than meshopt");
+    assert!(ss.meshlets as f64 <= 1.15 * so.meshlets as f64, "skin-aware uses too many meshlets");
+}
