@@ -70,7 +70,10 @@ enum Command {
     /// triangles, vertex references per unique vertex, % meshlets whose vertices share one
     /// joint set, % with one joint carrying >= 0.9 of the weight, bytes of meshlet data +
     /// vertices (slim vertices where possible; fat in parentheses), % backface-culled by
-    /// meshoptimizer's cone from 6 axis views in the rest pose, build time.
+    /// meshoptimizer's cone from 6 axis views in the rest pose, build time, and "anim r": the
+    /// mean over meshlets of the radius their vertices sweep in the principal joint's space
+    /// over 32 sampled poses per clip, divided by the rest radius (a sampled preview of how
+    /// tight animated bounds can get; 1.0 = rigid).
     Meshlets {
         /// .glb, .gltf or .obj file, or @demo[:TRIANGLES].
         file: String,
@@ -390,6 +393,7 @@ fn meshlets(file: &str, builder: &str, limits: MeshletLimits, json: bool) -> Res
         bail!("{file} has no triangles to split");
     }
     let prepared = skinlet::meshlet::prepare(&mesh);
+    let poses = clip_poses(&asset, skin, 32);
     let builders: Vec<Builder> = match Builder::from_name(builder) {
         Some(b) => vec![b],
         None => Builder::ALL.to_vec(),
@@ -400,17 +404,19 @@ fn meshlets(file: &str, builder: &str, limits: MeshletLimits, json: bool) -> Res
         let m = skinlet::meshlet::build(&prepared, b, limits)?;
         let build_ms = started.elapsed().as_secs_f64() * 1e3;
         m.validate(&prepared.mesh.triangles, limits)?;
-        rows.push((b, skinlet::meshlet::stats::compute(&prepared.mesh, &m), build_ms));
+        let spread = skinlet::meshlet::stats::animated_radius_ratio(&prepared.mesh, &m, &poses);
+        rows.push((b, skinlet::meshlet::stats::compute(&prepared.mesh, &m), build_ms, spread));
     }
     if json {
         let out: Vec<Value> = rows
             .iter()
-            .map(|(b, s, ms)| {
+            .map(|(b, s, ms, spread)| {
                 json!({
                     "builder": b.name(), "meshlets": s.meshlets, "avg_vertices": s.avg_vertices,
                     "avg_triangles": s.avg_triangles, "vertex_refs_ratio": s.vertex_refs_ratio,
                     "single_joint_set_pct": s.single_joint_set_pct, "dominant_joint_pct": s.dominant_joint_pct,
                     "bytes": s.bytes, "bytes_fat": s.bytes_fat, "cone_cull_pct": s.cone_cull_pct, "build_ms": ms,
+                    "animated_radius_ratio": spread,
                 })
             })
             .collect();
@@ -427,12 +433,22 @@ fn meshlets(file: &str, builder: &str, limits: MeshletLimits, json: bool) -> Res
         limits.max_triangles
     );
     println!(
-        "  {:<18} {:>8} {:>7} {:>7} {:>6} {:>9} {:>9} {:>22} {:>8} {:>9}",
-        "builder", "meshlets", "avg v", "avg t", "refs", "1 set %", "dom. %", "bytes slim (fat)", "cone %", "build ms"
+        "  {:<18} {:>8} {:>7} {:>7} {:>6} {:>9} {:>9} {:>22} {:>8} {:>9} {:>7}",
+        "builder",
+        "meshlets",
+        "avg v",
+        "avg t",
+        "refs",
+        "1 set %",
+        "dom. %",
+        "bytes slim (fat)",
+        "cone %",
+        "build ms",
+        "anim r"
     );
-    for (b, s, ms) in &rows {
+    for (b, s, ms, spread) in &rows {
         println!(
-            "  {:<18} {:>8} {:>7.1} {:>7.1} {:>6.2} {:>9.1} {:>9.1} {:>22} {:>8.1} {:>9.1}",
+            "  {:<18} {:>8} {:>7.1} {:>7.1} {:>6.2} {:>9.1} {:>9.1} {:>22} {:>8.1} {:>9.1} {:>7.3}",
             b.name(),
             s.meshlets,
             s.avg_vertices,
@@ -442,8 +458,25 @@ fn meshlets(file: &str, builder: &str, limits: MeshletLimits, json: bool) -> Res
             s.dominant_joint_pct,
             format!("{} ({})", s.bytes, s.bytes_fat),
             s.cone_cull_pct,
-            ms
+            ms,
+            spread
         );
     }
     Ok(())
+}
+
+/// Skinning matrices of `skin` at `per_clip` evenly spaced times of every clip.
+fn clip_poses(asset: &Asset, skin: Option<u32>, per_clip: usize) -> Vec<Vec<glam::Affine3A>> {
+    let Some(skin) = skin else { return Vec::new() };
+    let mut poser = Poser::default();
+    let mut poses = Vec::new();
+    for clip in &asset.clips {
+        for k in 0..per_clip {
+            let t = clip.start + clip.duration() * k as f32 / (per_clip - 1).max(1) as f32;
+            let mut mats = Vec::new();
+            poser.skinning_matrices(&asset.skeleton, &asset.skins[skin as usize], Some(clip), t, &mut mats);
+            poses.push(mats);
+        }
+    }
+    poses
 }

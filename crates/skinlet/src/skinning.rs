@@ -44,7 +44,10 @@ fn check(influences: &Influences, positions: &[Vec3], normals: &[Vec3], matrices
         ));
     }
     if let Some(j) = influences.joints.iter().copied().max().filter(|&j| j as usize >= matrices.len()) {
-        return Err(Error::invalid("skinning", format!("joint {j} used but only {} skinning matrices", matrices.len())));
+        return Err(Error::invalid(
+            "skinning",
+            format!("joint {j} used but only {} skinning matrices", matrices.len()),
+        ));
     }
     Ok(())
 }
@@ -85,9 +88,11 @@ pub fn skin(
             skin_range(influences, c * CHUNK, positions, normals, matrices, op, &mut []);
         });
     } else {
-        out_positions.par_chunks_mut(CHUNK).zip(out_normals.par_chunks_mut(CHUNK)).enumerate().for_each(
-            |(c, (op, on))| skin_range(influences, c * CHUNK, positions, normals, matrices, op, on),
-        );
+        out_positions
+            .par_chunks_mut(CHUNK)
+            .zip(out_normals.par_chunks_mut(CHUNK))
+            .enumerate()
+            .for_each(|(c, (op, on))| skin_range(influences, c * CHUNK, positions, normals, matrices, op, on));
     }
     Ok(())
 }
@@ -163,7 +168,13 @@ mod tests {
             ((seed >> 40) as f32) / (1u64 << 24) as f32
         };
         let mats: Vec<Affine3A> = (0..5)
-            .map(|_| Affine3A::from_scale_rotation_translation(Vec3::splat(0.5 + rnd()), Quat::from_rotation_y(6.0 * rnd()), Vec3::splat(rnd())))
+            .map(|_| {
+                Affine3A::from_scale_rotation_translation(
+                    Vec3::splat(0.5 + rnd()),
+                    Quat::from_rotation_y(6.0 * rnd()),
+                    Vec3::splat(rnd()),
+                )
+            })
             .collect();
         let mut inf = Influences { stride: 4, joints: vec![0; 4 * n], weights: vec![0.0; 4 * n] };
         for v in 0..n {
@@ -173,7 +184,8 @@ mod tests {
         }
         let p: Vec<Vec3> = (0..n).map(|_| Vec3::new(rnd(), rnd(), rnd())).collect();
         let nrm: Vec<Vec3> = p.iter().map(|v| v.normalize()).collect();
-        let (mut p1, mut n1, mut p2, mut n2) = (vec![Vec3::ZERO; n], vec![Vec3::ZERO; n], vec![Vec3::ZERO; n], vec![Vec3::ZERO; n]);
+        let (mut p1, mut n1, mut p2, mut n2) =
+            (vec![Vec3::ZERO; n], vec![Vec3::ZERO; n], vec![Vec3::ZERO; n], vec![Vec3::ZERO; n]);
         skin(&inf, &p, &nrm, &mats, &mut p1, &mut n1).unwrap();
         skin_serial(&inf, &p, &nrm, &mats, &mut p2, &mut n2).unwrap();
         assert!(p1.iter().zip(&p2).all(|(a, b)| a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits)));

@@ -78,7 +78,11 @@ mod tests {
     #[test]
     fn merges_only_equal_position_and_skin() {
         let p = Vec3::new(1.0, 2.0, 3.0);
-        let inf = Influences { stride: 4, joints: vec![0, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0], weights: vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0] };
+        let inf = Influences {
+            stride: 4,
+            joints: vec![0, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0],
+            weights: vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0],
+        };
         let mesh = SkinnedMesh {
             positions: vec![p, p, p],
             normals: vec![Vec3::X, Vec3::Y, Vec3::Z],

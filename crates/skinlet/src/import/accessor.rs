@@ -4,9 +4,42 @@
 
 use crate::{Error, Result};
 use gltf::accessor::{DataType, Dimensions};
+use std::cell::Cell;
 
-/// Loaded bytes of every buffer of the document, by buffer index.
-pub(crate) type Buffers = [Vec<u8>];
+/// Loaded bytes of every buffer of the document, by buffer index, and how many more numbers
+/// (accessor components) this import may read.
+pub(crate) struct Buffers {
+    data: Vec<Vec<u8>>,
+    budget: Cell<usize>,
+}
+
+impl Buffers {
+    /// The budget is 16 Mi numbers plus 4 per buffer byte: far above what real files read
+    /// (about one per byte), but it stops a small file from making skinlet copy the same
+    /// data (or a huge all-zero sparse accessor) once per referencing primitive until memory
+    /// runs out.
+    pub(crate) fn new(data: Vec<Vec<u8>>) -> Self {
+        let bytes = data.iter().map(Vec::len).fold(0usize, usize::saturating_add);
+        Buffers { data, budget: Cell::new((1usize << 24).saturating_add(bytes.saturating_mul(4))) }
+    }
+
+    fn spend(&self, count: usize, n: usize, loc: &str) -> Result<()> {
+        let left = self.budget.get();
+        match count.checked_mul(n) {
+            Some(numbers) if numbers <= left => {
+                self.budget.set(left - numbers);
+                Ok(())
+            }
+            _ => Err(Error::unsupported(
+                loc,
+                format!(
+                    "count {count} × {n} components would pass the limit on numbers read from one file \
+                     ({left} left of 16 Mi + 4 per buffer byte; is the same data referenced many times?)"
+                ),
+            )),
+        }
+    }
+}
 
 fn components(d: Dimensions) -> usize {
     d.multiplicity()
@@ -17,6 +50,7 @@ fn where_(acc: &gltf::Accessor, what: &str) -> String {
 }
 
 /// Reads `count` elements of `n` components of type `ty` from a byte range.
+#[allow(clippy::too_many_arguments)]
 fn read_raw(
     bytes: &[u8],
     offset: usize,
@@ -70,6 +104,7 @@ fn view_bytes<'b>(
     loc: &str,
 ) -> Result<&'b [u8]> {
     let buffer = buffers
+        .data
         .get(view.buffer().index())
         .ok_or_else(|| Error::invalid(loc, format!("buffer {} is missing", view.buffer().index())))?;
     let end = view.offset().checked_add(view.length());
@@ -88,10 +123,8 @@ fn view_bytes<'b>(
     }
     let bytes = &buffer[view.offset()..view.offset() + view.length()];
     if count > 0 {
-        let need = (count - 1)
-            .checked_mul(stride)
-            .and_then(|x| x.checked_add(offset))
-            .and_then(|x| x.checked_add(elem));
+        let need =
+            (count - 1).checked_mul(stride).and_then(|x| x.checked_add(offset)).and_then(|x| x.checked_add(elem));
         if need.is_none_or(|n| n > bytes.len()) {
             return Err(Error::invalid(
                 loc,
@@ -116,17 +149,27 @@ fn read_f64(acc: &gltf::Accessor, buffers: &Buffers, loc: &str) -> Result<Vec<f6
     let ty = acc.data_type();
     let elem = n * ty.size();
     let count = acc.count();
-    let mut out = Vec::with_capacity(count.saturating_mul(n).min(1 << 28));
+    let mut out = Vec::new();
     match acc.view() {
         Some(view) => {
             let stride = view.stride().unwrap_or(elem);
             if stride < elem {
-                return Err(Error::invalid(loc, format!("byteStride {stride} is smaller than the element size {elem}")));
+                return Err(Error::invalid(
+                    loc,
+                    format!("byteStride {stride} is smaller than the element size {elem}"),
+                ));
             }
             let bytes = view_bytes(&view, buffers, acc.offset(), stride, elem, count, loc)?;
+            // Only now is `count` known to be bounded (by the view's length).
+            buffers.spend(count, n, loc)?;
+            out.reserve_exact(count * n);
             read_raw(bytes, acc.offset(), stride, count, n, ty, acc.normalized(), &mut out);
         }
-        None => out.resize(count * n, 0.0),
+        None => {
+            // All zeros (sparse values come next): only the budget bounds the count.
+            buffers.spend(count, n, loc)?;
+            out.resize(count * n, 0.0);
+        }
     }
     if let Some(sparse) = acc.sparse() {
         let k = sparse.count();
@@ -147,7 +190,10 @@ fn read_f64(acc: &gltf::Accessor, buffers: &Buffers, loc: &str) -> Result<Vec<f6
         for (s, &i) in indices.iter().enumerate() {
             let i = i as usize;
             if i >= count {
-                return Err(Error::invalid(loc, format!("sparse index {i} (entry {s}) is not below the count {count}")));
+                return Err(Error::invalid(
+                    loc,
+                    format!("sparse index {i} (entry {s}) is not below the count {count}"),
+                ));
             }
             out[i * n..(i + 1) * n].copy_from_slice(&values[s * n..(s + 1) * n]);
         }
@@ -163,7 +209,12 @@ fn expect(acc: &gltf::Accessor, dims: &[Dimensions], loc: &str) -> Result<()> {
 }
 
 /// Float data (any component type) as `f32`, checked finite.
-pub(crate) fn read_floats(acc: &gltf::Accessor, dims: &[Dimensions], buffers: &Buffers, what: &str) -> Result<Vec<f32>> {
+pub(crate) fn read_floats(
+    acc: &gltf::Accessor,
+    dims: &[Dimensions],
+    buffers: &Buffers,
+    what: &str,
+) -> Result<Vec<f32>> {
     let loc = where_(acc, what);
     expect(acc, dims, &loc)?;
     let raw = read_f64(acc, buffers, &loc)?;
@@ -181,7 +232,11 @@ pub(crate) fn read_uints(acc: &gltf::Accessor, dims: &[Dimensions], buffers: &Bu
     if !matches!(acc.data_type(), DataType::U8 | DataType::U16 | DataType::U32) || acc.normalized() {
         return Err(Error::invalid(
             loc,
-            format!("expected unsigned integers, found {:?}{}", acc.data_type(), if acc.normalized() { " (normalized)" } else { "" }),
+            format!(
+                "expected unsigned integers, found {:?}{}",
+                acc.data_type(),
+                if acc.normalized() { " (normalized)" } else { "" }
+            ),
         ));
     }
     Ok(read_f64(acc, buffers, &loc)?.into_iter().map(|x| x as u32).collect())

@@ -7,40 +7,159 @@
 
 use super::accessor::{Buffers, read_floats, read_uints};
 use crate::clip::{Channel, Clip, Interpolation};
-use crate::model::{Asset, ImportReport, Influences, Instance, Mesh, Node, Primitive, Skeleton, Skin, SkinnedMesh, Trs};
+use crate::model::{
+    Asset, ImportReport, Influences, Instance, Mesh, Node, Primitive, Skeleton, Skin, SkinnedMesh, Trs,
+};
 use crate::{Error, Result};
 use base64::Engine as _;
+use glam::{Mat4, Quat, Vec3, Vec4};
 use gltf::accessor::Dimensions;
 use gltf::mesh::Mode;
-use glam::{Mat4, Quat, Vec3, Vec4};
 use std::collections::HashSet;
 use std::path::Path;
 
 /// Extensions that do not change geometry, skins or animation: safe to ignore when required.
-const HARMLESS_EXTENSIONS: &[&str] = &["KHR_texture_transform", "KHR_materials_", "KHR_mesh_quantization", "KHR_texture_basisu"];
+const HARMLESS_EXTENSIONS: &[&str] =
+    &["KHR_texture_transform", "KHR_materials_", "KHR_mesh_quantization", "KHR_texture_basisu"];
 
 /// Parses a .glb or .gltf file held in memory. `base_dir` resolves external buffer URIs.
 pub fn load_gltf_slice(bytes: &[u8], base_dir: Option<&Path>) -> Result<Asset> {
-    // The gltf crate's parser is third-party code fed with untrusted bytes: contain any panic.
-    let parsed = std::panic::catch_unwind(|| gltf::Gltf::from_slice(bytes))
-        .map_err(|_| Error::invalid("glTF", "the file is malformed (the glTF parser could not read it)"))?;
-    let gltf = parsed.map_err(|e| Error::invalid("glTF", e.to_string()))?;
-    for ext in gltf.document.extensions_required() {
-        if !HARMLESS_EXTENSIONS.iter().any(|h| ext.starts_with(h)) {
-            return Err(Error::unsupported("glTF extensionsRequired", format!("extension {ext}")));
-        }
-    }
-    let buffers = load_buffers(&gltf, base_dir)?;
+    let gltf = parse(bytes)?;
+    let buffers = Buffers::new(load_buffers(&gltf, base_dir)?);
     let doc = &gltf.document;
     let mut report = ImportReport::default();
 
-    let animated: HashSet<usize> = doc.animations().flat_map(|a| a.channels().map(|c| c.target().node().index())).collect();
+    let animated: HashSet<usize> =
+        doc.animations().flat_map(|a| a.channels().map(|c| c.target().node().index())).collect();
     let skeleton = load_nodes(doc, &animated, &mut report)?;
     let skins = doc.skins().map(|s| load_skin(&s, &buffers, &mut report)).collect::<Result<Vec<_>>>()?;
     let meshes = doc.meshes().map(|m| load_mesh(&m, &buffers, &mut report)).collect::<Result<Vec<_>>>()?;
     let instances = load_instances(doc, &skins, &meshes, &mut report)?;
     let clips = doc.animations().map(|a| load_clip(&a, &buffers, &mut report)).collect::<Result<Vec<_>>>()?;
     Ok(Asset { skeleton, skins, meshes, instances, clips, report })
+}
+
+/// Parses and validates the document. The gltf crate's own checks are run here rather than
+/// by `Gltf::from_slice`, with what they miss added around them: the GLB container (its
+/// parser panics on a header length below 12 and says little about truncation), POSITION
+/// accessor indices (its validator indexes with them unchecked), animation channel targets
+/// (not validated at all, and unwrapped by its accessors) and required extensions (it
+/// rejects the harmless ones skinlet accepts).
+fn parse(bytes: &[u8]) -> Result<gltf::Gltf> {
+    use gltf::json::validation::{Checked, Validate};
+    if bytes.is_empty() {
+        return Err(Error::invalid("glTF", "the file is empty"));
+    }
+    // A GLB cut inside its magic is a truncated GLB too.
+    let bytes = if bytes.starts_with(b"glTF") || b"glTF".starts_with(bytes) { glb_body(bytes)? } else { bytes };
+    // Third-party code fed with untrusted bytes: contain any panic that is left.
+    let contained = |_| Error::invalid("glTF", "the file is malformed (the glTF parser could not read it)");
+    let gltf = std::panic::catch_unwind(|| gltf::Gltf::from_slice_without_validation(bytes))
+        .map_err(contained)?
+        .map_err(|e| Error::invalid("glTF", e.to_string()))?;
+    let root = gltf.document.as_json();
+    for ext in &root.extensions_required {
+        if !HARMLESS_EXTENSIONS.iter().any(|h| ext.starts_with(h)) {
+            return Err(Error::unsupported("glTF extensionsRequired", format!("extension {ext}")));
+        }
+    }
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            if let Some(i) = prim.attributes.get(&Checked::Valid(gltf::Semantic::Positions))
+                && i.value() >= root.accessors.len()
+            {
+                return Err(Error::invalid(
+                    format!("mesh {m} primitive {p}"),
+                    format!("POSITION accessor {} does not exist (there are {})", i.value(), root.accessors.len()),
+                ));
+            }
+        }
+    }
+    let mut errors = Vec::new();
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        root.validate(root, gltf::json::Path::new, &mut |path, e| errors.push(format!("{}: {e}", path())))
+    }))
+    .map_err(contained)?;
+    // Already decided above: the required extensions left are harmless.
+    errors.retain(|e| !e.starts_with("extensionsRequired"));
+    if !errors.is_empty() {
+        let more = if errors.len() > 8 { format!("; and {} more", errors.len() - 8) } else { String::new() };
+        errors.truncate(8);
+        return Err(Error::invalid("glTF", format!("invalid glTF: {}{more}", errors.join("; "))));
+    }
+    for (a, anim) in root.animations.iter().enumerate() {
+        for (c, ch) in anim.channels.iter().enumerate() {
+            let loc = || format!("animation {a} channel {c}");
+            if ch.target.node.value() >= root.nodes.len() {
+                let msg = format!(
+                    "target node {} does not exist (there are {} nodes)",
+                    ch.target.node.value(),
+                    root.nodes.len()
+                );
+                return Err(Error::invalid(loc(), msg));
+            }
+            if ch.target.path == Checked::Invalid {
+                return Err(Error::invalid(loc(), "target path is not translation, rotation, scale or weights"));
+            }
+        }
+    }
+    Ok(gltf)
+}
+
+/// Checks the GLB header and chunk lengths, and returns the bytes the header's length covers.
+fn glb_body(bytes: &[u8]) -> Result<&[u8]> {
+    let u32_at = |i: usize| u32::from_le_bytes([bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]]) as usize;
+    if bytes.len() < 12 {
+        return Err(Error::invalid(
+            "GLB header",
+            format!("file is truncated: {} bytes, the header alone is 12", bytes.len()),
+        ));
+    }
+    let (version, length) = (u32_at(4), u32_at(8));
+    if version != 2 {
+        return Err(Error::unsupported(
+            "GLB header",
+            format!("version {version} (glTF 2.0 binary files are version 2)"),
+        ));
+    }
+    if length > bytes.len() {
+        return Err(Error::invalid(
+            "GLB header",
+            format!("file is truncated: the header's length is {length} bytes, but there are {}", bytes.len()),
+        ));
+    }
+    if length < 20 {
+        return Err(Error::invalid(
+            "GLB header",
+            format!("length {length} is too small to hold the header and a JSON chunk header"),
+        ));
+    }
+    let body = &bytes[..length];
+    let (mut at, mut i) = (12, 0);
+    while at < length {
+        if length - at < 8 {
+            return Err(Error::invalid(
+                format!("GLB chunk {i}"),
+                format!("header at byte {at} is cut off (truncated file?)"),
+            ));
+        }
+        let (len, ty) = (u32_at(at), &body[at + 4..at + 8]);
+        if i == 0 && ty != b"JSON" {
+            return Err(Error::invalid(
+                "GLB chunk 0",
+                format!("must be the JSON chunk, found type \"{}\"", ty.escape_ascii()),
+            ));
+        }
+        if len > length - at - 8 {
+            return Err(Error::invalid(
+                format!("GLB chunk {i} (\"{}\")", ty.escape_ascii()),
+                format!("at byte {at} has length {len}, but only {} bytes follow (truncated file?)", length - at - 8),
+            ));
+        }
+        at += 8 + len;
+        i += 1;
+    }
+    Ok(body)
 }
 
 fn load_buffers(gltf: &gltf::Gltf, base_dir: Option<&Path>) -> Result<Vec<Vec<u8>>> {
@@ -62,10 +181,13 @@ fn load_buffers(gltf: &gltf::Gltf, base_dir: Option<&Path>) -> Result<Vec<Vec<u8
             }
             gltf::buffer::Source::Uri(uri) => {
                 let dir = base_dir.ok_or_else(|| {
-                    Error::invalid(&loc, format!("external buffer {uri:?} cannot be resolved without the file's folder"))
+                    Error::invalid(
+                        &loc,
+                        format!("external buffer {uri:?} cannot be resolved without the file's folder"),
+                    )
                 })?;
                 let path = dir.join(percent_decode(uri));
-                std::fs::read(&path).map_err(|source| Error::Io { path, source })?
+                read_external(&path, b.length()).map_err(|source| Error::Io { path, source })?
             }
         };
         if data.len() < b.length() {
@@ -79,18 +201,31 @@ fn load_buffers(gltf: &gltf::Gltf, base_dir: Option<&Path>) -> Result<Vec<Vec<u8
     Ok(out)
 }
 
+/// Reads at most `len` bytes of a regular file: a URI naming a device or a pipe (/dev/zero,
+/// /dev/stdin) must not be read forever, nor a huge file read whole.
+fn read_external(path: &Path, len: usize) -> std::io::Result<Vec<u8>> {
+    use std::io::Read as _;
+    let file = std::fs::File::open(path)?;
+    if !file.metadata()?.is_file() {
+        return Err(std::io::Error::new(std::io::ErrorKind::InvalidInput, "not a regular file"));
+    }
+    let mut data = Vec::new();
+    file.take(len as u64).read_to_end(&mut data)?;
+    Ok(data)
+}
+
 fn percent_decode(s: &str) -> String {
     let hex = |c: u8| (c as char).to_digit(16).map(|d| d as u8);
     let b = s.as_bytes();
     let mut out = Vec::with_capacity(b.len());
     let mut i = 0;
     while i < b.len() {
-        if let (b'%', Some(&h), Some(&l)) = (b[i], b.get(i + 1), b.get(i + 2)) {
-            if let (Some(h), Some(l)) = (hex(h), hex(l)) {
-                out.push(h * 16 + l);
-                i += 3;
-                continue;
-            }
+        if let (b'%', Some(&h), Some(&l)) = (b[i], b.get(i + 1), b.get(i + 2))
+            && let (Some(h), Some(l)) = (hex(h), hex(l))
+        {
+            out.push(h * 16 + l);
+            i += 3;
+            continue;
         }
         out.push(b[i]);
         i += 1;
@@ -99,7 +234,11 @@ fn percent_decode(s: &str) -> String {
 }
 
 fn finite(loc: &str, what: &str, v: &[f32]) -> Result<()> {
-    if v.iter().all(|x| x.is_finite()) { Ok(()) } else { Err(Error::invalid(loc, format!("{what} has a NaN or infinite value"))) }
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(())
+    } else {
+        Err(Error::invalid(loc, format!("{what} has a NaN or infinite value")))
+    }
 }
 
 fn load_nodes(doc: &gltf::Document, animated: &HashSet<usize>, report: &mut ImportReport) -> Result<Skeleton> {
@@ -111,11 +250,18 @@ fn load_nodes(doc: &gltf::Document, animated: &HashSet<usize>, report: &mut Impo
         let loc = format!("node {} ({:?})", n.index(), n.name().unwrap_or(""));
         for c in n.children() {
             let child = &mut nodes[c.index()];
-            if let Some(p) = child.parent {
-                return Err(Error::invalid(
-                    format!("node {} ({:?})", c.index(), child.name),
-                    format!("has two parents, nodes {p} and {}", n.index()),
-                ));
+            let child_loc = format!("node {} ({:?})", c.index(), child.name);
+            if c.index() == n.index() {
+                return Err(Error::invalid(child_loc, "is its own child (a cycle in the node hierarchy)"));
+            }
+            match child.parent {
+                Some(p) if p as usize == n.index() => {
+                    return Err(Error::invalid(child_loc, format!("is listed twice among the children of node {p}")));
+                }
+                Some(p) => {
+                    return Err(Error::invalid(child_loc, format!("has two parents, nodes {p} and {}", n.index())));
+                }
+                None => {}
             }
             child.parent = Some(n.index() as u32);
         }
@@ -128,8 +274,17 @@ fn load_nodes(doc: &gltf::Document, animated: &HashSet<usize>, report: &mut Impo
                     return Err(Error::invalid(&loc, "matrix is not affine (last row must be 0 0 0 1)"));
                 }
                 let (s, r, t) = m.to_scale_rotation_translation();
-                node.rest = Trs { translation: t, rotation: r.normalize(), scale: s };
+                let r = r.normalize();
+                // A singular matrix (zero scale) has no rotation to recover: keep the matrix
+                // as the transform and an identity rotation in the (unused) rest TRS.
+                node.rest = Trs { translation: t, rotation: if r.is_finite() { r } else { Quat::IDENTITY }, scale: s };
                 if animated.contains(&n.index()) {
+                    if !r.is_finite() {
+                        return Err(Error::invalid(
+                            &loc,
+                            "is animated but its matrix is singular (zero scale), so it has no TRS",
+                        ));
+                    }
                     report.warnings.push(format!(
                         "{loc}: is animated but given by a matrix (the spec forbids this); its matrix was decomposed into TRS"
                     ));
@@ -140,7 +295,8 @@ fn load_nodes(doc: &gltf::Document, animated: &HashSet<usize>, report: &mut Impo
             gltf::scene::Transform::Decomposed { translation, rotation, scale } => {
                 finite(&loc, "TRS", &[translation.as_slice(), &rotation, &scale].concat())?;
                 let q = Quat::from_array(rotation);
-                node.rest = Trs { translation: translation.into(), rotation: normalize_quat(q, &loc)?, scale: scale.into() };
+                node.rest =
+                    Trs { translation: translation.into(), rotation: normalize_quat(q, &loc)?, scale: scale.into() };
             }
         }
     }
@@ -149,7 +305,7 @@ fn load_nodes(doc: &gltf::Document, animated: &HashSet<usize>, report: &mut Impo
 
 fn normalize_quat(q: Quat, loc: &str) -> Result<Quat> {
     let len = q.length();
-    if !(len > 1e-6) {
+    if len.is_nan() || len <= 1e-6 {
         return Err(Error::invalid(loc, "rotation quaternion has zero length"));
     }
     Ok(if len == 1.0 { q } else { q / len })
@@ -175,7 +331,10 @@ fn load_skin(skin: &gltf::Skin, buffers: &Buffers, report: &mut ImportReport) ->
             }
             let mats: Vec<Mat4> = m.chunks_exact(16).take(joints.len()).map(Mat4::from_cols_slice).collect();
             if let Some(i) = mats.iter().position(|m| (m.row(3) - Vec4::W).abs().max_element() > 1e-4) {
-                return Err(Error::invalid(loc, format!("inverse bind matrix {i} is not affine (last row must be 0 0 0 1)")));
+                return Err(Error::invalid(
+                    loc,
+                    format!("inverse bind matrix {i} is not affine (last row must be 0 0 0 1)"),
+                ));
             }
             mats
         }
@@ -248,15 +407,15 @@ fn load_primitive(p: &gltf::Primitive, buffers: &Buffers, loc: &str, report: &mu
 fn assemble_triangles(mode: Mode, idx: &[u32], loc: &str) -> Result<Vec<[u32; 3]>> {
     Ok(match mode {
         Mode::Triangles => {
-            if idx.len() % 3 != 0 {
+            if !idx.len().is_multiple_of(3) {
                 return Err(Error::invalid(loc, format!("{} indices is not a multiple of 3", idx.len())));
             }
             idx.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
         }
         // glTF 2.0 section 3.7.2.1: strip triangle i is (i, i+1+i%2, i+2-i%2); fan is (i+1, i+2, 0).
-        Mode::TriangleStrip => (0..idx.len().saturating_sub(2))
-            .map(|i| [idx[i], idx[i + 1 + i % 2], idx[i + 2 - i % 2]])
-            .collect(),
+        Mode::TriangleStrip => {
+            (0..idx.len().saturating_sub(2)).map(|i| [idx[i], idx[i + 1 + i % 2], idx[i + 2 - i % 2]]).collect()
+        }
         Mode::TriangleFan => (0..idx.len().saturating_sub(2)).map(|i| [idx[i + 1], idx[i + 2], idx[0]]).collect(),
         _ => Vec::new(),
     })
@@ -306,12 +465,20 @@ fn load_influences(
     for v in 0..n {
         pairs.clear();
         let first_joint = sets[0].0[4 * v];
+        // Finite weights can still overflow their f32 sum (giving NaN weights): scale huge
+        // ones down first, exactly (a power of two); weights up to 1e30 are untouched.
+        let huge = sets.iter().any(|(_, ws)| ws[4 * v..4 * v + 4].iter().any(|w| *w > 1e30));
+        let scale = if huge { 2f32.powi(-64) } else { 1.0 };
         for (s, (js, ws)) in sets.iter().enumerate() {
             for k in 0..4 {
                 let (j, w) = (js[4 * v + k], ws[4 * v + k]);
                 if w < 0.0 {
-                    return Err(Error::invalid(loc, format!("vertex {v}: WEIGHTS_{s} component {k} is negative ({w})")));
+                    return Err(Error::invalid(
+                        loc,
+                        format!("vertex {v}: WEIGHTS_{s} component {k} is negative ({w})"),
+                    ));
                 }
+                let w = w * scale;
                 if w == 0.0 {
                     continue;
                 }
@@ -326,6 +493,12 @@ fn load_influences(
         }
         let sum: f32 = pairs.iter().map(|p| p.1).sum();
         if pairs.is_empty() {
+            if first_joint > u16::MAX as u32 {
+                return Err(Error::invalid(
+                    loc,
+                    format!("vertex {v}: all weights are zero and its first joint index {first_joint} is too large"),
+                ));
+            }
             report.zero_weight_vertices += 1;
             pairs.push((first_joint, 1.0));
         } else if (sum - 1.0).abs() > 1e-3 {
@@ -343,7 +516,12 @@ fn load_influences(
     Ok(Some(inf))
 }
 
-fn load_instances(doc: &gltf::Document, skins: &[Skin], meshes: &[Mesh], report: &mut ImportReport) -> Result<Vec<Instance>> {
+fn load_instances(
+    doc: &gltf::Document,
+    skins: &[Skin],
+    meshes: &[Mesh],
+    report: &mut ImportReport,
+) -> Result<Vec<Instance>> {
     let mut out = Vec::new();
     for node in doc.nodes() {
         let Some(mesh) = node.mesh() else { continue };
@@ -372,7 +550,10 @@ fn load_instances(doc: &gltf::Document, skins: &[Skin], meshes: &[Mesh], report:
                 }
             }
             None if m.primitives.iter().any(|p| p.geometry.influences.is_some()) => {
-                report.warnings.push(format!("{loc}: mesh {} has joint weights but the node has no skin; drawn rigid", mesh.index()));
+                report.warnings.push(format!(
+                    "{loc}: mesh {} has joint weights but the node has no skin; drawn rigid",
+                    mesh.index()
+                ));
             }
             None => {}
         }
@@ -394,7 +575,10 @@ fn load_clip(anim: &gltf::Animation, buffers: &Buffers, report: &mut ImportRepor
             continue;
         }
         if let Some(i) = times.windows(2).position(|w| w[1] < w[0]) {
-            return Err(Error::invalid(&loc, format!("key times decrease at key {}: {} after {}", i + 1, times[i + 1], times[i])));
+            return Err(Error::invalid(
+                &loc,
+                format!("key times decrease at key {}: {} after {}", i + 1, times[i + 1], times[i]),
+            ));
         }
         clip.start = clip.start.min(times[0]);
         clip.end = clip.end.max(times[times.len() - 1]);
@@ -411,7 +595,12 @@ fn load_clip(anim: &gltf::Animation, buffers: &Buffers, report: &mut ImportRepor
             if values != per_key * times.len() {
                 return Err(Error::invalid(
                     &loc,
-                    format!("{} keys need {} output values ({}), found {values}", times.len(), per_key * times.len(), interpolation.name()),
+                    format!(
+                        "{} keys need {} output values ({}), found {values}",
+                        times.len(),
+                        per_key * times.len(),
+                        interpolation.name()
+                    ),
                 ));
             }
             Ok(())
@@ -421,7 +610,11 @@ fn load_clip(anim: &gltf::Animation, buffers: &Buffers, report: &mut ImportRepor
                 let values = vec3s(read_floats(&output, &[Dimensions::Vec3], buffers, &out_loc)?);
                 check_count(values.len())?;
                 let c = Channel { node, interpolation, times, values };
-                if ch.target().property() == Property::Translation { clip.translations.push(c) } else { clip.scales.push(c) }
+                if ch.target().property() == Property::Translation {
+                    clip.translations.push(c)
+                } else {
+                    clip.scales.push(c)
+                }
             }
             Property::Rotation => {
                 let raw = read_floats(&output, &[Dimensions::Vec4], buffers, &out_loc)?;
@@ -439,7 +632,11 @@ fn load_clip(anim: &gltf::Animation, buffers: &Buffers, report: &mut ImportRepor
         }
     }
     if clip.weight_channels > 0 {
-        report.warnings.push(format!("animation {} ({name:?}): {} morph-weight channels ignored", anim.index(), clip.weight_channels));
+        report.warnings.push(format!(
+            "animation {} ({name:?}): {} morph-weight channels ignored",
+            anim.index(),
+            clip.weight_channels
+        ));
     }
     if clip.start > clip.end {
         clip.start = 0.0;

@@ -22,17 +22,19 @@ pub fn load_bytes(bytes: &[u8], path: &Path) -> Result<Asset> {
     let name = path.display().to_string();
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     let first = bytes.iter().find(|b| !b.is_ascii_whitespace());
-    let result = if bytes.starts_with(b"glTF") || first == Some(&b'{') || ext == "glb" || ext == "gltf" {
-        load_gltf_slice(bytes, path.parent())
+    if bytes.starts_with(b"glTF") || first == Some(&b'{') || ext == "glb" || ext == "gltf" {
+        // glTF locations ("mesh 0 primitive 1") do not name the file: prefix it.
+        load_gltf_slice(bytes, path.parent()).map_err(|e| match e {
+            Error::Invalid { location, message } => Error::Invalid { location: format!("{name}: {location}"), message },
+            Error::Unsupported { location, message } => {
+                Error::Unsupported { location: format!("{name}: {location}"), message }
+            }
+            e => e,
+        })
     } else if ext == "obj" {
         let text = std::str::from_utf8(bytes).map_err(|e| Error::invalid(&name, format!("not UTF-8 text: {e}")))?;
         load_obj_str(text, &name)
     } else {
         Err(Error::unsupported(&name, "unknown file type (expected .glb, .gltf or .obj)"))
-    };
-    result.map_err(|e| match e {
-        Error::Invalid { location, message } => Error::Invalid { location: format!("{name}: {location}"), message },
-        Error::Unsupported { location, message } => Error::Unsupported { location: format!("{name}: {location}"), message },
-        e => e,
-    })
+    }
 }

@@ -34,7 +34,10 @@ pub fn load_obj_str(text: &str, name: &str) -> Result<Asset> {
                     let n = positions.len() as i64;
                     let idx = if i > 0 { i - 1 } else { n + i };
                     if i == 0 || idx < 0 || idx >= n {
-                        return Err(Error::invalid(loc(), format!("face index {i} is out of range (only {n} vertices so far)")));
+                        return Err(Error::invalid(
+                            loc(),
+                            format!("face index {i} is out of range (only {n} vertices so far)"),
+                        ));
                     }
                     face.push(idx as u32);
                 }
@@ -60,7 +63,10 @@ pub fn load_obj_str(text: &str, name: &str) -> Result<Asset> {
     let root = Node { name: "root".into(), parent: None, rest: Trs::IDENTITY, matrix: None };
     let mut asset = Asset {
         skeleton: Skeleton::new(vec![root])?,
-        meshes: vec![Mesh { name: name.to_string(), primitives: vec![Primitive { index: 0, geometry, morph_targets: 0 }] }],
+        meshes: vec![Mesh {
+            name: name.to_string(),
+            primitives: vec![Primitive { index: 0, geometry, morph_targets: 0 }],
+        }],
         instances: vec![Instance { node: 0, mesh: 0, skin: None }],
         ..Asset::default()
     };

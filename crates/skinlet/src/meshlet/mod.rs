@@ -324,23 +324,19 @@ mod tests {
             .collect();
         let mut inf = Influences { stride: 4, joints: vec![0; 4 * vertices], weights: vec![0.0; 4 * vertices] };
         for v in 0..vertices {
-            let k = 1 + (next() % 4) as usize;
+            let k = (1 + (next() % 4) as usize).min(joints as usize);
             let base = (v * joints as usize / vertices) as u16;
-            let mut w: Vec<f32> = (0..k).map(|i| 1.0 / (i + 1) as f32).collect();
-            let sum: f32 = w.iter().sum();
-            w.iter_mut().for_each(|x| *x /= sum);
+            let sum: f32 = (0..k).map(|i| 1.0 / (i + 1) as f32).sum();
+            let mut seen: Vec<u16> = Vec::new();
             for i in 0..k {
-                inf.joints[4 * v + i] = (base + i as u16 * (1 + (next() % 2) as u16)) % joints;
-                inf.weights[4 * v + i] = w[i];
-            }
-            // Joints must be distinct within a vertex.
-            let js = &mut inf.joints[4 * v..4 * v + k];
-            let mut seen = Vec::new();
-            for j in js.iter_mut() {
-                while seen.contains(j) {
-                    *j = (*j + 1) % joints;
+                // Distinct joints near the vertex's "bone", weights decreasing.
+                let mut j = (base + i as u16 * (1 + (next() % 2) as u16)) % joints;
+                while seen.contains(&j) {
+                    j = (j + 1) % joints;
                 }
-                seen.push(*j);
+                seen.push(j);
+                inf.joints[4 * v + i] = j;
+                inf.weights[4 * v + i] = 1.0 / (i + 1) as f32 / sum;
             }
         }
         SkinnedMesh { positions, normals: Vec::new(), triangles: tris, influences: Some(inf) }

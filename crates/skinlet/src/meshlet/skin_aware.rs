@@ -2,12 +2,14 @@
 //! conservative animated bounds in that joint's space (the bounds issue) stay tight.
 //!
 //! Score and method. A triangle's *dominant joint* is the joint with the largest summed
-//! weight over its three vertices. Triangles are partitioned by dominant joint: within a
-//! partition every triangle is mostly carried by the same bone, across partitions they are
-//! not, so no meshlet mixes two bones' motion except through the blend weights of its own
-//! vertices. Partitions smaller than `min_partition` triangles (fingers, face details) are
-//! folded into the neighbouring partition they share the most vertices with, smallest
-//! first, to avoid a tail of nearly empty meshlets. Inside each partition meshoptimizer's
+//! weight over its three vertices. Triangles are partitioned by dominant joint and, within
+//! that, by whether all three vertices are bound to it alone: within a partition every
+//! triangle is mostly carried by the same bone, across partitions they are not, and rigid
+//! regions never share a meshlet with blend zones (whose vertices move relative to the bone
+//! and would loosen the rigid meshlet's bounds). Partitions smaller than `min_partition`
+//! meshlets' worth of triangles (fingers, face details) are folded into the neighbouring
+//! partition they share the most vertices with, smallest first, to avoid a tail of nearly
+//! empty meshlets. Inside each partition meshoptimizer's
 //! greedy builder grows spatially compact, normal-coherent meshlets (cone weight
 //! `cone_weight`). Last, pairs of under-filled meshlets that share vertices are merged
 //! when the union fits the limits, which recovers most of the meshlet-count overhead.
@@ -31,9 +33,11 @@ impl Default for Params {
     }
 }
 
-/// Dominant joint of each triangle (largest summed weight; ties go to the lower joint).
-pub fn dominant_joints(mesh: &SkinnedMesh) -> Vec<u16> {
+/// Partition key of each triangle: its dominant joint (largest summed weight; ties go to
+/// the lower joint) times two, plus one when all three vertices are fully bound to it.
+pub fn partition_keys(mesh: &SkinnedMesh) -> Vec<u32> {
     let Some(inf) = &mesh.influences else { return vec![0; mesh.triangles.len()] };
+    const RIGID: f32 = 0.999;
     let mut acc: Vec<(u16, f32)> = Vec::with_capacity(3 * inf.stride);
     mesh.triangles
         .iter()
@@ -47,20 +51,18 @@ pub fn dominant_joints(mesh: &SkinnedMesh) -> Vec<u16> {
                     }
                 }
             }
-            acc.iter()
-                .fold(
-                    (u16::MAX, f32::NEG_INFINITY),
-                    |b, &(j, w)| if w > b.1 || (w == b.1 && j < b.0) { (j, w) } else { b },
-                )
-                .0
+            let best = |b: (u16, f32), &(j, w): &(u16, f32)| if w > b.1 || (w == b.1 && j < b.0) { (j, w) } else { b };
+            let j = acc.iter().fold((u16::MAX, f32::NEG_INFINITY), best).0;
+            let rigid = t.iter().all(|&v| inf.of(v as usize).next().is_some_and(|(vj, w)| vj == j && w >= RIGID));
+            2 * j as u32 + rigid as u32
         })
         .collect()
 }
 
 pub fn build(mesh: &SkinnedMesh, limits: MeshletLimits, params: &Params) -> Meshlets {
-    let mut key = dominant_joints(mesh);
+    let mut key = partition_keys(mesh);
     fold_small_partitions(mesh, &mut key, (params.min_partition * limits.max_triangles as f32) as usize);
-    let mut partitions: BTreeMap<u16, Vec<[u32; 3]>> = BTreeMap::new();
+    let mut partitions: BTreeMap<u32, Vec<[u32; 3]>> = BTreeMap::new();
     for (t, &k) in mesh.triangles.iter().zip(&key) {
         partitions.entry(k).or_default().push(*t);
     }
@@ -76,9 +78,9 @@ pub fn build(mesh: &SkinnedMesh, limits: MeshletLimits, params: &Params) -> Mesh
 
 /// Relabels triangles of partitions smaller than `min` with the label of the neighbouring
 /// partition sharing the most vertices with them, smallest partition first.
-fn fold_small_partitions(mesh: &SkinnedMesh, key: &mut [u16], min: usize) {
+fn fold_small_partitions(mesh: &SkinnedMesh, key: &mut [u32], min: usize) {
     loop {
-        let mut size: BTreeMap<u16, usize> = BTreeMap::new();
+        let mut size: BTreeMap<u32, usize> = BTreeMap::new();
         key.iter().for_each(|&k| *size.entry(k).or_default() += 1);
         let Some((&small, _)) = size.iter().filter(|&(_, &n)| n < min).min_by_key(|&(&k, &n)| (n, k)) else { return };
         if size.len() == 1 {
@@ -91,7 +93,7 @@ fn fold_small_partitions(mesh: &SkinnedMesh, key: &mut [u16], min: usize) {
                 t.iter().for_each(|&v| in_part[v as usize] = true);
             }
         }
-        let mut shared: BTreeMap<u16, usize> = BTreeMap::new();
+        let mut shared: BTreeMap<u32, usize> = BTreeMap::new();
         for (t, &k) in mesh.triangles.iter().zip(key.iter()) {
             if k != small {
                 let n = t.iter().filter(|&&v| in_part[v as usize]).count();

@@ -107,3 +107,36 @@ pub fn cone_cull_pct(positions: &[Vec3], m: &Meshlets) -> f64 {
     }
     100.0 * culled as f64 / (6 * m.len()) as f64
 }
+
+/// Sampled preview of how tight animated bounds can be (not conservative; the bounds module
+/// computes the real ones): per meshlet, the largest distance of its skinned vertices from
+/// the rest-pose center, measured in the principal joint's bind space, over the given poses
+/// (skinning matrices per pose), divided by the rest radius. Returns the mean over meshlets
+/// (1.0: every meshlet moves rigidly with its principal joint).
+pub fn animated_radius_ratio(mesh: &SkinnedMesh, m: &Meshlets, poses: &[Vec<glam::Affine3A>]) -> f64 {
+    let Some(inf) = &mesh.influences else { return 1.0 };
+    if m.is_empty() || poses.is_empty() {
+        return 1.0;
+    }
+    let inverses: Vec<Vec<glam::Affine3A>> = poses.iter().map(|p| p.iter().map(|a| a.inverse()).collect()).collect();
+    let mut sum = 0.0;
+    for h in &m.meshlets {
+        let verts = m.vertices_of(h);
+        let Some((j, _)) = principal_joint(mesh, verts) else { continue };
+        let (lo, hi) = verts.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, u), &v| {
+            (l.min(mesh.positions[v as usize]), u.max(mesh.positions[v as usize]))
+        });
+        let c = (lo + hi) / 2.0;
+        let rest = verts.iter().map(|&v| mesh.positions[v as usize].distance(c)).fold(0f32, f32::max).max(1e-12);
+        let mut swept = rest;
+        for (pose, inv) in poses.iter().zip(&inverses) {
+            for &v in verts {
+                let blended = crate::skinning::blend_matrix(inf, v as usize, pose);
+                let q = inv[j as usize].transform_point3(blended.transform_point3(mesh.positions[v as usize]));
+                swept = swept.max(q.distance(c));
+            }
+        }
+        sum += (swept / rest) as f64;
+    }
+    sum / m.len() as f64
+}
