@@ -82,7 +82,8 @@ enum Command {
         /// At most this many vertices per meshlet (<= 256).
         #[arg(long, default_value_t = 64)]
         max_vertices: usize,
-        /// At most this many triangles per meshlet (<= 512, a multiple of 4).
+        /// At most this many triangles per meshlet (<= 512; the meshoptimizer-based builders
+        /// fill to the multiple of 4 at or below it, e.g. 124 for 126).
         #[arg(long, default_value_t = 124)]
         max_triangles: usize,
         /// Print a JSON array, one object per builder.

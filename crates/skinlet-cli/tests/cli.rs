@@ -2,26 +2,12 @@
 //! that ../shared/assets/SOURCES.md records for every skinned asset (measured there by an
 //! independent script), and `pose --json` against the library's reference skinning.
 
-use serde_json::Value;
-use std::path::PathBuf;
-use std::process::Command;
+#[path = "../../skinlet/tests/common/mod.rs"]
+mod common;
+use common::assets_dir;
 
-fn assets_dir() -> Option<PathBuf> {
-    let dir = std::env::var_os("SKINLET_ASSETS")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/assets")));
-    if dir.join("SOURCES.md").is_file() {
-        Some(dir)
-    } else {
-        assert!(
-            std::env::var_os("SKINLET_REQUIRE_ASSETS").is_none(),
-            "no assets at {} but SKINLET_REQUIRE_ASSETS is set",
-            dir.display()
-        );
-        eprintln!("note: no assets at {} (set SKINLET_ASSETS); skipping", dir.display());
-        None
-    }
-}
+use serde_json::Value;
+use std::process::Command;
 
 fn skinlet(args: &[&str]) -> (i32, String, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_skinlet")).args(args).output().unwrap();
@@ -204,4 +190,45 @@ fn demo_runs_and_describes_the_character() {
     assert!(out.contains("joints") && out.contains("walk"), "{out}");
     let j = json_of(&["inspect", "@demo:2000", "--json"]);
     assert!(j["joints"].as_u64().unwrap() >= 30);
+}
+
+#[test]
+fn meshlets_json_has_one_row_per_builder() {
+    let rows = json_of(&["meshlets", "@demo:3000", "--json"]);
+    let rows = rows.as_array().unwrap();
+    let names: Vec<&str> = rows.iter().map(|r| r["builder"].as_str().unwrap()).collect();
+    assert_eq!(names, ["scan", "common-influences", "meshopt", "skin-aware"]);
+    for r in rows {
+        for field in [
+            "meshlets",
+            "avg_vertices",
+            "avg_triangles",
+            "vertex_refs_ratio",
+            "single_joint_set_pct",
+            "dominant_joint_pct",
+            "bytes",
+            "build_ms",
+        ] {
+            assert!(r[field].as_f64().is_some_and(|x| x >= 0.0), "{field} missing in {r}");
+        }
+        let avg_t = r["avg_triangles"].as_f64().unwrap();
+        let total = r["meshlets"].as_f64().unwrap() * avg_t;
+        assert!((total - 3000.0).abs() < 300.0, "meshlets hold {total} triangles");
+        assert!(r["avg_vertices"].as_f64().unwrap() <= 64.0 && avg_t <= 124.0);
+    }
+    let one = json_of(&[
+        "meshlets",
+        "@demo:3000",
+        "--builder",
+        "skin-aware",
+        "--max-vertices",
+        "128",
+        "--max-triangles",
+        "126",
+        "--json",
+    ]);
+    assert_eq!(one.as_array().unwrap().len(), 1);
+    let (code, _, err) = skinlet(&["meshlets", "@demo:3000", "--max-vertices", "1000"]);
+    assert_eq!(code, 2);
+    assert!(err.contains("3..=256"), "{err}");
 }

@@ -35,7 +35,16 @@ pub fn transform_normal(m: &Affine3A, n: Vec3) -> Vec3 {
     r.normalize_or_zero()
 }
 
-fn check(influences: &Influences, positions: &[Vec3], normals: &[Vec3], matrices: &[Affine3A]) -> Result<()> {
+/// Checks lengths and joint numbers; returns the normal output slice to use (empty when the
+/// mesh has no normals).
+fn checked<'o>(
+    influences: &Influences,
+    positions: &[Vec3],
+    normals: &[Vec3],
+    matrices: &[Affine3A],
+    out_positions: &[Vec3],
+    out_normals: &'o mut [Vec3],
+) -> Result<&'o mut [Vec3]> {
     let n = influences.vertex_count();
     if positions.len() != n || !(normals.is_empty() || normals.len() == n) {
         return Err(Error::invalid(
@@ -49,7 +58,11 @@ fn check(influences: &Influences, positions: &[Vec3], normals: &[Vec3], matrices
             format!("joint {j} used but only {} skinning matrices", matrices.len()),
         ));
     }
-    Ok(())
+    let out_normals = if normals.is_empty() { &mut [][..] } else { out_normals };
+    if out_positions.len() != n || out_normals.len() != normals.len() {
+        return Err(Error::invalid("skinning", "output slices must have the input's lengths"));
+    }
+    Ok(out_normals)
 }
 
 fn skin_range(
@@ -80,9 +93,7 @@ pub fn skin(
     out_positions: &mut [Vec3],
     out_normals: &mut [Vec3],
 ) -> Result<()> {
-    check(influences, positions, normals, matrices)?;
-    let out_normals = if normals.is_empty() { &mut [][..] } else { out_normals };
-    check_out(positions, normals, out_positions, out_normals)?;
+    let out_normals = checked(influences, positions, normals, matrices, out_positions, out_normals)?;
     if out_normals.is_empty() {
         out_positions.par_chunks_mut(CHUNK).enumerate().for_each(|(c, op)| {
             skin_range(influences, c * CHUNK, positions, normals, matrices, op, &mut []);
@@ -106,17 +117,8 @@ pub fn skin_serial(
     out_positions: &mut [Vec3],
     out_normals: &mut [Vec3],
 ) -> Result<()> {
-    check(influences, positions, normals, matrices)?;
-    let out_normals = if normals.is_empty() { &mut [][..] } else { out_normals };
-    check_out(positions, normals, out_positions, out_normals)?;
+    let out_normals = checked(influences, positions, normals, matrices, out_positions, out_normals)?;
     skin_range(influences, 0, positions, normals, matrices, out_positions, out_normals);
-    Ok(())
-}
-
-fn check_out(positions: &[Vec3], normals: &[Vec3], out_p: &[Vec3], out_n: &[Vec3]) -> Result<()> {
-    if out_p.len() != positions.len() || out_n.len() != normals.len() {
-        return Err(Error::invalid("skinning", "output slices must have the input's lengths"));
-    }
     Ok(())
 }
 

@@ -7,6 +7,9 @@
 //! are read from `$SKINLET_ASSETS` (default `../shared/assets` next to the workspace);
 //! those tests print a note and pass when the folder is missing.
 
+mod common;
+use common::assets_dir;
+
 use base64::Engine as _;
 use skinlet::Asset;
 use skinlet::import::{load_bytes, load_gltf_slice, load_obj_str};
@@ -389,18 +392,6 @@ fn mesh0(a: &Asset) -> &skinlet::SkinnedMesh {
 
 // ---------------------------------------------------------------------------------------
 // Real assets.
-
-fn assets_dir() -> Option<PathBuf> {
-    let dir = std::env::var_os("SKINLET_ASSETS")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/assets")));
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        println!("note: asset folder {} not found (set SKINLET_ASSETS); skipping", dir.display());
-        None
-    }
-}
 
 fn asset(rel: &str) -> Option<Vec<u8>> {
     let path = assets_dir()?.join(rel);

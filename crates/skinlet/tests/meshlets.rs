@@ -1,20 +1,11 @@
 //! Meshlet builders on the real assets: validity for every builder and limit preset, and
 //! the targets on Xbot.glb (meshoptimizer parity, skin-aware rigidity at small cost).
 
+mod common;
+use common::assets_dir;
+
 use skinlet::meshlet::{Builder, MeshletLimits, build, flat, prepare, stats};
 use std::path::PathBuf;
-
-fn assets_dir() -> Option<PathBuf> {
-    let dir = std::env::var_os("SKINLET_ASSETS")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/assets")));
-    if dir.join("skinned").is_dir() {
-        return Some(dir);
-    }
-    assert!(std::env::var_os("SKINLET_REQUIRE_ASSETS").is_none(), "no assets at {}", dir.display());
-    eprintln!("note: no assets at {} (set SKINLET_ASSETS); skipping", dir.display());
-    None
-}
 
 fn files(dir: &std::path::Path) -> Vec<PathBuf> {
     let mut f: Vec<PathBuf> = ["skinned", "static"]

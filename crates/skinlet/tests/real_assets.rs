@@ -1,29 +1,15 @@
 //! Real-asset tests of import, sampling and reference skinning on ../shared/assets
 //! (override with SKINLET_ASSETS). Skipped with a note when the folder is absent.
 
+mod common;
+use common::assets_dir;
+
 use glam::{Affine3A, DMat4, Vec3};
 use skinlet::clip::Clip;
 use skinlet::model::Trs;
 use skinlet::pose::{Poser, global_transforms, skinning_matrices};
 use skinlet::{Asset, skinning};
 use std::path::PathBuf;
-
-fn assets_dir() -> Option<PathBuf> {
-    let dir = std::env::var_os("SKINLET_ASSETS")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/assets")));
-    if dir.join("skinned").is_dir() {
-        Some(dir)
-    } else {
-        assert!(
-            std::env::var_os("SKINLET_REQUIRE_ASSETS").is_none(),
-            "no assets at {} but SKINLET_REQUIRE_ASSETS is set",
-            dir.display()
-        );
-        eprintln!("note: no assets at {} (set SKINLET_ASSETS); skipping", dir.display());
-        None
-    }
-}
 
 fn skinned_assets() -> Vec<(String, Asset)> {
     let Some(dir) = assets_dir() else { return Vec::new() };
