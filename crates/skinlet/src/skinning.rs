@@ -12,6 +12,10 @@ use glam::{Affine3A, Mat3A, Vec3, Vec3A};
 use rayon::prelude::*;
 
 const CHUNK: usize = 4096;
+/// Below this many vertices [`skin`] stays on the calling thread: waking the pool costs more
+/// than it saves (measured: Xbot.glb's 12k- and 16k-vertex primitives skinned 2× slower in
+/// parallel on a 2-core VM; the 1M-triangle demo 1.4× faster). See docs/PERFORMANCE.md.
+const PARALLEL_MIN_VERTICES: usize = 50_000;
 
 /// The blended skinning matrix of vertex `v`.
 #[inline]
@@ -84,7 +88,8 @@ fn skin_range(
     }
 }
 
-/// Skins every vertex in parallel. `normals` may be empty (then `out_normals` is ignored).
+/// Skins every vertex, in parallel for large meshes. `normals` may be empty (then
+/// `out_normals` is ignored).
 pub fn skin(
     influences: &Influences,
     positions: &[Vec3],
@@ -94,7 +99,9 @@ pub fn skin(
     out_normals: &mut [Vec3],
 ) -> Result<()> {
     let out_normals = checked(influences, positions, normals, matrices, out_positions, out_normals)?;
-    if out_normals.is_empty() {
+    if positions.len() < PARALLEL_MIN_VERTICES {
+        skin_range(influences, 0, positions, normals, matrices, out_positions, out_normals);
+    } else if out_normals.is_empty() {
         out_positions.par_chunks_mut(CHUNK).enumerate().for_each(|(c, op)| {
             skin_range(influences, c * CHUNK, positions, normals, matrices, op, &mut []);
         });
@@ -163,7 +170,7 @@ mod tests {
 
     #[test]
     fn serial_and_parallel_are_bit_identical() {
-        let n = 3 * CHUNK + 17;
+        let n = PARALLEL_MIN_VERTICES + 3 * CHUNK + 17;
         let mut seed = 1u64;
         let mut rnd = move || {
             seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
