@@ -11,6 +11,7 @@
 //! - [`summary`]: the facts `skinlet inspect` reports.
 //! - [`demo`]: the built-in procedural demo character.
 
+pub mod bounds;
 pub mod clip;
 pub mod demo;
 pub mod error;

@@ -1,0 +1,410 @@
+//! How far one node's local transform `T·R·S` can move during a time interval that lies
+//! inside one key segment of each of its channels, and how that motion acts on boxes
+//! (paper section 3.1 steps b/c.iii, section 3.2).
+//!
+//! - LINEAR translation and scale are linear in time: their range is spanned by the values at
+//!   the interval's ends. A LINEAR rotation is a slerp, `R(s) = R_n(sθ)·q0`, a rotation about
+//!   one fixed axis `n`: each box corner is swept along that arc and the arc's exact extent
+//!   per axis (Rodrigues' formula and its extrema) is taken, which gives the exact AABB of
+//!   the rotated box (the AABB of a rotated box is that of its rotated corners).
+//! - STEP holds the first key and jumps to the second at the segment's end: both values.
+//! - CUBICSPLINE translation and scale are cubic polynomials: exact ranges from the roots of
+//!   their derivative. A CUBICSPLINE rotation is `normalize(p(s))` with `p` a cubic in each
+//!   quaternion component, not a fixed-axis path: the interval is cut into
+//!   [`CUBIC_PIECES`] pieces; on each, the components' exact ranges give an interval
+//!   rotation matrix (entries intersected with [-1, 1]), applied by interval arithmetic.
+//!   Conservative by construction; tighter with more pieces.
+//!
+//! Inverse motions (for walking down the hierarchy, eq. 2) undo translation, rotation and
+//! scale in reverse order; a scale interval containing zero makes the box unbounded.
+
+use super::Aabb;
+use crate::clip::{Channel, Clip, Interpolation, Keyable, Segment};
+use crate::model::{Node, Trs};
+use crate::{Error, Result};
+use glam::{DMat3, DMat4, DQuat, DVec3, DVec4, Quat, Vec3};
+use std::f64::consts::{PI, TAU};
+
+/// Pieces a CUBICSPLINE rotation interval is cut into.
+pub const CUBIC_PIECES: usize = 16;
+
+/// An interval matrix: entry-wise lower and upper bounds.
+pub type IntervalMat3 = (DMat3, DMat3);
+
+/// The set of rotations a node can take during the interval.
+#[derive(Clone, Debug, PartialEq)]
+pub enum RotationMotion {
+    Fixed(DQuat),
+    /// `R_axis(φ) · start` for φ between 0 and `angle` (either sign).
+    Arc {
+        start: DQuat,
+        axis: DVec3,
+        angle: f64,
+    },
+    /// One of these rotations (STEP keys).
+    Set(Vec<DQuat>),
+    /// Within one of these interval matrices (CUBICSPLINE pieces).
+    Intervals(Vec<IntervalMat3>),
+}
+
+/// The local transforms a node can take during the interval.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Motion {
+    /// A constant matrix (glTF `matrix` nodes, which cannot be animated).
+    Matrix(DMat4),
+    Trs {
+        translation: Aabb,
+        rotation: RotationMotion,
+        scale: Aabb,
+    },
+}
+
+/// Motion of `node` over `[t1, t2]`; errors when the interval spans a key of the node.
+pub fn node_motion(node: &Node, index: u32, clip: Option<&Clip>, t1: f32, t2: f32) -> Result<Motion> {
+    let animated = clip.is_some_and(|c| c.animates(index));
+    if let (Some(m), false) = (node.matrix, animated) {
+        return Ok(Motion::Matrix(m.as_dmat4()));
+    }
+    let rest: Trs = node.rest;
+    let find = |chs: &'_ [Channel<Vec3>]| chs.iter().find(|c| c.node == index).cloned();
+    let (t, r, s) = match clip {
+        Some(c) => (find(&c.translations), c.rotations.iter().find(|ch| ch.node == index).cloned(), find(&c.scales)),
+        None => (None, None, None),
+    };
+    let translation = match t {
+        Some(ch) => vec3_range(&segment(&ch, t1, t2, index)?, t1, t2),
+        None => Aabb::point(rest.translation.as_dvec3()),
+    };
+    let scale = match s {
+        Some(ch) => vec3_range(&segment(&ch, t1, t2, index)?, t1, t2),
+        None => Aabb::point(rest.scale.as_dvec3()),
+    };
+    let rotation = match r {
+        Some(ch) => rotation_motion(&segment(&ch, t1, t2, index)?, t1, t2),
+        None => RotationMotion::Fixed(rest.rotation.as_dquat().normalize()),
+    };
+    Ok(Motion::Trs { translation, rotation, scale })
+}
+
+fn segment<T: Keyable>(ch: &Channel<T>, t1: f32, t2: f32, node: u32) -> Result<Segment<T>> {
+    let seg = ch.segment(t1);
+    if t2 > seg.t1 {
+        return Err(Error::invalid(
+            format!("node {node}"),
+            format!("bounds interval [{t1}, {t2}] spans the key at {} s; split it at every key", seg.t1),
+        ));
+    }
+    Ok(seg)
+}
+
+/// Interpolation parameter of `t` in a segment, computed as the sampler does.
+fn param<T>(seg: &Segment<T>, t: f32) -> f64 {
+    if t <= seg.t0 || seg.t1 <= seg.t0 {
+        0.0
+    } else if t >= seg.t1 {
+        1.0
+    } else {
+        ((t - seg.t0) / (seg.t1 - seg.t0)) as f64
+    }
+}
+
+/// Coefficients of the cubic Hermite polynomial in `s` for one component.
+fn hermite_coeffs(v0: f64, b0: f64, v1: f64, a1: f64, dt: f64) -> [f64; 4] {
+    let (m0, m1) = (dt * b0, dt * a1);
+    [v0, m0, -3.0 * v0 - 2.0 * m0 + 3.0 * v1 - m1, 2.0 * v0 + m0 - 2.0 * v1 + m1]
+}
+
+/// Exact range of a cubic `c0 + c1 s + c2 s² + c3 s³` over `[s1, s2]`.
+fn cubic_range(c: [f64; 4], s1: f64, s2: f64) -> (f64, f64) {
+    let f = |s: f64| c[0] + s * (c[1] + s * (c[2] + s * c[3]));
+    let (mut lo, mut hi) = (f(s1).min(f(s2)), f(s1).max(f(s2)));
+    // Derivative c1 + 2 c2 s + 3 c3 s².
+    let (a, b, cc) = (3.0 * c[3], 2.0 * c[2], c[1]);
+    let mut roots = [f64::NAN; 2];
+    if a.abs() > 1e-300 {
+        let disc = b * b - 4.0 * a * cc;
+        if disc >= 0.0 {
+            let q = -0.5 * (b + b.signum() * disc.sqrt());
+            roots = [q / a, if q != 0.0 { cc / q } else { f64::NAN }];
+        }
+    } else if b.abs() > 1e-300 {
+        roots[0] = -cc / b;
+    }
+    for r in roots {
+        if r > s1 && r < s2 {
+            lo = lo.min(f(r));
+            hi = hi.max(f(r));
+        }
+    }
+    (lo, hi)
+}
+
+fn vec3_range(seg: &Segment<Vec3>, t1: f32, t2: f32) -> Aabb {
+    let (s1, s2) = (param(seg, t1), param(seg, t2));
+    match seg.interpolation {
+        Interpolation::Step => {
+            let mut b = Aabb::point(seg.v0.as_dvec3());
+            if t2 >= seg.t1 {
+                b.extend(seg.v1.as_dvec3());
+            }
+            b
+        }
+        Interpolation::Linear => {
+            let mut b = Aabb::point(seg.eval(t1).as_dvec3());
+            b.extend(seg.eval(t2).as_dvec3());
+            b
+        }
+        Interpolation::CubicSpline => {
+            let dt = (seg.t1 - seg.t0) as f64;
+            let (v0, b0, v1, a1) =
+                (seg.v0.as_dvec3(), seg.out_tangent0.as_dvec3(), seg.v1.as_dvec3(), seg.in_tangent1.as_dvec3());
+            let mut lo = DVec3::ZERO;
+            let mut hi = DVec3::ZERO;
+            for k in 0..3 {
+                let (l, h) = cubic_range(hermite_coeffs(v0[k], b0[k], v1[k], a1[k], dt), s1, s2);
+                lo[k] = l;
+                hi[k] = h;
+            }
+            Aabb { min: lo, max: hi }
+        }
+    }
+}
+
+fn rotation_motion(seg: &Segment<Quat>, t1: f32, t2: f32) -> RotationMotion {
+    let (s1, s2) = (param(seg, t1), param(seg, t2));
+    match seg.interpolation {
+        Interpolation::Step => {
+            let mut set = vec![seg.v0.as_dquat().normalize()];
+            if t2 >= seg.t1 {
+                set.push(seg.v1.as_dquat().normalize());
+            }
+            RotationMotion::Set(set)
+        }
+        Interpolation::Linear => {
+            let q0 = seg.v0.as_dquat().normalize();
+            let mut q1 = seg.v1.as_dquat().normalize();
+            if q0.dot(q1) < 0.0 {
+                q1 = -q1;
+            }
+            // slerp(q0, q1, s) = Δ^s · q0 with Δ = q1 · q0⁻¹ (its w is q0·q1 ≥ 0), a rotation
+            // by s·θ about one axis.
+            let mut delta = (q1 * q0.conjugate()).normalize();
+            if delta.w < 0.0 {
+                delta = -delta;
+            }
+            let v = DVec3::new(delta.x, delta.y, delta.z);
+            let theta = 2.0 * v.length().atan2(delta.w);
+            if theta < 1e-12 {
+                return RotationMotion::Fixed(q0);
+            }
+            let axis = v.normalize();
+            if delta.w < 1e-7 {
+                // A half turn between the keys: rounding decides the direction; sweep both.
+                return RotationMotion::Arc { start: q0, axis, angle: TAU };
+            }
+            let start = DQuat::from_axis_angle(axis, s1 * theta) * q0;
+            RotationMotion::Arc { start, axis, angle: (s2 - s1) * theta }
+        }
+        Interpolation::CubicSpline => {
+            let dt = (seg.t1 - seg.t0) as f64;
+            let comps: [[f64; 4]; 4] = std::array::from_fn(|k| {
+                let g = |q: Quat| DVec4::from(q.as_dquat())[k];
+                hermite_coeffs(g(seg.v0), g(seg.out_tangent0), g(seg.v1), g(seg.in_tangent1), dt)
+            });
+            let pieces = (0..CUBIC_PIECES)
+                .map(|i| {
+                    let a = s1 + (s2 - s1) * i as f64 / CUBIC_PIECES as f64;
+                    let b = s1 + (s2 - s1) * (i + 1) as f64 / CUBIC_PIECES as f64;
+                    let r: [(f64, f64); 4] = std::array::from_fn(|k| cubic_range(comps[k], a, b));
+                    quat_interval_matrix(r)
+                })
+                .collect();
+            RotationMotion::Intervals(pieces)
+        }
+    }
+}
+
+type Iv = (f64, f64);
+
+fn iv_mul(a: Iv, b: Iv) -> Iv {
+    let p = [a.0 * b.0, a.0 * b.1, a.1 * b.0, a.1 * b.1];
+    (p.iter().copied().fold(f64::INFINITY, f64::min), p.iter().copied().fold(f64::NEG_INFINITY, f64::max))
+}
+
+fn iv_sq(a: Iv) -> Iv {
+    let (l, h) = (a.0.abs().min(a.1.abs()), a.0.abs().max(a.1.abs()));
+    if a.0 <= 0.0 && a.1 >= 0.0 { (0.0, h * h) } else { (l * l, h * h) }
+}
+
+fn iv_add(a: Iv, b: Iv) -> Iv {
+    (a.0 + b.0, a.1 + b.1)
+}
+
+fn iv_sub(a: Iv, b: Iv) -> Iv {
+    (a.0 - b.1, a.1 - b.0)
+}
+
+/// Interval rotation matrix of `normalize(q)` for q with components in the given ranges
+/// (x, y, z, w); entries clamped to [-1, 1], which every rotation matrix entry satisfies.
+fn quat_interval_matrix(r: [Iv; 4]) -> IntervalMat3 {
+    let [x, y, z, w] = r;
+    let (xx, yy, zz, ww) = (iv_sq(x), iv_sq(y), iv_sq(z), iv_sq(w));
+    let n = iv_add(iv_add(xx, yy), iv_add(zz, ww));
+    let two = |a: Iv| (2.0 * a.0, 2.0 * a.1);
+    let (xy, xz, yz, wx, wy, wz) = (iv_mul(x, y), iv_mul(x, z), iv_mul(y, z), iv_mul(w, x), iv_mul(w, y), iv_mul(w, z));
+    // Row-major numerators of the (unnormalized) rotation matrix.
+    let num = [
+        [iv_sub(iv_add(ww, xx), iv_add(yy, zz)), two(iv_sub(xy, wz)), two(iv_add(xz, wy))],
+        [two(iv_add(xy, wz)), iv_sub(iv_add(ww, yy), iv_add(xx, zz)), two(iv_sub(yz, wx))],
+        [two(iv_sub(xz, wy)), two(iv_add(yz, wx)), iv_sub(iv_add(ww, zz), iv_add(xx, yy))],
+    ];
+    let mut lo = [[-1.0; 3]; 3];
+    let mut hi = [[1.0; 3]; 3];
+    if n.0 > 0.0 {
+        let inv = (1.0 / n.1, 1.0 / n.0);
+        for i in 0..3 {
+            for j in 0..3 {
+                let e = iv_mul(num[i][j], inv);
+                lo[i][j] = e.0.max(-1.0);
+                hi[i][j] = e.1.min(1.0);
+            }
+        }
+    }
+    // DMat3 is column-major: column j holds row entries (0..3, j).
+    let to_mat = |m: [[f64; 3]; 3]| {
+        DMat3::from_cols_array_2d(&[
+            [m[0][0], m[1][0], m[2][0]],
+            [m[0][1], m[1][1], m[2][1]],
+            [m[0][2], m[1][2], m[2][2]],
+        ])
+    };
+    (to_mat(lo), to_mat(hi))
+}
+
+/// Exact AABB of the arc `R_axis(φ)·x`, φ from 0 to `angle`.
+pub fn arc_extent(x: DVec3, axis: DVec3, angle: f64) -> Aabb {
+    let (pa, pb) = if angle >= 0.0 { (0.0, angle) } else { (angle, 0.0) };
+    let a = axis * axis.dot(x);
+    let b = x - a;
+    let c = axis.cross(x);
+    let at = |phi: f64| a + b * phi.cos() + c * phi.sin();
+    let mut bx = Aabb::point(at(pa));
+    bx.extend(at(pb));
+    for k in 0..3 {
+        let r = (b[k] * b[k] + c[k] * c[k]).sqrt();
+        let psi = c[k].atan2(b[k]);
+        // Maximum a + r at φ = ψ (mod 2π), minimum a - r at φ = ψ + π (mod 2π).
+        for (offset, value) in [(0.0, a[k] + r), (PI, a[k] - r)] {
+            let d = (psi + offset - pa).rem_euclid(TAU);
+            if d <= pb - pa {
+                bx.min[k] = bx.min[k].min(value);
+                bx.max[k] = bx.max[k].max(value);
+            }
+        }
+    }
+    bx
+}
+
+fn rotate_box(q: DQuat, b: &Aabb) -> Aabb {
+    b.corners().iter().fold(Aabb::EMPTY, |mut acc, &c| {
+        acc.extend(q * c);
+        acc
+    })
+}
+
+fn interval_mat_box(m: &IntervalMat3, b: &Aabb) -> Aabb {
+    let mut out = Aabb::point(DVec3::ZERO);
+    for i in 0..3 {
+        let mut acc = (0.0, 0.0);
+        for j in 0..3 {
+            let e = (m.0.col(j)[i], m.1.col(j)[i]);
+            acc = iv_add(acc, iv_mul(e, (b.min[j], b.max[j])));
+        }
+        out.min[i] = acc.0;
+        out.max[i] = acc.1;
+    }
+    out
+}
+
+impl RotationMotion {
+    fn apply(&self, b: &Aabb) -> Aabb {
+        match self {
+            RotationMotion::Fixed(q) => rotate_box(*q, b),
+            RotationMotion::Arc { start, axis, angle } => {
+                let axis = *axis;
+                b.corners().iter().fold(Aabb::EMPTY, |acc, &c| acc.union(&arc_extent(*start * c, axis, *angle)))
+            }
+            RotationMotion::Set(qs) => qs.iter().fold(Aabb::EMPTY, |acc, q| acc.union(&rotate_box(*q, b))),
+            RotationMotion::Intervals(ms) => ms.iter().fold(Aabb::EMPTY, |acc, m| acc.union(&interval_mat_box(m, b))),
+        }
+    }
+
+    fn apply_inverse(&self, b: &Aabb) -> Aabb {
+        match self {
+            RotationMotion::Fixed(q) => rotate_box(q.conjugate(), b),
+            // (R_n(φ)·start)⁻¹ x = R_{start⁻¹ n}(-φ) (start⁻¹ x).
+            RotationMotion::Arc { start, axis, angle } => {
+                let inv = start.conjugate();
+                let axis = inv * *axis;
+                b.corners().iter().fold(Aabb::EMPTY, |acc, &c| acc.union(&arc_extent(inv * c, axis, -*angle)))
+            }
+            RotationMotion::Set(qs) => qs.iter().fold(Aabb::EMPTY, |acc, q| acc.union(&rotate_box(q.conjugate(), b))),
+            RotationMotion::Intervals(ms) => ms
+                .iter()
+                .fold(Aabb::EMPTY, |acc, m| acc.union(&interval_mat_box(&(m.0.transpose(), m.1.transpose()), b))),
+        }
+    }
+}
+
+fn mul_box(b: &Aabb, s: &Aabb) -> Aabb {
+    let mut out = Aabb::point(DVec3::ZERO);
+    for k in 0..3 {
+        let p = iv_mul((b.min[k], b.max[k]), (s.min[k], s.max[k]));
+        out.min[k] = p.0;
+        out.max[k] = p.1;
+    }
+    out
+}
+
+fn matrix_box(m: &DMat4, b: &Aabb) -> Aabb {
+    b.corners().iter().fold(Aabb::EMPTY, |mut acc, &c| {
+        acc.extend(m.transform_point3(c));
+        acc
+    })
+}
+
+impl Motion {
+    /// All points `L(t)·x`, x in `b`, t in the interval.
+    pub fn apply(&self, b: &Aabb) -> Aabb {
+        if !b.is_finite() {
+            return Aabb::EVERYWHERE;
+        }
+        match self {
+            Motion::Matrix(m) => matrix_box(m, b),
+            Motion::Trs { translation, rotation, scale } => {
+                let r = rotation.apply(&mul_box(b, scale));
+                Aabb { min: r.min + translation.min, max: r.max + translation.max }
+            }
+        }
+    }
+
+    /// All points `L(t)⁻¹·x`, x in `b`, t in the interval.
+    pub fn apply_inverse(&self, b: &Aabb) -> Aabb {
+        if !b.is_finite() {
+            return Aabb::EVERYWHERE;
+        }
+        match self {
+            Motion::Matrix(m) => matrix_box(&m.inverse(), b),
+            Motion::Trs { translation, rotation, scale } => {
+                let moved = Aabb { min: b.min - translation.max, max: b.max - translation.min };
+                let r = rotation.apply_inverse(&moved);
+                let straddles = (0..3).any(|k| scale.min[k] <= 0.0 && scale.max[k] >= 0.0);
+                if straddles {
+                    return Aabb::EVERYWHERE;
+                }
+                let inv = Aabb { min: DVec3::ONE / scale.max, max: DVec3::ONE / scale.min };
+                mul_box(&r, &inv)
+            }
+        }
+    }
+}
