@@ -14,6 +14,8 @@
 //! against dense sampling on random hierarchies and clips and on the shared assets.
 
 pub mod motion;
+pub mod sphere;
+pub mod verify;
 pub mod vertex;
 
 use glam::DVec3;
