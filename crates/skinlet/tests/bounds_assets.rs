@@ -1,13 +1,13 @@
-//! Conservative meshlet spheres on the shared skinned assets: zero violations under dense
-//! sampling for every clip on its own and for the union of all clips, and the sampled
+//! Conservative meshlet bounds (spheres and normal cones) on the shared skinned assets: zero
+//! violations under dense sampling for every clip on its own and for the union of all clips, and the sampled
 //! baseline (radius from a few uniform samples, like engines' precomputed clip bounds)
 //! shown to miss.
 
 mod common;
 use common::assets_dir;
 
-use skinlet::bounds::sphere::meshlet_spheres;
-use skinlet::bounds::verify::{sampled_spheres, verify_spheres};
+use skinlet::bounds::meshlet::meshlet_bounds;
+use skinlet::bounds::verify::{sampled_bounds, verify_bounds};
 use skinlet::meshlet::{Builder, MeshletLimits, build, prepare};
 
 #[test]
@@ -27,16 +27,17 @@ fn spheres_hold_on_every_asset_and_clip_and_sampling_misses() {
         let mut sets: Vec<(String, Vec<_>)> = all.iter().map(|c| (format!("clip {:?}", c.name), vec![*c])).collect();
         sets.push(("all clips".into(), all.clone()));
         for (label, clips) in &sets {
-            let spheres = meshlet_spheres(&asset.skeleton, skin, clips, &prepared.mesh, &meshlets).unwrap();
-            let report = verify_spheres(&asset.skeleton, skin, clips, &prepared.mesh, &meshlets, &spheres, 200);
-            eprintln!("{name} {label}: {report:?}");
-            assert_eq!(report.violations, 0, "{name} {label}: {report:?}");
+            let bounds = meshlet_bounds(&asset.skeleton, skin, clips, &prepared.mesh, &meshlets).unwrap();
+            let report = verify_bounds(&asset.skeleton, skin, clips, &prepared.mesh, &meshlets, &bounds, 200);
+            let coned = bounds.iter().filter(|b| b.cone_angle < std::f32::consts::FRAC_PI_2).count();
+            eprintln!("{name} {label}: {coned}/{} meshlets with a cone, {report:?}", bounds.len());
+            assert_eq!(report.violations(), 0, "{name} {label}: {report:?}");
             assert!(report.mean_radius_ratio >= 1.0 - 1e-5, "{name} {label}: a radius below what samples need");
         }
-        let sampled = sampled_spheres(&asset.skeleton, skin, &all, &prepared.mesh, &meshlets, 10);
-        let report = verify_spheres(&asset.skeleton, skin, &all, &prepared.mesh, &meshlets, &sampled, 200);
+        let sampled = sampled_bounds(&asset.skeleton, skin, &all, &prepared.mesh, &meshlets, 10);
+        let report = verify_bounds(&asset.skeleton, skin, &all, &prepared.mesh, &meshlets, &sampled, 200);
         eprintln!("{name} sampled baseline (10 samples per clip): {report:?}");
-        baseline_misses += report.violations;
+        baseline_misses += report.violations();
     }
     assert!(baseline_misses > 0, "the sampled baseline should miss somewhere");
 }

@@ -13,8 +13,8 @@
 //! returned box (up to float rounding of the reference, covered by [`INFLATE`]). Tested
 //! against dense sampling on random hierarchies and clips and on the shared assets.
 
+pub mod meshlet;
 pub mod motion;
-pub mod sphere;
 pub mod verify;
 pub mod vertex;
 

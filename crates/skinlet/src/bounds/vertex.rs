@@ -6,8 +6,8 @@
 //! extremes would be missed. The per-influence boxes are combined by the weighted Minkowski
 //! sum (fig. 7): `Σ wᵢ·Bᵢ`, since the skinned point in target space is `Σ wᵢ·qᵢ(t)`.
 
+use super::Aabb;
 use super::motion::{Motion, node_motion};
-use super::{Aabb, INFLATE};
 use crate::Result;
 use crate::clip::Clip;
 use crate::model::{Influences, Skeleton, Skin};
@@ -55,7 +55,9 @@ impl IntervalMotions {
 }
 
 /// Box containing vertex `v` (bind position `position`) at every time of the interval, in
-/// the space of skin joint `target` (`global(joint node, t)⁻¹ · p(t)`).
+/// the space of skin joint `target` (`global(joint node, t)⁻¹ · p(t)`), in exact arithmetic:
+/// callers add [`super::INFLATE`] where f32 rounding of the reference must be covered. A
+/// vertex bound to `target` alone gives a point.
 pub fn vertex_box(
     skeleton: &Skeleton,
     skin: &Skin,
@@ -74,5 +76,5 @@ pub fn vertex_box(
         sum.min += w * b.min;
         sum.max += w * b.max;
     }
-    sum.inflated(INFLATE)
+    sum
 }

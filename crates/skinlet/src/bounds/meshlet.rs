@@ -1,0 +1,249 @@
+//! Per-meshlet bounds that hold over whole clips: a sphere (paper section 5, fig. 9) and a
+//! normal cone (section 4), both in the space of the meshlet's principal joint, plus the
+//! run-time transform of both and the conservative culling tests that use them.
+//!
+//! - Principal joint: largest summed weight over the meshlet's vertices (section 3).
+//! - Sphere: the rest-pose bounding sphere of the vertices in the joint's bind space,
+//!   its radius extended to contain every vertex box ([`super::vertex`]) of every key
+//!   interval of every clip.
+//! - Cone: axis = the area-weighted mean rest normal (joint space); angle = the largest angle
+//!   between the axis and the normal of any triangle built from corners of its three vertex
+//!   boxes (the paper's 8³ combinations), over all intervals. This is conservative, not just
+//!   a heuristic: the face normal `(p2−p1)×(p3−p1)` is affine in each vertex separately, so
+//!   every normal reachable with vertices inside their boxes is a convex combination of the
+//!   corner normals, and a cone of half-angle below 90° is convex. When a corner normal is 90°
+//!   or more away, the meshlet gets no useful cone (angle π: never backface-culled).
+//!
+//! At run time with the joint's global matrix `G` (linear part `A`): the sphere moves to
+//! `G·c` with radius `r·σ_max(A)`; normals move by `M = cof(A)` (for any `A`, also
+//! mirroring: `(A·u)×(A·v) = cof(A)(u×v)`), which can widen the cone: see [`world_cone`].
+
+use super::vertex::{IntervalMotions, vertex_box};
+use super::{Aabb, INFLATE};
+use crate::Result;
+use crate::clip::Clip;
+use crate::meshlet::{Meshlets, stats::principal_joint};
+use crate::model::{Skeleton, Skin, SkinnedMesh};
+use glam::{DMat3, DMat4, DVec3, Vec3};
+use rayon::prelude::*;
+use std::f64::consts::{FRAC_PI_2, PI};
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MeshletBounds {
+    /// Principal joint (index into the skin's joints).
+    pub joint: u16,
+    /// Sphere center in the joint's bind space.
+    pub center: Vec3,
+    /// Radius that holds over every interval of the clips the bounds were computed for.
+    pub radius: f32,
+    /// Radius of the rest-pose sphere.
+    pub rest_radius: f32,
+    /// Normal cone axis (unit, joint space).
+    pub cone_axis: Vec3,
+    /// Normal cone half-angle in radians; ≥ π/2 means no useful cone.
+    pub cone_angle: f32,
+    /// Half-angle of the rest-pose normals alone.
+    pub rest_cone_angle: f32,
+}
+
+/// The key intervals of a clip: consecutive distinct key times (one degenerate interval for a
+/// single key). Outside them every channel is constant, so they cover all times.
+pub fn key_intervals(clip: &Clip) -> Vec<(f32, f32)> {
+    let keys = clip.key_times();
+    match keys.len() {
+        0 => vec![(0.0, 0.0)],
+        1 => vec![(keys[0], keys[0])],
+        _ => keys.windows(2).map(|w| (w[0], w[1])).collect(),
+    }
+}
+
+/// Bounds for every meshlet, conservative over every key interval of every clip in `clips`
+/// (no clip: the rest pose only).
+pub fn meshlet_bounds(
+    skeleton: &Skeleton,
+    skin: &Skin,
+    clips: &[&Clip],
+    mesh: &SkinnedMesh,
+    meshlets: &Meshlets,
+) -> Result<Vec<MeshletBounds>> {
+    let Some(inf) = &mesh.influences else {
+        return Err(crate::Error::invalid("meshlet bounds", "the mesh has no skin weights"));
+    };
+    let mut bounds = rest_bounds(skin, mesh, meshlets);
+    let intervals: Vec<(&Clip, f32, f32)> =
+        clips.iter().flat_map(|c| key_intervals(c).into_iter().map(move |(a, b)| (*c, a, b))).collect();
+    let motions =
+        intervals.iter().map(|&(c, a, b)| IntervalMotions::new(skeleton, Some(c), a, b)).collect::<Result<Vec<_>>>()?;
+    bounds.par_iter_mut().zip(&meshlets.meshlets).for_each(|(b, m)| {
+        let verts = meshlets.vertices_of(m);
+        let (c, axis) = (b.center.as_dvec3(), b.cone_axis.as_dvec3());
+        let mut r = b.radius as f64;
+        let mut min_cos = b.rest_cone_angle.cos() as f64;
+        let mut boxes = Vec::with_capacity(verts.len());
+        for mo in &motions {
+            boxes.clear();
+            boxes.extend(
+                verts
+                    .iter()
+                    .map(|&v| vertex_box(skeleton, skin, mo, inf, v as usize, mesh.positions[v as usize], b.joint)),
+            );
+            for bx in &boxes {
+                r = r.max(bx.inflated(INFLATE).max_distance(c));
+            }
+            if min_cos > 0.0 {
+                for t in meshlets.triangles_of(m).chunks_exact(3) {
+                    min_cos = min_cos.min(corner_normals_min_cos(
+                        &boxes[t[0] as usize],
+                        &boxes[t[1] as usize],
+                        &boxes[t[2] as usize],
+                        axis,
+                    ));
+                }
+            }
+        }
+        b.radius = round_up(r);
+        b.cone_angle = if min_cos > 0.0 { round_up(min_cos.min(1.0).acos()) } else { PI as f32 };
+    });
+    Ok(bounds)
+}
+
+/// The distinct corners of a box (one for a point box, so rigid vertices stay cheap).
+fn distinct_corners(b: &Aabb) -> Vec<DVec3> {
+    let mut c = b.corners().to_vec();
+    c.sort_by(|a, b| a.to_array().partial_cmp(&b.to_array()).unwrap_or(std::cmp::Ordering::Equal));
+    c.dedup();
+    c
+}
+
+/// Smallest cosine between `axis` and the normal of any triangle with corners of the three
+/// boxes as vertices (zero normals skipped: a zero vector lies in every cone).
+fn corner_normals_min_cos(b1: &Aabb, b2: &Aabb, b3: &Aabb, axis: DVec3) -> f64 {
+    let (c1, c2, c3) = (distinct_corners(b1), distinct_corners(b2), distinct_corners(b3));
+    let mut min_cos: f64 = 1.0;
+    for p1 in &c1 {
+        for p2 in &c2 {
+            let e1 = *p2 - *p1;
+            for p3 in &c3 {
+                let n = e1.cross(*p3 - *p1);
+                let len = n.length();
+                if len > 0.0 {
+                    min_cos = min_cos.min(n.dot(axis) / len);
+                }
+            }
+        }
+    }
+    min_cos
+}
+
+fn round_up(x: f64) -> f32 {
+    let f = x as f32;
+    if (f as f64) >= x { f } else { f32::from_bits(f.to_bits() + 1) }
+}
+
+/// Rest-pose bounds: principal joint, bounding sphere of the vertices in the joint's bind
+/// space (center of their box, radius to the farthest vertex), rest normal cone.
+pub fn rest_bounds(skin: &Skin, mesh: &SkinnedMesh, meshlets: &Meshlets) -> Vec<MeshletBounds> {
+    meshlets
+        .meshlets
+        .iter()
+        .map(|m| {
+            let verts = meshlets.vertices_of(m);
+            let joint = principal_joint(mesh, verts).map_or(0, |(j, _)| j);
+            let ibm = skin.inverse_bind[joint as usize].as_dmat4();
+            let bind: Vec<DVec3> =
+                verts.iter().map(|&v| ibm.transform_point3(mesh.positions[v as usize].as_dvec3())).collect();
+            let (lo, hi) = bind.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(l, h), &p| (l.min(p), h.max(p)));
+            let center = (lo + hi) / 2.0;
+            let r = bind.iter().map(|p| p.distance(center)).fold(0.0, f64::max);
+            let normals: Vec<DVec3> = meshlets
+                .triangles_of(m)
+                .chunks_exact(3)
+                .map(|t| (bind[t[1] as usize] - bind[t[0] as usize]).cross(bind[t[2] as usize] - bind[t[0] as usize]))
+                .collect();
+            let axis = normals.iter().sum::<DVec3>().normalize_or_zero();
+            let min_cos =
+                normals.iter().filter(|n| n.length() > 0.0).map(|n| n.dot(axis) / n.length()).fold(1.0, f64::min);
+            let angle = if axis != DVec3::ZERO && min_cos > 0.0 { round_up(min_cos.acos()) } else { PI as f32 };
+            MeshletBounds {
+                joint,
+                center: center.as_vec3(),
+                radius: round_up(r),
+                rest_radius: r as f32,
+                cone_axis: if axis == DVec3::ZERO { Vec3::Z } else { axis.as_vec3() },
+                cone_angle: angle,
+                rest_cone_angle: angle,
+            }
+        })
+        .collect()
+}
+
+/// Upper bound of the largest singular value of a 3×3 matrix: square root of the largest
+/// Gershgorin row sum of `mᵀm` (exact for rotations with uniform scale).
+pub fn max_singular(m: &DMat3) -> f64 {
+    let ata = m.transpose() * *m;
+    (0..3).map(|i| (0..3).map(|j| ata.col(j)[i].abs()).sum::<f64>()).fold(0.0, f64::max).sqrt()
+}
+
+/// Lower bound of the smallest singular value (Gershgorin), 0 when it cannot bound it.
+pub fn min_singular(m: &DMat3) -> f64 {
+    let ata = m.transpose() * *m;
+    (0..3)
+        .map(|i| ata.col(i)[i] - (0..3).filter(|&j| j != i).map(|j| ata.col(j)[i].abs()).sum::<f64>())
+        .fold(f64::INFINITY, f64::min)
+        .max(0.0)
+        .sqrt()
+}
+
+/// Upper bound of the largest singular value of `m`'s 3×3 part.
+pub fn max_scale(m: &DMat4) -> f64 {
+    max_singular(&DMat3::from_mat4(*m))
+}
+
+/// The cofactor matrix `det(A)·A⁻ᵀ`, columns `b×c, c×a, a×b`: maps the cross product of two
+/// vectors to the cross product of their images, so face normals move by it.
+pub fn cofactor(a: &DMat3) -> DMat3 {
+    DMat3::from_cols(a.y_axis.cross(a.z_axis), a.z_axis.cross(a.x_axis), a.x_axis.cross(a.y_axis))
+}
+
+/// World-space sphere (center, radius) for joint global matrix `g`.
+pub fn world_sphere(b: &MeshletBounds, g: &DMat4) -> (DVec3, f64) {
+    (g.transform_point3(b.center.as_dvec3()), b.radius as f64 * max_scale(g))
+}
+
+/// World-space normal cone (unit axis, half-angle) for joint global matrix `g`, or `None`
+/// when no useful cone exists. With `M = cof(A)`, `m = M·axis`, every unit `u` within `α` of
+/// the axis maps within `α'` of `m`, `tan α' ≤ sin α·σmax / (cos α·|m| − sin α·(σmax² − σmin²)/(2|m|))`:
+/// write `u = cos φ·axis + sin φ·w` (`w ⊥ axis`); `M·w` has at most `σmax` across `m` and,
+/// since `wᵀ(MᵀM − λI)axis = wᵀMᵀM·axis`, at least `−(σmax² − σmin²)/(2|m|)` along it.
+/// Exact (`α' = α`) for rotations with uniform scale.
+pub fn world_cone(b: &MeshletBounds, g: &DMat4) -> Option<(DVec3, f64)> {
+    let alpha = b.cone_angle as f64;
+    if alpha >= FRAC_PI_2 {
+        return None;
+    }
+    let m = cofactor(&DMat3::from_mat4(*g));
+    let axis = m * b.cone_axis.as_dvec3();
+    let len = axis.length();
+    if len <= 0.0 {
+        return None;
+    }
+    let (smax, smin) = (max_singular(&m), min_singular(&m));
+    let (s, c) = alpha.sin_cos();
+    let along = c * len - s * (smax * smax - smin * smin) / (2.0 * len);
+    if along <= 0.0 {
+        return None;
+    }
+    let widened = (s * smax).atan2(along);
+    (widened < FRAC_PI_2).then_some((axis / len, widened))
+}
+
+/// Conservative perspective backface test: true only if every triangle whose points lie in
+/// the sphere and whose normal lies in the cone faces away from the eye. Needs
+/// `angle(p − eye, axis) ≤ 90° − α` for all p in the sphere, which
+/// `(c − e)·a ≥ |c − e|·sin α + r·(1 + sin α)` implies.
+pub fn backfacing(center: DVec3, radius: f64, cone: Option<(DVec3, f64)>, eye: DVec3) -> bool {
+    let Some((axis, alpha)) = cone else { return false };
+    let d = center - eye;
+    let s = alpha.sin();
+    d.dot(axis) >= d.length() * s + radius * (1.0 + s)
+}
