@@ -90,6 +90,48 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Conservative animated meshlet bounds and their culling classes (paper table 2).
+    ///
+    /// Per builder: meshlets are given a sphere and a normal cone in their principal joint's
+    /// space that provably hold over every key interval of the chosen clips. A meshlet is
+    /// "both" (frustum- and backface-cullable) when its radius grows at most --sr times over
+    /// the rest radius and its normals turn at most alpha beyond the rest cone, "frustum-only"
+    /// when only the radius holds, else "none". Columns give % both / frustum-only at alpha =
+    /// 10, 20, 30 degrees, % none, and the precomputation time.
+    Bounds {
+        /// .glb or .gltf file, or @demo[:TRIANGLES].
+        file: String,
+        #[arg(long, default_value = "all", value_parser = ["scan", "common-influences", "meshopt", "skin-aware", "all"])]
+        builder: String,
+        /// Clip names or indices, comma-separated (default: all clips, as one union).
+        #[arg(long)]
+        clips: Option<String>,
+        /// Largest allowed radius growth over the rest radius.
+        #[arg(long, default_value_t = 3.0)]
+        sr: f32,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Check conservative bounds against densely sampled reference skinning.
+    ///
+    /// Samples every chosen clip at --samples evenly spaced times plus every key time and
+    /// every key-interval midpoint, skins every vertex, and checks every vertex against its
+    /// meshlet's sphere and every triangle's normal against its cone, in world space as the
+    /// runtime culls. Exits with status 1 on any violation beyond float rounding.
+    Verify {
+        /// .glb or .gltf file, or @demo[:TRIANGLES].
+        file: String,
+        #[arg(long, default_value = "skin-aware", value_parser = ["scan", "common-influences", "meshopt", "skin-aware"])]
+        builder: String,
+        /// Clip names or indices, comma-separated (default: all clips, as one union).
+        #[arg(long)]
+        clips: Option<String>,
+        /// Evenly spaced samples per clip (key times and midpoints are added).
+        #[arg(long, default_value_t = 2000)]
+        samples: usize,
+        #[arg(long)]
+        json: bool,
+    },
     /// Describe the built-in demo character and pose it through each clip.
     Demo {
         /// Approximate triangle count (1000 to 1000000).
@@ -117,6 +159,10 @@ fn main() {
         Command::Pose { file, clip, time, json } => pose(&file, clip.as_deref(), time, json),
         Command::Meshlets { file, builder, max_vertices, max_triangles, json } => {
             meshlets(&file, &builder, MeshletLimits { max_vertices, max_triangles }, json)
+        }
+        Command::Bounds { file, builder, clips, sr, json } => bounds(&file, &builder, clips.as_deref(), sr, json),
+        Command::Verify { file, builder, clips, samples, json } => {
+            verify(&file, &builder, clips.as_deref(), samples, json)
         }
         Command::Demo { triangles, seed, json } => demo(triangles, seed, json),
     };
@@ -480,4 +526,125 @@ fn clip_poses(asset: &Asset, skin: Option<u32>, per_clip: usize) -> Vec<Vec<glam
         }
     }
     poses
+}
+
+/// The clips named in a comma-separated list (names or indices), or all of them.
+fn select_clips<'a>(asset: &'a Asset, list: Option<&str>) -> Result<Vec<&'a Clip>> {
+    match list {
+        None => Ok(asset.clips.iter().collect()),
+        Some(list) => list.split(',').map(|c| Ok(find_clip(asset, Some(c.trim()))?.expect("named clip"))).collect(),
+    }
+}
+
+/// Loads a skinned character and prepares its first skin's combined mesh.
+fn skinned(file: &str) -> Result<(Asset, u32, skinlet::meshlet::PreparedMesh)> {
+    let asset = load(file)?;
+    let skin = asset.instances.iter().find_map(|i| i.skin).with_context(|| format!("{file} has no skinned mesh"))?;
+    let prepared = skinlet::meshlet::prepare(&asset.combined_mesh(Some(skin)));
+    Ok((asset, skin, prepared))
+}
+
+fn bounds(file: &str, builder: &str, clips: Option<&str>, sr: f32, json: bool) -> Result<()> {
+    use skinlet::bounds::meshlet::{Class, classify, meshlet_bounds};
+    let (asset, skin, prepared) = skinned(file)?;
+    let clips = select_clips(&asset, clips)?;
+    let builders: Vec<Builder> = Builder::from_name(builder).map_or(Builder::ALL.to_vec(), |b| vec![b]);
+    let mut rows = Vec::new();
+    for b in builders {
+        let meshlets = skinlet::meshlet::build(&prepared, b, MeshletLimits::NVIDIA)?;
+        let started = std::time::Instant::now();
+        let bounds = meshlet_bounds(&asset.skeleton, &asset.skins[skin as usize], &clips, &prepared.mesh, &meshlets)?;
+        let precompute_s = started.elapsed().as_secs_f64();
+        let pct = |alpha: f32, class: Class| {
+            let n = bounds.iter().filter(|m| classify(m, sr, alpha.to_radians()) == class).count();
+            100.0 * n as f64 / bounds.len().max(1) as f64
+        };
+        let by_alpha: Vec<(f32, f64, f64)> =
+            [10.0, 20.0, 30.0].iter().map(|&a| (a, pct(a, Class::Both), pct(a, Class::FrustumOnly))).collect();
+        rows.push((b, bounds.len(), by_alpha, pct(20.0, Class::None), precompute_s));
+    }
+    if json {
+        let out: Vec<Value> = rows
+            .iter()
+            .map(|(b, n, by_alpha, none, secs)| {
+                let a20 = by_alpha[1];
+                json!({
+                    "builder": b.name(), "meshlets": n, "sr": sr, "alpha_deg": 20.0,
+                    "both_pct": a20.1, "frustum_only_pct": a20.2, "none_pct": none, "precompute_s": secs,
+                    "by_alpha": by_alpha.iter().map(|(a, both, fo)| json!({"alpha_deg": a, "both_pct": both, "frustum_only_pct": fo})).collect::<Vec<_>>(),
+                })
+            })
+            .collect();
+        println!("{}", serde_json::to_string_pretty(&out)?);
+        return Ok(());
+    }
+    let names: Vec<&str> = clips.iter().map(|c| c.name.as_str()).collect();
+    println!("{file}: {} clips ({}), s_r = {sr}", clips.len(), names.join(", "));
+    println!(
+        "  {:<18} {:>8} {:>14} {:>14} {:>14} {:>7} {:>12}",
+        "builder", "meshlets", "10°: both/fr", "20°: both/fr", "30°: both/fr", "none", "precompute s"
+    );
+    for (b, n, by_alpha, none, secs) in &rows {
+        let cell = |i: usize| format!("{:.0}% / {:.0}%", by_alpha[i].1, by_alpha[i].2);
+        println!(
+            "  {:<18} {:>8} {:>14} {:>14} {:>14} {:>6.0}% {:>12.2}",
+            b.name(),
+            n,
+            cell(0),
+            cell(1),
+            cell(2),
+            none,
+            secs
+        );
+    }
+    Ok(())
+}
+
+fn verify(file: &str, builder: &str, clips: Option<&str>, samples: usize, json: bool) -> Result<()> {
+    let (asset, skin, prepared) = skinned(file)?;
+    let clips = select_clips(&asset, clips)?;
+    let builder = Builder::from_name(builder).context("unknown builder")?;
+    let meshlets = skinlet::meshlet::build(&prepared, builder, MeshletLimits::NVIDIA)?;
+    let skin = &asset.skins[skin as usize];
+    let bounds = skinlet::bounds::meshlet::meshlet_bounds(&asset.skeleton, skin, &clips, &prepared.mesh, &meshlets)?;
+    let r = skinlet::bounds::verify::verify_bounds(
+        &asset.skeleton,
+        skin,
+        &clips,
+        &prepared.mesh,
+        &meshlets,
+        &bounds,
+        samples.max(2),
+    );
+    if json {
+        let out = json!({
+            "samples": r.samples, "vertex_checks": r.vertex_checks, "normal_checks": r.normal_checks,
+            "violations": r.violations(), "vertex_violations": r.vertex_violations, "normal_violations": r.normal_violations,
+            "max_violation": r.max_violation, "mean_radius_ratio": r.mean_radius_ratio, "mean_angle_ratio": r.mean_angle_ratio,
+        });
+        println!("{}", serde_json::to_string_pretty(&out)?);
+    } else {
+        println!(
+            "{file}: {} meshlets ({}), {} clips, {} sample times",
+            meshlets.len(),
+            builder.name(),
+            clips.len(),
+            r.samples
+        );
+        println!("  {} vertex checks, {} normal checks", r.vertex_checks, r.normal_checks);
+        println!(
+            "  violations: {} (vertices {}, normals {})",
+            r.violations(),
+            r.vertex_violations,
+            r.normal_violations
+        );
+        println!(
+            "  tightness: stored radius / needed radius {:.4}, stored angle / needed angle {:.4} (means over meshlets)",
+            r.mean_radius_ratio, r.mean_angle_ratio
+        );
+    }
+    if r.violations() > 0 {
+        std::process::exit(1);
+    }
+    Ok(())
 }

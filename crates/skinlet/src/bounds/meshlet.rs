@@ -248,6 +248,41 @@ pub fn backfacing(center: DVec3, radius: f64, cone: Option<(DVec3, f64)>, eye: D
     d.dot(axis) >= d.length() * s + radius * (1.0 + s)
 }
 
+/// Culling class of a meshlet (paper section 6, table 2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Class {
+    /// Frustum- and backface-cullable.
+    Both,
+    /// Frustum-cullable only.
+    FrustumOnly,
+    /// Drawn without culling code.
+    None,
+}
+
+impl Class {
+    pub fn name(self) -> &'static str {
+        match self {
+            Class::Both => "both",
+            Class::FrustumOnly => "frustum-only",
+            Class::None => "none",
+        }
+    }
+}
+
+/// Classifies with constant thresholds: the radius may grow at most `s_r` times the rest
+/// radius, and the normals may turn at most `alpha_t` radians beyond the rest cone (the
+/// paper's "normal deviation threshold": its table 2 has 82–88% of meshlets within 10°,
+/// which only a deviation, not a whole cone angle, allows), the cone staying below 90°.
+pub fn classify(b: &MeshletBounds, s_r: f32, alpha_t: f32) -> Class {
+    if b.radius > s_r * b.rest_radius.max(f32::MIN_POSITIVE) {
+        Class::None
+    } else if b.cone_angle < std::f32::consts::FRAC_PI_2 && b.cone_angle - b.rest_cone_angle <= alpha_t {
+        Class::Both
+    } else {
+        Class::FrustumOnly
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
