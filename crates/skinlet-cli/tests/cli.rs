@@ -232,3 +232,21 @@ fn meshlets_json_has_one_row_per_builder() {
     assert_eq!(code, 2);
     assert!(err.contains("3..=256"), "{err}");
 }
+
+#[test]
+fn verify_and_bounds_report_in_json() {
+    let Some(dir) = assets_dir() else { return };
+    let file = dir.join("skinned/RiggedSimple.glb");
+    let v = json_of(&["verify", file.to_str().unwrap(), "--samples", "100", "--json"]);
+    assert_eq!(v["violations"], 0, "{v}");
+    assert!(v["vertex_checks"].as_u64().unwrap() > 100 * 96 && v["normal_checks"].as_u64().unwrap() > 0);
+    assert!(v["mean_radius_ratio"].as_f64().unwrap() >= 1.0 - 1e-5);
+    let b = json_of(&["bounds", file.to_str().unwrap(), "--builder", "skin-aware", "--json"]);
+    let row = &b[0];
+    let total: f64 = ["both_pct", "frustum_only_pct", "none_pct"].iter().map(|k| row[k].as_f64().unwrap()).sum();
+    assert!((total - 100.0).abs() < 1e-9, "{row}");
+    assert!(row["precompute_s"].as_f64().unwrap() >= 0.0);
+    let (code, _, err) = skinlet(&["verify", file.to_str().unwrap(), "--clips", "nope"]);
+    assert_eq!(code, 2);
+    assert!(err.contains("no clip \"nope\""), "{err}");
+}
