@@ -107,23 +107,20 @@ pub fn meshlet_bounds(
     Ok(bounds)
 }
 
-/// The distinct corners of a box (one for a point box, so rigid vertices stay cheap).
-fn distinct_corners(b: &Aabb) -> Vec<DVec3> {
-    let mut c = b.corners().to_vec();
-    c.sort_by(|a, b| a.to_array().partial_cmp(&b.to_array()).unwrap_or(std::cmp::Ordering::Equal));
-    c.dedup();
-    c
+/// The corners of a box, or its one point when it has no extent (rigid vertices stay cheap).
+fn corners(b: &Aabb) -> ([DVec3; 8], usize) {
+    if b.min == b.max { ([b.min; 8], 1) } else { (b.corners(), 8) }
 }
 
 /// Smallest cosine between `axis` and the normal of any triangle with corners of the three
 /// boxes as vertices (zero normals skipped: a zero vector lies in every cone).
 fn corner_normals_min_cos(b1: &Aabb, b2: &Aabb, b3: &Aabb, axis: DVec3) -> f64 {
-    let (c1, c2, c3) = (distinct_corners(b1), distinct_corners(b2), distinct_corners(b3));
+    let ((c1, n1), (c2, n2), (c3, n3)) = (corners(b1), corners(b2), corners(b3));
     let mut min_cos: f64 = 1.0;
-    for p1 in &c1 {
-        for p2 in &c2 {
+    for p1 in &c1[..n1] {
+        for p2 in &c2[..n2] {
             let e1 = *p2 - *p1;
-            for p3 in &c3 {
+            for p3 in &c3[..n3] {
                 let n = e1.cross(*p3 - *p1);
                 let len = n.length();
                 if len > 0.0 {

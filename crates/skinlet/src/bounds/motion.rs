@@ -16,7 +16,8 @@
 //!   Conservative by construction; tighter with more pieces.
 //!
 //! Inverse motions (for walking down the hierarchy, eq. 2) undo translation, rotation and
-//! scale in reverse order; a scale interval containing zero makes the box unbounded.
+//! scale in reverse order; a scale interval containing zero makes the box unbounded. Every
+//! step grows the box by [`SAMPLING_ROUNDING`] to cover f32 sampling of the reference pose.
 
 use super::Aabb;
 use crate::clip::{Channel, Clip, Interpolation, Keyable, Segment};
@@ -24,6 +25,11 @@ use crate::model::{Node, Trs};
 use crate::{Error, Result};
 use glam::{DMat3, DMat4, DQuat, DVec3, DVec4, Quat, Vec3};
 use std::f64::consts::{PI, TAU};
+
+/// Relative growth of every box after each motion step: the reference samples local
+/// transforms in f32 (interpolated values round to ~6e-8 relative, and a rounded quaternion
+/// turns by ~1e-7 rad), so its path wanders off the exact one by that much per level.
+pub const SAMPLING_ROUNDING: f64 = 1e-6;
 
 /// Pieces a CUBICSPLINE rotation interval is cut into.
 pub const CUBIC_PIECES: usize = 16;
@@ -379,13 +385,14 @@ impl Motion {
         if !b.is_finite() {
             return Aabb::EVERYWHERE;
         }
-        match self {
+        let out = match self {
             Motion::Matrix(m) => matrix_box(m, b),
             Motion::Trs { translation, rotation, scale } => {
                 let r = rotation.apply(&mul_box(b, scale));
                 Aabb { min: r.min + translation.min, max: r.max + translation.max }
             }
-        }
+        };
+        out.inflated(SAMPLING_ROUNDING)
     }
 
     /// All points `L(t)⁻¹·x`, x in `b`, t in the interval.
@@ -394,7 +401,7 @@ impl Motion {
             return Aabb::EVERYWHERE;
         }
         match self {
-            Motion::Matrix(m) => matrix_box(&m.inverse(), b),
+            Motion::Matrix(m) => matrix_box(&m.inverse(), b).inflated(SAMPLING_ROUNDING),
             Motion::Trs { translation, rotation, scale } => {
                 let moved = Aabb { min: b.min - translation.max, max: b.max - translation.min };
                 let r = rotation.apply_inverse(&moved);
@@ -403,7 +410,7 @@ impl Motion {
                     return Aabb::EVERYWHERE;
                 }
                 let inv = Aabb { min: DVec3::ONE / scale.max, max: DVec3::ONE / scale.min };
-                mul_box(&r, &inv)
+                mul_box(&r, &inv).inflated(SAMPLING_ROUNDING)
             }
         }
     }

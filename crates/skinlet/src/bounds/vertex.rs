@@ -18,6 +18,8 @@ pub struct IntervalMotions {
     pub t1: f32,
     pub t2: f32,
     motions: Vec<Motion>,
+    /// Parent links from each node to its root.
+    depth: Vec<u32>,
 }
 
 impl IntervalMotions {
@@ -29,25 +31,39 @@ impl IntervalMotions {
             .enumerate()
             .map(|(i, n)| node_motion(n, i as u32, clip, t1, t2))
             .collect::<Result<Vec<_>>>()?;
-        Ok(IntervalMotions { t1, t2, motions })
+        let mut depth = vec![0u32; skeleton.nodes.len()];
+        for &i in &skeleton.order {
+            if let Some(p) = skeleton.nodes[i as usize].parent {
+                depth[i as usize] = depth[p as usize] + 1;
+            }
+        }
+        Ok(IntervalMotions { t1, t2, motions, depth })
     }
 
     /// All points `global(to)⁻¹ · global(from) · x`, x in `b`, over the interval.
     pub fn carry(&self, skeleton: &Skeleton, from: u32, to: u32, b: Aabb) -> Aabb {
-        if from == to {
-            return b;
+        let parent = |n: u32| skeleton.nodes[n as usize].parent;
+        // Climb to the lowest common ancestor: `from`'s side applies motions on the way up,
+        // `to`'s side is remembered and undone top-down afterwards.
+        let (mut a, mut t, mut b) = (Some(from), Some(to), b);
+        let mut down = [0u32; 64];
+        let mut down_spill = Vec::new();
+        let mut n_down = 0;
+        let depth = |n: Option<u32>| n.map_or(-1, |n| self.depth[n as usize] as i64);
+        while a != t {
+            if depth(a) >= depth(t) {
+                let n = a.expect("deeper side is a node");
+                b = self.motions[n as usize].apply(&b);
+                a = parent(n);
+            } else {
+                let n = t.expect("deeper side is a node");
+                if n_down < down.len() { down[n_down] = n } else { down_spill.push(n) }
+                n_down += 1;
+                t = parent(n);
+            }
         }
-        let up: Vec<u32> = skeleton.ancestry(from).collect();
-        let down: Vec<u32> = skeleton.ancestry(to).collect();
-        // Lowest common ancestor (None: different roots, the scene is the common frame).
-        let lca = up.iter().copied().find(|n| down.contains(n));
-        let mut b = b;
-        for &n in up.iter().take_while(|&&n| Some(n) != lca) {
-            b = self.motions[n as usize].apply(&b);
-        }
-        let below: Vec<u32> = down.iter().copied().take_while(|&n| Some(n) != lca).collect();
-        for &n in below.iter().rev() {
-            b = self.motions[n as usize].apply_inverse(&b);
+        for n in down_spill.iter().rev().chain(down[..n_down.min(down.len())].iter().rev()) {
+            b = self.motions[*n as usize].apply_inverse(&b);
         }
         // Unbounded (a scale through zero): keep it unbounded rather than NaN.
         if b.is_finite() { b } else { Aabb::EVERYWHERE }
