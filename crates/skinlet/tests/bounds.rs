@@ -251,7 +251,7 @@ fn check_character(seed: u64) -> Result<usize, String> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 300, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 500, ..ProptestConfig::default() })]
     #[test]
     fn vertex_boxes_contain_every_sampled_position(seed in any::<u64>()) {
         check_character(seed).map_err(TestCaseError::fail)?;
