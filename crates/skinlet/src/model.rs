@@ -49,12 +49,6 @@ pub struct Node {
     pub matrix: Option<Mat4>,
 }
 
-impl Node {
-    pub fn rest_local(&self) -> Mat4 {
-        self.matrix.unwrap_or_else(|| self.rest.to_mat4())
-    }
-}
-
 /// The node hierarchy of one file (or the demo character).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Skeleton {
