@@ -120,7 +120,7 @@ pub struct Skin {
     pub inverse_bind: Vec<Mat4>,
 }
 
-/// Per-vertex joint influences, `stride` (4 or 8) slots per vertex. Within a vertex the
+/// Per-vertex joint influences, `stride` (4 or 8, at most 8) slots per vertex. Within a vertex the
 /// non-zero weights come first, sorted by decreasing weight, and sum to 1; unused slots
 /// have weight 0 and joint 0. Joint numbers index [`Skin::joints`].
 #[derive(Clone, Debug, Default, PartialEq)]

@@ -1,9 +1,11 @@
 //! Vertex welding: merges vertices whose position and skin data (joints and weights) are
-//! bit-identical, so that UV or normal seams no longer split the surface. The welded
-//! vertex keeps the attributes of the first vertex of its group; vertices are numbered by
-//! first occurrence, so the output is deterministic and triangle windings are unchanged.
+//! bit-identical, so that UV or normal seams no longer split the surface. The remap is
+//! meshoptimizer's (`meshopt_generateVertexRemapMulti`, vertices numbered by first
+//! occurrence); the welded vertex keeps the attributes of the first vertex of its group, so
+//! the output is deterministic and triangle windings are unchanged.
 
 use crate::model::{Influences, SkinnedMesh};
+use meshopt::VertexStream;
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct WeldReport {
@@ -21,40 +23,31 @@ impl WeldReport {
 pub fn weld(mesh: &SkinnedMesh) -> (SkinnedMesh, Vec<u32>, WeldReport) {
     let n = mesh.positions.len();
     let stride = mesh.influences.as_ref().map_or(0, |i| i.stride);
-    let width = 3 + 2 * stride;
-    let mut keys = Vec::with_capacity(n * width);
-    for v in 0..n {
-        keys.extend(mesh.positions[v].to_array().map(f32::to_bits));
-        if let Some(inf) = &mesh.influences {
-            keys.extend(inf.joints[v * stride..(v + 1) * stride].iter().map(|&j| j as u32));
-            keys.extend(inf.weights[v * stride..(v + 1) * stride].iter().map(|w| w.to_bits()));
+    // Skin data padded to 8 slots, so one fixed-size stream each compares every slot.
+    let (joints, weights): (Vec<[u16; 8]>, Vec<[f32; 8]>) = match &mesh.influences {
+        Some(inf) => (0..n)
+            .map(|v| {
+                let (mut j, mut w) = ([0u16; 8], [0f32; 8]);
+                j[..stride].copy_from_slice(&inf.joints[v * stride..(v + 1) * stride]);
+                w[..stride].copy_from_slice(&inf.weights[v * stride..(v + 1) * stride]);
+                (j, w)
+            })
+            .unzip(),
+        None => (vec![[0; 8]; n], vec![[0.0; 8]; n]),
+    };
+    let streams = [
+        VertexStream::new(mesh.positions.as_ptr()),
+        VertexStream::new(joints.as_ptr()),
+        VertexStream::new(weights.as_ptr()),
+    ];
+    let (count, remap) = meshopt::generate_vertex_remap_multi(n, &streams, None);
+    let mut first = vec![u32::MAX; count];
+    for (v, &r) in remap.iter().enumerate() {
+        if first[r as usize] == u32::MAX {
+            first[r as usize] = v as u32;
         }
     }
-    let key = |v: usize| &keys[v * width..(v + 1) * width];
-    let mut order: Vec<u32> = (0..n as u32).collect();
-    order.sort_by(|&a, &b| key(a as usize).cmp(key(b as usize)).then(a.cmp(&b)));
-    // Representative (smallest index) of each vertex's group.
-    let mut rep = vec![0u32; n];
-    let mut g = 0;
-    while g < n {
-        let first = order[g];
-        let mut e = g;
-        while e < n && key(order[e] as usize) == key(first as usize) {
-            rep[order[e] as usize] = first;
-            e += 1;
-        }
-        g = e;
-    }
-    let mut remap = vec![u32::MAX; n];
-    let mut kept = Vec::new();
-    for v in 0..n {
-        let r = rep[v] as usize;
-        if remap[r] == u32::MAX {
-            remap[r] = kept.len() as u32;
-            kept.push(r);
-        }
-        remap[v] = remap[r];
-    }
+    let kept: Vec<usize> = first.iter().map(|&v| v as usize).collect();
     let influences = mesh.influences.as_ref().map(|inf| Influences {
         stride,
         joints: kept.iter().flat_map(|&v| inf.joints[v * stride..(v + 1) * stride].iter().copied()).collect(),
@@ -66,7 +59,7 @@ pub fn weld(mesh: &SkinnedMesh) -> (SkinnedMesh, Vec<u32>, WeldReport) {
         triangles: mesh.triangles.iter().map(|t| t.map(|i| remap[i as usize])).collect(),
         influences,
     };
-    let report = WeldReport { input_vertices: n, output_vertices: kept.len() };
+    let report = WeldReport { input_vertices: n, output_vertices: count };
     (welded, remap, report)
 }
 

@@ -57,7 +57,11 @@ impl IntervalMotions {
                 a = parent(n);
             } else {
                 let n = t.expect("deeper side is a node");
-                if n_down < down.len() { down[n_down] = n } else { down_spill.push(n) }
+                if n_down < down.len() {
+                    down[n_down] = n
+                } else {
+                    down_spill.push(n)
+                }
                 n_down += 1;
                 t = parent(n);
             }
