@@ -10,8 +10,10 @@
 //!
 //! Guarantee: for every time t in the interval, the reference-skinned position of the
 //! vertex, expressed in the target bone's space (`global(target, t)⁻¹ · p(t)`), lies in the
-//! returned box (up to float rounding of the reference, covered by [`INFLATE`]). Tested
-//! against dense sampling on random hierarchies and clips and on the shared assets.
+//! returned box, including the f32 rounding of the sampled pose ([`motion::SAMPLING_ROUNDING`]
+//! per step); [`meshlet`] then adds [`INFLATE`] for the rounding of the skinning itself.
+//! [`meshlet`] builds spheres and normal cones from these boxes, [`verify`] checks them
+//! against dense sampling. Tested on random hierarchies and clips and on the shared assets.
 
 pub mod meshlet;
 pub mod motion;
@@ -20,8 +22,8 @@ pub mod vertex;
 
 use glam::DVec3;
 
-/// Relative inflation of every box, covering the f32 rounding of the reference skinning
-/// (samples are computed in f32; bounds in f64).
+/// Relative inflation of vertex boxes before they extend a sphere, covering the f32
+/// rounding of the reference skinning (samples are computed in f32; bounds in f64).
 pub const INFLATE: f64 = 2e-6;
 
 /// An axis-aligned box in f64. Empty boxes have `min > max`.
