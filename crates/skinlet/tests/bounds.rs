@@ -10,6 +10,9 @@ use skinlet::clip::{Channel, Clip, Interpolation};
 use skinlet::model::{Influences, Node, Skeleton, Skin, Trs};
 use skinlet::pose::Poser;
 
+/// Vertices of each random character's mesh.
+const VERTICES: usize = 12;
+
 struct Rng(u64);
 impl Rng {
     fn u(&mut self) -> f32 {
@@ -151,7 +154,7 @@ fn random_character(seed: u64) -> (Skeleton, Skin, Clip, Vec<Vec3>, Influences) 
         })
         .collect();
     let skin = Skin { name: "s".into(), joints: joints.clone(), inverse_bind };
-    let verts = 6;
+    let verts = VERTICES;
     let positions: Vec<Vec3> = (0..verts).map(|_| r.v3(2.0)).collect();
     let mut inf = Influences { stride: 4, joints: vec![0; 4 * verts], weights: vec![0.0; 4 * verts] };
     for v in 0..verts {
@@ -279,4 +282,68 @@ fn half_turn_between_keys_is_covered_both_ways() {
     // A point on node 1's X axis seen from its unrotated sibling: both half circles.
     let b = motions.carry(&skeleton, 1, 2, skinlet::bounds::Aabb::point(DVec3::X));
     assert!(b.contains(DVec3::Y * 0.999) && b.contains(-DVec3::Y * 0.999), "{b:?}");
+}
+
+/// The whole pipeline on random characters: a random triangle mesh over the character's
+/// vertices, skin-aware meshlets, spheres and cones over the clip, and the dense world-space
+/// check of every vertex and face normal.
+/// Returns whether some meshlet had a useful normal cone (so normals were really checked).
+fn check_meshlet_bounds(seed: u64) -> Result<Option<bool>, String> {
+    use skinlet::bounds::meshlet::meshlet_bounds;
+    use skinlet::bounds::verify::verify_bounds;
+    use skinlet::meshlet::{Builder, MeshletLimits, build, prepare};
+    let (skeleton, skin, clip, mut positions, mut inf) = random_character(seed);
+    let mut r = Rng(seed ^ 0x5EED);
+    let triangles: Vec<[u32; 3]> = if seed % 2 == 0 {
+        // A gently bent 4×3 grid patch: narrow rest cones, so normal checks have teeth.
+        let (w, h) = (4, 3);
+        let main = r.below(skin.joints.len()) as u16;
+        for (i, p) in positions.iter_mut().enumerate() {
+            let (x, y) = ((i % w) as f32, (i / w) as f32);
+            *p = Vec3::new(x * 0.3, y * 0.3, 0.05 * x * x) + r.v3(0.02);
+            // Mostly one joint, some vertices with up to 5% on another: cones survive.
+            inf.joints[4 * i..4 * i + 4].copy_from_slice(&[main, (main + 1) % skin.joints.len() as u16, 0, 0]);
+            let second = if skin.joints.len() > 1 && r.u() < 0.3 { r.range(0.0, 0.05) } else { 0.0 };
+            inf.weights[4 * i..4 * i + 4].copy_from_slice(&[1.0 - second, second, 0.0, 0.0]);
+        }
+        (0..h - 1)
+            .flat_map(|y| (0..w - 1).map(move |x| (x, y)))
+            .flat_map(|(x, y)| {
+                let i = (y * w + x) as u32;
+                [[i, i + 1, i + w as u32 + 1], [i, i + w as u32 + 1, i + w as u32]]
+            })
+            .collect()
+    } else {
+        (0..20)
+            .map(|_| [r.below(VERTICES) as u32, r.below(VERTICES) as u32, r.below(VERTICES) as u32])
+            .filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
+            .collect()
+    };
+    if triangles.is_empty() {
+        return Ok(None);
+    }
+    let mesh = skinlet::SkinnedMesh { positions, normals: Vec::new(), triangles, influences: Some(inf) };
+    let prepared = prepare(&mesh);
+    let limits = MeshletLimits { max_vertices: 8, max_triangles: 8 };
+    let meshlets = build(&prepared, Builder::SkinAware, limits).map_err(|e| e.to_string())?;
+    let bounds = meshlet_bounds(&skeleton, &skin, &[&clip], &prepared.mesh, &meshlets).map_err(|e| e.to_string())?;
+    let report = verify_bounds(&skeleton, &skin, &[&clip], &prepared.mesh, &meshlets, &bounds, 60);
+    if report.violations() > 0 {
+        return Err(format!("seed {seed}: {report:?}"));
+    }
+    Ok(Some(bounds.iter().any(|b| b.cone_angle < std::f32::consts::FRAC_PI_2)))
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 500, ..ProptestConfig::default() })]
+    #[test]
+    fn meshlet_bounds_hold_on_random_characters(seed in any::<u64>()) {
+        check_meshlet_bounds(seed).map_err(TestCaseError::fail)?;
+    }
+}
+
+#[test]
+fn random_patches_have_cones_to_check() {
+    let with_cones = (0..200u64).filter(|s| check_meshlet_bounds(2 * s).unwrap() == Some(true)).count();
+    assert!(with_cones > 50, "only {with_cones} of 200 patches had a normal cone");
 }

@@ -78,7 +78,7 @@ pub fn meshlet_bounds(
         let verts = meshlets.vertices_of(m);
         let (c, axis) = (b.center.as_dvec3(), b.cone_axis.as_dvec3());
         let mut r = b.radius as f64;
-        let mut min_cos = b.rest_cone_angle.cos() as f64;
+        let mut min_cos = (b.rest_cone_angle as f64).cos();
         let mut boxes = Vec::with_capacity(verts.len());
         for mo in &motions {
             boxes.clear();
@@ -113,8 +113,12 @@ fn corners(b: &Aabb) -> ([DVec3; 8], usize) {
 }
 
 /// Smallest cosine between `axis` and the normal of any triangle with corners of the three
-/// boxes as vertices (zero normals skipped: a zero vector lies in every cone).
+/// boxes as vertices (zero normals skipped: a zero vector lies in every cone); -1 (no cone)
+/// when a box is unbounded.
 fn corner_normals_min_cos(b1: &Aabb, b2: &Aabb, b3: &Aabb, axis: DVec3) -> f64 {
+    if !(b1.is_finite() && b2.is_finite() && b3.is_finite()) {
+        return -1.0;
+    }
     let ((c1, n1), (c2, n2), (c3, n3)) = (corners(b1), corners(b2), corners(b3));
     let mut min_cos: f64 = 1.0;
     for p1 in &c1[..n1] {
@@ -123,6 +127,9 @@ fn corner_normals_min_cos(b1: &Aabb, b2: &Aabb, b3: &Aabb, axis: DVec3) -> f64 {
             for p3 in &c3[..n3] {
                 let n = e1.cross(*p3 - *p1);
                 let len = n.length();
+                if !len.is_finite() {
+                    return -1.0;
+                }
                 if len > 0.0 {
                     min_cos = min_cos.min(n.dot(axis) / len);
                 }

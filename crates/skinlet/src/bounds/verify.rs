@@ -4,8 +4,9 @@
 //! its moved sphere ([`world_sphere`]) and every triangle's face normal in its moved cone
 //! ([`world_cone`]). Tolerances are float rounding of the f32 reference only: 1e-5 of the
 //! radius plus 1e-6 of the scene size for points; for normals the angle that f32 rounding of
-//! the triangle's vertices can cause (1e-6 rad plus 2δ·perimeter/|n|, δ = 2.4e-7 × coordinate
-//! size: moving each vertex by δ turns the face normal by at most that much).
+//! the triangle's vertices can cause (1e-6 rad plus 2δ·perimeter/|n|, δ = 2.4e-7 × the
+//! magnitudes skinning sums, |M|·|p| + |t|: moving each vertex by δ turns the face normal by
+//! at most that much).
 
 use super::meshlet::{MeshletBounds, key_intervals, rest_bounds, world_cone, world_sphere};
 use crate::clip::Clip;
@@ -202,9 +203,23 @@ fn scan(
                 out.needed_angle[i] = out.needed_angle[i].max(nj.dot(b.cone_axis.as_dvec3()).clamp(-1.0, 1.0).acos());
                 if let Some((axis, alpha)) = cone {
                     // Moving each vertex by δ turns the normal by at most 2δ·perimeter/|n|;
-                    // δ: a few f32 ulps of the coordinates (skinning rounds several times).
+                    // δ: a few f32 ulps of the magnitudes skinning sums (|M|·|p| + |t|), which
+                    // exceed the result's when the joint's matrix nearly collapses.
                     let perimeter = (p2 - p1).length() + (p3 - p1).length() + (p3 - p2).length();
-                    let delta = 2.4e-7 * p1.abs().max(p2.abs()).max(p3.abs()).max_element();
+                    let magnitude = [0, 1, 2]
+                        .map(|k| {
+                            let v = verts[t[k] as usize] as usize;
+                            let m = crate::skinning::blend_matrix(inf, v, &mats);
+                            let q = mesh.positions[v].abs();
+                            (m.matrix3.x_axis.abs() * q.x
+                                + m.matrix3.y_axis.abs() * q.y
+                                + m.matrix3.z_axis.abs() * q.z
+                                + m.translation.abs())
+                            .max_element() as f64
+                        })
+                        .into_iter()
+                        .fold(0.0, f64::max);
+                    let delta = 2.4e-7 * magnitude;
                     let tol = 1e-6 + 2.0 * delta * perimeter / len;
                     let angle = (nw.dot(axis) / len).clamp(-1.0, 1.0).acos();
                     if angle > alpha + tol {
