@@ -294,7 +294,7 @@ fn check_meshlet_bounds(seed: u64) -> Result<Option<bool>, String> {
     use skinlet::meshlet::{Builder, MeshletLimits, build, prepare};
     let (skeleton, skin, clip, mut positions, mut inf) = random_character(seed);
     let mut r = Rng(seed ^ 0x5EED);
-    let triangles: Vec<[u32; 3]> = if seed % 2 == 0 {
+    let triangles: Vec<[u32; 3]> = if seed.is_multiple_of(2) {
         // A gently bent 4×3 grid patch: narrow rest cones, so normal checks have teeth.
         let (w, h) = (4, 3);
         let main = r.below(skin.joints.len()) as u16;
