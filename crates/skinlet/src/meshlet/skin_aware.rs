@@ -16,6 +16,7 @@
 //! meshlets that share vertices are merged when the union fits the limits, which recovers
 //! most of the meshlet-count overhead.
 
+use super::stats::principal_joint;
 use super::{MeshletLimits, Meshlets, greedy};
 use crate::model::SkinnedMesh;
 use std::collections::BTreeMap;
@@ -40,21 +41,10 @@ impl Default for Params {
 pub fn partition_keys(mesh: &SkinnedMesh) -> Vec<u32> {
     let Some(inf) = &mesh.influences else { return vec![0; mesh.triangles.len()] };
     const RIGID: f32 = 0.999;
-    let mut acc: Vec<(u16, f32)> = Vec::with_capacity(3 * inf.stride);
     mesh.triangles
         .iter()
         .map(|t| {
-            acc.clear();
-            for &v in t {
-                for (j, w) in inf.of(v as usize) {
-                    match acc.iter_mut().find(|(aj, _)| *aj == j) {
-                        Some(a) => a.1 += w,
-                        None => acc.push((j, w)),
-                    }
-                }
-            }
-            let best = |b: (u16, f32), &(j, w): &(u16, f32)| if w > b.1 || (w == b.1 && j < b.0) { (j, w) } else { b };
-            let j = acc.iter().fold((u16::MAX, f32::NEG_INFINITY), best).0;
+            let j = principal_joint(mesh, t).map_or(0, |(j, _)| j);
             let rigid = t.iter().all(|&v| inf.of(v as usize).next().is_some_and(|(vj, w)| vj == j && w >= RIGID));
             2 * j as u32 + rigid as u32
         })
