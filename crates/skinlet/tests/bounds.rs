@@ -347,3 +347,16 @@ fn random_patches_have_cones_to_check() {
     let with_cones = (0..200u64).filter(|s| check_meshlet_bounds(2 * s).unwrap() == Some(true)).count();
     assert!(with_cones > 50, "only {with_cones} of 200 patches had a normal cone");
 }
+
+/// Seeds that once failed (rounding through near-singular scales, unbounded boxes, tiny
+/// cones); kept so that a fix cannot silently regress.
+#[test]
+fn seeds_that_once_failed() {
+    for seed in [48850896777888519, 4279649241624201730, 8120701573591387314, 3165077517545815709, 14844516871249792886]
+    {
+        check_character(seed).unwrap();
+    }
+    for seed in [4835460085934742770, 12520672679534881996, 12738666605761301130] {
+        check_meshlet_bounds(seed).unwrap();
+    }
+}

@@ -145,7 +145,22 @@ fn cubic_range(c: [f64; 4], s1: f64, s2: f64) -> (f64, f64) {
     (lo, hi)
 }
 
+/// Range of a translation or scale channel over `[t1, t2]`, widened by the absolute error of
+/// the reference's f32 interpolation (a few ulps of the key and tangent magnitudes), which
+/// matters when the value passes near zero and is inverted on the way down the hierarchy.
 fn vec3_range(seg: &Segment<Vec3>, t1: f32, t2: f32) -> Aabb {
+    let dt = (seg.t1 - seg.t0).abs();
+    let dt = if dt.is_finite() { dt } else { 0.0 };
+    let magnitude = [seg.v0, seg.v1, seg.out_tangent0 * dt, seg.in_tangent1 * dt]
+        .iter()
+        .map(|v| v.abs().max_element())
+        .fold(0f32, f32::max) as f64;
+    let r = exact_vec3_range(seg, t1, t2);
+    let e = DVec3::splat(4.0 * f32::EPSILON as f64 * magnitude);
+    Aabb { min: r.min - e, max: r.max + e }
+}
+
+fn exact_vec3_range(seg: &Segment<Vec3>, t1: f32, t2: f32) -> Aabb {
     let (s1, s2) = (param(seg, t1), param(seg, t2));
     match seg.interpolation {
         Interpolation::Step => {
