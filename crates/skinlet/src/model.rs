@@ -158,6 +158,20 @@ pub struct SkinnedMesh {
     pub influences: Option<Influences>,
 }
 
+impl SkinnedMesh {
+    /// Triangles that repeat a vertex or have zero area (valid, but they draw nothing).
+    pub fn degenerate_triangles(&self) -> usize {
+        let p = &self.positions;
+        self.triangles
+            .iter()
+            .filter(|t| {
+                let [a, b, c] = t.map(|i| p[i as usize]);
+                t[0] == t[1] || t[1] == t[2] || t[0] == t[2] || (b - a).cross(c - a) == Vec3::ZERO
+            })
+            .count()
+    }
+}
+
 /// One glTF mesh: its triangle primitives (points and lines are skipped at import).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Mesh {

@@ -393,15 +393,10 @@ fn load_primitive(p: &gltf::Primitive, buffers: &Buffers, loc: &str, report: &mu
         return Err(Error::invalid(loc, format!("index {i} is {v}, but there are only {n} vertices")));
     }
     let triangles = assemble_triangles(p.mode(), &indices, loc)?;
-    report.degenerate_triangles += triangles
-        .iter()
-        .filter(|t| {
-            let [a, b, c] = t.map(|i| positions[i as usize]);
-            t[0] == t[1] || t[1] == t[2] || t[0] == t[2] || (b - a).cross(c - a) == Vec3::ZERO
-        })
-        .count();
     let influences = load_influences(p, buffers, n, loc, report)?;
-    Ok(SkinnedMesh { positions, normals, triangles, influences })
+    let mesh = SkinnedMesh { positions, normals, triangles, influences };
+    report.degenerate_triangles += mesh.degenerate_triangles();
+    Ok(mesh)
 }
 
 fn assemble_triangles(mode: Mode, idx: &[u32], loc: &str) -> Result<Vec<[u32; 3]>> {

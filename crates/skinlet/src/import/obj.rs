@@ -10,7 +10,6 @@ pub fn load_obj_str(text: &str, name: &str) -> Result<Asset> {
     let mut positions: Vec<Vec3> = Vec::new();
     let mut triangles: Vec<[u32; 3]> = Vec::new();
     let mut face: Vec<u32> = Vec::new();
-    let mut degenerate = 0;
     for (ln, line) in text.lines().enumerate() {
         let loc = || format!("{name} line {}", ln + 1);
         let mut it = line.split_whitespace();
@@ -44,14 +43,7 @@ pub fn load_obj_str(text: &str, name: &str) -> Result<Asset> {
                 if face.len() < 3 {
                     return Err(Error::invalid(loc(), format!("face has {} vertices (needs 3 or more)", face.len())));
                 }
-                for k in 1..face.len() - 1 {
-                    let t = [face[0], face[k], face[k + 1]];
-                    let [a, b, c] = t.map(|i| positions[i as usize]);
-                    if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] || (b - a).cross(c - a) == Vec3::ZERO {
-                        degenerate += 1;
-                    }
-                    triangles.push(t);
-                }
+                triangles.extend((1..face.len() - 1).map(|k| [face[0], face[k], face[k + 1]]));
             }
             _ => {}
         }
@@ -60,6 +52,7 @@ pub fn load_obj_str(text: &str, name: &str) -> Result<Asset> {
         return Err(Error::invalid(name, "no faces found (is this an OBJ file?)"));
     }
     let geometry = SkinnedMesh { positions, normals: Vec::new(), triangles, influences: None };
+    let degenerate = geometry.degenerate_triangles();
     let root = Node { name: "root".into(), parent: None, rest: Trs::IDENTITY, matrix: None };
     let mut asset = Asset {
         skeleton: Skeleton::new(vec![root])?,
