@@ -163,6 +163,7 @@ fn scan(
     let n = meshlets.len();
     let Some(inf) = &mesh.influences else { return Scan::new(n) };
     let scene = mesh.positions.iter().map(|p| p.abs().max_element()).fold(1.0f32, f32::max) as f64;
+    let any_cone = bounds.iter().any(|b| (b.cone_angle as f64) < std::f64::consts::FRAC_PI_2);
     let per_time = |&(clip, t): &(&Clip, f32)| {
         let mut poser = Poser::default();
         let globals = poser.globals(skeleton, Some(clip), t).to_vec();
@@ -170,6 +171,23 @@ fn scan(
         skinning_matrices(skin, &globals, &mut mats);
         let mut p = vec![Vec3::ZERO; mesh.positions.len()];
         crate::skinning::skin_serial(inf, &mesh.positions, &[], &mats, &mut p, &mut []).expect("validated mesh");
+        // Per vertex, the magnitudes skinning sums (|M|·|p| + |t|): f32 rounds relative to
+        // them, which exceed the result's when the joint's matrix nearly collapses.
+        let sums: Vec<f64> = if any_cone {
+            (0..p.len())
+                .map(|v| {
+                    let m = crate::skinning::blend_matrix(inf, v, &mats);
+                    let q = mesh.positions[v].abs();
+                    (m.matrix3.x_axis.abs() * q.x
+                        + m.matrix3.y_axis.abs() * q.y
+                        + m.matrix3.z_axis.abs() * q.z
+                        + m.translation.abs())
+                    .max_element() as f64
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
         let mut out = Scan::new(n);
         for (i, (m, b)) in meshlets.meshlets.iter().zip(bounds).enumerate() {
             let g = globals[skin.joints[b.joint as usize] as usize];
@@ -203,22 +221,10 @@ fn scan(
                 out.needed_angle[i] = out.needed_angle[i].max(nj.dot(b.cone_axis.as_dvec3()).clamp(-1.0, 1.0).acos());
                 if let Some((axis, alpha)) = cone {
                     // Moving each vertex by δ turns the normal by at most 2δ·perimeter/|n|;
-                    // δ: a few f32 ulps of the magnitudes skinning sums (|M|·|p| + |t|), which
-                    // exceed the result's when the joint's matrix nearly collapses.
+                    // δ: a few f32 ulps of the magnitudes skinning summed.
                     let perimeter = (p2 - p1).length() + (p3 - p1).length() + (p3 - p2).length();
-                    let magnitude = [0, 1, 2]
-                        .map(|k| {
-                            let v = verts[t[k] as usize] as usize;
-                            let m = crate::skinning::blend_matrix(inf, v, &mats);
-                            let q = mesh.positions[v].abs();
-                            (m.matrix3.x_axis.abs() * q.x
-                                + m.matrix3.y_axis.abs() * q.y
-                                + m.matrix3.z_axis.abs() * q.z
-                                + m.translation.abs())
-                            .max_element() as f64
-                        })
-                        .into_iter()
-                        .fold(0.0, f64::max);
+                    let magnitude =
+                        [0, 1, 2].map(|k| sums[verts[t[k] as usize] as usize]).into_iter().fold(0.0, f64::max);
                     let delta = 2.4e-7 * magnitude;
                     let tol = 1e-6 + 2.0 * delta * perimeter / len;
                     let angle = (nw.dot(axis) / len).clamp(-1.0, 1.0).acos();
