@@ -10,7 +10,9 @@ use skinlet::demo::{DemoParams, demo_character};
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::Poser;
 use skinlet::summary::summarize;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+mod bake;
 
 #[derive(Parser)]
 #[command(
@@ -26,6 +28,42 @@ for the built-in procedural demo character.",
 struct Cli {
     #[command(subcommand)]
     command: Command,
+}
+
+/// Refinement of conservative bounds and the classification thresholds it aims at.
+#[derive(clap::Args, Clone, Copy)]
+struct RefineArgs {
+    /// Seconds of precomputation (key intervals always run; refinement then halves the
+    /// intervals where bounds are worst until the budget is spent or nothing improves).
+    /// 0: no time limit (refine for --rounds rounds).
+    #[arg(long, default_value_t = 60.0)]
+    budget: f64,
+    /// Stop refinement after this many rounds (with --budget 0: exactly this many, so the
+    /// output does not depend on the machine's speed). Default: until converged or the
+    /// budget is spent; 0 with --budget 0: key intervals only.
+    #[arg(long)]
+    rounds: Option<usize>,
+    /// Classification: largest allowed radius growth over the rest radius (s_r).
+    #[arg(long, default_value_t = 3.0)]
+    sr: f32,
+    /// Classification: degrees the normals may turn beyond the rest cone (alpha_T).
+    #[arg(long, default_value_t = 20.0)]
+    alpha: f32,
+}
+
+impl RefineArgs {
+    fn refinement(&self) -> Result<skinlet::bounds::refine::Refinement> {
+        anyhow::ensure!(self.budget.is_finite() && self.budget >= 0.0, "--budget must be a number of seconds >= 0");
+        anyhow::ensure!(self.sr.is_finite() && self.sr >= 1.0, "--sr must be >= 1");
+        anyhow::ensure!((0.0..90.0).contains(&self.alpha), "--alpha must be in [0, 90) degrees");
+        let unlimited = self.budget > 0.0 && self.rounds.is_none();
+        Ok(skinlet::bounds::refine::Refinement {
+            s_r: self.sr,
+            alpha_t: self.alpha.to_radians(),
+            budget: (self.budget > 0.0).then(|| std::time::Duration::from_secs_f64(self.budget)),
+            max_rounds: if unlimited { usize::MAX } else { self.rounds.unwrap_or(0) },
+        })
+    }
 }
 
 #[derive(Subcommand)]
@@ -93,11 +131,12 @@ enum Command {
     /// Conservative animated meshlet bounds and their culling classes (paper table 2).
     ///
     /// Per builder: meshlets are given a sphere and a normal cone in their principal joint's
-    /// space that provably hold over every key interval of the chosen clips. A meshlet is
+    /// space that provably hold over every key interval of the chosen clips, then refined on
+    /// halved intervals until --budget runs out or nothing improves. A meshlet is
     /// "both" (frustum- and backface-cullable) when its radius grows at most --sr times over
     /// the rest radius and its normals turn at most alpha beyond the rest cone, "frustum-only"
     /// when only the radius holds, else "none". Columns give % both / frustum-only at alpha =
-    /// 10, 20, 30 degrees, % none, and the precomputation time.
+    /// 10, 20, 30 degrees, % none, the precomputation time and the refinement rounds.
     Bounds {
         /// .glb or .gltf file, or @demo[:TRIANGLES].
         file: String,
@@ -106,9 +145,32 @@ enum Command {
         /// Clip names or indices, comma-separated (default: all clips, as one union).
         #[arg(long)]
         clips: Option<String>,
-        /// Largest allowed radius growth over the rest radius.
-        #[arg(long, default_value_t = 3.0)]
-        sr: f32,
+        #[command(flatten)]
+        refine: RefineArgs,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Bake a character: meshlets, conservative bounds and classes, vertices, in one file.
+    ///
+    /// Builds meshlets for the first skin's combined mesh, computes bounds that hold over the
+    /// union of the chosen clips (key intervals, then refinement within --budget), classifies
+    /// each meshlet at --sr and --alpha, and writes the bake file (layout: docs/FORMAT.md)
+    /// atomically. Same input and options give the same bytes unless the budget cuts the
+    /// refinement short (the summary then says how to reproduce it).
+    Bake {
+        /// .glb or .gltf file, or @demo[:TRIANGLES].
+        file: String,
+        /// Output bake file.
+        #[arg(short, long)]
+        out: PathBuf,
+        #[arg(long, default_value = "skin-aware", value_parser = ["scan", "common-influences", "meshopt", "skin-aware"])]
+        builder: String,
+        /// Clip names or indices, comma-separated (default: all clips, as one union).
+        #[arg(long)]
+        clips: Option<String>,
+        #[command(flatten)]
+        refine: RefineArgs,
+        /// Print a JSON summary: meshlets, both_pct, frustum_only_pct, none_pct, precompute_s, ...
         #[arg(long)]
         json: bool,
     },
@@ -117,15 +179,22 @@ enum Command {
     /// Samples every chosen clip at --samples evenly spaced times plus every key time and
     /// every key-interval midpoint, skins every vertex, and checks every vertex against its
     /// meshlet's sphere and every triangle's normal against its cone, in world space as the
-    /// runtime culls. Exits with status 1 on any violation beyond float rounding.
+    /// runtime culls. The bounds are computed afresh, or read from a bake file (--baked; its
+    /// clips are checked, and FILE must be the file it was baked from). Exits with status 1 on
+    /// any violation beyond float rounding.
     Verify {
         /// .glb or .gltf file, or @demo[:TRIANGLES].
         file: String,
+        /// Check the bounds stored in this bake file instead of computing them.
+        #[arg(long)]
+        baked: Option<PathBuf>,
         #[arg(long, default_value = "skin-aware", value_parser = ["scan", "common-influences", "meshopt", "skin-aware"])]
         builder: String,
         /// Clip names or indices, comma-separated (default: all clips, as one union).
         #[arg(long)]
         clips: Option<String>,
+        #[command(flatten)]
+        refine: RefineArgs,
         /// Evenly spaced samples per clip (key times and midpoints are added).
         #[arg(long, default_value_t = 2000)]
         samples: usize,
@@ -160,9 +229,14 @@ fn main() {
         Command::Meshlets { file, builder, max_vertices, max_triangles, json } => {
             meshlets(&file, &builder, MeshletLimits { max_vertices, max_triangles }, json)
         }
-        Command::Bounds { file, builder, clips, sr, json } => bounds(&file, &builder, clips.as_deref(), sr, json),
-        Command::Verify { file, builder, clips, samples, json } => {
-            verify(&file, &builder, clips.as_deref(), samples, json)
+        Command::Bounds { file, builder, clips, refine, json } => {
+            bounds(&file, &builder, clips.as_deref(), refine, json)
+        }
+        Command::Bake { file, out, builder, clips, refine, json } => {
+            bake::run(&file, &out, &builder, clips.as_deref(), refine, json)
+        }
+        Command::Verify { file, baked, builder, clips, refine, samples, json } => {
+            verify(&file, baked.as_deref(), &builder, clips.as_deref(), refine, samples, json)
         }
         Command::Demo { triangles, seed, json } => demo(triangles, seed, json),
     };
@@ -391,26 +465,26 @@ fn demo(triangles: usize, seed: u64, json: bool) -> Result<()> {
         }
         clips.push((clip, lo, hi));
     }
-    // Meshlets, conservative bounds over all clips, classification and a sampled check.
-    let prepared = skinlet::meshlet::prepare(&asset.combined_mesh(Some(0)));
-    let meshlets = skinlet::meshlet::build(&prepared, Builder::SkinAware, MeshletLimits::NVIDIA)?;
+    // The bake: meshlets, conservative bounds over all clips (refined until nothing improves,
+    // at most 60 s), classification, then a dense check against reference skinning.
     let all: Vec<&Clip> = asset.clips.iter().collect();
-    let started = std::time::Instant::now();
-    let bounds = skinlet::bounds::meshlet::meshlet_bounds(&asset.skeleton, skin, &all, &prepared.mesh, &meshlets)?;
-    let precompute_s = started.elapsed().as_secs_f64();
-    let class_pct = |class| {
-        let n =
-            bounds.iter().filter(|b| skinlet::bounds::meshlet::classify(b, 3.0, 20f32.to_radians()) == class).count();
-        100.0 * n as f64 / bounds.len().max(1) as f64
+    let how = skinlet::bounds::refine::Refinement {
+        budget: Some(std::time::Duration::from_secs(60)),
+        max_rounds: usize::MAX,
+        ..skinlet::bounds::refine::Refinement::NONE
     };
-    use skinlet::bounds::meshlet::Class;
-    let (both, frustum, none) = (class_pct(Class::Both), class_pct(Class::FrustumOnly), class_pct(Class::None));
-    let check =
-        skinlet::bounds::verify::verify_bounds(&asset.skeleton, skin, &all, &prepared.mesh, &meshlets, &bounds, 200);
+    let (baked, stats) =
+        skinlet::bake::bake(&asset, 0, &all, Builder::SkinAware, MeshletLimits::NVIDIA, &how, &mut |_| {})?;
+    let (meshlets, bounds) = (&baked.meshlets, &baked.bounds);
+    let precompute_s = stats.precompute.as_secs_f64();
+    let (both, frustum, none) = bake::class_shares(&baked);
+    let check = skinlet::bounds::verify::verify_bounds(&asset.skeleton, skin, &all, &baked.mesh, meshlets, bounds, 200);
+    let bake_bytes = skinlet::bake::to_bytes(&baked).len();
     if json {
         let out = json!({
             "meshlets": meshlets.len(), "both_pct": both, "frustum_only_pct": frustum, "none_pct": none,
-            "precompute_s": precompute_s, "verify_samples": check.samples, "violations": check.violations(),
+            "precompute_s": precompute_s, "refine_rounds": baked.settings.rounds, "bake_bytes": bake_bytes,
+            "verify_samples": check.samples, "violations": check.violations(),
             "seed": seed,
             "vertices": s.vertices,
             "triangles": s.triangles,
@@ -447,8 +521,12 @@ fn demo(triangles: usize, seed: u64, json: bool) -> Result<()> {
         );
     }
     println!(
-        "  {} skin-aware meshlets; conservative bounds over all clips in {precompute_s:.2} s: {both:.0}% frustum+backface cullable, {frustum:.0}% frustum only, {none:.0}% none (s_r 3, 20°)",
-        meshlets.len()
+        "  baked ({bake_bytes} bytes): {} skin-aware meshlets, conservative bounds over all clips in {precompute_s:.2} s ({} refinement rounds)",
+        meshlets.len(),
+        baked.settings.rounds
+    );
+    println!(
+        "  classes (s_r 3, 20°): {both:.0}% frustum+backface cullable, {frustum:.0}% frustum only, {none:.0}% none"
     );
     println!(
         "  verified against reference skinning at {} times: {} vertex and {} normal checks, {} violations",
@@ -458,7 +536,7 @@ fn demo(triangles: usize, seed: u64, json: bool) -> Result<()> {
         check.violations()
     );
     println!(
-        "  next: `skinlet inspect @demo`, `skinlet meshlets @demo`, `skinlet bounds @demo`, `skinlet verify @demo`"
+        "  next: `skinlet inspect @demo`, `skinlet meshlets @demo`, `skinlet bounds @demo`, `skinlet bake @demo -o demo.skinlet`, `skinlet verify @demo --baked demo.skinlet`"
     );
     Ok(())
 }
@@ -575,33 +653,45 @@ fn skinned(file: &str) -> Result<(Asset, u32, skinlet::meshlet::PreparedMesh)> {
     Ok((asset, skin, prepared))
 }
 
-fn bounds(file: &str, builder: &str, clips: Option<&str>, sr: f32, json: bool) -> Result<()> {
-    use skinlet::bounds::meshlet::{Class, classify, meshlet_bounds};
+fn bounds(file: &str, builder: &str, clips: Option<&str>, args: RefineArgs, json: bool) -> Result<()> {
+    use skinlet::bounds::meshlet::{Class, classify};
+    let how = args.refinement()?;
     let (asset, skin, prepared) = skinned(file)?;
     let clips = select_clips(&asset, clips)?;
     let builders: Vec<Builder> = Builder::from_name(builder).map_or(Builder::ALL.to_vec(), |b| vec![b]);
+    let sr = args.sr;
     let mut rows = Vec::new();
     for b in builders {
         let meshlets = skinlet::meshlet::build(&prepared, b, MeshletLimits::NVIDIA)?;
         let started = std::time::Instant::now();
-        let bounds = meshlet_bounds(&asset.skeleton, &asset.skins[skin as usize], &clips, &prepared.mesh, &meshlets)?;
+        let refined = skinlet::bounds::refine::refine(
+            &asset.skeleton,
+            &asset.skins[skin as usize],
+            &clips,
+            &prepared.mesh,
+            &meshlets,
+            &how,
+        )?;
         let precompute_s = started.elapsed().as_secs_f64();
+        let bounds = &refined.bounds;
         let pct = |alpha: f32, class: Class| {
             let n = bounds.iter().filter(|m| classify(m, sr, alpha.to_radians()) == class).count();
             100.0 * n as f64 / bounds.len().max(1) as f64
         };
         let by_alpha: Vec<(f32, f64, f64)> =
             [10.0, 20.0, 30.0].iter().map(|&a| (a, pct(a, Class::Both), pct(a, Class::FrustumOnly))).collect();
-        rows.push((b, bounds.len(), by_alpha, pct(20.0, Class::None), precompute_s));
+        let at_alpha =
+            (pct(args.alpha, Class::Both), pct(args.alpha, Class::FrustumOnly), pct(args.alpha, Class::None));
+        rows.push((b, bounds.len(), by_alpha, at_alpha, precompute_s, refined.rounds, refined.stop));
     }
     if json {
         let out: Vec<Value> = rows
             .iter()
-            .map(|(b, n, by_alpha, none, secs)| {
-                let a20 = by_alpha[1];
+            .map(|(b, n, by_alpha, at, secs, rounds, stop)| {
                 json!({
-                    "builder": b.name(), "meshlets": n, "sr": sr, "alpha_deg": 20.0,
-                    "both_pct": a20.1, "frustum_only_pct": a20.2, "none_pct": none, "precompute_s": secs,
+                    "builder": b.name(), "meshlets": n, "sr": sr, "alpha_deg": args.alpha,
+                    "both_pct": at.0, "frustum_only_pct": at.1, "none_pct": at.2, "precompute_s": secs,
+                    "rounds": rounds, "stop": stop_name(*stop),
                     "by_alpha": by_alpha.iter().map(|(a, both, fo)| json!({"alpha_deg": a, "both_pct": both, "frustum_only_pct": fo})).collect::<Vec<_>>(),
                 })
             })
@@ -612,39 +702,79 @@ fn bounds(file: &str, builder: &str, clips: Option<&str>, sr: f32, json: bool) -
     let names: Vec<&str> = clips.iter().map(|c| c.name.as_str()).collect();
     println!("{file}: {} clips ({}), s_r = {sr}", clips.len(), names.join(", "));
     println!(
-        "  {:<18} {:>8} {:>14} {:>14} {:>14} {:>7} {:>12}",
-        "builder", "meshlets", "10°: both/fr", "20°: both/fr", "30°: both/fr", "none", "precompute s"
+        "  {:<18} {:>8} {:>14} {:>14} {:>14} {:>7} {:>12} {:>16}",
+        "builder", "meshlets", "10°: both/fr", "20°: both/fr", "30°: both/fr", "none", "precompute s", "rounds"
     );
-    for (b, n, by_alpha, none, secs) in &rows {
+    for (b, n, by_alpha, at, secs, rounds, stop) in &rows {
         let cell = |i: usize| format!("{:.0}% / {:.0}%", by_alpha[i].1, by_alpha[i].2);
         println!(
-            "  {:<18} {:>8} {:>14} {:>14} {:>14} {:>6.0}% {:>12.2}",
+            "  {:<18} {:>8} {:>14} {:>14} {:>14} {:>6.0}% {:>12.2} {:>16}",
             b.name(),
             n,
             cell(0),
             cell(1),
             cell(2),
-            none,
-            secs
+            at.2,
+            secs,
+            format!("{rounds} ({})", stop_name(*stop))
         );
     }
     Ok(())
 }
 
-fn verify(file: &str, builder: &str, clips: Option<&str>, samples: usize, json: bool) -> Result<()> {
-    let (asset, skin, prepared) = skinned(file)?;
-    let clips = select_clips(&asset, clips)?;
+fn stop_name(stop: skinlet::bounds::refine::Stop) -> &'static str {
+    use skinlet::bounds::refine::Stop;
+    match stop {
+        Stop::Converged => "converged",
+        Stop::Rounds => "rounds",
+        Stop::Budget => "budget",
+    }
+}
+
+fn verify(
+    file: &str,
+    baked: Option<&Path>,
+    builder: &str,
+    clips: Option<&str>,
+    args: RefineArgs,
+    samples: usize,
+    json: bool,
+) -> Result<()> {
     let builder = Builder::from_name(builder).context("unknown builder")?;
-    let meshlets = skinlet::meshlet::build(&prepared, builder, MeshletLimits::NVIDIA)?;
-    let skin = &asset.skins[skin as usize];
-    let bounds = skinlet::bounds::meshlet::meshlet_bounds(&asset.skeleton, skin, &clips, &prepared.mesh, &meshlets)?;
+    let b = match baked {
+        Some(path) => {
+            anyhow::ensure!(clips.is_none(), "--clips cannot be combined with --baked (the bake names its clips)");
+            skinlet::bake::read(path)?
+        }
+        None => bake::bake_file(file, clips, builder, args, json)?.0,
+    };
+    let asset = load(file)?;
+    let skin_index =
+        asset.instances.iter().find_map(|i| i.skin).with_context(|| format!("{file} has no skinned mesh"))?;
+    let skin = &asset.skins[skin_index as usize];
+    let clips = b
+        .settings
+        .clips
+        .iter()
+        .map(|n| asset.clips.iter().find(|c| &c.name == n).with_context(|| format!("{file} has no clip {n:?}")))
+        .collect::<Result<Vec<_>>>()?;
+    if let Some(path) = baked {
+        let prepared = skinlet::meshlet::prepare(&asset.combined_mesh(Some(skin_index)));
+        anyhow::ensure!(
+            prepared.mesh == b.mesh && skin.inverse_bind == b.inverse_bind,
+            "{} was not baked from {file} (its vertices or inverse bind matrices differ)",
+            path.display()
+        );
+    }
+    let builder = b.settings.builder;
+    let (meshlets, bounds) = (&b.meshlets, &b.bounds);
     let r = skinlet::bounds::verify::verify_bounds(
         &asset.skeleton,
         skin,
         &clips,
-        &prepared.mesh,
-        &meshlets,
-        &bounds,
+        &b.mesh,
+        meshlets,
+        bounds,
         samples.max(2),
     );
     if json {

@@ -250,3 +250,47 @@ fn verify_and_bounds_report_in_json() {
     assert_eq!(code, 2);
     assert!(err.contains("no clip \"nope\""), "{err}");
 }
+
+#[test]
+fn bake_is_deterministic_verifiable_and_its_errors_are_clear() {
+    let dir = std::env::temp_dir().join(format!("skinlet-bake-test-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (a, b) = (dir.join("a.skinlet"), dir.join("b.skinlet"));
+    let bake = |out: &std::path::Path| {
+        json_of(&["bake", "@demo:2000", "-o", out.to_str().unwrap(), "--rounds", "20", "--budget", "0", "--json"])
+    };
+    let summary = bake(&a);
+    bake(&b);
+    assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap(), "same input and options, different bytes");
+    for field in ["meshlets", "both_pct", "frustum_only_pct", "none_pct", "precompute_s"] {
+        assert!(summary[field].as_f64().is_some_and(|x| x >= 0.0), "{field} missing in {summary}");
+    }
+    let total: f64 = ["both_pct", "frustum_only_pct", "none_pct"].iter().map(|k| summary[k].as_f64().unwrap()).sum();
+    assert!((total - 100.0).abs() < 1e-9, "{summary}");
+    assert_eq!((summary["rounds"].as_u64(), summary["stop"].as_str()), (Some(20), Some("rounds")));
+    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 2, "a temporary file was left behind");
+
+    let v = json_of(&["verify", "@demo:2000", "--baked", a.to_str().unwrap(), "--samples", "50", "--json"]);
+    assert_eq!(v["violations"], 0, "{v}");
+    assert!(v["vertex_checks"].as_u64().unwrap() > 0 && v["normal_checks"].as_u64().unwrap() > 0);
+
+    // Baked from another character: refused, not silently verified.
+    let (code, _, err) = skinlet(&["verify", "@demo:3000", "--baked", a.to_str().unwrap()]);
+    assert_eq!(code, 2);
+    assert!(err.contains("was not baked from @demo:3000"), "{err}");
+    // A damaged file names the problem.
+    let mut bytes = std::fs::read(&a).unwrap();
+    bytes.truncate(bytes.len() - 10);
+    std::fs::write(&b, &bytes).unwrap();
+    let (code, _, err) = skinlet(&["verify", "@demo:2000", "--baked", b.to_str().unwrap()]);
+    assert_eq!(code, 2);
+    assert!(err.contains("b.skinlet") && err.contains("lies outside the file"), "{err}");
+    std::fs::write(&b, b"not a bake").unwrap();
+    let (code, _, err) = skinlet(&["verify", "@demo:2000", "--baked", b.to_str().unwrap()]);
+    assert_eq!(code, 2);
+    assert!(err.contains("wrong magic"), "{err}");
+    let (code, _, err) = skinlet(&["bake", "@demo:2000", "-o", dir.join("no/such/dir/x").to_str().unwrap()]);
+    assert_eq!(code, 2);
+    assert!(err.contains("cannot write"), "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -6,12 +6,14 @@
 //! - [`pose`]: global transforms and skinning matrices.
 //! - [`skinning`]: reference linear blend skinning (the ground truth of every bound).
 //! - [`import`]: glTF 2.0 and OBJ loading with errors that say what and where.
+//! - [`bake`]: the bake file (meshlets, bounds, vertices) the runtime loads.
 //! - [`bounds`]: conservative animated meshlet bounds (spheres, normal cones) and their check.
 //! - [`meshlet`]: meshlet layout, four builders (incl. skin-aware), flat GPU form, metrics.
 //! - [`weld`]: merging vertices that are equal in position and skin data.
 //! - [`summary`]: the facts `skinlet inspect` reports.
 //! - [`demo`]: the built-in procedural demo character.
 
+pub mod bake;
 pub mod bounds;
 pub mod clip;
 pub mod demo;

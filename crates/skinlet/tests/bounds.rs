@@ -285,11 +285,11 @@ fn half_turn_between_keys_is_covered_both_ways() {
 }
 
 /// The whole pipeline on random characters: a random triangle mesh over the character's
-/// vertices, skin-aware meshlets, spheres and cones over the clip, and the dense world-space
-/// check of every vertex and face normal.
+/// vertices, skin-aware meshlets, spheres and cones over the clip (refined for a few rounds),
+/// and the dense world-space check of every vertex and face normal.
 /// Returns whether some meshlet had a useful normal cone (so normals were really checked).
 fn check_meshlet_bounds(seed: u64) -> Result<Option<bool>, String> {
-    use skinlet::bounds::meshlet::meshlet_bounds;
+    use skinlet::bounds::refine::{Refinement, refine};
     use skinlet::bounds::verify::verify_bounds;
     use skinlet::meshlet::{Builder, MeshletLimits, build, prepare};
     let (skeleton, skin, clip, mut positions, mut inf) = random_character(seed);
@@ -326,10 +326,14 @@ fn check_meshlet_bounds(seed: u64) -> Result<Option<bool>, String> {
     let prepared = prepare(&mesh);
     let limits = MeshletLimits { max_vertices: 8, max_triangles: 8 };
     let meshlets = build(&prepared, Builder::SkinAware, limits).map_err(|e| e.to_string())?;
-    let bounds = meshlet_bounds(&skeleton, &skin, &[&clip], &prepared.mesh, &meshlets).map_err(|e| e.to_string())?;
+    // Refined bounds, with thresholds that keep every meshlet refining: each key interval's
+    // evaluation and every halving are checked.
+    let how = Refinement { s_r: 1.0, alpha_t: 0.0, budget: None, max_rounds: 6 };
+    let refined = refine(&skeleton, &skin, &[&clip], &prepared.mesh, &meshlets, &how).map_err(|e| e.to_string())?;
+    let bounds = refined.bounds;
     let report = verify_bounds(&skeleton, &skin, &[&clip], &prepared.mesh, &meshlets, &bounds, 60);
     if report.violations() > 0 {
-        return Err(format!("seed {seed}: {report:?}"));
+        return Err(format!("seed {seed}: {} rounds, {report:?}", refined.rounds));
     }
     Ok(Some(bounds.iter().any(|b| b.cone_angle < std::f32::consts::FRAC_PI_2)))
 }

@@ -6,7 +6,8 @@
 //! - Sphere: the rest-pose bounding sphere of the vertices in the joint's bind space,
 //!   its radius extended to contain every vertex box ([`super::vertex`]) of every key
 //!   interval of every clip.
-//! - Cone: axis = the area-weighted mean rest normal (joint space); angle = the largest angle
+//! - Cone: axis = the mean rest normal or the axis of the smallest cap around the rest
+//!   normals, whichever is narrower ([`super::cone`], joint space); angle = the largest angle
 //!   between the axis and the normal of any triangle built from corners of its three vertex
 //!   boxes (the paper's 8³ combinations), over all intervals. This is conservative, not just
 //!   a heuristic: the face normal `(p2−p1)×(p3−p1)` is affine in each vertex separately, so
@@ -18,14 +19,15 @@
 //! `G·c` with radius `r·σ_max(A)`; normals move by `M = cof(A)` (for any `A`, also
 //! mirroring: `(A·u)×(A·v) = cof(A)(u×v)`), which can widen the cone: see [`world_cone`].
 
+use super::cone::reference_axis;
+use super::refine::{Ctx, Refinement, refine};
 use super::vertex::{IntervalMotions, vertex_box};
 use super::{Aabb, INFLATE};
 use crate::Result;
 use crate::clip::Clip;
-use crate::meshlet::{Meshlets, stats::principal_joint};
+use crate::meshlet::{Meshlet, Meshlets, stats::principal_joint};
 use crate::model::{Skeleton, Skin, SkinnedMesh};
 use glam::{DMat3, DMat4, DVec3, Vec3};
-use rayon::prelude::*;
 use std::f64::consts::{FRAC_PI_2, PI};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -58,7 +60,7 @@ pub fn key_intervals(clip: &Clip) -> Vec<(f32, f32)> {
 }
 
 /// Bounds for every meshlet, conservative over every key interval of every clip in `clips`
-/// (no clip: the rest pose only).
+/// (no clip: the rest pose only); [`super::refine`] tightens them further.
 pub fn meshlet_bounds(
     skeleton: &Skeleton,
     skin: &Skin,
@@ -66,45 +68,37 @@ pub fn meshlet_bounds(
     mesh: &SkinnedMesh,
     meshlets: &Meshlets,
 ) -> Result<Vec<MeshletBounds>> {
-    let Some(inf) = &mesh.influences else {
-        return Err(crate::Error::invalid("meshlet bounds", "the mesh has no skin weights"));
-    };
-    let mut bounds = rest_bounds(skin, mesh, meshlets);
-    let intervals: Vec<(&Clip, f32, f32)> =
-        clips.iter().flat_map(|c| key_intervals(c).into_iter().map(move |(a, b)| (*c, a, b))).collect();
-    let motions =
-        intervals.iter().map(|&(c, a, b)| IntervalMotions::new(skeleton, Some(c), a, b)).collect::<Result<Vec<_>>>()?;
-    bounds.par_iter_mut().zip(&meshlets.meshlets).for_each(|(b, m)| {
-        let verts = meshlets.vertices_of(m);
-        let (c, axis) = (b.center.as_dvec3(), b.cone_axis.as_dvec3());
-        let mut r = b.radius as f64;
-        let mut min_cos = (b.rest_cone_angle as f64).cos();
-        let mut boxes = Vec::with_capacity(verts.len());
-        for mo in &motions {
-            boxes.clear();
-            boxes.extend(
-                verts
-                    .iter()
-                    .map(|&v| vertex_box(skeleton, skin, mo, inf, v as usize, mesh.positions[v as usize], b.joint)),
-            );
-            for bx in &boxes {
-                r = r.max(bx.inflated(INFLATE).max_distance(c));
-            }
-            if min_cos > 0.0 {
-                for t in meshlets.triangles_of(m).chunks_exact(3) {
-                    min_cos = min_cos.min(corner_normals_min_cos(
-                        &boxes[t[0] as usize],
-                        &boxes[t[1] as usize],
-                        &boxes[t[2] as usize],
-                        axis,
-                    ));
-                }
-            }
+    Ok(refine(skeleton, skin, clips, mesh, meshlets, &Refinement::NONE)?.bounds)
+}
+
+/// A meshlet's radius and smallest corner-normal cosine around its axis over one interval,
+/// starting from its rest bounds. The cosine is the true minimum (also below 0, so that
+/// refinement sees progress past 90°), skipped only when the rest cone is already ≥ 90°.
+pub(crate) fn piece_extent(
+    ctx: &Ctx,
+    m: &Meshlet,
+    rest: &MeshletBounds,
+    mo: &IntervalMotions,
+    boxes: &mut Vec<Aabb>,
+) -> (f64, f64) {
+    let verts = ctx.meshlets.vertices_of(m);
+    let (c, axis) = (rest.center.as_dvec3(), rest.cone_axis.as_dvec3());
+    let mut r = rest.radius as f64;
+    let mut min_cos = (rest.rest_cone_angle as f64).cos();
+    boxes.clear();
+    boxes.extend(verts.iter().map(|&v| {
+        vertex_box(ctx.skeleton, ctx.skin, mo, ctx.inf, v as usize, ctx.mesh.positions[v as usize], rest.joint)
+    }));
+    for bx in boxes.iter() {
+        r = r.max(bx.inflated(INFLATE).max_distance(c));
+    }
+    if rest.rest_cone_angle < std::f32::consts::FRAC_PI_2 {
+        for t in ctx.meshlets.triangles_of(m).chunks_exact(3) {
+            let (b1, b2, b3) = (&boxes[t[0] as usize], &boxes[t[1] as usize], &boxes[t[2] as usize]);
+            min_cos = min_cos.min(corner_normals_min_cos(b1, b2, b3, axis));
         }
-        b.radius = round_up(r);
-        b.cone_angle = if min_cos > 0.0 { round_up(min_cos.min(1.0).acos()) } else { PI as f32 };
-    });
-    Ok(bounds)
+    }
+    (r, min_cos)
 }
 
 /// The corners of a box, or its one point when it has no extent (rigid vertices stay cheap).
@@ -139,7 +133,7 @@ fn corner_normals_min_cos(b1: &Aabb, b2: &Aabb, b3: &Aabb, axis: DVec3) -> f64 {
     min_cos
 }
 
-fn round_up(x: f64) -> f32 {
+pub(crate) fn round_up(x: f64) -> f32 {
     let f = x as f32;
     if (f as f64) >= x { f } else { f32::from_bits(f.to_bits() + 1) }
 }
@@ -164,16 +158,14 @@ pub fn rest_bounds(skin: &Skin, mesh: &SkinnedMesh, meshlets: &Meshlets) -> Vec<
                 .chunks_exact(3)
                 .map(|t| (bind[t[1] as usize] - bind[t[0] as usize]).cross(bind[t[2] as usize] - bind[t[0] as usize]))
                 .collect();
-            let axis = normals.iter().sum::<DVec3>().normalize_or_zero();
-            let min_cos =
-                normals.iter().filter(|n| n.length() > 0.0).map(|n| n.dot(axis) / n.length()).fold(1.0, f64::min);
-            let angle = if axis != DVec3::ZERO && min_cos > 0.0 { round_up(min_cos.acos()) } else { PI as f32 };
+            let (axis, min_cos) = reference_axis(&normals);
+            let angle = if min_cos > 0.0 { round_up(min_cos.acos()) } else { PI as f32 };
             MeshletBounds {
                 joint,
                 center: center.as_vec3(),
                 radius: round_up(r),
                 rest_radius: r as f32,
-                cone_axis: if axis == DVec3::ZERO { Vec3::Z } else { axis.as_vec3() },
+                cone_axis: axis.as_vec3(),
                 cone_angle: angle,
                 rest_cone_angle: angle,
             }

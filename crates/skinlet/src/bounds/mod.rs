@@ -15,8 +15,10 @@
 //! [`meshlet`] builds spheres and normal cones from these boxes, [`verify`] checks them
 //! against dense sampling. Tested on random hierarchies and clips and on the shared assets.
 
+pub mod cone;
 pub mod meshlet;
 pub mod motion;
+pub mod refine;
 pub mod verify;
 pub mod vertex;
 

@@ -1,0 +1,94 @@
+//! `skinlet bake`: the baker's front end (progress bar, summary table or JSON).
+
+use crate::{RefineArgs, select_clips, stop_name};
+use anyhow::{Context, Result};
+use indicatif::{ProgressBar, ProgressStyle};
+use serde_json::json;
+use skinlet::bake::{BakeStats, Baked, bake};
+use skinlet::bounds::meshlet::Class;
+use skinlet::bounds::refine::Progress;
+use skinlet::meshlet::{Builder, MeshletLimits};
+use std::path::Path;
+
+/// Share of meshlets in each class, in percent: (both, frustum only, none).
+pub fn class_shares(b: &Baked) -> (f64, f64, f64) {
+    let pct = |c: Class| 100.0 * b.classes.iter().filter(|&&x| x == c).count() as f64 / b.classes.len().max(1) as f64;
+    (pct(Class::Both), pct(Class::FrustumOnly), pct(Class::None))
+}
+
+/// Bakes `file` with a progress bar on stderr (hidden when stderr is not a terminal or `quiet`).
+pub fn bake_file(
+    file: &str,
+    clips: Option<&str>,
+    builder: Builder,
+    args: RefineArgs,
+    quiet: bool,
+) -> Result<(Baked, BakeStats)> {
+    let how = args.refinement()?;
+    let asset = crate::load(file)?;
+    let skin = asset.instances.iter().find_map(|i| i.skin).with_context(|| format!("{file} has no skinned mesh"))?;
+    let clips = select_clips(&asset, clips)?;
+    let bar = if quiet { ProgressBar::hidden() } else { ProgressBar::new_spinner() };
+    match how.budget {
+        Some(budget) => {
+            bar.set_length(budget.as_millis() as u64);
+            bar.set_style(ProgressStyle::with_template("{msg} [{bar:30}] {elapsed}/budget").expect("valid template"));
+        }
+        None => bar.set_style(ProgressStyle::with_template("{spinner} {msg} {elapsed}").expect("valid template")),
+    }
+    bar.set_message("bounds over key intervals");
+    bar.enable_steady_tick(std::time::Duration::from_millis(200));
+    let mut progress = |p: Progress| {
+        bar.set_position(p.elapsed.as_millis() as u64);
+        bar.set_message(format!("refining: round {}, {} meshlets still improving", p.rounds, p.active));
+    };
+    let out = bake(&asset, skin, &clips, builder, MeshletLimits::NVIDIA, &how, &mut progress)?;
+    bar.finish_and_clear();
+    Ok(out)
+}
+
+pub fn run(file: &str, out: &Path, builder: &str, clips: Option<&str>, args: RefineArgs, json: bool) -> Result<()> {
+    let builder = Builder::from_name(builder).context("unknown builder")?;
+    let (baked, stats) = bake_file(file, clips, builder, args, json)?;
+    skinlet::bake::write(out, &baked)?;
+    let bytes = std::fs::metadata(out).map(|m| m.len()).unwrap_or(0);
+    let (both, frustum, none) = class_shares(&baked);
+    let s = &baked.settings;
+    let precompute_s = stats.precompute.as_secs_f64();
+    if json {
+        let summary = json!({
+            "output": out.display().to_string(), "bytes": bytes, "builder": builder.name(),
+            "meshlets": baked.meshlets.len(), "vertices": baked.mesh.positions.len(), "triangles": baked.mesh.triangles.len(),
+            "clips": s.clips, "sr": s.s_r, "alpha_deg": s.alpha_t.to_degrees(),
+            "both_pct": both, "frustum_only_pct": frustum, "none_pct": none,
+            "precompute_s": precompute_s, "rounds": s.rounds, "stop": stop_name(s.stop),
+            "vertex_influence_intervals": stats.work,
+        });
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+        return Ok(());
+    }
+    println!("{} -> {} ({bytes} bytes)", file, out.display());
+    println!(
+        "  {} {} meshlets over {} vertices, {} triangles; bounds over {} clips",
+        baked.meshlets.len(),
+        builder.name(),
+        baked.mesh.positions.len(),
+        baked.mesh.triangles.len(),
+        s.clips.len()
+    );
+    println!(
+        "  classes at s_r {} and {:.0}°: {both:.1}% both, {frustum:.1}% frustum only, {none:.1}% none",
+        s.s_r,
+        s.alpha_t.to_degrees()
+    );
+    println!(
+        "  precomputation {precompute_s:.2} s: {} refinement rounds ({}), {:.2e} vertex-influence-intervals",
+        s.rounds,
+        stop_name(s.stop),
+        stats.work as f64
+    );
+    if s.stop == skinlet::bounds::refine::Stop::Budget {
+        println!("  the budget ran out: pass --rounds {} to reproduce these bytes on any machine", s.rounds);
+    }
+    Ok(())
+}

@@ -1,0 +1,484 @@
+//! The bake file: everything the runtime needs to draw and cull one skinned character, in
+//! one versioned little-endian binary file (layout in `docs/FORMAT.md`): the prepared
+//! vertices and skin weights, the inverse bind matrices, the triangles, the meshlets (the
+//! flat layout of [`crate::meshlet::flat`]) and their conservative bounds and classes.
+//!
+//! Guarantees: [`to_bytes`] is a pure function of the [`Baked`] value (same input and
+//! options, same bytes); [`from_bytes`] accepts exactly what `to_bytes` can produce and
+//! reports anything else (wrong magic, newer version, truncation, out-of-range indices,
+//! non-finite numbers) as an error naming the section and byte; [`write`] replaces the
+//! destination atomically (temporary file in the same folder, then rename). Readers skip
+//! sections with tags they do not know, so later versions can add sections.
+
+use crate::bounds::meshlet::{Class, MeshletBounds, classify};
+use crate::bounds::refine::{Progress, Refinement, Stop, refine_with_progress};
+use crate::clip::Clip;
+use crate::meshlet::{Builder, MeshletLimits, Meshlets, build, flat, prepare};
+use crate::model::{Asset, Influences, SkinnedMesh};
+use crate::{Error, Result};
+use glam::{Mat4, Vec3};
+use std::io::Write;
+use std::path::Path;
+
+pub const MAGIC: [u8; 8] = *b"SKINLET\0";
+pub const VERSION: u32 = 1;
+
+/// How a bake was made (enough to reproduce it from the same source file).
+#[derive(Clone, Debug, PartialEq)]
+pub struct BakeSettings {
+    pub builder: Builder,
+    pub limits: MeshletLimits,
+    /// Classification thresholds: radius growth and normal deviation (radians).
+    pub s_r: f32,
+    pub alpha_t: f32,
+    /// Refinement rounds done and why they stopped.
+    pub rounds: u32,
+    pub stop: Stop,
+    /// Names of the clips the bounds hold for (their union).
+    pub clips: Vec<String>,
+}
+
+/// A baked character.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Baked {
+    pub settings: BakeSettings,
+    /// Names of the skin's joints (empty strings for unnamed nodes).
+    pub joint_names: Vec<String>,
+    pub inverse_bind: Vec<Mat4>,
+    /// Welded, cache-ordered vertices with influences; its triangles are the meshlets'.
+    pub mesh: SkinnedMesh,
+    pub meshlets: Meshlets,
+    pub bounds: Vec<MeshletBounds>,
+    pub classes: Vec<Class>,
+}
+
+/// Precomputation figures of a bake (not stored: they depend on the machine).
+#[derive(Clone, Copy, Debug)]
+pub struct BakeStats {
+    /// Wall-clock time of the bounds (key intervals and refinement).
+    pub precompute: std::time::Duration,
+    /// Vertex-influence-intervals evaluated ([`crate::bounds::refine::Refined::work`]).
+    pub work: u64,
+}
+
+/// Bakes skin `skin` of `asset`: prepares its combined mesh, builds meshlets, computes
+/// bounds over the union of `clips` refined as `how` allows, and classifies them.
+pub fn bake(
+    asset: &Asset,
+    skin: u32,
+    clips: &[&Clip],
+    builder: Builder,
+    limits: MeshletLimits,
+    how: &Refinement,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<(Baked, BakeStats)> {
+    let s = asset.skins.get(skin as usize).ok_or_else(|| Error::invalid("bake", format!("no skin {skin}")))?;
+    let prepared = prepare(&asset.combined_mesh(Some(skin)));
+    let meshlets = build(&prepared, builder, limits)?;
+    let started = std::time::Instant::now();
+    let refined = refine_with_progress(&asset.skeleton, s, clips, &prepared.mesh, &meshlets, how, progress)?;
+    let stats = BakeStats { precompute: started.elapsed(), work: refined.work };
+    let baked = Baked {
+        settings: BakeSettings {
+            builder,
+            limits,
+            s_r: how.s_r,
+            alpha_t: how.alpha_t,
+            rounds: refined.rounds as u32,
+            stop: refined.stop,
+            clips: clips.iter().map(|c| c.name.clone()).collect(),
+        },
+        joint_names: s.joints.iter().map(|&j| asset.skeleton.nodes[j as usize].name.clone()).collect(),
+        inverse_bind: s.inverse_bind.clone(),
+        classes: refined.bounds.iter().map(|b| classify(b, how.s_r, how.alpha_t)).collect(),
+        mesh: prepared.mesh,
+        meshlets,
+        bounds: refined.bounds,
+    };
+    Ok((baked, stats))
+}
+
+const TAGS: [&[u8; 4]; 6] = [b"INFO", b"SKIN", b"VERT", b"TRIS", b"MLET", b"BNDS"];
+const HEADER: usize = 16;
+const ENTRY: usize = 24;
+const BOUNDS_STRIDE: usize = 48;
+
+fn builder_code(b: Builder) -> u32 {
+    Builder::ALL.iter().position(|&x| x == b).expect("every builder is in ALL") as u32
+}
+
+fn stop_code(s: Stop) -> u32 {
+    match s {
+        Stop::Converged => 0,
+        Stop::Rounds => 1,
+        Stop::Budget => 2,
+    }
+}
+
+fn class_code(c: Class) -> u32 {
+    match c {
+        Class::Both => 0,
+        Class::FrustumOnly => 1,
+        Class::None => 2,
+    }
+}
+
+#[derive(Default)]
+struct Out(Vec<u8>);
+
+impl Out {
+    fn u32(&mut self, x: u32) {
+        self.0.extend_from_slice(&x.to_le_bytes());
+    }
+    fn f32(&mut self, x: f32) {
+        self.0.extend_from_slice(&x.to_le_bytes());
+    }
+    fn vec3(&mut self, v: Vec3) {
+        v.to_array().iter().for_each(|&x| self.f32(x));
+    }
+    fn str(&mut self, s: &str) {
+        self.u32(s.len() as u32);
+        self.0.extend_from_slice(s.as_bytes());
+    }
+}
+
+/// The file's bytes.
+pub fn to_bytes(b: &Baked) -> Vec<u8> {
+    let s = &b.settings;
+    let mut info = Out::default();
+    for x in [builder_code(s.builder), s.limits.max_vertices as u32, s.limits.max_triangles as u32] {
+        info.u32(x);
+    }
+    info.f32(s.s_r);
+    info.f32(s.alpha_t);
+    info.u32(s.rounds);
+    info.u32(stop_code(s.stop));
+    info.u32(s.clips.len() as u32);
+    s.clips.iter().for_each(|c| info.str(c));
+
+    let mut skin = Out::default();
+    skin.u32(b.inverse_bind.len() as u32);
+    b.inverse_bind.iter().flat_map(|m| m.to_cols_array()).for_each(|x| skin.f32(x));
+    b.joint_names.iter().for_each(|n| skin.str(n));
+
+    let m = &b.mesh;
+    let (stride, joints, weights) =
+        m.influences.as_ref().map_or((0, &[][..], &[][..]), |i| (i.stride, &i.joints[..], &i.weights[..]));
+    let mut vert = Out::default();
+    vert.u32(m.positions.len() as u32);
+    vert.u32(stride as u32);
+    vert.u32(!m.normals.is_empty() as u32);
+    m.positions.iter().chain(&m.normals).for_each(|&p| vert.vec3(p));
+    joints.iter().for_each(|j| vert.0.extend_from_slice(&j.to_le_bytes()));
+    vert.0.resize(vert.0.len().next_multiple_of(4), 0);
+    weights.iter().for_each(|&w| vert.f32(w));
+
+    let mut tris = Out::default();
+    tris.u32(m.triangles.len() as u32);
+    m.triangles.iter().flatten().for_each(|&i| tris.u32(i));
+
+    let mut bnds = Out::default();
+    bnds.u32(b.bounds.len() as u32);
+    bnds.0.resize(16, 0);
+    for (x, c) in b.bounds.iter().zip(&b.classes) {
+        bnds.vec3(x.center);
+        bnds.f32(x.radius);
+        bnds.vec3(x.cone_axis);
+        bnds.f32(x.cone_angle);
+        bnds.f32(x.rest_radius);
+        bnds.f32(x.rest_cone_angle);
+        bnds.u32(x.joint as u32);
+        bnds.u32(class_code(*c));
+    }
+
+    let sections = [info.0, skin.0, vert.0, tris.0, flat::to_bytes(&b.meshlets), bnds.0];
+    let mut out = Vec::new();
+    out.extend_from_slice(&MAGIC);
+    out.extend_from_slice(&VERSION.to_le_bytes());
+    out.extend_from_slice(&(sections.len() as u32).to_le_bytes());
+    let mut offset = (HEADER + ENTRY * sections.len()).next_multiple_of(16);
+    for (tag, body) in TAGS.iter().zip(&sections) {
+        out.extend_from_slice(*tag);
+        out.extend_from_slice(&0u32.to_le_bytes());
+        out.extend_from_slice(&(offset as u64).to_le_bytes());
+        out.extend_from_slice(&(body.len() as u64).to_le_bytes());
+        offset = (offset + body.len()).next_multiple_of(16);
+    }
+    for body in &sections {
+        out.resize(out.len().next_multiple_of(16), 0);
+        out.extend_from_slice(body);
+    }
+    out
+}
+
+/// Writes the file atomically: a temporary file beside `path`, flushed to disk, then renamed.
+pub fn write(path: &Path, b: &Baked) -> Result<()> {
+    let bytes = to_bytes(b);
+    let name = path.file_name().ok_or_else(|| Error::invalid(path.display().to_string(), "not a file path"))?;
+    let tmp = path.with_file_name(format!(".{}.tmp-{}", name.to_string_lossy(), std::process::id()));
+    let io = |e: std::io::Error, what: &Path| Error::Write { path: what.to_path_buf(), source: e };
+    let result = (|| {
+        let mut f = std::fs::File::create(&tmp).map_err(|e| io(e, &tmp))?;
+        f.write_all(&bytes).map_err(|e| io(e, &tmp))?;
+        f.sync_all().map_err(|e| io(e, &tmp))?;
+        std::fs::rename(&tmp, path).map_err(|e| io(e, path))
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+/// Reads and checks a bake file.
+pub fn read(path: &Path) -> Result<Baked> {
+    let bytes = std::fs::read(path).map_err(|e| Error::Io { path: path.to_path_buf(), source: e })?;
+    from_bytes(&bytes).map_err(|e| match e {
+        Error::Invalid { location, message } => Error::invalid(format!("{}: {location}", path.display()), message),
+        Error::Unsupported { location, message } => {
+            Error::unsupported(format!("{}: {location}", path.display()), message)
+        }
+        e => e,
+    })
+}
+
+/// A cursor over one section that names the section and byte in its errors.
+struct In<'a> {
+    tag: &'static str,
+    b: &'a [u8],
+    at: usize,
+}
+
+impl<'a> In<'a> {
+    fn err(&self, msg: impl std::fmt::Display) -> Error {
+        Error::invalid(format!("bake section {}", self.tag), format!("byte {}: {msg}", self.at))
+    }
+    fn bytes(&mut self, n: usize) -> Result<&'a [u8]> {
+        let end = self.at.checked_add(n).filter(|&e| e <= self.b.len());
+        let end = end.ok_or_else(|| self.err(format!("truncated (needs {n} more bytes)")))?;
+        let s = &self.b[self.at..end];
+        self.at = end;
+        Ok(s)
+    }
+    fn u32(&mut self) -> Result<u32> {
+        Ok(u32::from_le_bytes(self.bytes(4)?.try_into().expect("4 bytes")))
+    }
+    fn count(&mut self, what: &str, item_bytes: usize) -> Result<usize> {
+        let n = self.u32()? as usize;
+        if n.saturating_mul(item_bytes) > self.b.len() - self.at {
+            return Err(self.err(format!("{n} {what} do not fit in the section")));
+        }
+        Ok(n)
+    }
+    fn f32(&mut self) -> Result<f32> {
+        let x = f32::from_le_bytes(self.bytes(4)?.try_into().expect("4 bytes"));
+        if x.is_finite() { Ok(x) } else { Err(self.err(format!("non-finite number {x}"))) }
+    }
+    fn vec3(&mut self) -> Result<Vec3> {
+        Ok(Vec3::new(self.f32()?, self.f32()?, self.f32()?))
+    }
+    fn str(&mut self) -> Result<String> {
+        let n = self.count("name bytes", 1)?;
+        let b = self.bytes(n)?;
+        String::from_utf8(b.to_vec()).map_err(|_| self.err("a name is not UTF-8"))
+    }
+    fn align(&mut self, to: usize) -> Result<()> {
+        let pad = self.at.next_multiple_of(to) - self.at;
+        self.bytes(pad).map(|_| ())
+    }
+    fn end(&self) -> Result<()> {
+        if self.at == self.b.len() { Ok(()) } else { Err(self.err("unexpected bytes after the section's data")) }
+    }
+}
+
+/// Parses and checks bake file bytes.
+pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
+    let mut head = In { tag: "header", b: bytes, at: 0 };
+    if head.bytes(8)? != MAGIC {
+        return Err(Error::invalid("bake header", "not a skinlet bake file (wrong magic bytes)"));
+    }
+    let version = head.u32()?;
+    if version != VERSION {
+        return Err(Error::unsupported("bake header", format!("version {version}; this skinlet reads {VERSION}")));
+    }
+    let n = head.count("sections", ENTRY)?;
+    let mut found: [Option<&[u8]>; 6] = [None; 6];
+    for _ in 0..n {
+        let tag: [u8; 4] = head.bytes(4)?.try_into().expect("4 bytes");
+        head.u32()?;
+        let offset = u64::from_le_bytes(head.bytes(8)?.try_into().expect("8 bytes"));
+        let len = u64::from_le_bytes(head.bytes(8)?.try_into().expect("8 bytes"));
+        let body = usize::try_from(offset)
+            .ok()
+            .zip(usize::try_from(len).ok())
+            .and_then(|(o, l)| bytes.get(o..o.checked_add(l)?))
+            .ok_or_else(|| head.err(format!("section {} lies outside the file", String::from_utf8_lossy(&tag))))?;
+        if let Some(i) = TAGS.iter().position(|t| **t == tag) {
+            found[i] = Some(body);
+        }
+    }
+    let section = |i: usize| -> Result<In> {
+        let tag = std::str::from_utf8(TAGS[i]).expect("ASCII tags");
+        let b = found[i].ok_or_else(|| Error::invalid("bake file", format!("section {tag} is missing")))?;
+        Ok(In { tag, b, at: 0 })
+    };
+
+    let mut s = section(0)?;
+    let builder = *Builder::ALL.get(s.u32()? as usize).ok_or_else(|| s.err("unknown meshlet builder"))?;
+    let limits = MeshletLimits { max_vertices: s.u32()? as usize, max_triangles: s.u32()? as usize };
+    limits.check().map_err(|e| s.err(e))?;
+    let (s_r, alpha_t, rounds) = (s.f32()?, s.f32()?, s.u32()?);
+    let stop = match s.u32()? {
+        0 => Stop::Converged,
+        1 => Stop::Rounds,
+        2 => Stop::Budget,
+        x => return Err(s.err(format!("unknown stop reason {x}"))),
+    };
+    let n = s.count("clip names", 4)?;
+    let clips = (0..n).map(|_| s.str()).collect::<Result<Vec<_>>>()?;
+    s.end()?;
+    let settings = BakeSettings { builder, limits, s_r, alpha_t, rounds, stop, clips };
+
+    let mut s = section(1)?;
+    let joints = s.count("joints", 64)?;
+    let inverse_bind = (0..joints)
+        .map(|_| (0..16).map(|_| s.f32()).collect::<Result<Vec<_>>>().map(|c| Mat4::from_cols_slice(&c)))
+        .collect::<Result<Vec<_>>>()?;
+    let joint_names = (0..joints).map(|_| s.str()).collect::<Result<Vec<_>>>()?;
+    s.end()?;
+
+    let mut s = section(2)?;
+    let vertices = s.count("vertices", 12)?;
+    let stride = s.u32()? as usize;
+    if !matches!(stride, 0 | 4 | 8) {
+        return Err(s.err(format!("influence stride {stride} (expected 4 or 8)")));
+    }
+    let has_normals = s.u32()? != 0;
+    let positions = (0..vertices).map(|_| s.vec3()).collect::<Result<Vec<_>>>()?;
+    let normals = if has_normals { (0..vertices).map(|_| s.vec3()).collect::<Result<Vec<_>>>()? } else { Vec::new() };
+    let slots = vertices * stride;
+    let joint_ids: Vec<u16> = s.bytes(2 * slots)?.chunks_exact(2).map(|c| u16::from_le_bytes([c[0], c[1]])).collect();
+    if let Some(bad) = joint_ids.iter().position(|&j| j as usize >= joints) {
+        return Err(s.err(format!("vertex {} uses joint {} of {joints}", bad / stride, joint_ids[bad])));
+    }
+    s.align(4)?;
+    let weights = (0..slots).map(|_| s.f32()).collect::<Result<Vec<_>>>()?;
+    s.end()?;
+    let influences = (stride > 0).then_some(Influences { stride, joints: joint_ids, weights });
+
+    let mut s = section(3)?;
+    let n = s.count("triangles", 12)?;
+    let triangles = (0..n)
+        .map(|t| {
+            let tri = [s.u32()?, s.u32()?, s.u32()?];
+            match tri.iter().find(|&&i| i as usize >= vertices) {
+                Some(i) => Err(s.err(format!("triangle {t} uses vertex {i} of {vertices}"))),
+                None => Ok(tri),
+            }
+        })
+        .collect::<Result<Vec<_>>>()?;
+    s.end()?;
+    let mesh = SkinnedMesh { positions, normals, triangles, influences };
+
+    let s = section(4)?;
+    let meshlets = flat::from_bytes(s.b).map_err(|e| s.err(e))?;
+    meshlets.validate(&mesh.triangles, limits).map_err(|e| s.err(e))?;
+
+    let mut s = section(5)?;
+    let n = s.count("meshlet bounds", BOUNDS_STRIDE)?;
+    if n != meshlets.len() {
+        return Err(s.err(format!("{n} bounds for {} meshlets", meshlets.len())));
+    }
+    s.align(16)?;
+    let mut bounds = Vec::with_capacity(n);
+    let mut classes = Vec::with_capacity(n);
+    for i in 0..n {
+        let (center, radius, cone_axis, cone_angle) = (s.vec3()?, s.f32()?, s.vec3()?, s.f32()?);
+        let (rest_radius, rest_cone_angle, joint) = (s.f32()?, s.f32()?, s.u32()?);
+        if joint as usize >= joints.max(1) {
+            return Err(s.err(format!("meshlet {i}'s principal joint {joint} is not one of {joints} joints")));
+        }
+        classes.push(match s.u32()? {
+            0 => Class::Both,
+            1 => Class::FrustumOnly,
+            2 => Class::None,
+            x => return Err(s.err(format!("meshlet {i} has unknown class {x}"))),
+        });
+        let b =
+            MeshletBounds { joint: joint as u16, center, radius, rest_radius, cone_axis, cone_angle, rest_cone_angle };
+        if radius < 0.0 || rest_radius < 0.0 || !(0.0..=std::f32::consts::PI).contains(&cone_angle) {
+            return Err(s.err(format!("meshlet {i} has a negative radius or a cone angle outside [0, π]")));
+        }
+        bounds.push(b);
+    }
+    s.end()?;
+    Ok(Baked { settings, joint_names, inverse_bind, mesh, meshlets, bounds, classes })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::demo::{DemoParams, demo_character};
+
+    fn baked() -> Baked {
+        let asset = demo_character(&DemoParams { triangles: 2000, ..DemoParams::default() });
+        let clips: Vec<_> = asset.clips.iter().collect();
+        let how = Refinement { max_rounds: 3, ..Refinement::NONE };
+        bake(&asset, 0, &clips, Builder::SkinAware, MeshletLimits::NVIDIA, &how, &mut |_| {}).unwrap().0
+    }
+
+    #[test]
+    fn same_input_same_bytes() {
+        assert_eq!(to_bytes(&baked()), to_bytes(&baked()));
+    }
+
+    #[test]
+    fn round_trip_is_exact_and_bytes_are_aligned() {
+        let b = baked();
+        let bytes = to_bytes(&b);
+        assert_eq!(from_bytes(&bytes).unwrap(), b);
+        assert_eq!(to_bytes(&from_bytes(&bytes).unwrap()), bytes);
+        // Every section starts 16-byte aligned (GPU uploads straight from the file).
+        let n = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+        for i in 0..n {
+            let e = HEADER + ENTRY * i;
+            assert_eq!(u64::from_le_bytes(bytes[e + 8..e + 16].try_into().unwrap()) % 16, 0);
+        }
+    }
+
+    #[test]
+    fn every_truncation_and_many_corruptions_give_errors_not_panics() {
+        let bytes = to_bytes(&baked());
+        for cut in (0..bytes.len()).step_by(97).chain([bytes.len() - 1]) {
+            assert!(from_bytes(&bytes[..cut]).is_err(), "truncated at {cut} was accepted");
+        }
+        let mut rng = 0x9E3779B97F4A7C15u64;
+        for _ in 0..3000 {
+            rng ^= rng << 13;
+            rng ^= rng >> 7;
+            rng ^= rng << 17;
+            let mut b = bytes.clone();
+            let at = (rng % b.len() as u64) as usize;
+            b[at] ^= 1 << (rng >> 60 & 7);
+            let _ = from_bytes(&b); // must not panic; many flips (e.g. in a float's low bits) are valid
+        }
+    }
+
+    #[test]
+    fn errors_say_what_and_where() {
+        let b = baked();
+        let mut bytes = to_bytes(&b);
+        let msg = |bytes: &[u8]| from_bytes(bytes).unwrap_err().to_string();
+        let mut wrong = bytes.clone();
+        wrong[0] = b'X';
+        assert!(msg(&wrong).contains("magic"), "{}", msg(&wrong));
+        let mut newer = bytes.clone();
+        newer[8] = 2;
+        assert!(msg(&newer).contains("version 2"), "{}", msg(&newer));
+        // A triangle index past the vertex count, in section TRIS.
+        let tris = u64::from_le_bytes(bytes[HEADER + 3 * ENTRY + 8..HEADER + 3 * ENTRY + 16].try_into().unwrap());
+        let at = tris as usize + 4;
+        bytes[at..at + 4].copy_from_slice(&u32::MAX.to_le_bytes());
+        let m = msg(&bytes);
+        assert!(m.contains("TRIS") && m.contains("triangle 0 uses vertex 4294967295"), "{m}");
+    }
+}
