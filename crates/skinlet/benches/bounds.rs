@@ -1,11 +1,13 @@
 //! Conservative-bounds precomputation throughput, single core, in vertex-influence-intervals
 //! per second (criterion's "elements": for every meshlet vertex, its non-zero influences
 //! times the key intervals), spheres and normal cones together. Xbot.glb's "walk" clip and
-//! the 20k-triangle demo character's clips. Run: `cargo bench -p skinlet --bench bounds`.
+//! the 20k-triangle demo character's clips; then the same with refinement until converged
+//! (elements: every piece evaluated). Run: `cargo bench -p skinlet --bench bounds`.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use skinlet::Asset;
 use skinlet::bounds::meshlet::{key_intervals, meshlet_bounds};
+use skinlet::bounds::refine::{Refinement, refine};
 use skinlet::clip::Clip;
 use skinlet::demo::{DemoParams, demo_character};
 use skinlet::meshlet::{Builder, MeshletLimits, build, prepare};
@@ -24,6 +26,13 @@ fn bench_asset(c: &mut Criterion, label: &str, asset: &Asset, clips: &[&Clip]) {
     group.sample_size(10);
     group.bench_function(format!("{label}/1-core"), |b| {
         b.iter(|| one_core.install(|| meshlet_bounds(&asset.skeleton, skin, clips, &prepared.mesh, &meshlets).unwrap()))
+    });
+    // Refinement until converged: work counted by the refinement itself (every piece evaluated).
+    let how = Refinement { max_rounds: usize::MAX, ..Refinement::NONE };
+    let work = refine(&asset.skeleton, skin, clips, &prepared.mesh, &meshlets, &how).unwrap().work;
+    group.throughput(Throughput::Elements(work));
+    group.bench_function(format!("{label}/refined-1-core"), |b| {
+        b.iter(|| one_core.install(|| refine(&asset.skeleton, skin, clips, &prepared.mesh, &meshlets, &how).unwrap()))
     });
     group.finish();
 }
