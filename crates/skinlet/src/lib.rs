@@ -8,6 +8,7 @@
 //! - [`import`]: glTF 2.0 and OBJ loading with errors that say what and where.
 //! - [`bake`]: the bake file (meshlets, bounds, vertices) the runtime loads.
 //! - [`bounds`]: conservative animated meshlet bounds (spheres, normal cones) and their check.
+//! - [`cull`]: CPU culling at run time: meshlets, triangles, whole-mesh boxes, the crowd scene.
 //! - [`meshlet`]: meshlet layout, four builders (incl. skin-aware), flat GPU form, metrics.
 //! - [`weld`]: merging vertices that are equal in position and skin data.
 //! - [`summary`]: the facts `skinlet inspect` reports.
@@ -16,6 +17,7 @@
 pub mod bake;
 pub mod bounds;
 pub mod clip;
+pub mod cull;
 pub mod demo;
 pub mod error;
 pub mod import;

@@ -1,0 +1,361 @@
+//! The crowd scene of Unterguggenberger et al. 2021 (fig. 10, table 1): many animated
+//! instances of one character in front of a fixed camera, some on the frustum's side
+//! planes, each playing a clip from a random time offset. Every frame, every instance is
+//! culled per meshlet with each of the paper's three pipelines (frustum only, backface only,
+//! both), then per triangle inside the surviving meshlets ([`super::triangle`]), and as a whole mesh by its
+//! per-joint box (the baseline engines use). Optionally, every culled triangle is checked
+//! by brute force on the reference-skinned mesh: outside one frustum plane, back-facing, or
+//! degenerate, within the f32 rounding of the skinned positions. Deterministic for a seed.
+
+use super::joint_aabb::{Box3, JointBoxes, JointSpace};
+use super::meshlet::{CullCounts, JointFrame, MeshletCuller, Tests};
+use super::triangle::{TriangleCounts, cull_triangles, facing};
+use super::{Camera, Projection};
+use crate::Result;
+use crate::bake::Baked;
+use crate::clip::Clip;
+use crate::model::{Skeleton, Skin};
+use crate::pose::{Poser, skinning_matrices};
+use crate::skinning::skin;
+use glam::{Affine3A, DMat4, DQuat, DVec3, Vec3};
+use rayon::prelude::*;
+use std::time::{Duration, Instant};
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CrowdParams {
+    pub instances: usize,
+    pub frames: usize,
+    pub fps: f32,
+    pub seed: u64,
+    pub orthographic: bool,
+}
+
+impl Default for CrowdParams {
+    fn default() -> Self {
+        CrowdParams { instances: 64, frames: 30, fps: 30.0, seed: 1, orthographic: false }
+    }
+}
+
+/// One instance: where it stands, which clip it plays, from which time.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Placement {
+    pub model: DMat4,
+    pub clip: usize,
+    pub offset: f32,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Crowd {
+    pub camera: Camera,
+    pub placements: Vec<Placement>,
+}
+
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> f64 {
+        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// Lays out the scene for a character whose bind-pose vertices are `positions`: a camera at
+/// the origin looking down −z, three quarters of the instances on a grid that fills the view
+/// and spills past its sides, one quarter centered on the four side planes.
+pub fn crowd(positions: &[Vec3], clips: usize, params: &CrowdParams) -> Crowd {
+    let (lo, hi) = positions
+        .iter()
+        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(l, h), p| (l.min(p.as_dvec3()), h.max(p.as_dvec3())));
+    let center = if lo.x <= hi.x { (lo + hi) / 2.0 } else { DVec3::ZERO };
+    let size = if lo.x <= hi.x { ((hi - lo).length() / 2.0).max(1e-6) } else { 1.0 };
+    let (fov, aspect) = (50f64.to_radians(), 16.0 / 9.0);
+    let camera = if params.orthographic {
+        let h = 6.0 * size;
+        Camera::orthographic(Vec3::ZERO, Vec3::NEG_Z, Vec3::Y, (h * aspect) as f32, h as f32, 0.0, (80.0 * size) as f32)
+    } else {
+        Camera::perspective(
+            Vec3::ZERO,
+            Vec3::NEG_Z,
+            Vec3::Y,
+            fov as f32,
+            aspect as f32,
+            (0.05 * size) as f32,
+            (80.0 * size) as f32,
+        )
+    };
+    // Half extents of the view at depth z (> 0 in front of the camera).
+    let half = |z: f64| {
+        if params.orthographic {
+            (6.0 * size * aspect, 6.0 * size)
+        } else {
+            ((fov / 2.0).tan() * z * aspect, (fov / 2.0).tan() * z)
+        }
+    };
+    let mut rng = Rng(params.seed ^ 0x5EED_C0DE);
+    let on_planes = params.instances / 4;
+    let grid = params.instances - on_planes;
+    let cols = ((grid as f64 * 1.5).sqrt().ceil() as usize).max(1);
+    let rows = grid.div_ceil(cols).max(1);
+    let mut placements = Vec::with_capacity(params.instances);
+    for i in 0..params.instances {
+        let pos = if i < grid {
+            let (r, c) = (i / cols, i % cols);
+            let z = 4.0 * size + 3.0 * size * r as f64;
+            let (hw, hh) = half(z);
+            let x = (2.0 * (c as f64 + 0.5) / cols as f64 - 1.0) * hw * 1.5;
+            DVec3::new(x, -0.5 * hh + size * 0.3 * rng.next(), -z)
+        } else {
+            let k = i - grid;
+            let z = 4.0 * size + rng.next() * 3.0 * size * rows as f64;
+            let (hw, hh) = half(z);
+            let along = (rng.next() * 2.0 - 1.0) * 0.8;
+            match k % 4 {
+                0 => DVec3::new(-hw, along * hh, -z),
+                1 => DVec3::new(hw, along * hh, -z),
+                2 => DVec3::new(along * hw, -hh, -z),
+                _ => DVec3::new(along * hw, hh, -z),
+            }
+        };
+        let yaw = rng.next() * std::f64::consts::TAU;
+        let model =
+            DMat4::from_rotation_translation(DQuat::from_rotation_y(yaw), pos) * DMat4::from_translation(-center);
+        let clip = if clips == 0 { 0 } else { (rng.next() * clips as f64) as usize % clips };
+        placements.push(Placement { model, clip, offset: rng.next() as f32 });
+    }
+    Crowd { camera, placements }
+}
+
+/// Totals over all frames and instances.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CrowdStats {
+    pub frames: usize,
+    pub instances: usize,
+    /// Meshlets, triangles and meshlet vertex references drawn without any culling.
+    pub meshlets: usize,
+    pub triangles: usize,
+    pub vertex_refs: usize,
+    /// Meshlets culled by each pipeline (the paper's table 1 columns).
+    pub culled_frustum_only: usize,
+    pub culled_backface_only: usize,
+    pub culled_both: CullCounts,
+    /// With both tests: triangles in culled meshlets, and vertex references not skinned.
+    pub triangles_in_culled_meshlets: usize,
+    pub vertex_refs_culled: usize,
+    /// Per-triangle culling inside the meshlets both tests kept.
+    pub triangle_culling: TriangleCounts,
+    /// Meshlets of instances whose whole-mesh box (dynamic per-joint boxes) is outside.
+    pub whole_mesh_culled: usize,
+    /// Whole-mesh box volume ÷ exact box of the skinned vertices, summed over instance-frames.
+    pub box_looseness_sum: f64,
+    /// CPU time of the per-meshlet culling with both tests (per-joint setup included),
+    /// summed over instances (thread time).
+    pub cull_time: Duration,
+    /// With verification: culled triangles checked, and those that were visible after all.
+    pub checked_triangles: usize,
+    pub false_culls: usize,
+}
+
+impl CrowdStats {
+    fn add(&mut self, o: &CrowdStats) {
+        self.meshlets += o.meshlets;
+        self.triangles += o.triangles;
+        self.vertex_refs += o.vertex_refs;
+        self.culled_frustum_only += o.culled_frustum_only;
+        self.culled_backface_only += o.culled_backface_only;
+        self.culled_both.add(&o.culled_both);
+        self.triangles_in_culled_meshlets += o.triangles_in_culled_meshlets;
+        self.vertex_refs_culled += o.vertex_refs_culled;
+        self.triangle_culling.add(&o.triangle_culling);
+        self.whole_mesh_culled += o.whole_mesh_culled;
+        self.box_looseness_sum += o.box_looseness_sum;
+        self.cull_time += o.cull_time;
+        self.checked_triangles += o.checked_triangles;
+        self.false_culls += o.false_culls;
+    }
+
+    fn pct(&self, n: usize, of: usize) -> f64 {
+        100.0 * n as f64 / of.max(1) as f64
+    }
+    pub fn frustum_only_pct(&self) -> f64 {
+        self.pct(self.culled_frustum_only, self.meshlets)
+    }
+    pub fn backface_only_pct(&self) -> f64 {
+        self.pct(self.culled_backface_only, self.meshlets)
+    }
+    pub fn both_pct(&self) -> f64 {
+        self.pct(self.culled_both.frustum + self.culled_both.backface, self.meshlets)
+    }
+    /// Triangles not rasterized: in culled meshlets or culled one by one.
+    pub fn triangles_saved_pct(&self) -> f64 {
+        let t = self.triangle_culling;
+        self.pct(self.triangles_in_culled_meshlets + t.backfacing + t.degenerate, self.triangles)
+    }
+    pub fn skinning_saved_pct(&self) -> f64 {
+        self.pct(self.vertex_refs_culled, self.vertex_refs)
+    }
+    pub fn whole_mesh_pct(&self) -> f64 {
+        self.pct(self.whole_mesh_culled, self.meshlets)
+    }
+    pub fn ns_per_meshlet(&self) -> f64 {
+        self.cull_time.as_secs_f64() * 1e9 / self.meshlets.max(1) as f64
+    }
+}
+
+/// Scratch space of one worker.
+#[derive(Default)]
+struct Scratch {
+    poser: Poser,
+    joint_to_world: Vec<Affine3A>,
+    joint_to_model: Vec<Affine3A>,
+    skinning: Vec<Affine3A>,
+    frame: JointFrame,
+    flags: Vec<u8>,
+    visible: Vec<u32>,
+    skinned: Vec<Vec3>,
+    world: Vec<Vec3>,
+}
+
+/// Runs the crowd for `frames` frames. `clips` are the character's clips (placements index
+/// them); with `verify`, every culled triangle is checked by brute force.
+pub fn run(
+    baked: &Baked,
+    skeleton: &Skeleton,
+    skin_: &Skin,
+    clips: &[&Clip],
+    crowd: &Crowd,
+    params: &CrowdParams,
+    verify: bool,
+) -> Result<CrowdStats> {
+    let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin_.joints.len());
+    let boxes = JointBoxes::new(&baked.mesh, skin_, JointSpace::Joint)?;
+    let inf =
+        baked.mesh.influences.as_ref().ok_or_else(|| crate::Error::invalid("crowd", "the bake has no skin weights"))?;
+    let meshlets = &baked.meshlets;
+    let per_meshlet_refs: Vec<usize> = meshlets.meshlets.iter().map(|m| m.vertex_count as usize).collect();
+    let per_meshlet_tris: Vec<usize> = meshlets.meshlets.iter().map(|m| m.triangle_count as usize).collect();
+    let mut total = CrowdStats { frames: params.frames, instances: crowd.placements.len(), ..CrowdStats::default() };
+    for f in 0..params.frames {
+        let stats = crowd
+            .placements
+            .par_iter()
+            .map_init(Scratch::default, |s, pl| -> Result<CrowdStats> {
+                let clip = clips.get(pl.clip).copied();
+                let t = clip.map_or(0.0, |c| {
+                    let d = c.duration().max(1e-6);
+                    c.start + (pl.offset * d + f as f32 / params.fps).rem_euclid(d)
+                });
+                let globals = s.poser.globals(skeleton, clip, t);
+                s.joint_to_model.clear();
+                s.joint_to_world.clear();
+                for &j in &skin_.joints {
+                    let g = globals[j as usize];
+                    s.joint_to_model.push(Affine3A::from_mat4(g.as_mat4()));
+                    s.joint_to_world.push(Affine3A::from_mat4((pl.model * g).as_mat4()));
+                }
+                skinning_matrices(skin_, globals, &mut s.skinning);
+                let mut st = CrowdStats {
+                    meshlets: culler.len(),
+                    triangles: per_meshlet_tris.iter().sum(),
+                    vertex_refs: per_meshlet_refs.iter().sum(),
+                    ..CrowdStats::default()
+                };
+                for tests in [Tests::Frustum, Tests::Backface] {
+                    s.visible.clear();
+                    culler.prepare(&s.joint_to_world, &crowd.camera, &mut s.frame);
+                    let c = culler.cull(&s.frame, tests, &mut s.flags, &mut s.visible);
+                    match tests {
+                        Tests::Frustum => st.culled_frustum_only = c.frustum,
+                        _ => st.culled_backface_only = c.backface,
+                    }
+                }
+                s.visible.clear();
+                let started = Instant::now();
+                culler.prepare(&s.joint_to_world, &crowd.camera, &mut s.frame);
+                st.culled_both = culler.cull(&s.frame, Tests::Both, &mut s.flags, &mut s.visible);
+                st.cull_time = started.elapsed();
+                let mut kept = vec![false; meshlets.len()];
+                for &m in &s.visible {
+                    kept[m as usize] = true;
+                }
+                for (m, &k) in kept.iter().enumerate() {
+                    if !k {
+                        st.triangles_in_culled_meshlets += per_meshlet_tris[m];
+                        st.vertex_refs_culled += per_meshlet_refs[m];
+                    }
+                }
+                // Skin, move to world and clip space; per-triangle culling in kept meshlets.
+                let n = baked.mesh.positions.len();
+                s.skinned.resize(n, Vec3::ZERO);
+                skin(inf, &baked.mesh.positions, &[], &s.skinning, &mut s.skinned, &mut [])?;
+                let model = Affine3A::from_mat4(pl.model.as_mat4());
+                s.world.clear();
+                s.world.extend(s.skinned.iter().map(|&p| model.transform_point3(p)));
+                st.triangle_culling = cull_triangles(meshlets, &s.visible, &s.world, crowd.camera.projection, None);
+                // Whole-mesh culling by the dynamic box, moved from entity to world space.
+                let b = boxes.update(&s.joint_to_model).transformed(&model);
+                if outside(&crowd.camera, &b) {
+                    st.whole_mesh_culled = culler.len();
+                }
+                let exact = super::joint_aabb::points_box(&s.world);
+                st.box_looseness_sum = (b.volume() / exact.volume().max(f32::MIN_POSITIVE)) as f64;
+                if verify {
+                    let (checked, false_culls) = check_culls(baked, &kept, &s.world, &crowd.camera);
+                    st.checked_triangles = checked;
+                    st.false_culls = false_culls;
+                }
+                Ok(st)
+            })
+            .collect::<Result<Vec<_>>>()?;
+        for st in &stats {
+            total.add(st);
+        }
+    }
+    Ok(total)
+}
+
+/// True when the box is entirely outside one of the camera's planes.
+pub fn outside(camera: &Camera, b: &Box3) -> bool {
+    let (c, h) = ((b.min + b.max) / 2.0, (b.max - b.min) / 2.0);
+    camera.planes.iter().any(|p| p.truncate().dot(c) + p.truncate().abs().dot(h) + p.w < 0.0)
+}
+
+/// Brute force: every triangle of a culled meshlet must be outside one plane (all three
+/// vertices) or face away from the eye; every triangle culled one by one in a kept meshlet
+/// must face away or be degenerate. Tolerances: the f32 rounding of the skinned positions.
+fn check_culls(baked: &Baked, kept: &[bool], world: &[Vec3], camera: &Camera) -> (usize, usize) {
+    let meshlets = &baked.meshlets;
+    let (mut checked, mut false_culls) = (0, 0);
+    for (m, meshlet) in meshlets.meshlets.iter().enumerate() {
+        for t in meshlets.mesh_triangles(meshlet) {
+            let p = t.map(|i| world[i as usize].as_dvec3());
+            let w = t.map(|i| world[i as usize]);
+            let by_triangle = kept[m] && facing(w[0], w[1], w[2], camera.projection) >= 0.0;
+            if kept[m] && !by_triangle {
+                continue;
+            }
+            checked += 1;
+            let magnitude = p.iter().map(|q| q.abs().max_element()).fold(0.0, f64::max);
+            let (e1, e2) = (p[1] - p[0], p[2] - p[0]);
+            let n = e1.cross(e2);
+            let (facing, reach) = match camera.projection {
+                Projection::Perspective { eye } => {
+                    let to = p[0] - eye.as_dvec3();
+                    (to.dot(n), to.length())
+                }
+                Projection::Orthographic { dir } => (dir.as_dvec3().dot(n), 1.0),
+            };
+            let eye_mag = camera.eye().map_or(0.0, |e| e.as_dvec3().abs().max_element());
+            let delta = 1e-6 * (magnitude + eye_mag);
+            let tol = reach * 2.0 * delta * (e1.length() + e2.length()) + delta * n.length();
+            let away = facing >= -tol;
+            let out = camera.planes.iter().any(|pl| {
+                let (nn, w) = (pl.truncate().as_dvec3(), pl.w as f64);
+                p.iter().all(|q| nn.dot(*q) + w <= 1e-5 * (magnitude + w.abs()))
+            });
+            if !(away || (!by_triangle && out)) {
+                false_culls += 1;
+            }
+        }
+    }
+    (checked, false_culls)
+}

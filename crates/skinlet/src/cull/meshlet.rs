@@ -1,0 +1,389 @@
+//! Per-meshlet frustum and backface culling of skinned instances with the baked
+//! conservative bounds (Unterguggenberger et al. 2021, section 6: one test per meshlet, the
+//! sphere and cone moved by the meshlet's principal joint).
+//!
+//! Both tests run in the joint's bind space, where the bounds live, so nothing per meshlet is
+//! transformed and no bound is widened. With the joint's world matrix `G = [A | t]`:
+//! - Frustum: the world image of the sphere `B(c, r)` is an ellipsoid, and its signed
+//!   distance to a plane `(n, w)` is `n·(G c) + w − r·|Aᵀn|`. With the plane moved into joint
+//!   space, `n_j = Aᵀn`, `w_j = n·t + w`, the meshlet is outside when
+//!   `n_j·c + w_j + r·|n_j| < 0`: exact for any `A` (the paper scales the radius by the
+//!   largest singular value, which is looser under non-uniform scale).
+//! - Backface: face normals move by `cof(A)`, and `(A x)·(cof(A) n) = det(A)·(x·n)` for every
+//!   `A`, so a world triangle faces away from the eye `e` exactly when its bind-space normal
+//!   faces away from `e_j = G⁻¹ e` (sides swapped when `det A < 0`). The cone test of
+//!   [`crate::bounds::meshlet::backfacing`] in joint space is therefore exact, also under
+//!   shear, non-uniform and negative scale; orthographic cameras use the direction `A⁻¹ d`.
+//!   Singular joints (a zero scale) are never backface-culled.
+//!
+//! Per-joint values are computed once per instance and frame in f64; the per-meshlet tests
+//! run in f32 over meshlets grouped by joint (structure of arrays, branch-free, so the
+//! compiler vectorizes them) with margins of 1e-5 of the magnitudes involved, far above f32
+//! rounding, so that a culled meshlet is culled in exact arithmetic too.
+
+use super::{Camera, Projection};
+use crate::bounds::meshlet::{Class, MeshletBounds};
+use glam::{Affine3A, DVec3, DVec4, Vec3};
+
+/// Which tests run (the paper's three culling pipelines).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Tests {
+    Frustum,
+    Backface,
+    Both,
+}
+
+/// Baked bounds laid out for culling: meshlets grouped by principal joint.
+#[derive(Clone, Debug, Default)]
+pub struct MeshletCuller {
+    /// Original meshlet index of each slot.
+    ids: Vec<u32>,
+    /// Slots of joint `j`: `groups[j]..groups[j + 1]`.
+    groups: Vec<u32>,
+    cx: Vec<f32>,
+    cy: Vec<f32>,
+    cz: Vec<f32>,
+    r: Vec<f32>,
+    ax: Vec<f32>,
+    ay: Vec<f32>,
+    az: Vec<f32>,
+    /// sin α of the cone; 2 when the meshlet may not be backface-culled (no cone or class).
+    sin: Vec<f32>,
+    /// 1 when the meshlet may be frustum-culled (class is not "none"), else 0.
+    frustum_ok: Vec<u8>,
+    /// Per joint: largest `|c| + r` of its meshlets (scales the rounding margins).
+    extent: Vec<f32>,
+}
+
+/// Per-joint values of one instance at one frame; reuse it across frames (no allocation
+/// once grown).
+#[derive(Clone, Debug, Default)]
+pub struct JointFrame {
+    /// Per joint, 6 planes in joint space: `(n_j, w_j)`, and `|n_j|` in `len`.
+    planes: Vec<[[f32; 4]; 6]>,
+    len: Vec<[f32; 6]>,
+    /// Frustum rounding margin per joint.
+    margin: Vec<f32>,
+    /// Eye (perspective) or unit direction (orthographic) in joint space, times sign(det A)
+    /// in `sign`; `sign` is 0 for a singular joint.
+    view: Vec<Vec3>,
+    sign: Vec<f32>,
+    backface_margin: Vec<f32>,
+    orthographic: bool,
+}
+
+/// Meshlets culled by one call.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CullCounts {
+    pub meshlets: usize,
+    pub visible: usize,
+    /// Culled by the frustum test (with [`Tests::Both`]: those outside, whatever their facing).
+    pub frustum: usize,
+    /// Culled by the backface test and not by the frustum test.
+    pub backface: usize,
+}
+
+impl CullCounts {
+    pub fn add(&mut self, o: &CullCounts) {
+        self.meshlets += o.meshlets;
+        self.visible += o.visible;
+        self.frustum += o.frustum;
+        self.backface += o.backface;
+    }
+}
+
+impl MeshletCuller {
+    /// Lays out bounds and their classes (`joints`: the skin's joint count).
+    pub fn new(bounds: &[MeshletBounds], classes: &[Class], joints: usize) -> MeshletCuller {
+        let mut order: Vec<u32> = (0..bounds.len() as u32).collect();
+        order.sort_by_key(|&i| bounds[i as usize].joint);
+        let mut c = MeshletCuller { extent: vec![0.0; joints], ..MeshletCuller::default() };
+        c.groups = vec![0; joints + 1];
+        for &i in &order {
+            let (b, class) = (&bounds[i as usize], classes[i as usize]);
+            let j = (b.joint as usize).min(joints.saturating_sub(1));
+            c.groups[j + 1] += 1;
+            c.ids.push(i);
+            c.cx.push(b.center.x);
+            c.cy.push(b.center.y);
+            c.cz.push(b.center.z);
+            c.r.push(b.radius);
+            c.ax.push(b.cone_axis.x);
+            c.ay.push(b.cone_axis.y);
+            c.az.push(b.cone_axis.z);
+            let cone = b.cone_angle < std::f32::consts::FRAC_PI_2 && class == Class::Both;
+            c.sin.push(if cone { b.cone_angle.sin() } else { 2.0 });
+            c.frustum_ok.push((class != Class::None) as u8);
+            c.extent[j] = c.extent[j].max(b.center.length() + b.radius);
+        }
+        for j in 0..joints {
+            c.groups[j + 1] += c.groups[j];
+        }
+        c
+    }
+
+    pub fn len(&self) -> usize {
+        self.ids.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.ids.is_empty()
+    }
+
+    pub fn joints(&self) -> usize {
+        self.extent.len()
+    }
+
+    /// Per-joint values for `joint_to_world` (one matrix per joint: the joint's world
+    /// transform, i.e. model matrix × the joint's global transform).
+    pub fn prepare(&self, joint_to_world: &[Affine3A], camera: &Camera, frame: &mut JointFrame) {
+        let n = joint_to_world.len().min(self.joints());
+        frame.planes.clear();
+        frame.len.clear();
+        frame.margin.clear();
+        frame.view.clear();
+        frame.sign.clear();
+        frame.backface_margin.clear();
+        frame.orthographic = matches!(camera.projection, Projection::Orthographic { .. });
+        for (j, g) in joint_to_world[..n].iter().enumerate() {
+            let a = glam::Mat3::from(g.matrix3).as_dmat3();
+            let t = Vec3::from(g.translation).as_dvec3();
+            let ext = self.extent[j] as f64;
+            let mut planes = [[0.0f32; 4]; 6];
+            let mut len = [0.0f32; 6];
+            let mut margin: f64 = 0.0;
+            for (k, p) in camera.planes.iter().enumerate() {
+                let p = p.as_dvec4();
+                let nj = a.transpose() * p.truncate();
+                let wj = p.truncate().dot(t) + p.w;
+                planes[k] = DVec4::from((nj, wj)).as_vec4().to_array();
+                len[k] = nj.length() as f32;
+                margin = margin.max(1e-5 * (wj.abs() + nj.length() * ext + t.length() + p.w.abs()));
+            }
+            frame.planes.push(planes);
+            frame.len.push(len);
+            frame.margin.push(margin as f32);
+            let det = a.determinant();
+            let scale = a.x_axis.length().max(a.y_axis.length()).max(a.z_axis.length());
+            let singular = det.abs() <= 1e-12 * scale * scale * scale || !det.is_finite();
+            let (view, bmargin) = match camera.projection {
+                _ if singular => (DVec3::ZERO, 0.0),
+                Projection::Perspective { eye } => {
+                    let ej = a.inverse() * (eye.as_dvec3() - t);
+                    (ej, 1e-5 * (ej.length() + ext))
+                }
+                Projection::Orthographic { dir } => ((a.inverse() * dir.as_dvec3()).normalize_or_zero(), 1e-5),
+            };
+            frame.view.push(view.as_vec3());
+            frame.sign.push(if singular { 0.0 } else { det.signum() as f32 });
+            frame.backface_margin.push(bmargin as f32);
+        }
+    }
+
+    /// Culls every meshlet of one instance: appends the original indices of the visible ones
+    /// to `visible` and returns the counts. `frame` comes from [`MeshletCuller::prepare`].
+    /// `flags` is scratch space (one byte per meshlet), reused across calls.
+    pub fn cull(&self, frame: &JointFrame, tests: Tests, flags: &mut Vec<u8>, visible: &mut Vec<u32>) -> CullCounts {
+        flags.clear();
+        flags.resize(self.len(), 0);
+        let (do_frustum, do_back) = match tests {
+            Tests::Frustum => (true, false),
+            Tests::Backface => (false, true),
+            Tests::Both => (true, true),
+        };
+        for j in 0..frame.planes.len() {
+            let (lo, hi) = (self.groups[j] as usize, self.groups[j + 1] as usize);
+            if lo == hi {
+                continue;
+            }
+            let f = &mut flags[lo..hi];
+            if do_frustum {
+                self.frustum_group(frame, j, lo, f);
+            }
+            if do_back && frame.sign[j] != 0.0 {
+                if frame.orthographic {
+                    self.backface_group_ortho(frame, j, lo, f);
+                } else {
+                    self.backface_group(frame, j, lo, f);
+                }
+            }
+        }
+        let mut counts = CullCounts { meshlets: self.len(), ..CullCounts::default() };
+        for (slot, &fl) in flags.iter().enumerate() {
+            if fl == 0 {
+                visible.push(self.ids[slot]);
+            }
+            counts.frustum += (fl & 1) as usize;
+            counts.backface += (fl == 2) as usize;
+        }
+        counts.visible = counts.meshlets - counts.frustum - counts.backface;
+        counts
+    }
+
+    /// Sets bit 0 of each flag when the meshlet's sphere is outside a plane.
+    fn frustum_group(&self, frame: &JointFrame, j: usize, lo: usize, flags: &mut [u8]) {
+        let n = flags.len();
+        let (cx, cy, cz, r) = (&self.cx[lo..lo + n], &self.cy[lo..lo + n], &self.cz[lo..lo + n], &self.r[lo..lo + n]);
+        let ok = &self.frustum_ok[lo..lo + n];
+        let m = frame.margin[j];
+        for (k, p) in frame.planes[j].iter().enumerate() {
+            let l = frame.len[j][k];
+            for i in 0..n {
+                let d = p[0] * cx[i] + p[1] * cy[i] + p[2] * cz[i] + p[3] + r[i] * l + m;
+                flags[i] |= ((d < 0.0) as u8) & ok[i];
+            }
+        }
+    }
+
+    /// Sets bit 1 when every point of the sphere sees every normal of the cone from behind.
+    fn backface_group(&self, frame: &JointFrame, j: usize, lo: usize, flags: &mut [u8]) {
+        let (e, sign, m) = (frame.view[j], frame.sign[j], frame.backface_margin[j]);
+        for (i, flag) in flags.iter_mut().enumerate() {
+            let s = lo + i;
+            let (dx, dy, dz) = (self.cx[s] - e.x, self.cy[s] - e.y, self.cz[s] - e.z);
+            let along = sign * (dx * self.ax[s] + dy * self.ay[s] + dz * self.az[s]);
+            let sin = self.sin[s];
+            // along ≥ |d|·sin + r·(1 + sin) + margin, squared when the left side is positive.
+            let lhs = along - self.r[s] * (1.0 + sin) - m;
+            let back = lhs >= 0.0 && lhs * lhs >= (dx * dx + dy * dy + dz * dz) * sin * sin;
+            *flag |= (back as u8) << 1;
+        }
+    }
+
+    fn backface_group_ortho(&self, frame: &JointFrame, j: usize, lo: usize, flags: &mut [u8]) {
+        let (d, sign, m) = (frame.view[j], frame.sign[j], frame.backface_margin[j]);
+        for (i, flag) in flags.iter_mut().enumerate() {
+            let s = lo + i;
+            let along = sign * (d.x * self.ax[s] + d.y * self.ay[s] + d.z * self.az[s]);
+            *flag |= ((along >= self.sin[s] + m) as u8) << 1;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bounds::meshlet::cofactor;
+    use glam::{DMat3, DQuat};
+    use proptest::prelude::*;
+
+    fn unit(v: [f64; 3]) -> DVec3 {
+        let v = DVec3::from(v);
+        if v.length() < 1e-3 { DVec3::X } else { v.normalize() }
+    }
+
+    /// A random joint matrix: rotation, non-uniform (possibly negative, possibly tiny)
+    /// scale, shear, translation.
+    fn joint(r: [f64; 3], angle: f64, scale: [f64; 3], shear: f64, t: [f64; 3]) -> Affine3A {
+        let mut a = DMat3::from_quat(DQuat::from_axis_angle(unit(r), angle)) * DMat3::from_diagonal(DVec3::from(scale));
+        a.x_axis.y += shear;
+        Affine3A::from_mat3_translation(a.as_mat3(), DVec3::from(t).as_vec3())
+    }
+
+    fn culled(b: MeshletBounds, g: Affine3A, cam: &Camera) -> u8 {
+        let c = MeshletCuller::new(&[b], &[Class::Both], 1);
+        let mut frame = JointFrame::default();
+        c.prepare(&[g], cam, &mut frame);
+        let (mut flags, mut visible) = (Vec::new(), Vec::new());
+        c.cull(&frame, Tests::Both, &mut flags, &mut visible);
+        flags[0]
+    }
+
+    fn camera(ortho: bool, eye: [f64; 3], target: [f64; 3]) -> Camera {
+        let (e, t) = (DVec3::from(eye).as_vec3(), DVec3::from(target).as_vec3());
+        if ortho {
+            Camera::orthographic(e, t, Vec3::Y, 3.0, 2.0, 0.1, 30.0)
+        } else {
+            Camera::perspective(e, t, Vec3::Y, 1.0, 1.5, 0.1, 30.0)
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 3000, ..ProptestConfig::default() })]
+
+        /// Whatever the joint matrix and camera: when the frustum test culls, every sampled
+        /// point of the moved sphere (random surface points and each plane's extreme point)
+        /// is outside one plane; when the backface test culls, every sampled point sees every
+        /// sampled normal of the moved cone (moved by cof(A)) from behind.
+        #[test]
+        fn culls_only_what_brute_force_confirms(
+            c in prop::array::uniform3(-2.0f64..2.0), radius in 0.0f64..1.5,
+            a in prop::array::uniform3(-1.0f64..1.0), angle in 0.0f64..1.5,
+            r in prop::array::uniform3(-1.0f64..1.0), rot in -3.1f64..3.1,
+            scale in prop::array::uniform3(prop_oneof![0.3f64..3.0, -3.0f64..-0.3, -0.01f64..0.01]),
+            shear in -1.0f64..1.0, t in prop::array::uniform3(-6.0f64..6.0),
+            ortho in any::<bool>(), eye in prop::array::uniform3(-12.0f64..12.0),
+            target in prop::array::uniform3(-3.0f64..3.0),
+            samples in prop::collection::vec((prop::array::uniform3(-1.0f64..1.0), 0.0f64..1.0, 0.0f64..6.3), 48),
+        ) {
+            let axis = unit(a);
+            let b = MeshletBounds {
+                joint: 0, center: DVec3::from(c).as_vec3(), radius: radius as f32, rest_radius: radius as f32,
+                cone_axis: axis.as_vec3(), cone_angle: angle as f32, rest_cone_angle: angle as f32,
+            };
+            let g = joint(r, rot, scale, shear, t);
+            let cam = camera(ortho, eye, target);
+            let flags = culled(b, g, &cam);
+            let gd = glam::DMat4::from_cols(
+                DVec4::from((Vec3::from(g.matrix3.x_axis).as_dvec3(), 0.0)),
+                DVec4::from((Vec3::from(g.matrix3.y_axis).as_dvec3(), 0.0)),
+                DVec4::from((Vec3::from(g.matrix3.z_axis).as_dvec3(), 0.0)),
+                DVec4::from((Vec3::from(g.translation).as_dvec3(), 1.0)),
+            );
+            let a3 = DMat3::from_mat4(gd);
+            let center = DVec3::from(c);
+            let mut points: Vec<DVec3> = samples.iter().map(|(d, _, _)| center + unit(*d) * radius).collect();
+            for p in &cam.planes {
+                let n = a3.transpose() * p.truncate().as_dvec3();
+                points.push(center - n.normalize_or_zero() * radius);
+            }
+            let world: Vec<DVec3> = points.iter().map(|&p| gd.transform_point3(p)).collect();
+            if flags & 1 != 0 {
+                let out = cam.planes.iter().any(|p| {
+                    world.iter().all(|q| p.truncate().as_dvec3().dot(*q) + p.w as f64 <= 1e-9)
+                });
+                prop_assert!(out, "frustum-culled, but a point of the sphere is inside");
+            }
+            if flags & 2 != 0 {
+                let m = cofactor(&a3);
+                let perp = axis.any_orthonormal_vector();
+                for (i, (_, phi, turn)) in samples.iter().enumerate() {
+                    let n = DQuat::from_axis_angle(axis, *turn) * (DQuat::from_axis_angle(perp, phi * angle) * axis);
+                    let nw = m * n;
+                    let facing = match cam.projection {
+                        Projection::Perspective { eye } => (world[i] - eye.as_dvec3()).dot(nw),
+                        Projection::Orthographic { dir } => dir.as_dvec3().dot(nw),
+                    };
+                    prop_assert!(facing >= -1e-9 * nw.length(), "backface-culled, but a normal faces the eye");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn culls_often_enough_to_matter() {
+        // Facing away from a camera in front: culled by the backface test; behind it: by the
+        // frustum; facing it: kept. Also through a mirroring joint matrix.
+        let cam = Camera::perspective(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, Vec3::Y, 1.0, 1.0, 0.1, 100.0);
+        let b = |axis: Vec3, center: Vec3| MeshletBounds {
+            joint: 0,
+            center,
+            radius: 0.5,
+            rest_radius: 0.5,
+            cone_axis: axis,
+            cone_angle: 0.3,
+            rest_cone_angle: 0.3,
+        };
+        assert_eq!(culled(b(-Vec3::Z, Vec3::ZERO), Affine3A::IDENTITY, &cam), 2);
+        assert_eq!(culled(b(Vec3::Z, Vec3::ZERO), Affine3A::IDENTITY, &cam), 0);
+        assert_eq!(culled(b(-Vec3::Z, Vec3::new(0.0, 0.0, 20.0)), Affine3A::IDENTITY, &cam), 1);
+        // Mirrored in x, a triangle in the xy plane keeps its place but reverses its winding:
+        // its face normal flips from -z to +z (facing the eye): kept.
+        let mirror = Affine3A::from_scale(Vec3::new(-1.0, 1.0, 1.0));
+        assert_eq!(culled(b(-Vec3::Z, Vec3::ZERO), mirror, &cam), 0);
+        assert_eq!(culled(b(Vec3::Z, Vec3::ZERO), mirror, &cam), 2);
+        // A zero scale: no backface culling (the frustum test still works).
+        let flat = Affine3A::from_scale(Vec3::new(1.0, 0.0, 1.0));
+        assert_eq!(culled(b(-Vec3::Z, Vec3::ZERO), flat, &cam), 0);
+    }
+}

@@ -1,0 +1,110 @@
+//! Run-time culling on the CPU: per-meshlet frustum and backface culling with the baked
+//! conservative bounds ([`meshlet`]), per-triangle culling inside visible meshlets
+//! ([`triangle`]), whole-mesh boxes from per-joint boxes ([`joint_aabb`]), and the crowd
+//! scene that measures them ([`crowd`]).
+//!
+//! This module holds the camera: a view-projection matrix, its six frustum planes
+//! (Gribb & Hartmann's extraction, normalized), and the eye position (perspective) or view
+//! direction (orthographic) that backface tests need. Conventions are glam's right-handed
+//! ones with depth in [0, 1] (`Mat4::perspective_rh`, `Mat4::orthographic_rh`).
+
+pub mod crowd;
+pub mod joint_aabb;
+pub mod meshlet;
+pub mod triangle;
+
+use glam::{Mat4, Vec3, Vec4};
+
+/// A camera for culling.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    pub view_proj: Mat4,
+    /// Frustum planes `(n, w)` with unit `n` pointing inside: a point `p` is inside a plane
+    /// when `n·p + w ≥ 0`. Order: left, right, bottom, top, near, far.
+    pub planes: [Vec4; 6],
+    pub projection: Projection,
+}
+
+/// What a backface test needs from the projection.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Projection {
+    /// Rays from the eye: a face is back-facing when `(p − eye)·n ≥ 0`.
+    Perspective { eye: Vec3 },
+    /// Parallel rays along the unit `dir`: a face is back-facing when `dir·n ≥ 0`.
+    Orthographic { dir: Vec3 },
+}
+
+impl Camera {
+    /// A perspective camera at `eye` looking at `target` (`fov_y` in radians).
+    pub fn perspective(eye: Vec3, target: Vec3, up: Vec3, fov_y: f32, aspect: f32, near: f32, far: f32) -> Camera {
+        let view_proj = Mat4::perspective_rh(fov_y, aspect, near, far) * Mat4::look_at_rh(eye, target, up);
+        Camera { view_proj, planes: planes(&view_proj), projection: Projection::Perspective { eye } }
+    }
+
+    /// An orthographic camera at `eye` looking at `target`, seeing `half_width` × `half_height`
+    /// around the view axis.
+    pub fn orthographic(
+        eye: Vec3,
+        target: Vec3,
+        up: Vec3,
+        half_width: f32,
+        half_height: f32,
+        near: f32,
+        far: f32,
+    ) -> Camera {
+        let proj = Mat4::orthographic_rh(-half_width, half_width, -half_height, half_height, near, far);
+        let view_proj = proj * Mat4::look_at_rh(eye, target, up);
+        let dir = (target - eye).normalize();
+        Camera { view_proj, planes: planes(&view_proj), projection: Projection::Orthographic { dir } }
+    }
+
+    /// The world-space position the backface test measures from (the eye; for orthographic
+    /// cameras none exists and `None` is returned).
+    pub fn eye(&self) -> Option<Vec3> {
+        match self.projection {
+            Projection::Perspective { eye } => Some(eye),
+            Projection::Orthographic { .. } => None,
+        }
+    }
+}
+
+/// The six planes of `view_proj`'s clip volume (`-w ≤ x, y ≤ w`, `0 ≤ z ≤ w`), normalized.
+pub fn planes(view_proj: &Mat4) -> [Vec4; 6] {
+    let r = |i: usize| view_proj.row(i);
+    let raw = [r(3) + r(0), r(3) - r(0), r(3) + r(1), r(3) - r(1), r(2), r(3) - r(2)];
+    raw.map(|p| p / p.truncate().length())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn planes_agree_with_clip_space() {
+        // A point is inside every plane exactly when its clip coordinates are in the volume.
+        let cams = [
+            Camera::perspective(Vec3::new(1.0, 2.0, 5.0), Vec3::ZERO, Vec3::Y, 1.0, 1.5, 0.1, 50.0),
+            Camera::orthographic(Vec3::new(-3.0, 1.0, 2.0), Vec3::X, Vec3::Y, 4.0, 3.0, 0.5, 20.0),
+        ];
+        let mut s = 12345u32;
+        let mut next = || {
+            s ^= s << 13;
+            s ^= s >> 17;
+            s ^= s << 5;
+            s as f32 / u32::MAX as f32 * 40.0 - 20.0
+        };
+        for cam in cams {
+            for _ in 0..20_000 {
+                let p = Vec3::new(next(), next(), next());
+                let c = cam.view_proj * p.extend(1.0);
+                let in_clip = c.w > 0.0 && c.x.abs() <= c.w && c.y.abs() <= c.w && c.z >= 0.0 && c.z <= c.w;
+                let dists = cam.planes.map(|pl| pl.truncate().dot(p) + pl.w);
+                let in_planes = dists.iter().all(|&d| d >= 0.0);
+                let margin = dists.iter().map(|d| d.abs()).fold(f32::INFINITY, f32::min);
+                if margin > 1e-3 {
+                    assert_eq!(in_clip, in_planes, "{p} {c} {dists:?}");
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,168 @@
+//! Run-time culling guarantees: the crowd scene never culls a triangle that brute force finds
+//! visible (every shared asset and the demo, perspective and orthographic), and per-joint
+//! boxes contain every skinned vertex at every sampled time (shared assets, random rigs with
+//! negative and zero scale and shear through non-uniform parent scale).
+
+mod common;
+mod rig;
+use common::assets_dir;
+
+use glam::{Affine3A, Vec3};
+use skinlet::bake::{Baked, bake};
+use skinlet::bounds::refine::Refinement;
+use skinlet::clip::Clip;
+use skinlet::cull::crowd::{CrowdParams, crowd, run};
+use skinlet::cull::joint_aabb::{Box3, JointBoxes, JointSpace};
+use skinlet::meshlet::{Builder, MeshletLimits};
+use skinlet::model::{Skeleton, Skin, SkinnedMesh};
+use skinlet::pose::Poser;
+use skinlet::{Asset, demo};
+
+fn baked(asset: &Asset, skin: u32) -> Baked {
+    let clips: Vec<&Clip> = asset.clips.iter().collect();
+    bake(asset, skin, &clips, Builder::SkinAware, MeshletLimits::NVIDIA, &Refinement::NONE, &mut |_| {}).unwrap().0
+}
+
+fn shared_assets() -> Vec<(String, Asset)> {
+    let Some(dir) = assets_dir() else { return Vec::new() };
+    let mut files: Vec<_> = std::fs::read_dir(dir.join("skinned")).unwrap().map(|e| e.unwrap().path()).collect();
+    files.sort();
+    files
+        .iter()
+        .map(|p| (p.file_name().unwrap().to_string_lossy().into_owned(), skinlet::import::load(p).unwrap()))
+        .collect()
+}
+
+fn check_crowd(name: &str, asset: &Asset, params: &CrowdParams) -> (f64, f64) {
+    let skin_index = asset.instances.iter().find_map(|i| i.skin).unwrap_or(0);
+    let b = baked(asset, skin_index);
+    let clips: Vec<&Clip> = asset.clips.iter().collect();
+    let scene = crowd(&b.mesh.positions, clips.len(), params);
+    let skin = &asset.skins[skin_index as usize];
+    let stats = run(&b, &asset.skeleton, skin, &clips, &scene, params, true).unwrap();
+    eprintln!(
+        "{name} (ortho {}): {} triangles checked, {} false culls; culled {:.1}% (frustum only {:.1}%, backface only {:.1}%), triangles saved {:.1}%",
+        params.orthographic,
+        stats.checked_triangles,
+        stats.false_culls,
+        stats.both_pct(),
+        stats.frustum_only_pct(),
+        stats.backface_only_pct(),
+        stats.triangles_saved_pct()
+    );
+    assert_eq!(stats.false_culls, 0, "{name}: {stats:?}");
+    assert!(stats.checked_triangles > 0, "{name}: nothing was culled, nothing checked");
+    (stats.frustum_only_pct(), stats.backface_only_pct())
+}
+
+#[test]
+fn crowd_never_culls_a_visible_triangle() {
+    let params = CrowdParams { instances: 16, frames: 4, ..CrowdParams::default() };
+    let (mut any_frustum, mut any_backface) = (false, false);
+    for (name, asset) in shared_assets() {
+        let (frustum, backface) = check_crowd(&name, &asset, &params);
+        any_frustum |= frustum > 0.0;
+        any_backface |= backface > 0.0;
+        if name == "Xbot.glb" {
+            check_crowd(&name, &asset, &CrowdParams { orthographic: true, ..params });
+        }
+    }
+    let d = demo::demo_character(&demo::DemoParams { triangles: 4000, ..Default::default() });
+    let (frustum, backface) = check_crowd("demo", &d, &params);
+    check_crowd("demo", &d, &CrowdParams { orthographic: true, seed: 5, ..params });
+    assert!(any_frustum || frustum > 0.0, "frustum culling never happened");
+    assert!(any_backface || backface > 0.0, "backface culling never happened");
+}
+
+/// Skins `mesh` at `times` of `clip` and checks that every vertex lies in the boxes' union
+/// (mesh and joint space), the sphere, and `folded` when given (up to f32 rounding).
+fn check_boxes(
+    label: &str,
+    skeleton: &Skeleton,
+    skin: &Skin,
+    mesh: &SkinnedMesh,
+    clip: Option<&Clip>,
+    folded: Option<&JointBoxes>,
+) -> usize {
+    let inf = mesh.influences.as_ref().unwrap();
+    let in_mesh = JointBoxes::new(mesh, skin, JointSpace::Mesh).unwrap();
+    let in_joint = JointBoxes::new(mesh, skin, JointSpace::Joint).unwrap();
+    let mut poser = Poser::default();
+    let (mut skinning, mut skinned) = (Vec::new(), vec![Vec3::ZERO; mesh.positions.len()]);
+    let times: Vec<f32> = match clip {
+        Some(c) => (0..=24).map(|k| c.start + c.duration() * k as f32 / 24.0).collect(),
+        None => vec![0.0],
+    };
+    let mut checked = 0;
+    for t in times {
+        let globals = poser.globals(skeleton, clip, t).to_vec();
+        skinlet::pose::skinning_matrices(skin, &globals, &mut skinning);
+        let joint_globals: Vec<Affine3A> =
+            skin.joints.iter().map(|&j| Affine3A::from_mat4(globals[j as usize].as_mat4())).collect();
+        skinlet::skinning::skin(inf, &mesh.positions, &[], &skinning, &mut skinned, &mut []).unwrap();
+        let mut boxes: Vec<(&str, Box3)> =
+            vec![("mesh space", in_mesh.update(&skinning)), ("joint space", in_joint.update(&joint_globals))];
+        if let Some(f) = folded {
+            boxes.push(("folded", f.update(&joint_globals)));
+        }
+        let (sc, sr) = in_joint.sphere(&joint_globals);
+        for p in &skinned {
+            if !p.is_finite() {
+                continue;
+            }
+            let tol = 1e-5 * (1.0 + p.abs().max_element());
+            for (what, b) in &boxes {
+                let grown = Box3 { min: b.min - tol, max: b.max + tol };
+                assert!(grown.contains(*p), "{label} t={t}: vertex {p} outside the {what} box {b:?}");
+            }
+            assert!(p.distance(sc) <= sr + tol, "{label} t={t}: vertex {p} outside the sphere");
+            checked += 1;
+        }
+    }
+    checked
+}
+
+#[test]
+fn joint_boxes_contain_every_skinned_vertex_on_shared_assets() {
+    for (name, asset) in shared_assets() {
+        let skin_index = asset.instances.iter().find_map(|i| i.skin).unwrap();
+        let skin = &asset.skins[skin_index as usize];
+        let mesh = asset.combined_mesh(Some(skin_index));
+        let clips: Vec<&Clip> = asset.clips.iter().collect();
+        let in_joint = JointBoxes::new(&mesh, skin, JointSpace::Joint).unwrap();
+        let folded = in_joint.fold_leaves(&asset.skeleton, skin, &mesh, &clips, 2).unwrap();
+        let mut checked = 0;
+        for clip in &clips {
+            checked +=
+                check_boxes(&format!("{name} {}", clip.name), &asset.skeleton, skin, &mesh, Some(clip), Some(&folded));
+        }
+        eprintln!(
+            "{name}: {checked} vertex checks; {} joint boxes, {} after folding leaves twice",
+            in_joint.joints.len(),
+            folded.joints.len()
+        );
+    }
+}
+
+#[test]
+fn joint_boxes_contain_every_skinned_vertex_on_random_rigs() {
+    let mut checked = 0;
+    for seed in 0..400u64 {
+        let (skeleton, skin, mut clip, positions, inf) = rig::random_character(seed);
+        // A third of the rigs get a scale key of zero on one axis.
+        if seed.is_multiple_of(3)
+            && let Some(ch) = clip.scales.first_mut()
+        {
+            let k = seed as usize % ch.values.len();
+            ch.values[k].y = 0.0;
+        }
+        let mesh = SkinnedMesh { positions, normals: Vec::new(), triangles: Vec::new(), influences: Some(inf) };
+        let folded = JointBoxes::new(&mesh, &skin, JointSpace::Joint)
+            .unwrap()
+            .fold_leaves(&skeleton, &skin, &mesh, &[&clip], 1)
+            .ok();
+        checked += check_boxes(&format!("seed {seed}"), &skeleton, &skin, &mesh, Some(&clip), folded.as_ref());
+        checked += check_boxes(&format!("seed {seed} rest"), &skeleton, &skin, &mesh, None, None);
+    }
+    assert!(checked > 100_000, "{checked}");
+}
