@@ -294,3 +294,26 @@ fn bake_is_deterministic_verifiable_and_its_errors_are_clear() {
     assert!(err.contains("cannot write"), "{err}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn crowd_reports_table_one_columns_and_never_culls_visible_triangles() {
+    let j = json_of(&["crowd", "@demo:2000", "--instances", "8", "--frames", "3", "--verify", "--json"]);
+    for field in [
+        "culled_backface_only_pct",
+        "culled_frustum_only_pct",
+        "culled_both_pct",
+        "triangles_saved_pct",
+        "skinning_saved_pct",
+        "whole_mesh_culled_pct",
+        "ns_per_meshlet",
+    ] {
+        assert!(j[field].as_f64().is_some_and(|x| x >= 0.0), "{field} missing in {j}");
+    }
+    assert_eq!(j["false_culls"], 0, "{j}");
+    assert!(j["checked_triangles"].as_u64().unwrap() > 0);
+    let both = j["culled_both_pct"].as_f64().unwrap();
+    assert!(both >= j["culled_frustum_only_pct"].as_f64().unwrap() && both <= 100.0, "{j}");
+    let (code, _, err) = skinlet(&["crowd", "@demo:2000", "--instances", "0"]);
+    assert_eq!(code, 2);
+    assert!(err.contains("--instances"), "{err}");
+}

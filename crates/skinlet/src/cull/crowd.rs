@@ -7,7 +7,7 @@
 //! by brute force on the reference-skinned mesh: outside one frustum plane, back-facing, or
 //! degenerate, within the f32 rounding of the skinned positions. Deterministic for a seed.
 
-use super::joint_aabb::{Box3, JointBoxes, JointSpace};
+use super::joint_aabb::{Box3, JointBoxes, JointSpace, points_box};
 use super::meshlet::{CullCounts, JointFrame, MeshletCuller, Tests};
 use super::triangle::{TriangleCounts, cull_triangles, facing};
 use super::{Camera, Projection};
@@ -125,6 +125,12 @@ pub fn crowd(positions: &[Vec3], clips: usize, params: &CrowdParams) -> Crowd {
     Crowd { camera, placements }
 }
 
+/// The whole-mesh bounds compared: per-joint boxes in joint space (the default, used for
+/// whole-mesh culling), in mesh space (Bevy's), joint space with leaf joints folded twice
+/// (conservative for the crowd's clips), and the box around the whole-mesh sphere.
+pub const WHOLE_MESH_BOUNDS: [&str; 4] =
+    ["joint-space boxes", "mesh-space boxes", "folded leaves (2 levels)", "sphere"];
+
 /// Totals over all frames and instances.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct CrowdStats {
@@ -145,8 +151,9 @@ pub struct CrowdStats {
     pub triangle_culling: TriangleCounts,
     /// Meshlets of instances whose whole-mesh box (dynamic per-joint boxes) is outside.
     pub whole_mesh_culled: usize,
-    /// Whole-mesh box volume ÷ exact box of the skinned vertices, summed over instance-frames.
-    pub box_looseness_sum: f64,
+    /// Whole-mesh bound volume ÷ volume of the exact box of the skinned vertices (entity
+    /// space), summed over instance-frames, for [`WHOLE_MESH_BOUNDS`] in that order.
+    pub looseness_sum: [f64; 4],
     /// CPU time of the per-meshlet culling with both tests (per-joint setup included),
     /// summed over instances (thread time).
     pub cull_time: Duration,
@@ -167,7 +174,9 @@ impl CrowdStats {
         self.vertex_refs_culled += o.vertex_refs_culled;
         self.triangle_culling.add(&o.triangle_culling);
         self.whole_mesh_culled += o.whole_mesh_culled;
-        self.box_looseness_sum += o.box_looseness_sum;
+        for (a, b) in self.looseness_sum.iter_mut().zip(&o.looseness_sum) {
+            *a += b;
+        }
         self.cull_time += o.cull_time;
         self.checked_triangles += o.checked_triangles;
         self.false_culls += o.false_culls;
@@ -195,6 +204,10 @@ impl CrowdStats {
     }
     pub fn whole_mesh_pct(&self) -> f64 {
         self.pct(self.whole_mesh_culled, self.meshlets)
+    }
+    /// Mean looseness of each of [`WHOLE_MESH_BOUNDS`].
+    pub fn looseness(&self) -> [f64; 4] {
+        self.looseness_sum.map(|x| x / (self.frames * self.instances).max(1) as f64)
     }
     pub fn ns_per_meshlet(&self) -> f64 {
         self.cull_time.as_secs_f64() * 1e9 / self.meshlets.max(1) as f64
@@ -228,6 +241,8 @@ pub fn run(
 ) -> Result<CrowdStats> {
     let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin_.joints.len());
     let boxes = JointBoxes::new(&baked.mesh, skin_, JointSpace::Joint)?;
+    let mesh_boxes = JointBoxes::new(&baked.mesh, skin_, JointSpace::Mesh)?;
+    let folded = boxes.fold_leaves(skeleton, skin_, &baked.mesh, clips, 2)?;
     let inf =
         baked.mesh.influences.as_ref().ok_or_else(|| crate::Error::invalid("crowd", "the bake has no skin weights"))?;
     let meshlets = &baked.meshlets;
@@ -261,8 +276,8 @@ pub fn run(
                 };
                 for tests in [Tests::Frustum, Tests::Backface] {
                     s.visible.clear();
-                    culler.prepare(&s.joint_to_world, &crowd.camera, &mut s.frame);
-                    let c = culler.cull(&s.frame, tests, &mut s.flags, &mut s.visible);
+                    culler.prepare(&s.joint_to_world, &crowd.camera, tests, &mut s.frame);
+                    let c = culler.cull(&s.frame, &mut s.flags, &mut s.visible);
                     match tests {
                         Tests::Frustum => st.culled_frustum_only = c.frustum,
                         _ => st.culled_backface_only = c.backface,
@@ -270,8 +285,8 @@ pub fn run(
                 }
                 s.visible.clear();
                 let started = Instant::now();
-                culler.prepare(&s.joint_to_world, &crowd.camera, &mut s.frame);
-                st.culled_both = culler.cull(&s.frame, Tests::Both, &mut s.flags, &mut s.visible);
+                culler.prepare(&s.joint_to_world, &crowd.camera, Tests::Both, &mut s.frame);
+                st.culled_both = culler.cull(&s.frame, &mut s.flags, &mut s.visible);
                 st.cull_time = started.elapsed();
                 let mut kept = vec![false; meshlets.len()];
                 for &m in &s.visible {
@@ -296,8 +311,16 @@ pub fn run(
                 if outside(&crowd.camera, &b) {
                     st.whole_mesh_culled = culler.len();
                 }
-                let exact = super::joint_aabb::points_box(&s.world);
-                st.box_looseness_sum = (b.volume() / exact.volume().max(f32::MIN_POSITIVE)) as f64;
+                let exact = points_box(&s.skinned).volume().max(f32::MIN_POSITIVE);
+                let (sc, sr) = boxes.sphere(&s.joint_to_model);
+                let sphere = Box3 { min: sc - sr, max: sc + sr };
+                let all = [
+                    boxes.update(&s.joint_to_model),
+                    mesh_boxes.update(&s.skinning),
+                    folded.update(&s.joint_to_model),
+                    sphere,
+                ];
+                st.looseness_sum = all.map(|b| (b.volume() / exact) as f64);
                 if verify {
                     let (checked, false_culls) = check_culls(baked, &kept, &s.world, &crowd.camera);
                     st.checked_triangles = checked;

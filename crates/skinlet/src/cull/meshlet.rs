@@ -23,13 +23,14 @@
 
 use super::{Camera, Projection};
 use crate::bounds::meshlet::{Class, MeshletBounds};
-use glam::{Affine3A, DVec3, DVec4, Vec3};
+use glam::{Affine3A, Mat3A, Vec3, Vec3A};
 
 /// Which tests run (the paper's three culling pipelines).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Tests {
     Frustum,
     Backface,
+    #[default]
     Both,
 }
 
@@ -53,6 +54,34 @@ pub struct MeshletCuller {
     frustum_ok: Vec<u8>,
     /// Per joint: largest `|c| + r` of its meshlets (scales the rounding margins).
     extent: Vec<f32>,
+    /// Per joint: a sphere around its frustum-cullable meshlets' spheres (joint space), tested
+    /// first: a group wholly inside the frustum skips the per-meshlet frustum test, a group
+    /// wholly outside one plane is culled at once.
+    group_center: Vec<Vec3>,
+    group_radius: Vec<f32>,
+    /// Per joint: whether any of its meshlets may be backface-culled.
+    group_cones: Vec<bool>,
+}
+
+/// Upper bound of the largest singular value: square root of the largest Gershgorin row sum
+/// of `AᵀA` (exact for a rotation times a uniform scale).
+fn max_singular(a: &Mat3A) -> f32 {
+    let (x, y, z) = (a.x_axis, a.y_axis, a.z_axis);
+    let (xx, yy, zz, xy, xz, yz) = (x.dot(x), y.dot(y), z.dot(z), x.dot(y).abs(), x.dot(z).abs(), y.dot(z).abs());
+    (xx + xy + xz).max(yy + xy + yz).max(zz + xz + yz).sqrt() * (1.0 + 1e-6)
+}
+
+fn frobenius2(m: &Mat3A) -> f32 {
+    m.x_axis.length_squared() + m.y_axis.length_squared() + m.z_axis.length_squared()
+}
+
+/// Where a joint's meshlet group lies relative to the frustum.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+enum Group {
+    #[default]
+    Inside,
+    Outside,
+    Straddles,
 }
 
 /// Per-joint values of one instance at one frame; reuse it across frames (no allocation
@@ -69,7 +98,9 @@ pub struct JointFrame {
     view: Vec<Vec3>,
     sign: Vec<f32>,
     backface_margin: Vec<f32>,
+    group: Vec<Group>,
     orthographic: bool,
+    tests: Tests,
 }
 
 /// Meshlets culled by one call.
@@ -119,6 +150,19 @@ impl MeshletCuller {
         for j in 0..joints {
             c.groups[j + 1] += c.groups[j];
         }
+        // Group spheres: centered on the box of the cullable meshlets' centers.
+        for j in 0..joints {
+            let slots = c.groups[j] as usize..c.groups[j + 1] as usize;
+            let cullable: Vec<usize> = slots.filter(|&i| c.frustum_ok[i] == 1).collect();
+            let at = |i: usize| Vec3::new(c.cx[i], c.cy[i], c.cz[i]);
+            let (lo, hi) =
+                cullable.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), &i| (l.min(at(i)), h.max(at(i))));
+            let center = if cullable.is_empty() { Vec3::ZERO } else { (lo + hi) / 2.0 };
+            let radius = cullable.iter().map(|&i| at(i).distance(center) + c.r[i]).fold(0.0f32, f32::max);
+            c.group_center.push(center);
+            c.group_radius.push(radius * (1.0 + 1e-5));
+            c.group_cones.push((c.groups[j] as usize..c.groups[j + 1] as usize).any(|i| c.sin[i] <= 1.0));
+        }
         c
     }
 
@@ -135,8 +179,11 @@ impl MeshletCuller {
     }
 
     /// Per-joint values for `joint_to_world` (one matrix per joint: the joint's world
-    /// transform, i.e. model matrix × the joint's global transform).
-    pub fn prepare(&self, joint_to_world: &[Affine3A], camera: &Camera, frame: &mut JointFrame) {
+    /// transform, i.e. model matrix × the joint's global transform) and the tests to run.
+    /// Each joint's meshlet group is first tested as one sphere in world space (radius scaled
+    /// by a Gershgorin bound of the largest singular value); only groups that straddle a
+    /// plane get joint-space planes, and only groups that may be drawn get the eye.
+    pub fn prepare(&self, joint_to_world: &[Affine3A], camera: &Camera, tests: Tests, frame: &mut JointFrame) {
         let n = joint_to_world.len().min(self.joints());
         frame.planes.clear();
         frame.len.clear();
@@ -144,67 +191,93 @@ impl MeshletCuller {
         frame.view.clear();
         frame.sign.clear();
         frame.backface_margin.clear();
+        frame.group.clear();
         frame.orthographic = matches!(camera.projection, Projection::Orthographic { .. });
+        frame.tests = tests;
+        let (do_frustum, do_back) = (tests != Tests::Backface, tests != Tests::Frustum);
         for (j, g) in joint_to_world[..n].iter().enumerate() {
-            let a = glam::Mat3::from(g.matrix3).as_dmat3();
-            let t = Vec3::from(g.translation).as_dvec3();
-            let ext = self.extent[j] as f64;
-            let mut planes = [[0.0f32; 4]; 6];
-            let mut len = [0.0f32; 6];
-            let mut margin: f64 = 0.0;
-            for (k, p) in camera.planes.iter().enumerate() {
-                let p = p.as_dvec4();
-                let nj = a.transpose() * p.truncate();
-                let wj = p.truncate().dot(t) + p.w;
-                planes[k] = DVec4::from((nj, wj)).as_vec4().to_array();
-                len[k] = nj.length() as f32;
-                margin = margin.max(1e-5 * (wj.abs() + nj.length() * ext + t.length() + p.w.abs()));
+            let (mut planes, mut len, mut margin) = ([[0.0f32; 4]; 6], [0.0f32; 6], 0.0f32);
+            let (mut view, mut sign, mut bmargin, mut group) = (Vec3::ZERO, 0.0, 0.0, Group::Inside);
+            if self.groups[j] < self.groups[j + 1] {
+                let (a, t) = (&g.matrix3, g.translation);
+                let ext = self.extent[j];
+                if do_frustum {
+                    let c = g.transform_point3a(self.group_center[j].into());
+                    let r =
+                        self.group_radius[j] * max_singular(a) * (1.0 + 1e-5) + 1e-5 * (c.abs().element_sum() + ext);
+                    let d = camera.planes.map(|p| Vec3A::from(p.truncate()).dot(c) + p.w);
+                    group = if d.iter().any(|&d| d < -r) {
+                        Group::Outside
+                    } else if d.iter().all(|&d| d > r) {
+                        Group::Inside
+                    } else {
+                        Group::Straddles
+                    };
+                }
+                if group == Group::Straddles {
+                    let (at, t_len) = (a.transpose(), t.length());
+                    for (k, p) in camera.planes.iter().enumerate() {
+                        let n = Vec3A::from(p.truncate());
+                        let nj = at * n;
+                        let wj = n.dot(t) + p.w;
+                        planes[k] = [nj.x, nj.y, nj.z, wj];
+                        len[k] = nj.length();
+                        margin = margin.max(1e-5 * (wj.abs() + len[k] * ext + t_len + p.w.abs()));
+                    }
+                }
+                // The eye moves into joint space through A⁻¹; its f32 error grows with the
+                // condition number, bounded by |A|·|A⁻¹| (Frobenius), which the margin covers.
+                let det = a.determinant();
+                let scale2 = a.x_axis.length_squared().max(a.y_axis.length_squared()).max(a.z_axis.length_squared());
+                let regular = det * det > 1e-18 * scale2 * scale2 * scale2 && det.is_finite();
+                if do_back && self.group_cones[j] && group != Group::Outside && regular {
+                    let inv = a.inverse();
+                    let cond = (frobenius2(a) * frobenius2(&inv)).sqrt();
+                    sign = det.signum();
+                    (view, bmargin) = match camera.projection {
+                        Projection::Perspective { eye } => {
+                            // |e|₁ ≥ |e|: a margin without a square root.
+                            let ej = Vec3::from(inv * (Vec3A::from(eye) - t));
+                            (ej, (1e-5 + 1e-6 * cond) * (ej.abs().element_sum() + ext))
+                        }
+                        Projection::Orthographic { dir } => {
+                            (Vec3::from(inv * Vec3A::from(dir)).normalize_or_zero(), 1e-5 + 1e-6 * cond)
+                        }
+                    };
+                }
             }
             frame.planes.push(planes);
             frame.len.push(len);
-            frame.margin.push(margin as f32);
-            let det = a.determinant();
-            let scale = a.x_axis.length().max(a.y_axis.length()).max(a.z_axis.length());
-            let singular = det.abs() <= 1e-12 * scale * scale * scale || !det.is_finite();
-            let (view, bmargin) = match camera.projection {
-                _ if singular => (DVec3::ZERO, 0.0),
-                Projection::Perspective { eye } => {
-                    let ej = a.inverse() * (eye.as_dvec3() - t);
-                    (ej, 1e-5 * (ej.length() + ext))
-                }
-                Projection::Orthographic { dir } => ((a.inverse() * dir.as_dvec3()).normalize_or_zero(), 1e-5),
-            };
-            frame.view.push(view.as_vec3());
-            frame.sign.push(if singular { 0.0 } else { det.signum() as f32 });
-            frame.backface_margin.push(bmargin as f32);
+            frame.margin.push(margin);
+            frame.view.push(view);
+            frame.sign.push(sign);
+            frame.backface_margin.push(bmargin);
+            frame.group.push(group);
         }
     }
 
     /// Culls every meshlet of one instance: appends the original indices of the visible ones
     /// to `visible` and returns the counts. `frame` comes from [`MeshletCuller::prepare`].
     /// `flags` is scratch space (one byte per meshlet), reused across calls.
-    pub fn cull(&self, frame: &JointFrame, tests: Tests, flags: &mut Vec<u8>, visible: &mut Vec<u32>) -> CullCounts {
+    pub fn cull(&self, frame: &JointFrame, flags: &mut Vec<u8>, visible: &mut Vec<u32>) -> CullCounts {
         flags.clear();
         flags.resize(self.len(), 0);
-        let (do_frustum, do_back) = match tests {
-            Tests::Frustum => (true, false),
-            Tests::Backface => (false, true),
-            Tests::Both => (true, true),
-        };
+        let (do_frustum, do_back) = (frame.tests != Tests::Backface, frame.tests != Tests::Frustum);
         for j in 0..frame.planes.len() {
             let (lo, hi) = (self.groups[j] as usize, self.groups[j + 1] as usize);
-            if lo == hi {
-                continue;
-            }
-            let f = &mut flags[lo..hi];
-            if do_frustum {
-                self.frustum_group(frame, j, lo, f);
-            }
-            if do_back && frame.sign[j] != 0.0 {
-                if frame.orthographic {
-                    self.backface_group_ortho(frame, j, lo, f);
-                } else {
-                    self.backface_group(frame, j, lo, f);
+            if lo < hi {
+                let back = do_back && frame.sign[j] != 0.0;
+                let f = &mut flags[lo..hi];
+                match (do_frustum, frame.group[j]) {
+                    (true, Group::Outside) => {
+                        f.iter_mut().zip(&self.frustum_ok[lo..hi]).for_each(|(f, &ok)| *f = ok);
+                        if back {
+                            self.backface(frame, j, lo, f);
+                        }
+                    }
+                    (true, Group::Straddles) => self.frustum_and_backface(frame, j, lo, f, back),
+                    _ if back => self.backface(frame, j, lo, f),
+                    _ => {}
                 }
             }
         }
@@ -220,42 +293,48 @@ impl MeshletCuller {
         counts
     }
 
-    /// Sets bit 0 of each flag when the meshlet's sphere is outside a plane.
-    fn frustum_group(&self, frame: &JointFrame, j: usize, lo: usize, flags: &mut [u8]) {
+    /// Flags of one joint's meshlets: bit 0 when the sphere is outside a plane, bit 1 (with
+    /// `back`) when every point of the sphere sees every normal of the cone from behind. One
+    /// branch-free pass (the compiler vectorizes it over meshlets).
+    fn frustum_and_backface(&self, frame: &JointFrame, j: usize, lo: usize, flags: &mut [u8], back: bool) {
         let n = flags.len();
         let (cx, cy, cz, r) = (&self.cx[lo..lo + n], &self.cy[lo..lo + n], &self.cz[lo..lo + n], &self.r[lo..lo + n]);
         let ok = &self.frustum_ok[lo..lo + n];
-        let m = frame.margin[j];
-        for (k, p) in frame.planes[j].iter().enumerate() {
-            let l = frame.len[j][k];
-            for i in 0..n {
-                let d = p[0] * cx[i] + p[1] * cy[i] + p[2] * cz[i] + p[3] + r[i] * l + m;
-                flags[i] |= ((d < 0.0) as u8) & ok[i];
+        let (p, l, m) = (&frame.planes[j], &frame.len[j], frame.margin[j]);
+        for i in 0..n {
+            let (x, y, z, ri) = (cx[i], cy[i], cz[i], r[i]);
+            let mut dmin = f32::INFINITY;
+            for k in 0..6 {
+                dmin = dmin.min(p[k][0] * x + p[k][1] * y + p[k][2] * z + p[k][3] + ri * l[k]);
             }
+            flags[i] = ((dmin + m < 0.0) as u8) & ok[i];
+        }
+        if back {
+            self.backface(frame, j, lo, flags);
         }
     }
 
-    /// Sets bit 1 when every point of the sphere sees every normal of the cone from behind.
-    fn backface_group(&self, frame: &JointFrame, j: usize, lo: usize, flags: &mut [u8]) {
-        let (e, sign, m) = (frame.view[j], frame.sign[j], frame.backface_margin[j]);
-        for (i, flag) in flags.iter_mut().enumerate() {
-            let s = lo + i;
-            let (dx, dy, dz) = (self.cx[s] - e.x, self.cy[s] - e.y, self.cz[s] - e.z);
-            let along = sign * (dx * self.ax[s] + dy * self.ay[s] + dz * self.az[s]);
-            let sin = self.sin[s];
-            // along ≥ |d|·sin + r·(1 + sin) + margin, squared when the left side is positive.
-            let lhs = along - self.r[s] * (1.0 + sin) - m;
-            let back = lhs >= 0.0 && lhs * lhs >= (dx * dx + dy * dy + dz * dz) * sin * sin;
-            *flag |= (back as u8) << 1;
-        }
-    }
-
-    fn backface_group_ortho(&self, frame: &JointFrame, j: usize, lo: usize, flags: &mut [u8]) {
-        let (d, sign, m) = (frame.view[j], frame.sign[j], frame.backface_margin[j]);
-        for (i, flag) in flags.iter_mut().enumerate() {
-            let s = lo + i;
-            let along = sign * (d.x * self.ax[s] + d.y * self.ay[s] + d.z * self.az[s]);
-            *flag |= ((along >= self.sin[s] + m) as u8) << 1;
+    /// Sets bit 1 of each flag when every point of the meshlet's sphere sees every normal of
+    /// its cone from behind (joint space, eye or direction moved there by `prepare`).
+    fn backface(&self, frame: &JointFrame, j: usize, lo: usize, flags: &mut [u8]) {
+        let n = flags.len();
+        let (cx, cy, cz, r) = (&self.cx[lo..lo + n], &self.cy[lo..lo + n], &self.cz[lo..lo + n], &self.r[lo..lo + n]);
+        let (ax, ay, az, sin) =
+            (&self.ax[lo..lo + n], &self.ay[lo..lo + n], &self.az[lo..lo + n], &self.sin[lo..lo + n]);
+        let (v, sign, bm) = (frame.view[j], frame.sign[j], frame.backface_margin[j]);
+        if frame.orthographic {
+            for i in 0..n {
+                let away = sign * (v.x * ax[i] + v.y * ay[i] + v.z * az[i]) >= sin[i] + bm;
+                flags[i] |= (away as u8) << 1;
+            }
+        } else {
+            for i in 0..n {
+                let (dx, dy, dz, s) = (cx[i] - v.x, cy[i] - v.y, cz[i] - v.z, sin[i]);
+                // along ≥ |d|·sin + r·(1 + sin) + margin, squared when the left side is positive.
+                let lhs = sign * (dx * ax[i] + dy * ay[i] + dz * az[i]) - r[i] * (1.0 + s) - bm;
+                let away = (lhs >= 0.0) & (lhs * lhs >= (dx * dx + dy * dy + dz * dz) * s * s);
+                flags[i] |= (away as u8) << 1;
+            }
         }
     }
 }
@@ -264,7 +343,7 @@ impl MeshletCuller {
 mod tests {
     use super::*;
     use crate::bounds::meshlet::cofactor;
-    use glam::{DMat3, DQuat};
+    use glam::{DMat3, DQuat, DVec3, DVec4};
     use proptest::prelude::*;
 
     fn unit(v: [f64; 3]) -> DVec3 {
@@ -283,9 +362,9 @@ mod tests {
     fn culled(b: MeshletBounds, g: Affine3A, cam: &Camera) -> u8 {
         let c = MeshletCuller::new(&[b], &[Class::Both], 1);
         let mut frame = JointFrame::default();
-        c.prepare(&[g], cam, &mut frame);
+        c.prepare(&[g], cam, Tests::Both, &mut frame);
         let (mut flags, mut visible) = (Vec::new(), Vec::new());
-        c.cull(&frame, Tests::Both, &mut flags, &mut visible);
+        c.cull(&frame, &mut flags, &mut visible);
         flags[0]
     }
 
