@@ -5,9 +5,11 @@
 //! - `joint-aabb/*`: whole-mesh box updates from per-joint boxes for 1,000 instances (the
 //!   PR's many_foxes scene); elements are joint boxes. `bevy-baseline` reimplements the
 //!   Bevy pull request's update as it describes it: joint boxes `{center, half_size}` in mesh
-//!   space, joint world transforms looked up through the skin's joint entities in a scene-wide
-//!   transform array, each multiplied by its inverse bind pose, Arvo's method into world
+//!   space (shared by all instances, as in the mesh asset), each joint's world transform
+//!   fetched through its entity (location lookup with generation check, then the table row,
+//!   as an ECS query does), multiplied by its inverse bind pose, Arvo's method into world
 //!   space, then the world box moved into entity space by the inverse entity transform.
+//!   `bevy-baseline-flat` is the same math with entity index = row (an idealized layout).
 //!   `skinlet` is [`JointBoxes::update`] on joint-space boxes with the skin's contiguous
 //!   entity-space joint matrices; `skinlet-folded` the same after folding leaf joints twice
 //!   (elements still count the unfolded joint boxes: the work of bounding the same skin).
@@ -100,19 +102,46 @@ struct BevyScene {
     inverse_bindposes: Vec<Affine3A>,
     instances: Vec<BevyInstance>,
     transforms: Vec<Affine3A>,
+    /// Entity index → location; `flat` skips it (entity index = table row).
+    metas: Vec<EntityMeta>,
+}
+
+impl BevyScene {
+    /// `Query::get(entity)` for the global transform: the entity's location, its generation
+    /// checked, then the table row (or, `flat`, the row directly: an idealized layout).
+    #[inline]
+    fn transform(&self, (index, generation): (u32, u32), flat: bool) -> Option<&Affine3A> {
+        if flat {
+            return self.transforms.get(index as usize);
+        }
+        let meta = self.metas.get(index as usize)?;
+        if meta.generation != generation {
+            return None;
+        }
+        self.transforms.get(meta.row as usize)
+    }
 }
 
 struct BevyInstance {
-    joints: Vec<usize>,
-    entity: usize,
+    /// Joint entities: (entity index, generation).
+    joints: Vec<(u32, u32)>,
+    entity: (u32, u32),
 }
 
-fn bevy_update(scene: &BevyScene, out: &mut Vec<(Vec3A, Vec3A)>) {
+/// An ECS entity's location: generation and table row (Bevy's `EntityMeta`, reduced).
+#[derive(Clone, Copy)]
+struct EntityMeta {
+    generation: u32,
+    row: u32,
+}
+
+fn bevy_update(scene: &BevyScene, flat: bool, out: &mut Vec<(Vec3A, Vec3A)>) {
     out.clear();
     for inst in &scene.instances {
         let (mut lo, mut hi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
         for &(j, b) in &scene.boxes {
-            let world_from_mesh = scene.transforms[inst.joints[j]] * scene.inverse_bindposes[j];
+            let Some(joint) = scene.transform(inst.joints[j], flat) else { continue };
+            let world_from_mesh = *joint * scene.inverse_bindposes[j];
             let center = world_from_mesh.transform_point3a(b.center);
             let m = world_from_mesh.matrix3;
             let half = m.x_axis.abs() * b.half_size.x + m.y_axis.abs() * b.half_size.y + m.z_axis.abs() * b.half_size.z;
@@ -120,7 +149,8 @@ fn bevy_update(scene: &BevyScene, out: &mut Vec<(Vec3A, Vec3A)>) {
             hi = hi.max(center + half);
         }
         // World box to entity space (Arvo again, with the inverse entity transform).
-        let inv = scene.transforms[inst.entity].inverse();
+        let Some(entity) = scene.transform(inst.entity, flat) else { continue };
+        let inv = entity.inverse();
         let (c, h) = ((lo + hi) * 0.5, (hi - lo) * 0.5);
         let m = inv.matrix3;
         let center = inv.transform_point3a(c);
@@ -148,21 +178,60 @@ fn joint_aabbs(c: &mut Criterion, name: &str, asset: &Asset) {
         inverse_bindposes: skin.inverse_bind.iter().map(|m| Affine3A::from_mat4(*m)).collect(),
         instances: Vec::new(),
         transforms: Vec::new(),
+        metas: Vec::new(),
     };
     for (i, joints) in world.iter().enumerate() {
-        let entity = bevy.transforms.len();
+        let entity = bevy.transforms.len() as u32;
         bevy.transforms.push(models[i]);
-        let base = bevy.transforms.len();
+        let base = bevy.transforms.len() as u32;
         bevy.transforms.extend(joints.iter().copied());
-        bevy.instances.push(BevyInstance { joints: (base..base + joints.len()).collect(), entity });
+        let ids = (base..base + joints.len() as u32).map(|e| (e, 0)).collect();
+        bevy.instances.push(BevyInstance { joints: ids, entity: (entity, 0) });
     }
+    // The ECS layout: mesh entities and joint entities live in different archetype tables
+    // (here: mesh entities first, then every joint, each in spawn order), and a query
+    // reaches a row through the entity's location.
+    let n = bevy.transforms.len();
+    let is_mesh: Vec<bool> = {
+        let mut v = vec![false; n];
+        bevy.instances.iter().for_each(|i| v[i.entity.0 as usize] = true);
+        v
+    };
+    let meshes = is_mesh.iter().filter(|&&m| m).count() as u32;
+    let (mut next_mesh, mut next_joint) = (0u32, meshes);
+    let rows: Vec<u32> = is_mesh
+        .iter()
+        .map(|&m| {
+            let slot = if m { &mut next_mesh } else { &mut next_joint };
+            *slot += 1;
+            *slot - 1
+        })
+        .collect();
+    let mut ecs = BevyScene {
+        boxes: bevy.boxes.clone(),
+        inverse_bindposes: bevy.inverse_bindposes.clone(),
+        instances: Vec::new(),
+        transforms: vec![Affine3A::IDENTITY; n],
+        metas: rows.iter().map(|&row| EntityMeta { generation: 0, row }).collect(),
+    };
+    for (e, &row) in rows.iter().enumerate() {
+        ecs.transforms[row as usize] = bevy.transforms[e];
+    }
+    ecs.instances =
+        bevy.instances.iter().map(|i| BevyInstance { joints: i.joints.clone(), entity: i.entity }).collect();
     let mut group = c.benchmark_group("joint-aabb");
     group.sample_size(30);
     group.throughput(Throughput::Elements((mesh_boxes.joints.len() * instances) as u64));
     let mut out = Vec::with_capacity(instances);
     group.bench_function(format!("{name}-{instances}/bevy-baseline"), |b| {
         b.iter(|| {
-            bevy_update(&bevy, &mut out);
+            bevy_update(&ecs, false, &mut out);
+            black_box(&out);
+        })
+    });
+    group.bench_function(format!("{name}-{instances}/bevy-baseline-flat"), |b| {
+        b.iter(|| {
+            bevy_update(&bevy, true, &mut out);
             black_box(&out);
         })
     });

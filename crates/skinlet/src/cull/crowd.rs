@@ -149,10 +149,12 @@ pub struct CrowdStats {
     pub vertex_refs_culled: usize,
     /// Per-triangle culling inside the meshlets both tests kept.
     pub triangle_culling: TriangleCounts,
-    /// Meshlets of instances whose whole-mesh box (dynamic per-joint boxes) is outside.
+    /// Meshlets of instances whose whole-mesh box (dynamic per-joint boxes, mesh space) is
+    /// outside.
     pub whole_mesh_culled: usize,
-    /// Whole-mesh bound volume ÷ volume of the exact box of the skinned vertices (entity
-    /// space), summed over instance-frames, for [`WHOLE_MESH_BOUNDS`] in that order.
+    /// Whole-mesh bound's box diagonal ÷ the diagonal of the exact box of the skinned
+    /// vertices (entity space; a diagonal, unlike a volume, is defined for flat meshes),
+    /// summed over instance-frames, for [`WHOLE_MESH_BOUNDS`] in that order.
     pub looseness_sum: [f64; 4],
     /// CPU time of the per-meshlet culling with both tests (per-joint setup included),
     /// summed over instances (thread time).
@@ -307,11 +309,11 @@ pub fn run(
                 s.world.extend(s.skinned.iter().map(|&p| model.transform_point3(p)));
                 st.triangle_culling = cull_triangles(meshlets, &s.visible, &s.world, crowd.camera.projection, None);
                 // Whole-mesh culling by the dynamic box, moved from entity to world space.
-                let b = boxes.update(&s.joint_to_model).transformed(&model);
+                let b = mesh_boxes.update(&s.skinning).transformed(&model);
                 if outside(&crowd.camera, &b) {
                     st.whole_mesh_culled = culler.len();
                 }
-                let exact = points_box(&s.skinned).volume().max(f32::MIN_POSITIVE);
+                let exact = points_box(&s.skinned).diagonal().max(f32::MIN_POSITIVE);
                 let (sc, sr) = boxes.sphere(&s.joint_to_model);
                 let sphere = Box3 { min: sc - sr, max: sc + sr };
                 let all = [
@@ -320,7 +322,7 @@ pub fn run(
                     folded.update(&s.joint_to_model),
                     sphere,
                 ];
-                st.looseness_sum = all.map(|b| (b.volume() / exact) as f64);
+                st.looseness_sum = all.map(|b| (b.diagonal() / exact) as f64);
                 if verify {
                     let (checked, false_culls) = check_culls(baked, &kept, &s.world, &crowd.camera);
                     st.checked_triangles = checked;

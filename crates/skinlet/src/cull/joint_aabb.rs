@@ -30,8 +30,9 @@ pub enum JointSpace {
     /// Bind-pose mesh space: moved by skinning matrices `global × inverse_bind` (Bevy's
     /// choice: needs only the mesh).
     Mesh,
-    /// Each joint's bind space: moved by the joints' global matrices; usually tighter, as a
-    /// limb's box is aligned with its bone (bevy_mod_skinned_aabb's choice).
+    /// Each joint's bind space: moved by the joints' global matrices (bevy_mod_skinned_aabb's
+    /// choice). Tighter only where joint frames follow the limbs; on most shared assets mesh
+    /// space was as tight or tighter (docs/CULLING.md), and folding needs this space.
     Joint,
 }
 
@@ -50,6 +51,33 @@ pub enum Policy {
     NoCulling,
 }
 
+impl Policy {
+    /// The entity-space box for one frame, `None` for [`Policy::NoCulling`]. `dynamic` are
+    /// the mesh's joint boxes, moved by `skinning` (skinning matrices) or `joint_globals`
+    /// (joint global matrices) as their space requires; `bind_pose` is the bind-pose box.
+    pub fn entity_box(
+        &self,
+        dynamic: &JointBoxes,
+        skinning: &[Affine3A],
+        joint_globals: &[Affine3A],
+        bind_pose: Box3,
+    ) -> Option<Box3> {
+        match *self {
+            Policy::Dynamic => Some(match dynamic.space {
+                JointSpace::Mesh => dynamic.update(skinning),
+                JointSpace::Joint => dynamic.update(joint_globals),
+            }),
+            Policy::BindPose => Some(bind_pose),
+            Policy::Fixed { min, max } => Some(Box3 { min, max }),
+            Policy::FixedJointRelative { joint, min, max } => {
+                let m = joint_globals.get(joint as usize)?;
+                Some(Box3 { min, max }.transformed(m))
+            }
+            Policy::NoCulling => None,
+        }
+    }
+}
+
 /// An axis-aligned box in f32 (min, max).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Box3 {
@@ -64,8 +92,8 @@ impl Box3 {
         p.cmpge(self.min).all() && p.cmple(self.max).all()
     }
 
-    pub fn volume(&self) -> f32 {
-        (self.max - self.min).max(Vec3::ZERO).element_product()
+    pub fn diagonal(&self) -> f32 {
+        (self.max - self.min).max(Vec3::ZERO).length()
     }
 
     /// Arvo's transform of the box (center and half extents) by `m`.
@@ -278,4 +306,48 @@ impl JointBoxes {
 /// The exact box of points (for measuring how loose a bound is).
 pub fn points_box(points: &[Vec3]) -> Box3 {
     points.iter().fold(Box3::EMPTY, |b, &p| Box3 { min: b.min.min(p), max: b.max.max(p) })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::demo::{DemoParams, demo_character};
+    use crate::pose::{Poser, skinning_matrices};
+
+    #[test]
+    fn policies_give_what_they_promise() {
+        let asset = demo_character(&DemoParams { triangles: 2000, ..DemoParams::default() });
+        let (skin, mesh) = (&asset.skins[0], asset.combined_mesh(Some(0)));
+        let dynamic = JointBoxes::new(&mesh, skin, JointSpace::Mesh).unwrap();
+        let bind_pose = points_box(&mesh.positions);
+        let mut poser = Poser::default();
+        let clip = &asset.clips[0];
+        let globals = poser.globals(&asset.skeleton, Some(clip), clip.start + 0.37 * clip.duration()).to_vec();
+        let mut skinning = Vec::new();
+        skinning_matrices(skin, &globals, &mut skinning);
+        let joint_globals: Vec<Affine3A> =
+            skin.joints.iter().map(|&j| Affine3A::from_mat4(globals[j as usize].as_mat4())).collect();
+        let mut skinned = vec![Vec3::ZERO; mesh.positions.len()];
+        crate::skinning::skin(
+            mesh.influences.as_ref().unwrap(),
+            &mesh.positions,
+            &[],
+            &skinning,
+            &mut skinned,
+            &mut [],
+        )
+        .unwrap();
+        let box_of = |p: Policy| p.entity_box(&dynamic, &skinning, &joint_globals, bind_pose);
+        let d = box_of(Policy::Dynamic).unwrap();
+        assert!(skinned.iter().all(|&p| d.contains(p)), "dynamic boxes hold");
+        // The bind-pose box does not follow the animation: some vertex leaves it (why engines
+        // that use it cull characters whose limbs are on screen).
+        let b = box_of(Policy::BindPose).unwrap();
+        assert!(skinned.iter().any(|&p| !b.contains(p)), "the walk should leave the bind-pose box");
+        let (min, max) = (Vec3::splat(-1.0), Vec3::splat(1.0));
+        assert_eq!(box_of(Policy::Fixed { min, max }), Some(Box3 { min, max }));
+        let rel = box_of(Policy::FixedJointRelative { joint: 3, min, max }).unwrap();
+        assert!(rel.contains(Vec3::from(joint_globals[3].translation)));
+        assert_eq!(box_of(Policy::NoCulling), None);
+    }
 }
