@@ -125,9 +125,10 @@ pub fn crowd(positions: &[Vec3], clips: usize, params: &CrowdParams) -> Crowd {
     Crowd { camera, placements }
 }
 
-/// The whole-mesh bounds compared: per-joint boxes in joint space (the default, used for
-/// whole-mesh culling), in mesh space (Bevy's), joint space with leaf joints folded twice
-/// (conservative for the crowd's clips), and the box around the whole-mesh sphere.
+/// The whole-mesh bounds compared: per-joint boxes in joint space, in mesh space (Bevy's
+/// choice, and the tighter on the shared assets: the one used for whole-mesh culling), joint
+/// space with leaf joints folded twice (conservative for the crowd's clips), and the box
+/// around the whole-mesh sphere.
 pub const WHOLE_MESH_BOUNDS: [&str; 4] =
     ["joint-space boxes", "mesh-space boxes", "folded leaves (2 levels)", "sphere"];
 

@@ -67,6 +67,14 @@ pub struct MeshletCuller {
     group_cones: Vec<bool>,
 }
 
+/// Joint world matrices from what a renderer usually holds: the instance's model matrix and
+/// skinning matrices `S_j = global_j × inverse_bind_j` (mesh space to model space), with the
+/// bind matrices `bind_j = inverse_bind_j⁻¹` precomputed once per skin: `model × S_j × bind_j`.
+pub fn joints_from_skinning(model: &Affine3A, skinning: &[Affine3A], bind: &[Affine3A], out: &mut Vec<Affine3A>) {
+    out.clear();
+    out.extend(skinning.iter().zip(bind).map(|(s, b)| *model * *s * *b));
+}
+
 /// Upper bound of the largest singular value: square root of the largest Gershgorin row sum
 /// of `AᵀA` (exact for a rotation times a uniform scale).
 fn max_singular(a: &Mat3A) -> f32 {
@@ -440,6 +448,27 @@ mod tests {
                     prop_assert!(facing >= -1e-9 * nw.length(), "backface-culled, but a normal faces the eye");
                 }
             }
+        }
+    }
+
+    #[test]
+    fn joints_from_skinning_undo_the_inverse_bind() {
+        let g = [joint([0.3, 1.0, 0.2], 0.7, [1.0, 2.0, -1.0], 0.3, [1.0, 2.0, 3.0]), Affine3A::IDENTITY];
+        let ibm = [
+            joint([1.0, 0.0, 0.0], 1.1, [0.5, 0.5, 0.5], 0.0, [0.0, -1.0, 0.0]),
+            joint([0.0, 1.0, 0.0], 0.2, [1.0; 3], 0.0, [2.0; 3]),
+        ];
+        let model = Affine3A::from_translation(Vec3::new(5.0, 0.0, -2.0));
+        let skinning: Vec<Affine3A> = g.iter().zip(&ibm).map(|(g, i)| *g * *i).collect();
+        let bind: Vec<Affine3A> = ibm.iter().map(|m| m.inverse()).collect();
+        let mut out = Vec::new();
+        joints_from_skinning(&model, &skinning, &bind, &mut out);
+        for (o, g) in out.iter().zip(&g) {
+            let want = model * *g;
+            assert!(
+                o.to_cols_array().iter().zip(want.to_cols_array()).all(|(a, b)| (a - b).abs() < 1e-5),
+                "{o:?} {want:?}"
+            );
         }
     }
 
