@@ -10,6 +10,7 @@
 //! - [`bounds`]: conservative animated meshlet bounds (spheres, normal cones) and their check.
 //! - [`cull`]: CPU culling at run time: meshlets, triangles, whole-mesh boxes, the crowd scene.
 //! - [`meshlet`]: meshlet layout, four builders (incl. skin-aware), flat GPU form, metrics.
+//! - [`overdraw`]: triangle orders for low overdraw (in progress: the measures).
 //! - [`weld`]: merging vertices that are equal in position and skin data.
 //! - [`summary`]: the facts `skinlet inspect` reports.
 //! - [`demo`]: the built-in procedural demo character.
@@ -23,6 +24,7 @@ pub mod error;
 pub mod import;
 pub mod meshlet;
 pub mod model;
+pub mod overdraw;
 pub mod pose;
 pub mod skinning;
 pub mod summary;
