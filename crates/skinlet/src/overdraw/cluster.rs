@@ -1,0 +1,342 @@
+//! Index buffers for animated meshes by clustering (keyframe, viewpoint) nodes (Han & Sander
+//! 2016, section 3.2), and the run-time lookup that picks one (section 3.3).
+//!
+//! The triangles are first put in vertex-cache order and cut into patches ([`super::tipsify`],
+//! λ). Bootstrapping: `k` random nodes, each with its patches sorted front to back (patch
+//! centroid distance to the node's eye). Then k-means: (1) every node goes to the buffer that
+//! renders it with the least overdraw ([`super::measure::Raster`]); (2) every cluster's
+//! buffer becomes its patches sorted by their distance to the eye, averaged over the
+//! cluster's nodes in which the patch has a front-facing triangle (patches never seen keep
+//! their order, at the end). Stops when no node changes cluster or after `iterations`.
+//!
+//! Guarantees: every buffer is a permutation of the input triangles with windings kept
+//! (patches are moved whole); the output is deterministic for a seed (nodes are rendered in
+//! parallel, but each result lands in its own slot).
+
+use super::measure::Raster;
+use super::tipsify::{patches, tipsify};
+use super::viewpoints::icosphere;
+use glam::{Mat4, Vec3};
+use rayon::prelude::*;
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ClusterParams {
+    /// Index buffers to make.
+    pub k: usize,
+    /// Patch cutting threshold of fast linear clustering (0.85 in the paper; 3 ignores the cache).
+    pub lambda: f32,
+    pub cache_size: u32,
+    /// Raster resolution used to measure overdraw while clustering.
+    pub resolution: u32,
+    /// Icosahedron subdivisions for the viewpoints (2: the paper's 162).
+    pub view_levels: u32,
+    pub iterations: usize,
+    pub seed: u64,
+}
+
+impl Default for ClusterParams {
+    fn default() -> Self {
+        ClusterParams { k: 5, lambda: 0.85, cache_size: 16, resolution: 64, view_levels: 2, iterations: 6, seed: 1 }
+    }
+}
+
+/// Where viewpoints sit: on the sphere of `3 × radius` around `center`, looking at it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Framing {
+    pub center: Vec3,
+    pub radius: f32,
+}
+
+impl Framing {
+    /// The bounding sphere (box center, farthest point) of every keyframe's positions.
+    pub fn of(keyframes: &[Vec<Vec3>]) -> Framing {
+        let all = keyframes.iter().flatten();
+        let (lo, hi) = all.clone().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), &p| (l.min(p), h.max(p)));
+        let center = if lo.x <= hi.x { (lo + hi) / 2.0 } else { Vec3::ZERO };
+        let radius = all.map(|p| p.distance(center)).fold(0.0f32, f32::max).max(1e-6);
+        Framing { center, radius }
+    }
+
+    /// The eye for a unit direction `dir` at `distance` radii.
+    pub fn eye(&self, dir: Vec3, distance: f32) -> Vec3 {
+        self.center + dir * self.radius * distance
+    }
+
+    /// A perspective view-projection from `eye` that frames the bounding sphere.
+    pub fn view_proj(&self, eye: Vec3) -> Mat4 {
+        let d = eye.distance(self.center).max(self.radius * 1.01);
+        let fov = 2.0 * (self.radius / d).clamp(-1.0, 1.0).asin() * 1.05;
+        let up = if (eye - self.center).normalize_or_zero().y.abs() > 0.99 { Vec3::Z } else { Vec3::Y };
+        Mat4::perspective_rh(fov, 1.0, (d - self.radius) * 0.5, d + self.radius * 2.0)
+            * Mat4::look_at_rh(eye, self.center, up)
+    }
+}
+
+/// The result of clustering.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Clustering {
+    /// The `k` index buffers (fewer when there were fewer nodes).
+    pub buffers: Vec<Vec<[u32; 3]>>,
+    /// Viewpoint directions (unit) used as nodes.
+    pub views: Vec<Vec3>,
+    /// Buffer of each node, node = keyframe × views + view.
+    pub assignment: Vec<u8>,
+    /// Overdraw ratio of each node with its buffer, at the clustering resolution.
+    pub node_overdraw: Vec<f32>,
+    pub framing: Framing,
+    /// k-means iterations run.
+    pub iterations: usize,
+}
+
+struct Rng(u64);
+
+impl Rng {
+    fn below(&mut self, n: usize) -> usize {
+        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((self.0 >> 33) % n.max(1) as u64) as usize
+    }
+}
+
+/// Clusters the nodes of `keyframes` (skinned positions per keyframe, all the same length)
+/// and returns `k` index buffers with the assignment.
+pub fn cluster(keyframes: &[Vec<Vec3>], triangles: &[[u32; 3]], params: &ClusterParams) -> Clustering {
+    let vertex_count = keyframes.first().map_or(0, |k| k.len());
+    let order = tipsify(triangles, vertex_count, params.cache_size);
+    let starts = patches(&order, vertex_count, params.cache_size, params.lambda);
+    let patch = |p: usize| {
+        let end = starts.get(p + 1).map_or(order.len(), |&e| e as usize);
+        &order[starts[p] as usize..end]
+    };
+    let framing = Framing::of(keyframes);
+    let views = icosphere(params.view_levels);
+    let nodes = keyframes.len() * views.len();
+    // Per keyframe: patch centroids.
+    let centroids: Vec<Vec<Vec3>> = keyframes
+        .iter()
+        .map(|pos| {
+            (0..starts.len())
+                .map(|p| {
+                    let tris = patch(p);
+                    tris.iter()
+                        .map(|t| (pos[t[0] as usize] + pos[t[1] as usize] + pos[t[2] as usize]) / 3.0)
+                        .sum::<Vec3>()
+                        / tris.len().max(1) as f32
+                })
+                .collect()
+        })
+        .collect();
+    let node = |n: usize| (n / views.len(), framing.eye(views[n % views.len()], 3.0));
+    // Patches sorted by a key (None: never seen, last), ties in patch order.
+    let by_key = |key: &mut dyn FnMut(usize) -> Option<f32>| -> Vec<[u32; 3]> {
+        let mut keyed: Vec<(f32, usize)> = (0..starts.len()).map(|p| (key(p).unwrap_or(f32::INFINITY), p)).collect();
+        keyed.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        keyed.iter().flat_map(|&(_, p)| patch(p).iter().copied()).collect()
+    };
+    // Bootstrap: k distinct random nodes, patches front to back from each.
+    let mut rng = Rng(params.seed ^ 0x0DDB_A11);
+    let mut seeds: Vec<usize> = Vec::new();
+    while seeds.len() < params.k.min(nodes) {
+        let n = rng.below(nodes);
+        if !seeds.contains(&n) {
+            seeds.push(n);
+        }
+    }
+    let mut buffers: Vec<Vec<[u32; 3]>> = seeds
+        .iter()
+        .map(|&n| {
+            let (f, eye) = node(n);
+            by_key(&mut |p| Some(centroids[f][p].distance(eye)))
+        })
+        .collect();
+    let mut assignment = vec![u8::MAX; nodes];
+    let mut node_overdraw = vec![0.0f32; nodes];
+    let mut iterations = 0;
+    while iterations < params.iterations && !buffers.is_empty() {
+        iterations += 1;
+        // Step 1: each node to the buffer with the least overdraw.
+        let best: Vec<(u8, f32)> = (0..nodes)
+            .into_par_iter()
+            .map_init(
+                || Raster::new(params.resolution, params.resolution),
+                |raster, n| {
+                    let (f, eye) = node(n);
+                    let vp = framing.view_proj(eye);
+                    let mut best = (0u8, f32::INFINITY);
+                    for (b, buf) in buffers.iter().enumerate() {
+                        let r = raster.render(&keyframes[f], buf, &vp).ratio() as f32;
+                        if r < best.1 {
+                            best = (b as u8, r);
+                        }
+                    }
+                    best
+                },
+            )
+            .collect();
+        let changed = best.iter().zip(&assignment).any(|(b, &a)| b.0 != a);
+        for (n, (b, r)) in best.into_iter().enumerate() {
+            assignment[n] = b;
+            node_overdraw[n] = r;
+        }
+        if !changed {
+            break;
+        }
+        // Step 2: each cluster's patches by distance averaged over the nodes that see them.
+        buffers = (0..buffers.len())
+            .into_par_iter()
+            .map(|b| {
+                let members: Vec<usize> = (0..nodes).filter(|&n| assignment[n] as usize == b).collect();
+                if members.is_empty() {
+                    return buffers[b].clone();
+                }
+                let mut sum = vec![0.0f64; starts.len()];
+                let mut seen = vec![0u32; starts.len()];
+                for &n in &members {
+                    let (f, eye) = node(n);
+                    let pos = &keyframes[f];
+                    for p in 0..starts.len() {
+                        let visible = patch(p).iter().any(|t| {
+                            let (a, b, c) = (pos[t[0] as usize], pos[t[1] as usize], pos[t[2] as usize]);
+                            (a - eye).dot((b - a).cross(c - a)) < 0.0
+                        });
+                        if visible {
+                            sum[p] += centroids[f][p].distance(eye) as f64;
+                            seen[p] += 1;
+                        }
+                    }
+                }
+                by_key(&mut |p| (seen[p] > 0).then(|| (sum[p] / seen[p] as f64) as f32))
+            })
+            .collect();
+    }
+    Clustering { buffers, views, assignment, node_overdraw, framing, iterations }
+}
+
+/// The run-time table (section 3.3): for each keyframe and each (polar, azimuth) cell, the
+/// buffer of the nearest stored viewpoint.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Lookup {
+    pub keyframes: usize,
+    pub polar: usize,
+    pub azimuth: usize,
+    pub table: Vec<u8>,
+}
+
+impl Lookup {
+    /// Builds the table from a clustering with `polar` × `azimuth` cells per keyframe.
+    pub fn new(c: &Clustering, polar: usize, azimuth: usize) -> Lookup {
+        let keyframes = c.assignment.len() / c.views.len().max(1);
+        let mut table = Vec::with_capacity(keyframes * polar * azimuth);
+        for f in 0..keyframes {
+            for i in 0..polar {
+                for j in 0..azimuth {
+                    let d = direction(
+                        i as f32 * std::f32::consts::PI / (polar - 1).max(1) as f32,
+                        j as f32 * std::f32::consts::TAU / azimuth as f32,
+                    );
+                    let nearest = (0..c.views.len())
+                        .max_by(|&a, &b| c.views[a].dot(d).total_cmp(&c.views[b].dot(d)))
+                        .unwrap_or(0);
+                    table.push(c.assignment[f * c.views.len() + nearest]);
+                }
+            }
+        }
+        Lookup { keyframes, polar, azimuth, table }
+    }
+
+    /// The buffer for keyframe `f` seen from unit direction `dir` (model space, from the
+    /// model's center toward the eye), both rounded to the nearest stored value.
+    pub fn get(&self, f: usize, dir: Vec3) -> u8 {
+        let dir = dir.normalize_or(Vec3::Z);
+        let theta = dir.z.clamp(-1.0, 1.0).acos();
+        let phi = dir.y.atan2(dir.x).rem_euclid(std::f32::consts::TAU);
+        let i = (theta / std::f32::consts::PI * (self.polar - 1).max(1) as f32).round() as usize;
+        let j = (phi / std::f32::consts::TAU * self.azimuth as f32).round() as usize % self.azimuth.max(1);
+        let f = f.min(self.keyframes.saturating_sub(1));
+        self.table[(f * self.polar + i.min(self.polar - 1)) * self.azimuth + j]
+    }
+}
+
+fn direction(theta: f32, phi: f32) -> Vec3 {
+    Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::overdraw::measure::Overdraw;
+
+    /// A few keyframes of the demo character's walk (skinned positions) and its triangles.
+    fn walk(frames: usize) -> (Vec<Vec<Vec3>>, Vec<[u32; 3]>) {
+        let asset = crate::demo::demo_character(&crate::demo::DemoParams { triangles: 3000, ..Default::default() });
+        let mesh = asset.combined_mesh(Some(0));
+        let (clip, skin) = (&asset.clips[0], &asset.skins[0]);
+        let mut poser = crate::pose::Poser::default();
+        let mut mats = Vec::new();
+        let keyframes = (0..frames)
+            .map(|k| {
+                poser.skinning_matrices(
+                    &asset.skeleton,
+                    skin,
+                    Some(clip),
+                    clip.start + clip.duration() * k as f32 / frames as f32,
+                    &mut mats,
+                );
+                let mut out = vec![Vec3::ZERO; mesh.positions.len()];
+                crate::skinning::skin(
+                    mesh.influences.as_ref().unwrap(),
+                    &mesh.positions,
+                    &[],
+                    &mats,
+                    &mut out,
+                    &mut [],
+                )
+                .unwrap();
+                out
+            })
+            .collect();
+        (keyframes, mesh.triangles)
+    }
+
+    fn canonical(mut t: Vec<[u32; 3]>) -> Vec<[u32; 3]> {
+        for x in &mut t {
+            let m = (0..3).min_by_key(|&i| x[i]).unwrap();
+            x.rotate_left(m);
+        }
+        t.sort();
+        t
+    }
+
+    #[test]
+    fn buffers_are_permutations_lookup_matches_and_overdraw_drops() {
+        let (keyframes, triangles) = walk(4);
+        let params = ClusterParams { k: 3, view_levels: 1, resolution: 48, ..ClusterParams::default() };
+        let c = cluster(&keyframes, &triangles, &params);
+        assert_eq!(c, cluster(&keyframes, &triangles, &params), "deterministic");
+        assert_eq!(c.buffers.len(), 3);
+        for b in &c.buffers {
+            assert_eq!(canonical(b.clone()), canonical(triangles.clone()));
+        }
+        // The lookup returns the assigned buffer at every stored node's own direction.
+        let lookup = Lookup::new(&c, 91, 180);
+        let mut agree = 0;
+        for f in 0..keyframes.len() {
+            for (v, dir) in c.views.iter().enumerate() {
+                agree += (lookup.get(f, *dir) == c.assignment[f * c.views.len() + v]) as usize;
+            }
+        }
+        assert_eq!(agree, c.assignment.len(), "the table rounds a stored direction to itself");
+        // Overdraw over the nodes: clustered buffers against the vertex-cache order alone.
+        let order = tipsify(&triangles, keyframes[0].len(), 16);
+        let (mut before, mut after) = (Overdraw::default(), Overdraw::default());
+        let mut r = Raster::new(96, 96);
+        for f in 0..keyframes.len() {
+            for (v, dir) in c.views.iter().enumerate() {
+                let vp = c.framing.view_proj(c.framing.eye(*dir, 3.0));
+                before.add(r.render(&keyframes[f], &order, &vp));
+                after.add(r.render(&keyframes[f], &c.buffers[c.assignment[f * c.views.len() + v] as usize], &vp));
+            }
+        }
+        eprintln!("overdraw over the nodes: cache order {:.3}, clustered {:.3}", before.ratio(), after.ratio());
+        assert!(after.ratio() < before.ratio(), "clustered {} vs cache order {}", after.ratio(), before.ratio());
+    }
+}
