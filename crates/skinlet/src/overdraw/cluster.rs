@@ -133,7 +133,7 @@ pub fn cluster(keyframes: &[Vec<Vec3>], triangles: &[[u32; 3]], params: &Cluster
         keyed.iter().flat_map(|&(_, p)| patch(p).iter().copied()).collect()
     };
     // Bootstrap: k distinct random nodes, patches front to back from each.
-    let mut rng = Rng(params.seed ^ 0x0DDB_A11);
+    let mut rng = Rng(params.seed ^ 0x00DD_BA11);
     let mut seeds: Vec<usize> = Vec::new();
     while seeds.len() < params.k.min(nodes) {
         let n = rng.below(nodes);
@@ -329,11 +329,11 @@ mod tests {
         let order = tipsify(&triangles, keyframes[0].len(), 16);
         let (mut before, mut after) = (Overdraw::default(), Overdraw::default());
         let mut r = Raster::new(96, 96);
-        for f in 0..keyframes.len() {
+        for (f, pos) in keyframes.iter().enumerate() {
             for (v, dir) in c.views.iter().enumerate() {
                 let vp = c.framing.view_proj(c.framing.eye(*dir, 3.0));
-                before.add(r.render(&keyframes[f], &order, &vp));
-                after.add(r.render(&keyframes[f], &c.buffers[c.assignment[f * c.views.len() + v] as usize], &vp));
+                before.add(r.render(pos, &order, &vp));
+                after.add(r.render(pos, &c.buffers[c.assignment[f * c.views.len() + v] as usize], &vp));
             }
         }
         eprintln!("overdraw over the nodes: cache order {:.3}, clustered {:.3}", before.ratio(), after.ratio());
