@@ -14,6 +14,7 @@ use std::path::{Path, PathBuf};
 
 mod bake;
 mod crowd;
+mod overdraw;
 
 #[derive(Parser)]
 #[command(
@@ -230,6 +231,36 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Compare triangle orders for overdraw and vertex-cache use (Han & Sander 2016, table 2).
+    ///
+    /// Methods: original (vertex-cache order only), tipsify-per-frame (Sander 2007 per
+    /// keyframe: one buffer per keyframe), single (k buffers per clip from clustering
+    /// keyframe x viewpoint nodes), joint (k buffers for all clips). ACMR for a 16-entry FIFO
+    /// cache; OVR averaged over random (keyframe, viewpoint) pairs at 3x the bounding radius,
+    /// rendered by skinlet's software rasterizer. Work in progress: not yet in the bake file.
+    Overdraw {
+        /// .glb or .gltf file, or @demo[:TRIANGLES].
+        file: String,
+        /// Clip names or indices, comma-separated (default: all clips).
+        #[arg(long)]
+        clips: Option<String>,
+        /// Index buffers per clustering.
+        #[arg(long, default_value_t = 5)]
+        k: usize,
+        /// Patch threshold (default: both 0.85 and 3, as in the paper).
+        #[arg(long)]
+        lambda: Option<f32>,
+        /// At most this many keyframes per clip (evenly chosen key times).
+        #[arg(long, default_value_t = 32)]
+        max_keyframes: usize,
+        /// Random (keyframe, viewpoint) samples per clip for the OVR column.
+        #[arg(long, default_value_t = 300)]
+        views: usize,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        #[arg(long)]
+        json: bool,
+    },
     /// Describe the built-in demo character and pose it through each clip.
     Demo {
         /// Approximate triangle count (1000 to 1000000).
@@ -269,6 +300,9 @@ fn main() {
         }
         Command::Crowd { file, instances, frames, seed, ortho, verify, refine, json } => {
             crowd::command(&file, instances, frames, seed, ortho, verify, refine, json)
+        }
+        Command::Overdraw { file, clips, k, lambda, max_keyframes, views, seed, json } => {
+            overdraw::command(&file, clips.as_deref(), k, lambda, max_keyframes, views, seed, json)
         }
         Command::Demo { triangles, seed, json } => demo(triangles, seed, json),
     };

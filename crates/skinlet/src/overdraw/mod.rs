@@ -8,6 +8,7 @@
 //! heat maps, the bake-file section.
 
 pub mod cluster;
+pub mod evaluate;
 pub mod measure;
 pub mod tipsify;
 pub mod viewpoints;

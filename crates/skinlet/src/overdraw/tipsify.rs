@@ -129,6 +129,36 @@ pub fn patches(order: &[[u32; 3]], vertex_count: usize, cache_size: u32, lambda:
     starts
 }
 
+/// Sander et al. 2007's view-independent overdraw order (section 4.2): patches sorted by
+/// decreasing occlusion potential `(Cᵢ − C)·Nᵢ`, with `Cᵢ` the patch's area-weighted centroid,
+/// `Nᵢ` its area-weighted normal and `C` the mesh centroid: outward-facing patches far from
+/// the center tend to occlude the rest, so they are drawn first. Patches move whole.
+pub fn occlusion_order(positions: &[glam::Vec3], order: &[[u32; 3]], starts: &[u32]) -> Vec<[u32; 3]> {
+    use glam::Vec3;
+    let patch = |p: usize| &order[starts[p] as usize..starts.get(p + 1).map_or(order.len(), |&e| e as usize)];
+    let area_centroid = |tris: &[[u32; 3]]| {
+        let (mut c, mut n, mut a) = (Vec3::ZERO, Vec3::ZERO, 0.0f32);
+        for t in tris {
+            let (p0, p1, p2) = (positions[t[0] as usize], positions[t[1] as usize], positions[t[2] as usize]);
+            let cross = (p1 - p0).cross(p2 - p0);
+            let area = cross.length() / 2.0;
+            c += (p0 + p1 + p2) / 3.0 * area;
+            n += cross / 2.0;
+            a += area;
+        }
+        (if a > 0.0 { c / a } else { c }, n.normalize_or_zero())
+    };
+    let (center, _) = area_centroid(order);
+    let mut keyed: Vec<(f32, usize)> = (0..starts.len())
+        .map(|p| {
+            let (c, n) = area_centroid(patch(p));
+            (-(c - center).dot(n), p)
+        })
+        .collect();
+    keyed.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    keyed.iter().flat_map(|&(_, p)| patch(p).iter().copied()).collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
