@@ -13,7 +13,7 @@
 //! (patches are moved whole); the output is deterministic for a seed (nodes are rendered in
 //! parallel, but each result lands in its own slot).
 
-use super::measure::Raster;
+use super::measure::{Fragments, Raster};
 use super::tipsify::{patches, tipsify};
 use super::viewpoints::icosphere;
 use glam::{Mat4, Vec3};
@@ -103,10 +103,9 @@ pub fn cluster(keyframes: &[Vec<Vec3>], triangles: &[[u32; 3]], params: &Cluster
     let vertex_count = keyframes.first().map_or(0, |k| k.len());
     let order = tipsify(triangles, vertex_count, params.cache_size);
     let starts = patches(&order, vertex_count, params.cache_size, params.lambda);
-    let patch = |p: usize| {
-        let end = starts.get(p + 1).map_or(order.len(), |&e| e as usize);
-        &order[starts[p] as usize..end]
-    };
+    // Patch `p` as a range of indices into `order` (buffers are lists of such indices).
+    let range = |p: usize| starts[p]..starts.get(p + 1).copied().unwrap_or(order.len() as u32);
+    let patch = |p: usize| &order[starts[p] as usize..range(p).end as usize];
     let framing = Framing::of(keyframes);
     let views = icosphere(params.view_levels);
     let nodes = keyframes.len() * views.len();
@@ -127,10 +126,10 @@ pub fn cluster(keyframes: &[Vec<Vec3>], triangles: &[[u32; 3]], params: &Cluster
         .collect();
     let node = |n: usize| (n / views.len(), framing.eye(views[n % views.len()], 3.0));
     // Patches sorted by a key (None: never seen, last), ties in patch order.
-    let by_key = |key: &mut dyn FnMut(usize) -> Option<f32>| -> Vec<[u32; 3]> {
+    let by_key = |key: &mut dyn FnMut(usize) -> Option<f32>| -> Vec<u32> {
         let mut keyed: Vec<(f32, usize)> = (0..starts.len()).map(|p| (key(p).unwrap_or(f32::INFINITY), p)).collect();
         keyed.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        keyed.iter().flat_map(|&(_, p)| patch(p).iter().copied()).collect()
+        keyed.iter().flat_map(|&(_, p)| range(p)).collect()
     };
     // Bootstrap: k distinct random nodes, patches front to back from each.
     let mut rng = Rng(params.seed ^ 0x00DD_BA11);
@@ -141,36 +140,56 @@ pub fn cluster(keyframes: &[Vec<Vec3>], triangles: &[[u32; 3]], params: &Cluster
             seeds.push(n);
         }
     }
-    let mut buffers: Vec<Vec<[u32; 3]>> = seeds
+    let mut buffers: Vec<Vec<u32>> = seeds
         .iter()
         .map(|&n| {
             let (f, eye) = node(n);
             by_key(&mut |p| Some(centroids[f][p].distance(eye)))
         })
         .collect();
+    // Every node's fragments, rasterized once (orders change, the geometry does not), and
+    // which patches have a front-facing triangle from the node's eye (a bit set).
+    let words = starts.len().div_ceil(64);
+    let (fragments, visible): (Vec<Fragments>, Vec<Vec<u64>>) = (0..nodes)
+        .into_par_iter()
+        .map_init(
+            || Raster::new(params.resolution, params.resolution),
+            |raster, n| {
+                let (f, eye) = node(n);
+                let mut frags = Fragments::default();
+                raster.fragments(&keyframes[f], &order, &framing.view_proj(eye), &mut frags);
+                let pos = &keyframes[f];
+                let mut bits = vec![0u64; words];
+                for p in 0..starts.len() {
+                    let seen = patch(p).iter().any(|t| {
+                        let (a, b, c) = (pos[t[0] as usize], pos[t[1] as usize], pos[t[2] as usize]);
+                        (a - eye).dot((b - a).cross(c - a)) < 0.0
+                    });
+                    bits[p / 64] |= (seen as u64) << (p % 64);
+                }
+                (frags, bits)
+            },
+        )
+        .unzip();
     let mut assignment = vec![u8::MAX; nodes];
     let mut node_overdraw = vec![0.0f32; nodes];
     let mut iterations = 0;
     while iterations < params.iterations && !buffers.is_empty() {
         iterations += 1;
-        // Step 1: each node to the buffer with the least overdraw.
-        let best: Vec<(u8, f32)> = (0..nodes)
-            .into_par_iter()
-            .map_init(
-                || Raster::new(params.resolution, params.resolution),
-                |raster, n| {
-                    let (f, eye) = node(n);
-                    let vp = framing.view_proj(eye);
-                    let mut best = (0u8, f32::INFINITY);
-                    for (b, buf) in buffers.iter().enumerate() {
-                        let r = raster.render(&keyframes[f], buf, &vp).ratio() as f32;
-                        if r < best.1 {
-                            best = (b as u8, r);
-                        }
+        // Step 1: each node to the buffer with the least overdraw: a depth-tested pass over
+        // the node's fragments per buffer, abandoned as soon as it shades more than the best
+        // so far (coverage is the same for every order).
+        let best: Vec<(u8, f32)> = fragments
+            .par_iter()
+            .map_init(Vec::new, |depth, frags| {
+                let mut best = (0u8, u64::MAX);
+                for (b, buf) in buffers.iter().enumerate() {
+                    if let Some(shaded) = frags.shade(buf.iter().copied(), best.1.saturating_sub(1), depth) {
+                        best = (b as u8, shaded);
                     }
-                    best
-                },
-            )
+                }
+                (best.0, if frags.covered == 0 { 0.0 } else { best.1 as f32 / frags.covered as f32 })
+            })
             .collect();
         let changed = best.iter().zip(&assignment).any(|(b, &a)| b.0 != a);
         for (n, (b, r)) in best.into_iter().enumerate() {
@@ -192,13 +211,8 @@ pub fn cluster(keyframes: &[Vec<Vec3>], triangles: &[[u32; 3]], params: &Cluster
                 let mut seen = vec![0u32; starts.len()];
                 for &n in &members {
                     let (f, eye) = node(n);
-                    let pos = &keyframes[f];
                     for p in 0..starts.len() {
-                        let visible = patch(p).iter().any(|t| {
-                            let (a, b, c) = (pos[t[0] as usize], pos[t[1] as usize], pos[t[2] as usize]);
-                            (a - eye).dot((b - a).cross(c - a)) < 0.0
-                        });
-                        if visible {
+                        if visible[n][p / 64] >> (p % 64) & 1 == 1 {
                             sum[p] += centroids[f][p].distance(eye) as f64;
                             seen[p] += 1;
                         }
@@ -208,6 +222,7 @@ pub fn cluster(keyframes: &[Vec<Vec3>], triangles: &[[u32; 3]], params: &Cluster
             })
             .collect();
     }
+    let buffers = buffers.iter().map(|b| b.iter().map(|&t| order[t as usize]).collect()).collect();
     Clustering { buffers, views, assignment, node_overdraw, framing, iterations }
 }
 

@@ -76,8 +76,56 @@ impl Raster {
     pub fn render(&mut self, positions: &[Vec3], triangles: &[[u32; 3]], view_proj: &Mat4) -> Overdraw {
         self.depth.fill(f64::INFINITY);
         self.shaded.fill(0);
+        let screen = self.project(positions, view_proj);
+        let mut shaded = 0u64;
+        let (depth, counts, width) = (&mut self.depth, &mut self.shaded, self.width as i64);
+        for t in triangles {
+            if let (Some(a), Some(b), Some(c)) = (screen[t[0] as usize], screen[t[1] as usize], screen[t[2] as usize]) {
+                rasterize(a, b, c, width, self.height as i64, |i, z| {
+                    if z < depth[i] {
+                        depth[i] = z;
+                        counts[i] += 1;
+                        shaded += 1;
+                    }
+                });
+            }
+        }
+        let covered = self.depth.iter().filter(|d| d.is_finite()).count() as u64;
+        Overdraw { shaded, covered }
+    }
+
+    /// Rasterizes every front-facing triangle once, without a depth test, keeping each
+    /// triangle's fragments: [`Fragments::shade`] then measures any order of the same
+    /// triangles without rasterizing again.
+    pub fn fragments(&mut self, positions: &[Vec3], triangles: &[[u32; 3]], view_proj: &Mat4, out: &mut Fragments) {
+        let screen = self.project(positions, view_proj);
+        out.start.clear();
+        out.pixel.clear();
+        out.depth.clear();
+        out.pixels = self.width as usize * self.height as usize;
+        self.depth.fill(f64::INFINITY);
+        for t in triangles {
+            out.start.push(out.pixel.len() as u32);
+            if let (Some(a), Some(b), Some(c)) = (screen[t[0] as usize], screen[t[1] as usize], screen[t[2] as usize]) {
+                let (pixel, depth, seen) = (&mut out.pixel, &mut out.depth, &mut self.depth);
+                rasterize(a, b, c, self.width as i64, self.height as i64, |i, z| {
+                    pixel.push(i as u32);
+                    depth.push(z);
+                    seen[i] = 0.0;
+                });
+            }
+        }
+        out.start.push(out.pixel.len() as u32);
+        out.start.shrink_to_fit();
+        out.pixel.shrink_to_fit();
+        out.depth.shrink_to_fit();
+        out.covered = self.depth.iter().filter(|d| d.is_finite()).count() as u64;
+    }
+
+    /// Screen positions (1/256 pixel, y down) and depth; `None` at or behind the eye.
+    fn project(&self, positions: &[Vec3], view_proj: &Mat4) -> Vec<Option<(i64, i64, f64)>> {
         let (w, h) = (self.width as f64, self.height as f64);
-        let screen: Vec<Option<(i64, i64, f64)>> = positions
+        positions
             .iter()
             .map(|p| {
                 let c = *view_proj * p.extend(1.0);
@@ -88,62 +136,87 @@ impl Raster {
                     (sx, sy, z)
                 })
             })
-            .collect();
-        let mut shaded = 0u64;
-        for t in triangles {
-            let (Some(a), Some(b), Some(c)) = (screen[t[0] as usize], screen[t[1] as usize], screen[t[2] as usize])
-            else {
-                continue;
-            };
-            shaded += self.triangle(a, b, c);
-        }
-        let covered = self.depth.iter().filter(|d| d.is_finite()).count() as u64;
-        Overdraw { shaded, covered }
+            .collect()
     }
+}
 
-    /// Rasterizes one triangle (screen coordinates in 1/256 pixel, y down); returns the
-    /// fragments that passed the depth test.
-    fn triangle(&mut self, a: (i64, i64, f64), b: (i64, i64, f64), c: (i64, i64, f64)) -> u64 {
-        let edge =
-            |p: (i64, i64, f64), q: (i64, i64, f64), x: i64, y: i64| (q.0 - p.0) * (y - p.1) - (q.1 - p.1) * (x - p.0);
-        // Counter-clockwise in NDC (y up) is clockwise on screen (y down), where this edge
-        // function is negative: front faces have area < 0. Swap two vertices so that the
-        // inside is positive for every edge.
-        let area = edge(a, b, c.0, c.1);
-        if area >= 0 {
-            return 0; // back-facing or degenerate
-        }
-        let (b, c, area) = (c, b, -area);
-        // Top-left rule for this orientation: a top edge runs right (dy = 0, dx > 0), a left
-        // edge runs up (dy < 0). Pixels exactly on other edges belong to the neighbour.
-        let bias = |p: (i64, i64, f64), q: (i64, i64, f64)| {
-            let (dx, dy) = (q.0 - p.0, q.1 - p.1);
-            if (dy == 0 && dx > 0) || dy < 0 { 0 } else { -1 }
-        };
-        let (bab, bbc, bca) = (bias(a, b), bias(b, c), bias(c, a));
-        let minx = (a.0.min(b.0).min(c.0) / SUB).max(0);
-        let maxx = ((a.0.max(b.0).max(c.0) + SUB - 1) / SUB).min(self.width as i64 - 1);
-        let miny = (a.1.min(b.1).min(c.1) / SUB).max(0);
-        let maxy = ((a.1.max(b.1).max(c.1) + SUB - 1) / SUB).min(self.height as i64 - 1);
-        let mut passed = 0;
-        for py in miny..=maxy {
-            let y = py * SUB + SUB / 2;
-            for px in minx..=maxx {
-                let x = px * SUB + SUB / 2;
-                let (e0, e1, e2) = (edge(b, c, x, y), edge(c, a, x, y), edge(a, b, x, y));
-                if e0 + bbc < 0 || e1 + bca < 0 || e2 + bab < 0 {
-                    continue;
-                }
-                let z = (e0 as f64 * a.2 + e1 as f64 * b.2 + e2 as f64 * c.2) / area as f64;
-                let i = py as usize * self.width as usize + px as usize;
-                if z < self.depth[i] {
-                    self.depth[i] = z;
-                    self.shaded[i] += 1;
-                    passed += 1;
+/// The fragments of one view's triangles (see [`Raster::fragments`]).
+#[derive(Clone, Debug, Default)]
+pub struct Fragments {
+    /// Fragments of triangle `t`: `start[t]..start[t + 1]`.
+    start: Vec<u32>,
+    pixel: Vec<u32>,
+    depth: Vec<f64>,
+    pixels: usize,
+    /// Pixels covered by any triangle: the same for every order.
+    pub covered: u64,
+}
+
+impl Fragments {
+    /// Fragments passing the depth test when the triangles (indices into the list given to
+    /// [`Raster::fragments`]) are drawn in `order`; `None` as soon as they exceed `limit`.
+    pub fn shade(&self, order: impl IntoIterator<Item = u32>, limit: u64, depth: &mut Vec<f64>) -> Option<u64> {
+        depth.clear();
+        depth.resize(self.pixels, f64::INFINITY);
+        let mut shaded = 0u64;
+        for t in order {
+            let r = self.start[t as usize] as usize..self.start[t as usize + 1] as usize;
+            for (&i, &z) in self.pixel[r.clone()].iter().zip(&self.depth[r]) {
+                if z < depth[i as usize] {
+                    depth[i as usize] = z;
+                    shaded += 1;
                 }
             }
+            if shaded > limit {
+                return None;
+            }
         }
-        passed
+        Some(shaded)
+    }
+}
+
+/// Rasterizes one triangle (screen coordinates in 1/256 pixel, y down), calling `emit`
+/// with the pixel index and depth of every covered pixel center.
+fn rasterize(
+    a: (i64, i64, f64),
+    b: (i64, i64, f64),
+    c: (i64, i64, f64),
+    width: i64,
+    height: i64,
+    mut emit: impl FnMut(usize, f64),
+) {
+    let edge =
+        |p: (i64, i64, f64), q: (i64, i64, f64), x: i64, y: i64| (q.0 - p.0) * (y - p.1) - (q.1 - p.1) * (x - p.0);
+    // Counter-clockwise in NDC (y up) is clockwise on screen (y down), where this edge
+    // function is negative: front faces have area < 0. Swap two vertices so that the
+    // inside is positive for every edge.
+    let area = edge(a, b, c.0, c.1);
+    if area >= 0 {
+        return; // back-facing or degenerate
+    }
+    let (b, c, area) = (c, b, -area);
+    // Top-left rule for this orientation: a top edge runs right (dy = 0, dx > 0), a left
+    // edge runs up (dy < 0). Pixels exactly on other edges belong to the neighbour.
+    let bias = |p: (i64, i64, f64), q: (i64, i64, f64)| {
+        let (dx, dy) = (q.0 - p.0, q.1 - p.1);
+        if (dy == 0 && dx > 0) || dy < 0 { 0 } else { -1 }
+    };
+    let (bab, bbc, bca) = (bias(a, b), bias(b, c), bias(c, a));
+    let minx = (a.0.min(b.0).min(c.0) / SUB).max(0);
+    let maxx = ((a.0.max(b.0).max(c.0) + SUB - 1) / SUB).min(width - 1);
+    let miny = (a.1.min(b.1).min(c.1) / SUB).max(0);
+    let maxy = ((a.1.max(b.1).max(c.1) + SUB - 1) / SUB).min(height - 1);
+    for py in miny..=maxy {
+        let y = py * SUB + SUB / 2;
+        for px in minx..=maxx {
+            let x = px * SUB + SUB / 2;
+            let (e0, e1, e2) = (edge(b, c, x, y), edge(c, a, x, y), edge(a, b, x, y));
+            if e0 + bbc < 0 || e1 + bca < 0 || e2 + bab < 0 {
+                continue;
+            }
+            let z = (e0 as f64 * a.2 + e1 as f64 * b.2 + e2 as f64 * c.2) / area as f64;
+            emit(py as usize * width as usize + px as usize, z);
+        }
     }
 }
 
@@ -250,6 +323,25 @@ mod tests {
             );
             assert!((a - b).abs() / b < 0.02, "{order}: ours {a}, meshoptimizer {b}");
             assert!((ours.covered as f64 / theirs.pixels_covered as f64 - 1.0).abs() < 0.02);
+        }
+    }
+
+    #[test]
+    fn fragments_measure_any_order_like_a_render() {
+        let asset = crate::demo::demo_character(&crate::demo::DemoParams { triangles: 3000, ..Default::default() });
+        let mesh = asset.combined_mesh(Some(0));
+        let mut r = Raster::new(64, 64);
+        let mut frags = Fragments::default();
+        let mut depth = Vec::new();
+        for (k, vp) in axis_views(&mesh.positions).iter().enumerate() {
+            r.fragments(&mesh.positions, &mesh.triangles, vp, &mut frags);
+            let n = mesh.triangles.len() as u32;
+            let order: Vec<u32> = if k % 2 == 0 { (0..n).collect() } else { (0..n).rev().collect() };
+            let tris: Vec<[u32; 3]> = order.iter().map(|&t| mesh.triangles[t as usize]).collect();
+            let full = r.render(&mesh.positions, &tris, vp);
+            assert_eq!(frags.covered, full.covered);
+            assert_eq!(frags.shade(order.iter().copied(), u64::MAX, &mut depth), Some(full.shaded));
+            assert_eq!(frags.shade(order.iter().copied(), full.shaded - 1, &mut depth), None);
         }
     }
 
