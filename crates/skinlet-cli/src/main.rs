@@ -258,6 +258,10 @@ enum Command {
         views: usize,
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// Also write an overdraw heat map (PNG): keyframe 0 of the first clip from the front,
+        /// original order left, clustered order right (blue 1, green 2, yellow 3, red 5+).
+        #[arg(long)]
+        heatmap: Option<PathBuf>,
         #[arg(long)]
         json: bool,
     },
@@ -301,8 +305,8 @@ fn main() {
         Command::Crowd { file, instances, frames, seed, ortho, verify, refine, json } => {
             crowd::command(&file, instances, frames, seed, ortho, verify, refine, json)
         }
-        Command::Overdraw { file, clips, k, lambda, max_keyframes, views, seed, json } => {
-            overdraw::command(&file, clips.as_deref(), k, lambda, max_keyframes, views, seed, json)
+        Command::Overdraw { file, clips, k, lambda, max_keyframes, views, seed, heatmap, json } => {
+            overdraw::command(&file, clips.as_deref(), k, lambda, max_keyframes, views, seed, heatmap.as_deref(), json)
         }
         Command::Demo { triangles, seed, json } => demo(triangles, seed, json),
     };

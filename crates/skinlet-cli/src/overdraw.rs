@@ -1,12 +1,14 @@
 //! `skinlet overdraw`: Han & Sander's table 2 for one character.
 
 use crate::{select_clips, skinned};
-use anyhow::Result;
+use anyhow::{Context, Result};
 use serde_json::json;
 use skinlet::clip::Clip;
-use skinlet::overdraw::cluster::ClusterParams;
+use skinlet::overdraw::cluster::{ClusterParams, Lookup, cluster};
 use skinlet::overdraw::evaluate::{EvalParams, evaluate};
+use skinlet::overdraw::measure::Raster;
 use skinlet::pose::Poser;
+use std::path::Path;
 
 /// Skinned positions of the prepared mesh at up to `max` evenly chosen key times of `clip`.
 fn keyframes(
@@ -36,6 +38,39 @@ fn keyframes(
         .collect()
 }
 
+/// Renders keyframe 0 of the first clip from the front (+z, at 3× the bounding radius) with
+/// the original order and with the clustered buffer the lookup picks, side by side, as an
+/// overdraw heat map; returns both overdraw ratios.
+fn heatmap(
+    path: &Path,
+    keyframes: &[Vec<glam::Vec3>],
+    original: &[[u32; 3]],
+    params: &ClusterParams,
+) -> Result<(f64, f64)> {
+    let c = cluster(keyframes, original, params);
+    let lookup = Lookup::new(&c, 37, 72);
+    let eye = c.framing.eye(glam::Vec3::new(0.0, 0.25, 1.0).normalize(), 3.0);
+    let ours = &c.buffers[lookup.get(0, (eye - c.framing.center).normalize()) as usize];
+    let size = 256;
+    let mut raster = Raster::new(size, size);
+    let vp = c.framing.view_proj(eye);
+    let mut image = vec![0u8; (2 * size * size * 3) as usize];
+    let mut ratios = [0.0; 2];
+    for (half, order) in [original, &ours[..]].iter().enumerate() {
+        ratios[half] = raster.render(&keyframes[0], order, &vp).ratio();
+        for (row, pixels) in raster.heatmap().chunks((size * 3) as usize).enumerate() {
+            let at = (row * 2 * size as usize + half * size as usize) * 3;
+            image[at..at + pixels.len()].copy_from_slice(pixels);
+        }
+    }
+    let file = std::fs::File::create(path).with_context(|| format!("cannot write {}", path.display()))?;
+    let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), 2 * size, size);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    encoder.write_header()?.write_image_data(&image)?;
+    Ok((ratios[0], ratios[1]))
+}
+
 #[allow(clippy::too_many_arguments)]
 pub fn command(
     file: &str,
@@ -45,6 +80,7 @@ pub fn command(
     max_keyframes: usize,
     views: usize,
     seed: u64,
+    heatmap_path: Option<&Path>,
     json: bool,
 ) -> Result<()> {
     anyhow::ensure!((1..=255).contains(&k), "--k must be between 1 and 255");
@@ -55,6 +91,17 @@ pub fn command(
     let frames =
         clips.iter().map(|c| keyframes(&asset, skin, &prepared.mesh, c, max_keyframes)).collect::<Result<Vec<_>>>()?;
     let lambdas = lambda.map_or(vec![0.85, 3.0], |l| vec![l]);
+    if let Some(path) = heatmap_path {
+        let params = ClusterParams { k, lambda: lambdas[0], seed, ..ClusterParams::default() };
+        let (before, after) = heatmap(path, &frames[0], &prepared.mesh.triangles, &params)?;
+        if !json {
+            println!(
+                "{}: overdraw heat map of clip {:?}, keyframe 0, front view: original {before:.3} (left), clustered {after:.3} (right)",
+                path.display(),
+                clips[0].name
+            );
+        }
+    }
     let mut rows = Vec::new();
     for l in lambdas {
         let params = EvalParams {

@@ -140,6 +140,16 @@ impl Raster {
     }
 }
 
+impl Raster {
+    /// The last render's overdraw as an RGB8 image (row-major, top row first): background
+    /// dark, then blue, green, yellow, orange, red for 1, 2, 3, 4, 5+ shaded fragments.
+    pub fn heatmap(&self) -> Vec<u8> {
+        const COLORS: [[u8; 3]; 6] =
+            [[24, 24, 28], [40, 90, 200], [40, 170, 90], [230, 200, 40], [235, 120, 30], [215, 35, 35]];
+        self.shaded.iter().flat_map(|&n| COLORS[(n as usize).min(5)]).collect()
+    }
+}
+
 /// The fragments of one view's triangles (see [`Raster::fragments`]).
 #[derive(Clone, Debug, Default)]
 pub struct Fragments {
@@ -362,5 +372,8 @@ mod tests {
         let back_to_front: Vec<[u32; 3]> = far.iter().chain(&near).copied().collect();
         assert_eq!(r.render(&pts, &front_to_back, &vp).ratio(), 1.0);
         assert_eq!(r.render(&pts, &back_to_front, &vp).ratio(), 2.0);
+        let img = r.heatmap();
+        assert_eq!(img.len(), 16 * 16 * 3);
+        assert!(img.chunks(3).all(|c| c == [40, 170, 90]), "every pixel shaded twice: green");
     }
 }
