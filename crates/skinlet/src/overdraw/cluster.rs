@@ -32,11 +32,23 @@ pub struct ClusterParams {
     pub view_levels: u32,
     pub iterations: usize,
     pub seed: u64,
+    /// Most bytes of node fragments kept between k-means iterations (beyond: rasterized
+    /// again in every iteration; same result, slower).
+    pub cache_bytes: usize,
 }
 
 impl Default for ClusterParams {
     fn default() -> Self {
-        ClusterParams { k: 5, lambda: 0.85, cache_size: 16, resolution: 64, view_levels: 2, iterations: 6, seed: 1 }
+        ClusterParams {
+            k: 5,
+            lambda: 0.85,
+            cache_size: 16,
+            resolution: 64,
+            view_levels: 2,
+            iterations: 6,
+            seed: 1,
+            cache_bytes: 1 << 30,
+        }
     }
 }
 
@@ -147,30 +159,58 @@ pub fn cluster(keyframes: &[Vec<Vec3>], triangles: &[[u32; 3]], params: &Cluster
             by_key(&mut |p| Some(centroids[f][p].distance(eye)))
         })
         .collect();
-    // Every node's fragments, rasterized once (orders change, the geometry does not), and
-    // which patches have a front-facing triangle from the node's eye (a bit set).
+    // Which patches have a front-facing triangle from each node's eye (a bit set), and each
+    // node's fragments, rasterized once (orders change, the geometry does not) while they fit
+    // in `cache_bytes`; beyond it (many keyframes of a large mesh) they are rasterized again
+    // in every iteration instead.
     let words = starts.len().div_ceil(64);
-    let (fragments, visible): (Vec<Fragments>, Vec<Vec<u64>>) = (0..nodes)
+    let visible: Vec<Vec<u64>> = (0..nodes)
         .into_par_iter()
-        .map_init(
-            || Raster::new(params.resolution, params.resolution),
-            |raster, n| {
-                let (f, eye) = node(n);
-                let mut frags = Fragments::default();
-                raster.fragments(&keyframes[f], &order, &framing.view_proj(eye), &mut frags);
-                let pos = &keyframes[f];
-                let mut bits = vec![0u64; words];
-                for p in 0..starts.len() {
-                    let seen = patch(p).iter().any(|t| {
-                        let (a, b, c) = (pos[t[0] as usize], pos[t[1] as usize], pos[t[2] as usize]);
-                        (a - eye).dot((b - a).cross(c - a)) < 0.0
-                    });
-                    bits[p / 64] |= (seen as u64) << (p % 64);
-                }
-                (frags, bits)
-            },
-        )
-        .unzip();
+        .map(|n| {
+            let (f, eye) = node(n);
+            let pos = &keyframes[f];
+            let mut bits = vec![0u64; words];
+            for p in 0..starts.len() {
+                let seen = patch(p).iter().any(|t| {
+                    let (a, b, c) = (pos[t[0] as usize], pos[t[1] as usize], pos[t[2] as usize]);
+                    (a - eye).dot((b - a).cross(c - a)) < 0.0
+                });
+                bits[p / 64] |= (seen as u64) << (p % 64);
+            }
+            bits
+        })
+        .collect();
+    let rasterize = |raster: &mut Raster, n: usize, frags: &mut Fragments| {
+        let (f, eye) = node(n);
+        raster.fragments(&keyframes[f], &order, &framing.view_proj(eye), frags);
+    };
+    let sample: usize = (0..nodes.min(16))
+        .map(|i| {
+            let mut frags = Fragments::default();
+            rasterize(
+                &mut Raster::new(params.resolution, params.resolution),
+                i * nodes / nodes.clamp(1, 16),
+                &mut frags,
+            );
+            frags.bytes()
+        })
+        .sum();
+    let cache = sample / nodes.clamp(1, 16) * nodes <= params.cache_bytes;
+    let cached: Vec<Fragments> = if cache {
+        (0..nodes)
+            .into_par_iter()
+            .map_init(
+                || Raster::new(params.resolution, params.resolution),
+                |raster, n| {
+                    let mut frags = Fragments::default();
+                    rasterize(raster, n, &mut frags);
+                    frags
+                },
+            )
+            .collect()
+    } else {
+        Vec::new()
+    };
     let mut assignment = vec![u8::MAX; nodes];
     let mut node_overdraw = vec![0.0f32; nodes];
     let mut iterations = 0;
@@ -179,17 +219,26 @@ pub fn cluster(keyframes: &[Vec<Vec3>], triangles: &[[u32; 3]], params: &Cluster
         // Step 1: each node to the buffer with the least overdraw: a depth-tested pass over
         // the node's fragments per buffer, abandoned as soon as it shades more than the best
         // so far (coverage is the same for every order).
-        let best: Vec<(u8, f32)> = fragments
-            .par_iter()
-            .map_init(Vec::new, |depth, frags| {
-                let mut best = (0u8, u64::MAX);
-                for (b, buf) in buffers.iter().enumerate() {
-                    if let Some(shaded) = frags.shade(buf.iter().copied(), best.1.saturating_sub(1), depth) {
-                        best = (b as u8, shaded);
+        let best: Vec<(u8, f32)> = (0..nodes)
+            .into_par_iter()
+            .map_init(
+                || (Raster::new(params.resolution, params.resolution), Fragments::default(), Vec::new()),
+                |(raster, scratch, depth), n| {
+                    let frags = if cache {
+                        &cached[n]
+                    } else {
+                        rasterize(raster, n, scratch);
+                        &*scratch
+                    };
+                    let mut best = (0u8, u64::MAX);
+                    for (b, buf) in buffers.iter().enumerate() {
+                        if let Some(shaded) = frags.shade(buf.iter().copied(), best.1.saturating_sub(1), depth) {
+                            best = (b as u8, shaded);
+                        }
                     }
-                }
-                (best.0, if frags.covered == 0 { 0.0 } else { best.1 as f32 / frags.covered as f32 })
-            })
+                    (best.0, if frags.covered == 0 { 0.0 } else { best.1 as f32 / frags.covered as f32 })
+                },
+            )
             .collect();
         let changed = best.iter().zip(&assignment).any(|(b, &a)| b.0 != a);
         for (n, (b, r)) in best.into_iter().enumerate() {
@@ -327,6 +376,8 @@ mod tests {
         let params = ClusterParams { k: 3, view_levels: 1, resolution: 48, ..ClusterParams::default() };
         let c = cluster(&keyframes, &triangles, &params);
         assert_eq!(c, cluster(&keyframes, &triangles, &params), "deterministic");
+        let uncached = ClusterParams { cache_bytes: 0, ..params };
+        assert_eq!(c, cluster(&keyframes, &triangles, &uncached), "same result without the fragment cache");
         assert_eq!(c.buffers.len(), 3);
         for b in &c.buffers {
             assert_eq!(canonical(b.clone()), canonical(triangles.clone()));

@@ -163,6 +163,11 @@ pub struct Fragments {
 }
 
 impl Fragments {
+    /// Heap bytes held.
+    pub fn bytes(&self) -> usize {
+        4 * self.start.capacity() + 4 * self.pixel.capacity() + 8 * self.depth.capacity()
+    }
+
     /// Fragments passing the depth test when the triangles (indices into the list given to
     /// [`Raster::fragments`]) are drawn in `order`; `None` as soon as they exceed `limit`.
     pub fn shade(&self, order: impl IntoIterator<Item = u32>, limit: u64, depth: &mut Vec<f64>) -> Option<u64> {
