@@ -47,9 +47,32 @@ pub fn bake_file(
     Ok(out)
 }
 
-pub fn run(file: &str, out: &Path, builder: &str, clips: Option<&str>, args: RefineArgs, json: bool) -> Result<()> {
+pub fn run(
+    file: &str,
+    out: &Path,
+    builder: &str,
+    clips: Option<&str>,
+    args: RefineArgs,
+    overdraw: bool,
+    json: bool,
+) -> Result<()> {
     let builder = Builder::from_name(builder).context("unknown builder")?;
-    let (baked, stats) = bake_file(file, clips, builder, args, json)?;
+    let (mut baked, stats) = bake_file(file, clips, builder, args, json)?;
+    let overdraw_s = if overdraw {
+        let started = std::time::Instant::now();
+        let asset = crate::load(file)?;
+        let skin = asset.instances.iter().find_map(|i| i.skin).context("no skinned mesh")?;
+        skinlet::bake::add_overdraw(
+            &mut baked,
+            &asset,
+            skin,
+            &skinlet::overdraw::cluster::ClusterParams::default(),
+            16,
+        )?;
+        Some(started.elapsed().as_secs_f64())
+    } else {
+        None
+    };
     skinlet::bake::write(out, &baked)?;
     let bytes = std::fs::metadata(out).map(|m| m.len()).unwrap_or(0);
     let (both, frustum, none) = class_shares(&baked);
@@ -63,6 +86,7 @@ pub fn run(file: &str, out: &Path, builder: &str, clips: Option<&str>, args: Ref
             "both_pct": both, "frustum_only_pct": frustum, "none_pct": none,
             "precompute_s": precompute_s, "rounds": s.rounds, "stop": stop_name(s.stop),
             "vertex_influence_intervals": stats.work,
+            "overdraw_buffers": baked.overdraw.as_ref().map(|o| o.buffers.len()), "overdraw_s": overdraw_s,
         });
         println!("{}", serde_json::to_string_pretty(&summary)?);
         return Ok(());
@@ -87,6 +111,15 @@ pub fn run(file: &str, out: &Path, builder: &str, clips: Option<&str>, args: Ref
         stop_name(s.stop),
         stats.work as f64
     );
+    if let (Some(o), Some(secs)) = (&baked.overdraw, overdraw_s) {
+        println!(
+            "  {} overdraw-reducing index buffers over {} keyframes, lookup {} x {} per keyframe ({secs:.1} s)",
+            o.buffers.len(),
+            o.keyframes.len(),
+            o.lookup.polar,
+            o.lookup.azimuth
+        );
+    }
     if s.stop == skinlet::bounds::refine::Stop::Budget {
         println!("  the budget ran out: pass --rounds {} to reproduce these bytes on any machine", s.rounds);
     }

@@ -172,6 +172,10 @@ enum Command {
         clips: Option<String>,
         #[command(flatten)]
         refine: RefineArgs,
+        /// Also store 5 overdraw-reducing index buffers and their lookup table (Han & Sander's
+        /// "joint" clustering over up to 16 key times per clip, λ = 0.85; see `skinlet overdraw`).
+        #[arg(long)]
+        overdraw: bool,
         /// Print a JSON summary: meshlets, both_pct, frustum_only_pct, none_pct, precompute_s, ...
         #[arg(long)]
         json: bool,
@@ -296,8 +300,8 @@ fn main() {
         Command::Bounds { file, builder, clips, refine, json } => {
             bounds(&file, &builder, clips.as_deref(), refine, json)
         }
-        Command::Bake { file, out, builder, clips, refine, json } => {
-            bake::run(&file, &out, &builder, clips.as_deref(), refine, json)
+        Command::Bake { file, out, builder, clips, refine, overdraw, json } => {
+            bake::run(&file, &out, &builder, clips.as_deref(), refine, overdraw, json)
         }
         Command::Verify { file, baked, builder, clips, refine, samples, json } => {
             verify(&file, baked.as_deref(), &builder, clips.as_deref(), refine, samples, json)

@@ -3,40 +3,10 @@
 use crate::{select_clips, skinned};
 use anyhow::{Context, Result};
 use serde_json::json;
-use skinlet::clip::Clip;
 use skinlet::overdraw::cluster::{ClusterParams, Lookup, cluster};
-use skinlet::overdraw::evaluate::{EvalParams, evaluate};
+use skinlet::overdraw::evaluate::{EvalParams, evaluate, keyframes};
 use skinlet::overdraw::measure::Raster;
-use skinlet::pose::Poser;
 use std::path::Path;
-
-/// Skinned positions of the prepared mesh at up to `max` evenly chosen key times of `clip`.
-fn keyframes(
-    asset: &skinlet::Asset,
-    skin: u32,
-    mesh: &skinlet::SkinnedMesh,
-    clip: &Clip,
-    max: usize,
-) -> Result<Vec<Vec<glam::Vec3>>> {
-    let keys = clip.key_times();
-    let picked: Vec<f32> = if keys.len() <= max {
-        keys
-    } else {
-        (0..max).map(|i| keys[i * (keys.len() - 1) / (max - 1).max(1)]).collect()
-    };
-    let inf = mesh.influences.as_ref().ok_or_else(|| anyhow::anyhow!("the mesh has no skin weights"))?;
-    let mut poser = Poser::default();
-    let mut mats = Vec::new();
-    picked
-        .iter()
-        .map(|&t| {
-            poser.skinning_matrices(&asset.skeleton, &asset.skins[skin as usize], Some(clip), t, &mut mats);
-            let mut out = vec![glam::Vec3::ZERO; mesh.positions.len()];
-            skinlet::skinning::skin(inf, &mesh.positions, &[], &mats, &mut out, &mut [])?;
-            Ok(out)
-        })
-        .collect()
-}
 
 /// Renders keyframe 0 of the first clip from the front (+z, at 3× the bounding radius) with
 /// the original order and with the clustered buffer the lookup picks, side by side, as an
@@ -88,8 +58,10 @@ pub fn command(
     let (asset, skin, prepared) = skinned(file)?;
     let clips = select_clips(&asset, clips)?;
     anyhow::ensure!(!clips.is_empty(), "{file} has no animation clips");
-    let frames =
-        clips.iter().map(|c| keyframes(&asset, skin, &prepared.mesh, c, max_keyframes)).collect::<Result<Vec<_>>>()?;
+    let frames = clips
+        .iter()
+        .map(|c| Ok(keyframes(&asset, skin, &prepared.mesh, c, max_keyframes)?.1))
+        .collect::<Result<Vec<Vec<Vec<glam::Vec3>>>>>()?;
     let lambdas = lambda.map_or(vec![0.85, 3.0], |l| vec![l]);
     if let Some(path) = heatmap_path {
         let params = ClusterParams { k, lambda: lambdas[0], seed, ..ClusterParams::default() };

@@ -343,3 +343,13 @@ fn overdraw_prints_one_row_per_method() {
         assert!(r["ovr"].as_f64().unwrap() >= 1.0 && r["acmr"].as_f64().unwrap() <= 3.0, "{r}");
     }
 }
+
+#[test]
+fn bake_can_store_overdraw_orders() {
+    let out = std::env::temp_dir().join(format!("skinlet-overdraw-{}.skinlet", std::process::id()));
+    let j = json_of(&["bake", "@demo:1500", "-o", out.to_str().unwrap(), "--overdraw", "--json"]);
+    assert_eq!(j["overdraw_buffers"], 5, "{j}");
+    let v = json_of(&["verify", "@demo:1500", "--baked", out.to_str().unwrap(), "--samples", "20", "--json"]);
+    assert_eq!(v["violations"], 0);
+    std::fs::remove_file(&out).unwrap();
+}

@@ -1,7 +1,8 @@
 //! The bake file: everything the runtime needs to draw and cull one skinned character, in
 //! one versioned little-endian binary file (layout in `docs/FORMAT.md`): the prepared
 //! vertices and skin weights, the inverse bind matrices, the triangles, the meshlets (the
-//! flat layout of [`crate::meshlet::flat`]) and their conservative bounds and classes.
+//! flat layout of [`crate::meshlet::flat`]) and their conservative bounds and classes, and
+//! optionally overdraw-reducing index buffers with their lookup table ([`add_overdraw`]).
 //!
 //! Guarantees: [`to_bytes`] is a pure function of the [`Baked`] value (same input and
 //! options, same bytes); [`from_bytes`] accepts exactly what `to_bytes` can produce and
@@ -13,8 +14,10 @@
 use crate::bounds::meshlet::{Class, MeshletBounds, classify};
 use crate::bounds::refine::{Progress, Refinement, Stop, refine_with_progress};
 use crate::clip::Clip;
-use crate::meshlet::{Builder, MeshletLimits, Meshlets, build, flat, prepare};
+use crate::meshlet::{Builder, MeshletLimits, Meshlets, build, canonical, flat, prepare};
 use crate::model::{Asset, Influences, SkinnedMesh};
+use crate::overdraw::cluster::{ClusterParams, Framing, Lookup, Orders, cluster};
+use crate::overdraw::evaluate::keyframes;
 use crate::{Error, Result};
 use glam::{Mat4, Vec3};
 use std::io::Write;
@@ -50,6 +53,8 @@ pub struct Baked {
     pub meshlets: Meshlets,
     pub bounds: Vec<MeshletBounds>,
     pub classes: Vec<Class>,
+    /// Overdraw-reducing index buffers with their run-time lookup (optional section OVDR).
+    pub overdraw: Option<Orders>,
 }
 
 /// Precomputation figures of a bake (not stored: they depend on the machine).
@@ -94,11 +99,42 @@ pub fn bake(
         mesh: prepared.mesh,
         meshlets,
         bounds: refined.bounds,
+        overdraw: None,
     };
     Ok((baked, stats))
 }
 
-const TAGS: [&[u8; 4]; 6] = [b"INFO", b"SKIN", b"VERT", b"TRIS", b"MLET", b"BNDS"];
+/// Adds overdraw-reducing index buffers to a bake: the "joint" clustering of Han & Sander
+/// over up to `max_keyframes` key times of every clip the bounds were baked for.
+pub fn add_overdraw(
+    baked: &mut Baked,
+    asset: &Asset,
+    skin: u32,
+    params: &ClusterParams,
+    max_keyframes: usize,
+) -> Result<()> {
+    let mut keys = Vec::new();
+    let mut positions = Vec::new();
+    for (i, name) in baked.settings.clips.iter().enumerate() {
+        let clip = asset
+            .clips
+            .iter()
+            .find(|c| &c.name == name)
+            .ok_or_else(|| Error::invalid("bake", format!("no clip {name:?}")))?;
+        let (times, pos) = keyframes(asset, skin, &baked.mesh, clip, max_keyframes)?;
+        keys.extend(times.into_iter().map(|t| (i as u32, t)));
+        positions.extend(pos);
+    }
+    if positions.is_empty() {
+        return Err(Error::invalid("bake", "overdraw orders need at least one clip"));
+    }
+    let c = cluster(&positions, &baked.mesh.triangles, params);
+    baked.overdraw = Some(Orders::new(&c, keys, params.lambda));
+    Ok(())
+}
+
+/// Section tags: the six required ones, then the optional overdraw orders.
+const TAGS: [&[u8; 4]; 7] = [b"INFO", b"SKIN", b"VERT", b"TRIS", b"MLET", b"BNDS", b"OVDR"];
 const HEADER: usize = 16;
 const ENTRY: usize = 24;
 const BOUNDS_STRIDE: usize = 48;
@@ -191,7 +227,28 @@ pub fn to_bytes(b: &Baked) -> Vec<u8> {
         bnds.u32(class_code(*c));
     }
 
-    let sections = [info.0, skin.0, vert.0, tris.0, flat::to_bytes(&b.meshlets), bnds.0];
+    let mut sections = vec![info.0, skin.0, vert.0, tris.0, flat::to_bytes(&b.meshlets), bnds.0];
+    if let Some(o) = &b.overdraw {
+        let mut ov = Out::default();
+        let l = &o.lookup;
+        for x in [o.buffers.len(), o.keyframes.len(), l.polar, l.azimuth] {
+            ov.u32(x as u32);
+        }
+        ov.f32(o.lambda);
+        ov.vec3(o.framing.center);
+        ov.f32(o.framing.radius);
+        for &(clip, t) in &o.keyframes {
+            ov.u32(clip);
+            ov.f32(t);
+        }
+        for buf in &o.buffers {
+            ov.u32(buf.len() as u32);
+            buf.iter().flatten().for_each(|&i| ov.u32(i));
+        }
+        ov.0.extend_from_slice(&l.table);
+        ov.0.resize(ov.0.len().next_multiple_of(4), 0);
+        sections.push(ov.0);
+    }
     let mut out = Vec::new();
     out.extend_from_slice(&MAGIC);
     out.extend_from_slice(&VERSION.to_le_bytes());
@@ -301,7 +358,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
         return Err(Error::unsupported("bake header", format!("version {version}; this skinlet reads {VERSION}")));
     }
     let n = head.count("sections", ENTRY)?;
-    let mut found: [Option<&[u8]>; 6] = [None; 6];
+    let mut found: [Option<&[u8]>; 7] = [None; 7];
     for _ in 0..n {
         let tag: [u8; 4] = head.bytes(4)?.try_into().expect("4 bytes");
         head.u32()?;
@@ -336,6 +393,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
     let n = s.count("clip names", 4)?;
     let clips = (0..n).map(|_| s.str()).collect::<Result<Vec<_>>>()?;
     s.end()?;
+    let clips_len = clips.len();
     let settings = BakeSettings { builder, limits, s_r, alpha_t, rounds, stop, clips };
 
     let mut s = section(1)?;
@@ -411,7 +469,51 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
         bounds.push(b);
     }
     s.end()?;
-    Ok(Baked { settings, joint_names, inverse_bind, mesh, meshlets, bounds, classes })
+    let overdraw = if found[6].is_some() { Some(read_orders(section(6)?, &mesh, clips_len)?) } else { None };
+    Ok(Baked { settings, joint_names, inverse_bind, mesh, meshlets, bounds, classes, overdraw })
+}
+
+/// The OVDR section: every buffer a permutation of the triangles, table entries in range.
+fn read_orders(mut s: In, mesh: &SkinnedMesh, clips: usize) -> Result<Orders> {
+    let (k, f, polar, azimuth) = (s.u32()? as usize, s.u32()? as usize, s.u32()? as usize, s.u32()? as usize);
+    if k == 0 || k > 255 || polar == 0 || azimuth == 0 {
+        return Err(s.err(format!("{k} buffers, {polar} × {azimuth} cells")));
+    }
+    let lambda = s.f32()?;
+    let framing = Framing { center: s.vec3()?, radius: s.f32()? };
+    if f.saturating_mul(8) > s.b.len() {
+        return Err(s.err(format!("{f} keyframes do not fit in the section")));
+    }
+    let mut keyframes = Vec::with_capacity(f);
+    for i in 0..f {
+        let (clip, t) = (s.u32()?, s.f32()?);
+        if clip as usize >= clips {
+            return Err(s.err(format!("keyframe {i} names clip {clip} of {clips}")));
+        }
+        keyframes.push((clip, t));
+    }
+    let mut want = mesh.triangles.iter().map(|t| canonical(*t)).collect::<Vec<_>>();
+    want.sort_unstable();
+    let mut buffers = Vec::with_capacity(k);
+    for b in 0..k {
+        let n = s.count("triangles", 12)?;
+        let buf = (0..n).map(|_| Ok([s.u32()?, s.u32()?, s.u32()?])).collect::<Result<Vec<[u32; 3]>>>()?;
+        let mut got: Vec<[u32; 3]> = buf.iter().map(|t| canonical(*t)).collect();
+        got.sort_unstable();
+        if got != want {
+            return Err(s.err(format!("buffer {b} is not a reordering of the mesh's triangles")));
+        }
+        buffers.push(buf);
+    }
+    let cells =
+        f.checked_mul(polar).and_then(|x| x.checked_mul(azimuth)).ok_or_else(|| s.err("lookup table too large"))?;
+    let table = s.bytes(cells)?.to_vec();
+    if let Some(bad) = table.iter().position(|&b| b as usize >= k) {
+        return Err(s.err(format!("lookup cell {bad} names buffer {} of {k}", table[bad])));
+    }
+    s.align(4)?;
+    s.end()?;
+    Ok(Orders { lambda, keyframes, framing, buffers, lookup: Lookup { keyframes: f, polar, azimuth, table } })
 }
 
 #[cfg(test)]
@@ -429,6 +531,31 @@ mod tests {
     #[test]
     fn same_input_same_bytes() {
         assert_eq!(to_bytes(&baked()), to_bytes(&baked()));
+    }
+
+    #[test]
+    fn overdraw_orders_round_trip_and_are_checked() {
+        let asset = demo_character(&DemoParams { triangles: 2000, ..DemoParams::default() });
+        let mut b = baked();
+        let params = ClusterParams { k: 3, view_levels: 1, iterations: 2, ..ClusterParams::default() };
+        add_overdraw(&mut b, &asset, 0, &params, 3).unwrap();
+        let bytes = to_bytes(&b);
+        let back = from_bytes(&bytes).unwrap();
+        assert_eq!(back, b);
+        let o = back.overdraw.as_ref().unwrap();
+        assert_eq!(o.buffers.len(), 3);
+        assert_eq!(o.keyframes.len(), 3 * asset.clips.len().min(b.settings.clips.len()));
+        // A stored keyframe seen from a stored viewpoint selects a valid buffer.
+        assert!(o.select(0, o.keyframes[0].1, o.framing.center + glam::Vec3::Z) < 3);
+        // Damage the last buffer's first index: no longer a reordering, refused.
+        let table = o.lookup.table.len().next_multiple_of(4);
+        let n = b.mesh.triangles.len();
+        let at = bytes.len() - table - 12 * n;
+        let mut bad = bytes.clone();
+        bad[at..at + 4].copy_from_slice(&0u32.to_le_bytes());
+        bad[at + 4..at + 8].copy_from_slice(&0u32.to_le_bytes());
+        let e = from_bytes(&bad).unwrap_err().to_string();
+        assert!(e.contains("OVDR") && e.contains("not a reordering"), "{e}");
     }
 
     #[test]

@@ -320,6 +320,39 @@ impl Lookup {
     }
 }
 
+/// What a bake stores for run-time selection: the buffers, the keyframes they were
+/// clustered for, the framing the viewpoints were placed with, and the lookup table.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Orders {
+    pub lambda: f32,
+    /// (clip index among the baked clips, time) of each keyframe.
+    pub keyframes: Vec<(u32, f32)>,
+    pub framing: Framing,
+    pub buffers: Vec<Vec<[u32; 3]>>,
+    pub lookup: Lookup,
+}
+
+impl Orders {
+    /// Lookup cells per keyframe stored by [`Orders::new`]: 37 polar × 72 azimuth (5°).
+    pub const CELLS: (usize, usize) = (37, 72);
+
+    pub fn new(c: &Clustering, keyframes: Vec<(u32, f32)>, lambda: f32) -> Orders {
+        let lookup = Lookup::new(c, Self::CELLS.0, Self::CELLS.1);
+        Orders { lambda, keyframes, framing: c.framing, buffers: c.buffers.clone(), lookup }
+    }
+
+    /// The buffer to draw for `clip` at `time` seen from `eye` (model space): the nearest
+    /// stored keyframe of that clip (the first keyframe when the clip has none), then the
+    /// lookup by the direction from the model's center to the eye.
+    pub fn select(&self, clip: u32, time: f32, eye: Vec3) -> usize {
+        let f = (0..self.keyframes.len())
+            .filter(|&f| self.keyframes[f].0 == clip)
+            .min_by(|&a, &b| (self.keyframes[a].1 - time).abs().total_cmp(&(self.keyframes[b].1 - time).abs()))
+            .unwrap_or(0);
+        self.lookup.get(f, (eye - self.framing.center).normalize_or(Vec3::Z)) as usize
+    }
+}
+
 fn direction(theta: f32, phi: f32) -> Vec3 {
     Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
 }

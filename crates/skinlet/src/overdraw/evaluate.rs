@@ -48,6 +48,39 @@ pub struct MethodResult {
     pub preprocess_s: f64,
 }
 
+/// Up to `max` evenly chosen key times of `clip` and the skinned positions of `mesh` (of
+/// skin `skin` of `asset`) at each.
+pub fn keyframes(
+    asset: &crate::Asset,
+    skin: u32,
+    mesh: &crate::SkinnedMesh,
+    clip: &crate::clip::Clip,
+    max: usize,
+) -> crate::Result<(Vec<f32>, Vec<Vec<Vec3>>)> {
+    let keys = clip.key_times();
+    let times: Vec<f32> = if keys.len() <= max {
+        keys
+    } else {
+        (0..max).map(|i| keys[i * (keys.len() - 1) / (max - 1).max(1)]).collect()
+    };
+    let inf =
+        mesh.influences.as_ref().ok_or_else(|| crate::Error::invalid("keyframes", "the mesh has no skin weights"))?;
+    let s =
+        asset.skins.get(skin as usize).ok_or_else(|| crate::Error::invalid("keyframes", format!("no skin {skin}")))?;
+    let mut poser = crate::pose::Poser::default();
+    let mut mats = Vec::new();
+    let positions = times
+        .iter()
+        .map(|&t| {
+            poser.skinning_matrices(&asset.skeleton, s, Some(clip), t, &mut mats);
+            let mut out = vec![Vec3::ZERO; mesh.positions.len()];
+            crate::skinning::skin(inf, &mesh.positions, &[], &mats, &mut out, &mut [])?;
+            Ok(out)
+        })
+        .collect::<crate::Result<Vec<_>>>()?;
+    Ok((times, positions))
+}
+
 /// Picks the buffer for (clip, keyframe, eye).
 type Pick<'a> = dyn Fn(usize, usize, Vec3) -> &'a [[u32; 3]] + Sync + 'a;
 
