@@ -16,7 +16,7 @@ use crate::bake::Baked;
 use crate::clip::Clip;
 use crate::model::{Skeleton, Skin};
 use crate::pose::{Poser, skinning_matrices};
-use crate::skinning::skin;
+use crate::skinning;
 use glam::{Affine3A, DMat4, DQuat, DVec3, Vec3};
 use rayon::prelude::*;
 use std::time::{Duration, Instant};
@@ -236,16 +236,16 @@ struct Scratch {
 pub fn run(
     baked: &Baked,
     skeleton: &Skeleton,
-    skin_: &Skin,
+    skin: &Skin,
     clips: &[&Clip],
     crowd: &Crowd,
     params: &CrowdParams,
     verify: bool,
 ) -> Result<CrowdStats> {
-    let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin_.joints.len());
-    let boxes = JointBoxes::new(&baked.mesh, skin_, JointSpace::Joint)?;
-    let mesh_boxes = JointBoxes::new(&baked.mesh, skin_, JointSpace::Mesh)?;
-    let folded = boxes.fold_leaves(skeleton, skin_, &baked.mesh, clips, 2)?;
+    let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len());
+    let boxes = JointBoxes::new(&baked.mesh, skin, JointSpace::Joint)?;
+    let mesh_boxes = JointBoxes::new(&baked.mesh, skin, JointSpace::Mesh)?;
+    let folded = boxes.fold_leaves(skeleton, skin, &baked.mesh, clips, 2)?;
     let inf =
         baked.mesh.influences.as_ref().ok_or_else(|| crate::Error::invalid("crowd", "the bake has no skin weights"))?;
     let meshlets = &baked.meshlets;
@@ -265,12 +265,12 @@ pub fn run(
                 let globals = s.poser.globals(skeleton, clip, t);
                 s.joint_to_model.clear();
                 s.joint_to_world.clear();
-                for &j in &skin_.joints {
+                for &j in &skin.joints {
                     let g = globals[j as usize];
                     s.joint_to_model.push(Affine3A::from_mat4(g.as_mat4()));
                     s.joint_to_world.push(Affine3A::from_mat4((pl.model * g).as_mat4()));
                 }
-                skinning_matrices(skin_, globals, &mut s.skinning);
+                skinning_matrices(skin, globals, &mut s.skinning);
                 let mut st = CrowdStats {
                     meshlets: culler.len(),
                     triangles: per_meshlet_tris.iter().sum(),
@@ -304,7 +304,7 @@ pub fn run(
                 // Skin, move to world and clip space; per-triangle culling in kept meshlets.
                 let n = baked.mesh.positions.len();
                 s.skinned.resize(n, Vec3::ZERO);
-                skin(inf, &baked.mesh.positions, &[], &s.skinning, &mut s.skinned, &mut [])?;
+                skinning::skin(inf, &baked.mesh.positions, &[], &s.skinning, &mut s.skinned, &mut [])?;
                 let model = Affine3A::from_mat4(pl.model.as_mat4());
                 s.world.clear();
                 s.world.extend(s.skinned.iter().map(|&p| model.transform_point3(p)));
