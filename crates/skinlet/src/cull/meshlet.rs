@@ -27,7 +27,7 @@
 
 use super::{Camera, Projection};
 use crate::bounds::meshlet::{Class, MeshletBounds};
-use glam::{Affine3A, Mat3A, Vec3, Vec3A};
+use glam::{Affine3A, Vec3, Vec3A};
 
 /// Which tests run (the paper's three culling pipelines).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -73,18 +73,6 @@ pub struct MeshletCuller {
 pub fn joints_from_skinning(model: &Affine3A, skinning: &[Affine3A], bind: &[Affine3A], out: &mut Vec<Affine3A>) {
     out.clear();
     out.extend(skinning.iter().zip(bind).map(|(s, b)| *model * *s * *b));
-}
-
-/// Upper bound of the largest singular value: square root of the largest Gershgorin row sum
-/// of `AᵀA` (exact for a rotation times a uniform scale).
-fn max_singular(a: &Mat3A) -> f32 {
-    let (x, y, z) = (a.x_axis, a.y_axis, a.z_axis);
-    let (xx, yy, zz, xy, xz, yz) = (x.dot(x), y.dot(y), z.dot(z), x.dot(y).abs(), x.dot(z).abs(), y.dot(z).abs());
-    (xx + xy + xz).max(yy + xy + yz).max(zz + xz + yz).sqrt() * (1.0 + 1e-6)
-}
-
-fn frobenius2(m: &Mat3A) -> f32 {
-    m.x_axis.length_squared() + m.y_axis.length_squared() + m.z_axis.length_squared()
 }
 
 /// Where a joint's meshlet group lies relative to the frustum.
@@ -213,10 +201,16 @@ impl MeshletCuller {
             if self.groups[j] < self.groups[j + 1] {
                 let (a, t) = (&g.matrix3, g.translation);
                 let ext = self.extent[j];
+                // Shared by both tests: the Gram matrix AᵀA (squared column norms and their
+                // dot products) and the cofactor columns (y×z, z×x, x×y).
+                let (x, y, z) = (a.x_axis, a.y_axis, a.z_axis);
+                let (xx, yy, zz) = (x.dot(x), y.dot(y), z.dot(z));
                 if do_frustum {
+                    // Largest singular value: Gershgorin on AᵀA (exact for rotation × scale).
+                    let (xy, xz, yz) = (x.dot(y).abs(), x.dot(z).abs(), y.dot(z).abs());
+                    let smax = (xx + xy + xz).max(yy + xy + yz).max(zz + xz + yz).sqrt() * (1.0 + 1e-6);
                     let c = g.transform_point3a(self.group_center[j].into());
-                    let r =
-                        self.group_radius[j] * max_singular(a) * (1.0 + 1e-5) + 1e-5 * (c.abs().element_sum() + ext);
+                    let r = self.group_radius[j] * smax * (1.0 + 1e-5) + 1e-5 * (c.abs().element_sum() + ext);
                     let d = camera.planes.map(|p| Vec3A::from(p.truncate()).dot(c) + p.w);
                     group = if d.iter().any(|&d| d < -r) {
                         Group::Outside
@@ -237,25 +231,29 @@ impl MeshletCuller {
                         margin = margin.max(1e-5 * (wj.abs() + len[k] * ext + t_len + p.w.abs()));
                     }
                 }
-                // The eye moves into joint space through A⁻¹; its f32 error grows with the
-                // condition number, bounded by |A|·|A⁻¹| (Frobenius), which the margin covers.
-                let det = a.determinant();
-                let scale2 = a.x_axis.length_squared().max(a.y_axis.length_squared()).max(a.z_axis.length_squared());
-                let regular = det * det > 1e-18 * scale2 * scale2 * scale2 && det.is_finite();
-                if do_back && self.group_cones[j] && group != Group::Outside && regular {
-                    let inv = a.inverse();
-                    let cond = (frobenius2(a) * frobenius2(&inv)).sqrt();
-                    sign = det.signum();
-                    (view, bmargin) = match camera.projection {
-                        Projection::Perspective { eye } => {
-                            // |e|₁ ≥ |e|: a margin without a square root.
-                            let ej = Vec3::from(inv * (Vec3A::from(eye) - t));
-                            (ej, (1e-5 + 1e-6 * cond) * (ej.abs().element_sum() + ext))
-                        }
-                        Projection::Orthographic { dir } => {
-                            (Vec3::from(inv * Vec3A::from(dir)).normalize_or_zero(), 1e-5 + 1e-6 * cond)
-                        }
-                    };
+                if do_back && self.group_cones[j] && group != Group::Outside {
+                    // The eye moves into joint space through A⁻¹ = cof(A)ᵀ / det(A). Its f32
+                    // error grows with the condition number, bounded by |A|·|A⁻¹|
+                    // (Frobenius), which the margin covers.
+                    let (c0, c1, c2) = (y.cross(z), z.cross(x), x.cross(y));
+                    let det = x.dot(c0);
+                    let scale2 = xx.max(yy).max(zz);
+                    if det * det > 1e-18 * scale2 * scale2 * scale2 && det.is_finite() {
+                        let inv_frob2 = (c0.length_squared() + c1.length_squared() + c2.length_squared()) / (det * det);
+                        let cond = ((xx + yy + zz) * inv_frob2).sqrt();
+                        let solve = |v: Vec3A| Vec3::new(v.dot(c0), v.dot(c1), v.dot(c2)) / det;
+                        sign = det.signum();
+                        (view, bmargin) = match camera.projection {
+                            Projection::Perspective { eye } => {
+                                // |e|₁ ≥ |e|: a margin without a square root.
+                                let ej = solve(Vec3A::from(eye) - t);
+                                (ej, (1e-5 + 1e-6 * cond) * (ej.abs().element_sum() + ext))
+                            }
+                            Projection::Orthographic { dir } => {
+                                (solve(Vec3A::from(dir)).normalize_or_zero(), 1e-5 + 1e-6 * cond)
+                            }
+                        };
+                    }
                 }
             }
             frame.planes.push(planes);
