@@ -15,22 +15,41 @@
 
 use glam::{Mat4, Vec3};
 
+/// A FIFO post-transform vertex cache: a vertex hits when it was one of the last `size`
+/// vertices inserted.
+pub struct FifoCache {
+    /// The insertion count when each vertex last entered the cache (0: never).
+    inserted: Vec<u64>,
+    insertions: u64,
+    size: u64,
+}
+
+impl FifoCache {
+    pub fn new(vertex_count: usize, size: u32) -> FifoCache {
+        FifoCache { inserted: vec![0; vertex_count], insertions: 0, size: size as u64 }
+    }
+
+    /// Looks `v` up, inserting it on a miss; true on a miss.
+    pub fn miss(&mut self, v: u32) -> bool {
+        let at = self.inserted[v as usize];
+        let miss = at == 0 || self.insertions - at >= self.size;
+        if miss {
+            self.insertions += 1;
+            self.inserted[v as usize] = self.insertions;
+        }
+        miss
+    }
+
+    /// Empties the cache.
+    pub fn flush(&mut self) {
+        self.insertions += self.size + 1;
+    }
+}
+
 /// ACMR of `triangles` (in order) for a FIFO cache of `cache_size` vertices.
 pub fn acmr(triangles: &[[u32; 3]], vertex_count: usize, cache_size: u32) -> f32 {
-    // inserted[v]: the insertion count when v last entered the cache (0: never).
-    let mut inserted = vec![0u64; vertex_count];
-    let mut insertions = 0u64;
-    let mut misses = 0u64;
-    for t in triangles {
-        for &v in t {
-            let at = inserted[v as usize];
-            if at == 0 || insertions - at >= cache_size as u64 {
-                insertions += 1;
-                inserted[v as usize] = insertions;
-                misses += 1;
-            }
-        }
-    }
+    let mut cache = FifoCache::new(vertex_count, cache_size);
+    let misses = triangles.iter().flatten().filter(|&&v| cache.miss(v)).count();
     misses as f32 / triangles.len().max(1) as f32
 }
 

@@ -11,6 +11,8 @@
 //! [`patches`] then cuts the order into cache-efficient patches (fast linear clustering,
 //! section 4.1 of the same paper).
 
+use super::measure::FifoCache;
+
 /// Triangle order for a FIFO cache of `cache_size` vertices.
 pub fn tipsify(triangles: &[[u32; 3]], vertex_count: usize, cache_size: u32) -> Vec<[u32; 3]> {
     let k = cache_size as i64;
@@ -104,23 +106,14 @@ pub fn tipsify(triangles: &[[u32; 3]], vertex_count: usize, cache_size: u32) -> 
 /// `lambda` gives more, smaller patches: more freedom to reorder for overdraw, worse ACMR.
 pub fn patches(order: &[[u32; 3]], vertex_count: usize, cache_size: u32, lambda: f32) -> Vec<u32> {
     let mut starts = Vec::new();
-    let mut inserted = vec![0u64; vertex_count];
-    let mut insertions = 0u64;
+    let mut cache = FifoCache::new(vertex_count, cache_size);
     let (mut misses, mut tris) = (0u64, 0u64);
     for (i, t) in order.iter().enumerate() {
         if tris == 0 {
             starts.push(i as u32);
-            // A cold cache: forget everything inserted so far.
-            insertions += cache_size as u64 + 1;
+            cache.flush();
         }
-        for &v in t {
-            let at = inserted[v as usize];
-            if at == 0 || insertions - at >= cache_size as u64 {
-                insertions += 1;
-                inserted[v as usize] = insertions;
-                misses += 1;
-            }
-        }
+        misses += t.iter().filter(|&&v| cache.miss(v)).count() as u64;
         tris += 1;
         if (misses as f32) < lambda * tris as f32 {
             (misses, tris) = (0, 0);
