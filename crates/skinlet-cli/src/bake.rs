@@ -4,6 +4,7 @@ use crate::{RefineArgs, select_clips, stop_name};
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
+use skinlet::Asset;
 use skinlet::bake::{BakeStats, Baked, bake};
 use skinlet::bounds::meshlet::Class;
 use skinlet::bounds::refine::Progress;
@@ -16,18 +17,18 @@ pub fn class_shares(b: &Baked) -> (f64, f64, f64) {
     (pct(Class::Both), pct(Class::FrustumOnly), pct(Class::None))
 }
 
-/// Bakes `file` with a progress bar on stderr (hidden when stderr is not a terminal or `quiet`).
-pub fn bake_file(
-    file: &str,
+/// Bakes skin `skin` of `asset` with a progress bar on stderr (hidden when stderr is not a
+/// terminal or `quiet`).
+pub fn bake_asset(
+    asset: &Asset,
+    skin: u32,
     clips: Option<&str>,
     builder: Builder,
     args: RefineArgs,
     quiet: bool,
 ) -> Result<(Baked, BakeStats)> {
     let how = args.refinement()?;
-    let asset = crate::load(file)?;
-    let skin = asset.instances.iter().find_map(|i| i.skin).with_context(|| format!("{file} has no skinned mesh"))?;
-    let clips = select_clips(&asset, clips)?;
+    let clips = select_clips(asset, clips)?;
     let bar = if quiet { ProgressBar::hidden() } else { ProgressBar::new_spinner() };
     match how.budget {
         Some(budget) => {
@@ -42,7 +43,7 @@ pub fn bake_file(
         bar.set_position(p.elapsed.as_millis() as u64);
         bar.set_message(format!("refining: round {}, {} meshlets still improving", p.rounds, p.active));
     };
-    let out = bake(&asset, skin, &clips, builder, MeshletLimits::NVIDIA, &how, &mut progress)?;
+    let out = bake(asset, skin, &clips, builder, MeshletLimits::NVIDIA, &how, &mut progress)?;
     bar.finish_and_clear();
     Ok(out)
 }
@@ -57,11 +58,10 @@ pub fn run(
     json: bool,
 ) -> Result<()> {
     let builder = Builder::from_name(builder).context("unknown builder")?;
-    let (mut baked, stats) = bake_file(file, clips, builder, args, json)?;
+    let (asset, skin) = crate::load_skinned(file)?;
+    let (mut baked, stats) = bake_asset(&asset, skin, clips, builder, args, json)?;
     let overdraw_s = if overdraw {
         let started = std::time::Instant::now();
-        let asset = crate::load(file)?;
-        let skin = asset.instances.iter().find_map(|i| i.skin).context("no skinned mesh")?;
         skinlet::bake::add_overdraw(
             &mut baked,
             &asset,

@@ -1,21 +1,11 @@
 //! `skinlet crowd`: the paper's crowd scene (fig. 10) on the CPU, with table 1's columns.
 
-use crate::{RefineArgs, bake::bake_file};
-use anyhow::{Context, Result};
+use crate::{RefineArgs, bake::bake_asset};
+use anyhow::Result;
 use serde_json::{Value, json};
-use skinlet::bake::Baked;
 use skinlet::clip::Clip;
 use skinlet::cull::crowd::{CrowdParams, CrowdStats, WHOLE_MESH_BOUNDS, crowd, run};
 use skinlet::meshlet::Builder;
-
-/// Runs the crowd for a baked character whose source asset is `file`.
-pub fn crowd_stats(file: &str, baked: &Baked, params: &CrowdParams, verify: bool) -> Result<CrowdStats> {
-    let asset = crate::load(file)?;
-    let skin = asset.instances.iter().find_map(|i| i.skin).with_context(|| format!("{file} has no skinned mesh"))?;
-    let clips: Vec<&Clip> = asset.clips.iter().collect();
-    let scene = crowd(&baked.mesh.positions, clips.len(), params);
-    Ok(run(baked, &asset.skeleton, &asset.skins[skin as usize], &clips, &scene, params, verify)?)
-}
 
 pub fn to_json(s: &CrowdStats) -> Value {
     let loose = s.looseness();
@@ -70,9 +60,12 @@ pub fn command(
     json: bool,
 ) -> Result<()> {
     anyhow::ensure!(instances >= 1 && frames >= 1, "--instances and --frames must be at least 1");
-    let (baked, _) = bake_file(file, None, Builder::SkinAware, args, json)?;
+    let (asset, skin) = crate::load_skinned(file)?;
+    let (baked, _) = bake_asset(&asset, skin, None, Builder::SkinAware, args, json)?;
     let params = CrowdParams { instances, frames, seed, orthographic, ..CrowdParams::default() };
-    let s = crowd_stats(file, &baked, &params, verify)?;
+    let clips: Vec<&Clip> = asset.clips.iter().collect();
+    let scene = crowd(&baked.mesh.positions, clips.len(), &params);
+    let s = run(&baked, &asset.skeleton, &asset.skins[skin as usize], &clips, &scene, &params, verify)?;
     if json {
         println!("{}", serde_json::to_string_pretty(&to_json(&s))?);
     } else {

@@ -728,10 +728,16 @@ fn select_clips<'a>(asset: &'a Asset, list: Option<&str>) -> Result<Vec<&'a Clip
 
 /// Loads a skinned character and prepares its first skin's combined mesh.
 fn skinned(file: &str) -> Result<(Asset, u32, skinlet::meshlet::PreparedMesh)> {
-    let asset = load(file)?;
-    let skin = asset.instances.iter().find_map(|i| i.skin).with_context(|| format!("{file} has no skinned mesh"))?;
+    let (asset, skin) = load_skinned(file)?;
     let prepared = skinlet::meshlet::prepare(&asset.combined_mesh(Some(skin)));
     Ok((asset, skin, prepared))
+}
+
+/// Loads a file and finds its first skin (the one every command works on).
+fn load_skinned(file: &str) -> Result<(Asset, u32)> {
+    let asset = load(file)?;
+    let skin = asset.instances.iter().find_map(|i| i.skin).with_context(|| format!("{file} has no skinned mesh"))?;
+    Ok((asset, skin))
 }
 
 fn bounds(file: &str, builder: &str, clips: Option<&str>, args: RefineArgs, json: bool) -> Result<()> {
@@ -822,16 +828,14 @@ fn verify(
     json: bool,
 ) -> Result<()> {
     let builder = Builder::from_name(builder).context("unknown builder")?;
+    let (asset, skin_index) = load_skinned(file)?;
     let b = match baked {
         Some(path) => {
             anyhow::ensure!(clips.is_none(), "--clips cannot be combined with --baked (the bake names its clips)");
             skinlet::bake::read(path)?
         }
-        None => bake::bake_file(file, clips, builder, args, json)?.0,
+        None => bake::bake_asset(&asset, skin_index, clips, builder, args, json)?.0,
     };
-    let asset = load(file)?;
-    let skin_index =
-        asset.instances.iter().find_map(|i| i.skin).with_context(|| format!("{file} has no skinned mesh"))?;
     let skin = &asset.skins[skin_index as usize];
     let clips = b
         .settings
