@@ -310,19 +310,14 @@ pub fn run(
                 s.world.extend(s.skinned.iter().map(|&p| model.transform_point3(p)));
                 st.triangle_culling = cull_triangles(meshlets, &s.visible, &s.world, crowd.camera.projection, None);
                 // Whole-mesh culling by the dynamic box, moved from entity to world space.
-                let b = mesh_boxes.update(&s.skinning).transformed(&model);
-                if outside(&crowd.camera, &b) {
+                let mesh_box = mesh_boxes.update(&s.skinning);
+                if outside(&crowd.camera, &mesh_box.transformed(&model)) {
                     st.whole_mesh_culled = culler.len();
                 }
                 let exact = points_box(&s.skinned).diagonal().max(f32::MIN_POSITIVE);
                 let (sc, sr) = boxes.sphere(&s.joint_to_model);
                 let sphere = Box3 { min: sc - sr, max: sc + sr };
-                let all = [
-                    boxes.update(&s.joint_to_model),
-                    mesh_boxes.update(&s.skinning),
-                    folded.update(&s.joint_to_model),
-                    sphere,
-                ];
+                let all = [boxes.update(&s.joint_to_model), mesh_box, folded.update(&s.joint_to_model), sphere];
                 st.looseness_sum = all.map(|b| (b.diagonal() / exact) as f64);
                 if verify {
                     let (checked, false_culls) = check_culls(baked, &kept, &s.world, &crowd.camera);
@@ -351,15 +346,16 @@ pub fn outside(camera: &Camera, b: &Box3) -> bool {
 fn check_culls(baked: &Baked, kept: &[bool], world: &[Vec3], camera: &Camera) -> (usize, usize) {
     let meshlets = &baked.meshlets;
     let (mut checked, mut false_culls) = (0, 0);
+    let eye_mag = camera.eye().map_or(0.0, |e| e.as_dvec3().abs().max_element());
     for (m, meshlet) in meshlets.meshlets.iter().enumerate() {
         for t in meshlets.mesh_triangles(meshlet) {
-            let p = t.map(|i| world[i as usize].as_dvec3());
             let w = t.map(|i| world[i as usize]);
             let by_triangle = kept[m] && facing(w[0], w[1], w[2], camera.projection) >= 0.0;
             if kept[m] && !by_triangle {
                 continue;
             }
             checked += 1;
+            let p = w.map(|q| q.as_dvec3());
             let magnitude = p.iter().map(|q| q.abs().max_element()).fold(0.0, f64::max);
             let (e1, e2) = (p[1] - p[0], p[2] - p[0]);
             let n = e1.cross(e2);
@@ -370,7 +366,6 @@ fn check_culls(baked: &Baked, kept: &[bool], world: &[Vec3], camera: &Camera) ->
                 }
                 Projection::Orthographic { dir } => (dir.as_dvec3().dot(n), 1.0),
             };
-            let eye_mag = camera.eye().map_or(0.0, |e| e.as_dvec3().abs().max_element());
             let delta = 1e-6 * (magnitude + eye_mag);
             let tol = reach * 2.0 * delta * (e1.length() + e2.length()) + delta * n.length();
             let away = facing >= -tol;
