@@ -120,9 +120,6 @@ pub struct JointBoxes {
     pub joints: Vec<u16>,
     pub center: Vec<Vec3A>,
     pub half: Vec<Vec3A>,
-    /// Per box: `c.x, c.y, c.z, h.x, h.y, h.z`, each splatted over a vector, so that the
-    /// update loads them instead of shuffling (SSE has no broadcast load).
-    splat: Vec<[Vec3A; 6]>,
 }
 
 impl JointBoxes {
@@ -150,7 +147,7 @@ impl JointBoxes {
     }
 
     fn from_boxes(space: JointSpace, boxes: &[DAabb]) -> JointBoxes {
-        let mut out = JointBoxes { space, joints: Vec::new(), center: Vec::new(), half: Vec::new(), splat: Vec::new() };
+        let mut out = JointBoxes { space, joints: Vec::new(), center: Vec::new(), half: Vec::new() };
         for (j, b) in boxes.iter().enumerate() {
             if b.min.cmple(b.max).all() {
                 // Stored in f32: round outward by a relative margin far above f32 rounding.
@@ -158,8 +155,6 @@ impl JointBoxes {
                 out.joints.push(j as u16);
                 out.center.push(((b.min + b.max) / 2.0).as_vec3a());
                 out.half.push(((b.max - b.min) / 2.0 * (1.0 + 1e-6)).as_vec3a());
-                let (c, h) = (out.center[out.center.len() - 1], out.half[out.half.len() - 1]);
-                out.splat.push([c.x, c.y, c.z, h.x, h.y, h.z].map(Vec3A::splat));
             }
         }
         out
@@ -169,27 +164,13 @@ impl JointBoxes {
     /// matrix (space [`JointSpace::Mesh`]) or the joint's global matrix ([`JointSpace::Joint`]),
     /// both relative to the entity. Returns [`Box3::EMPTY`] when there are no boxes.
     pub fn update(&self, matrices: &[Affine3A]) -> Box3 {
-        // Two independent accumulators let consecutive joints overlap in the pipeline.
-        let (mut lo, mut hi) = ([Vec3A::INFINITY; 2], [Vec3A::NEG_INFINITY; 2]);
-        let step = |m: &Affine3A, s: &[Vec3A; 6], lo: &mut Vec3A, hi: &mut Vec3A| {
-            let a = &m.matrix3;
-            let c = a.x_axis * s[0] + a.y_axis * s[1] + a.z_axis * s[2] + m.translation;
-            let h = a.x_axis.abs() * s[3] + a.y_axis.abs() * s[4] + a.z_axis.abs() * s[5];
-            *lo = lo.min(c - h);
-            *hi = hi.max(c + h);
-        };
-        let mut pairs = self.joints.chunks_exact(2).zip(self.splat.chunks_exact(2));
-        for (j, s) in pairs.by_ref() {
-            let [l0, l1] = &mut lo;
-            let [h0, h1] = &mut hi;
-            step(&matrices[j[0] as usize], &s[0], l0, h0);
-            step(&matrices[j[1] as usize], &s[1], l1, h1);
+        let (mut lo, mut hi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
+        for ((&j, &c), &h) in self.joints.iter().zip(&self.center).zip(&self.half) {
+            let (c, h) = arvo(&matrices[j as usize], c, h);
+            lo = lo.min(c - h);
+            hi = hi.max(c + h);
         }
-        if self.joints.len() % 2 == 1 {
-            let last = self.joints.len() - 1;
-            step(&matrices[self.joints[last] as usize], &self.splat[last], &mut lo[0], &mut hi[0]);
-        }
-        Box3 { min: lo[0].min(lo[1]).into(), max: hi[0].max(hi[1]).into() }
+        Box3 { min: lo.into(), max: hi.into() }
     }
 
     /// A whole-mesh sphere (center, radius) enclosing every moved joint box: each box's
