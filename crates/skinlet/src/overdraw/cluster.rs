@@ -366,31 +366,7 @@ mod tests {
     fn walk(frames: usize) -> (Vec<Vec<Vec3>>, Vec<[u32; 3]>) {
         let asset = crate::demo::demo_character(&crate::demo::DemoParams { triangles: 3000, ..Default::default() });
         let mesh = asset.combined_mesh(Some(0));
-        let (clip, skin) = (&asset.clips[0], &asset.skins[0]);
-        let mut poser = crate::pose::Poser::default();
-        let mut mats = Vec::new();
-        let keyframes = (0..frames)
-            .map(|k| {
-                poser.skinning_matrices(
-                    &asset.skeleton,
-                    skin,
-                    Some(clip),
-                    clip.start + clip.duration() * k as f32 / frames as f32,
-                    &mut mats,
-                );
-                let mut out = vec![Vec3::ZERO; mesh.positions.len()];
-                crate::skinning::skin(
-                    mesh.influences.as_ref().unwrap(),
-                    &mesh.positions,
-                    &[],
-                    &mats,
-                    &mut out,
-                    &mut [],
-                )
-                .unwrap();
-                out
-            })
-            .collect();
+        let (_, keyframes) = crate::overdraw::evaluate::keyframes(&asset, 0, &mesh, &asset.clips[0], frames).unwrap();
         (keyframes, mesh.triangles)
     }
 
