@@ -13,6 +13,7 @@ use skinlet::summary::summarize;
 use std::path::{Path, PathBuf};
 
 mod bake;
+mod contours;
 mod crowd;
 mod overdraw;
 
@@ -269,6 +270,41 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Find mesh contours (edges between front- and back-facing faces) and compare
+    /// extractors (Tsiapkolis & Bénard 2024).
+    ///
+    /// Methods: brute (every edge), patches (ours: greedy patch decomposition, Reduced
+    /// Sphere), patches-mean (Mean Sphere), snch (Johnson & Cohen's normal cone hierarchy),
+    /// meshlets (meshoptimizer 16-face meshlets as patches, with a correct cone). Each runs
+    /// from 42 directions x 6 distances (5 to 100 model sizes); columns: patches or nodes, %
+    /// of edges tested, ms per view and speed-up over brute force (timed in the same run),
+    /// build time, views whose edge set differs from brute force (must be 0), mean patch
+    /// radius (model sizes) and cone half-angle.
+    Contours {
+        /// .glb, .gltf or .obj file, or @demo[:TRIANGLES] (rest pose).
+        file: String,
+        /// brute, patches, patches-mean, snch, meshlets or all (brute always runs: it is the
+        /// reference and the baseline).
+        #[arg(long, default_value = "all")]
+        method: String,
+        /// Drop concave edges, whose contours are always hidden (as the paper does).
+        #[arg(long)]
+        visible_only: bool,
+        /// Timing rounds (the fastest counts).
+        #[arg(long, default_value_t = 3)]
+        repeats: usize,
+        /// Cost of a patch test in edge tests (t_P / t_e) for the decomposition.
+        #[arg(long)]
+        cost_ratio: Option<f64>,
+        /// Measure t_e and t_P on this machine first (section 4.2) and use their ratio.
+        #[arg(long)]
+        calibrate: bool,
+        /// Also draw the contours from a front view into this SVG file.
+        #[arg(long)]
+        svg: Option<PathBuf>,
+        #[arg(long)]
+        json: bool,
+    },
     /// Describe the built-in demo character and pose it through each clip.
     Demo {
         /// Approximate triangle count (1000 to 1000000).
@@ -311,6 +347,20 @@ fn main() {
         }
         Command::Overdraw { file, clips, k, lambda, max_keyframes, views, seed, heatmap, json } => {
             overdraw::command(&file, clips.as_deref(), k, lambda, max_keyframes, views, seed, heatmap.as_deref(), json)
+        }
+        Command::Contours { file, method, visible_only, repeats, cost_ratio, calibrate, svg, json } => {
+            contours::command(
+                &file,
+                &contours::Options {
+                    method: &method,
+                    visible_only,
+                    repeats,
+                    cost_ratio,
+                    calibrate,
+                    svg: svg.as_deref(),
+                    json,
+                },
+            )
         }
         Command::Demo { triangles, seed, json } => demo(triangles, seed, json),
     };

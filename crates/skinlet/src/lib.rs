@@ -10,6 +10,7 @@
 //! - [`bounds`]: conservative animated meshlet bounds (spheres, normal cones) and their check.
 //! - [`cull`]: CPU culling at run time: meshlets, triangles, whole-mesh boxes, the crowd scene.
 //! - [`meshlet`]: meshlet layout, four builders (incl. skin-aware), flat GPU form, metrics.
+//! - [`contour`]: mesh contour extraction with patch decomposition (and its baselines).
 //! - [`overdraw`]: triangle orders for low overdraw (in progress: the measures).
 //! - [`weld`]: merging vertices that are equal in position and skin data.
 //! - [`summary`]: the facts `skinlet inspect` reports.
@@ -18,6 +19,7 @@
 pub mod bake;
 pub mod bounds;
 pub mod clip;
+pub mod contour;
 pub mod cull;
 pub mod demo;
 pub mod error;

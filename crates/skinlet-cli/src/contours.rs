@@ -1,0 +1,132 @@
+//! `skinlet contours`: Tsiapkolis & Bénard's evaluation (42 directions × 6 distances) for
+//! one mesh, and an SVG of the contours from one view.
+
+use crate::load;
+use anyhow::{Context, Result};
+use serde_json::json;
+use skinlet::contour::evaluate::{Method, MethodResult, evaluate, frame, views};
+use skinlet::contour::patches::PatchParams;
+use skinlet::contour::{Edges, Projection, brute_force};
+use skinlet::cull::Camera;
+use std::fmt::Write as _;
+use std::path::Path;
+
+pub struct Options<'a> {
+    pub method: &'a str,
+    pub visible_only: bool,
+    pub repeats: usize,
+    pub cost_ratio: Option<f64>,
+    pub calibrate: bool,
+    pub svg: Option<&'a Path>,
+    pub json: bool,
+}
+
+pub fn command(file: &str, o: &Options) -> Result<()> {
+    let methods: Vec<Method> = match o.method {
+        "all" => Method::ALL.to_vec(),
+        m => vec![
+            Method::Brute,
+            Method::from_name(m).with_context(|| {
+                format!("unknown --method {m:?} (brute, patches, patches-mean, snch, meshlets, all)")
+            })?,
+        ],
+    };
+    let mut methods = methods;
+    methods.dedup();
+    let asset = load(file)?;
+    // Static geometry: every primitive as drawn without skinning, seams welded.
+    let skin = asset.instances.iter().find_map(|i| i.skin);
+    let (mesh, _, _) = skinlet::weld::weld(&asset.combined_mesh(skin));
+    let mut edges = Edges::build(&mesh.positions, &mesh.triangles)?;
+    if o.visible_only {
+        edges.drop_concave(&mesh.positions, |_| true);
+    }
+    let all_views = views(&mesh.positions);
+    let mut params = PatchParams::default();
+    let mut calibration = None;
+    if o.calibrate {
+        let (t_e, t_p) = skinlet::contour::evaluate::calibrate(&mesh.positions, &edges, &all_views, o.repeats);
+        calibration = Some((t_e, t_p));
+        params.cost_ratio = (t_p / t_e).max(0.1);
+    }
+    if let Some(r) = o.cost_ratio {
+        anyhow::ensure!(r.is_finite() && r > 0.0, "--cost-ratio must be > 0");
+        params.cost_ratio = r;
+    }
+    let rows = evaluate(&mesh.positions, &mesh.triangles, &edges, &methods, &params, &all_views, o.repeats);
+    if let Some(path) = o.svg {
+        write_svg(path, &mesh.positions, &edges)?;
+    }
+    if o.json {
+        let out: Vec<_> = rows.iter().map(row_json).collect();
+        println!("{}", serde_json::to_string_pretty(&out)?);
+        return Ok(());
+    }
+    println!(
+        "{file}: {} triangles, {} edges ({} interior, {} irregular, {} boundary{}), {} views (42 directions x 6 distances)",
+        mesh.triangles.len(),
+        edges.len(),
+        edges.quads.len(),
+        edges.irregular.len(),
+        edges.boundary.len(),
+        if o.visible_only { format!(", {} concave dropped", edges.dropped_concave) } else { String::new() },
+        all_views.len()
+    );
+    if let Some((t_e, t_p)) = calibration {
+        println!("calibration: t_e {t_e:.2} ns, t_P {t_p:.2} ns, t_P/t_e {:.2}", t_p / t_e);
+    }
+    println!(
+        "{:<13} {:>8} {:>9} {:>9} {:>8} {:>8} {:>10} {:>7} {:>7}",
+        "method", "patches", "tested %", "ms/view", "speedup", "build s", "mismatch", "mean r", "mean a"
+    );
+    for r in &rows {
+        println!(
+            "{:<13} {:>8} {:>9.2} {:>9.4} {:>7.2}x {:>8.2} {:>10} {:>7.4} {:>6.1}°",
+            r.method.name(),
+            r.patches,
+            r.tested_edges_pct,
+            r.ms_per_view,
+            r.speedup_vs_brute,
+            r.build_s,
+            r.mismatched_views,
+            r.mean_radius,
+            r.mean_angle_deg
+        );
+    }
+    if let Some(path) = o.svg {
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+fn row_json(r: &MethodResult) -> serde_json::Value {
+    json!({
+        "method": r.method.name(), "patches": r.patches, "tested_edges_pct": r.tested_edges_pct,
+        "speedup_vs_brute": r.speedup_vs_brute, "build_s": r.build_s, "mismatched_views": r.mismatched_views,
+        "ms_per_view": r.ms_per_view, "mean_radius": r.mean_radius, "mean_angle_deg": r.mean_angle_deg,
+    })
+}
+
+/// The contour edges from a front view (slightly above, 3 model sizes away) as SVG lines.
+pub fn write_svg(path: &Path, positions: &[glam::Vec3], edges: &Edges) -> Result<()> {
+    let (center, size) = frame(positions);
+    let eye = center + glam::Vec3::new(0.0, 0.25, 1.0).normalize() * (3.0 * size) as f32;
+    let camera = Camera::perspective(eye, center, glam::Vec3::Y, 0.45, 1.0, 0.01 * size as f32, 10.0 * size as f32);
+    let mut out = Vec::new();
+    brute_force(positions, edges, Projection::Perspective { eye }, &mut out);
+    let px = 800.0;
+    let to_screen = |p: glam::Vec3| {
+        let c = camera.view_proj * p.extend(1.0);
+        let (x, y) = (c.x / c.w, c.y / c.w);
+        ((x + 1.0) * 0.5 * px, (1.0 - y) * 0.5 * px)
+    };
+    let mut svg = format!(
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{px}\" height=\"{px}\" viewBox=\"0 0 {px} {px}\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n<g stroke=\"black\" stroke-width=\"1\" stroke-linecap=\"round\">\n"
+    );
+    for id in out {
+        let [a, b] = edges.endpoints(id).map(|v| to_screen(positions[v as usize]));
+        writeln!(svg, "<line x1=\"{:.1}\" y1=\"{:.1}\" x2=\"{:.1}\" y2=\"{:.1}\"/>", a.0, a.1, b.0, b.1)?;
+    }
+    svg.push_str("</g>\n</svg>\n");
+    std::fs::write(path, svg).with_context(|| format!("cannot write {}", path.display()))
+}

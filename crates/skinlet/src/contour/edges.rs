@@ -1,0 +1,204 @@
+//! The edge structure of contour extraction (Tsiapkolis & Bénard 2024, section 4.1): every
+//! unique edge of a triangle mesh with what the contour test needs.
+//!
+//! - *Quads* `(a, b, c, d)`: interior edges with exactly two faces of consistent winding,
+//!   `(a, b, c)` and `(b, a, d)`. Contour when one face is front-facing and the other not
+//!   (see [`super::is_contour`]); the quads are what patches, hierarchies and meshlets cull.
+//! - *Irregular* edges: more than two faces, or two faces that wind the edge the same way.
+//!   Contour when their faces do not all face the same way; always tested (never culled).
+//! - *Boundary* edges (one face): the border of an open surface, always part of the result.
+//!
+//! Edge identifiers, used by every extractor's output: quads `0..Q`, irregular edges
+//! `Q..Q+I`, boundary edges `Q+I..Q+I+B`. Triangles that repeat a vertex index have no
+//! meaningful edges and are skipped (counted); zero-area triangles with distinct indices are
+//! kept (their edges are tested but never culled: a zero normal has no direction).
+//!
+//! The optional concave filter ([`Edges::drop_concave`]) removes quads whose dihedral angle,
+//! seen from outside, exceeds π: their contours are always hidden by the adjacent faces, so
+//! line drawings and shadow volumes do not need them (the paper applies it to all models).
+
+use crate::{Error, Result};
+use glam::{DVec3, Vec3};
+
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Edges {
+    pub quads: Vec<[u32; 4]>,
+    /// The two triangles (indices into the input) of each quad: `(a, b, c)` then `(b, a, d)`.
+    pub quad_faces: Vec<[u32; 2]>,
+    pub irregular: Vec<Irregular>,
+    pub boundary: Vec<[u32; 2]>,
+    /// Input triangles skipped because they repeat a vertex index.
+    pub skipped_triangles: usize,
+    /// Quads removed by [`Edges::drop_concave`].
+    pub dropped_concave: usize,
+}
+
+/// An edge with more than two faces or inconsistently wound faces.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Irregular {
+    pub edge: [u32; 2],
+    /// The edge's faces as triangles with their own winding.
+    pub faces: Vec<[u32; 3]>,
+}
+
+impl Edges {
+    /// Unique edges of `triangles` over `positions` (weld seams first: edges are found by
+    /// vertex index). Errors name the triangle with an out-of-range index or the vertex with
+    /// a non-finite position.
+    pub fn build(positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<Edges> {
+        if let Some(v) = positions.iter().position(|p| !p.is_finite()) {
+            return Err(Error::invalid(format!("vertex {v}"), format!("position {} is not finite", positions[v])));
+        }
+        let n = positions.len() as u32;
+        let mut half = Vec::with_capacity(triangles.len() * 3);
+        let mut skipped = 0;
+        for (t, tri) in triangles.iter().enumerate() {
+            if let Some(&i) = tri.iter().find(|&&i| i >= n) {
+                return Err(Error::invalid(
+                    format!("triangle {t}"),
+                    format!("vertex index {i} is out of range ({n} vertices)"),
+                ));
+            }
+            if tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2] {
+                skipped += 1;
+                continue;
+            }
+            for k in 0..3 {
+                let (a, b) = (tri[k], tri[(k + 1) % 3]);
+                // Key: the unordered edge; the rest says which way this face winds it.
+                half.push((a.min(b), a.max(b), t as u32, k as u8));
+            }
+        }
+        half.sort_unstable();
+        let mut e = Edges { skipped_triangles: skipped, ..Edges::default() };
+        for group in half.chunk_by(|x, y| (x.0, x.1) == (y.0, y.1)) {
+            let (lo, hi) = (group[0].0, group[0].1);
+            let faces: Vec<(u32, [u32; 3], bool)> = group
+                .iter()
+                .map(|&(_, _, t, k)| {
+                    let tri = triangles[t as usize];
+                    (t, tri, tri[k as usize] == lo) // true: the face winds the edge lo → hi
+                })
+                .collect();
+            match faces.as_slice() {
+                [(_, _, fwd)] => e.boundary.push(if *fwd { [lo, hi] } else { [hi, lo] }),
+                [(t1, f1, fwd1), (t2, f2, fwd2)] if fwd1 != fwd2 => {
+                    // Put the face winding a → b first.
+                    let ((ta, fa), (tb, fb)) = if *fwd1 { ((t1, f1), (t2, f2)) } else { ((t2, f2), (t1, f1)) };
+                    let third = |f: &[u32; 3]| f.iter().copied().find(|&v| v != lo && v != hi).unwrap_or(lo);
+                    e.quads.push([lo, hi, third(fa), third(fb)]);
+                    e.quad_faces.push([*ta, *tb]);
+                }
+                _ => e.irregular.push(Irregular { edge: [lo, hi], faces: faces.iter().map(|f| f.1).collect() }),
+            }
+        }
+        Ok(e)
+    }
+
+    /// Total number of edges (the identifier range).
+    pub fn len(&self) -> usize {
+        self.quads.len() + self.irregular.len() + self.boundary.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The two vertices of edge `id`.
+    pub fn endpoints(&self, id: u32) -> [u32; 2] {
+        let (q, i) = (self.quads.len(), self.irregular.len());
+        let id = id as usize;
+        if id < q {
+            [self.quads[id][0], self.quads[id][1]]
+        } else if id < q + i {
+            self.irregular[id - q].edge
+        } else {
+            self.boundary[id - q - i]
+        }
+    }
+
+    /// Removes the concave quads for which `eligible` holds (e.g. only rigid ones on an
+    /// animated mesh, whose concavity cannot change); a quad is concave when `d` lies strictly
+    /// in front of face `(a, b, c)`.
+    pub fn drop_concave(&mut self, positions: &[Vec3], eligible: impl Fn(&[u32; 4]) -> bool) {
+        let keep: Vec<bool> = self.quads.iter().map(|q| !(eligible(q) && concave(positions, q))).collect();
+        let before = self.quads.len();
+        let (mut i, mut j) = (0, 0);
+        self.quads.retain(|_| (keep[i], i += 1).0);
+        self.quad_faces.retain(|_| (keep[j], j += 1).0);
+        self.dropped_concave += before - self.quads.len();
+    }
+}
+
+fn concave(p: &[Vec3], q: &[u32; 4]) -> bool {
+    let [a, b, c, d] = q.map(|i| p[i as usize].as_dvec3());
+    (b - a).cross(c - a).dot(d - a) > 0.0
+}
+
+/// The two face normals of a quad, as every extractor computes them (f64, unnormalized):
+/// `(b − a) × (c − a)` and `(d − a) × (b − a)`.
+#[inline(always)]
+pub fn quad_normals(a: DVec3, b: DVec3, c: DVec3, d: DVec3) -> (DVec3, DVec3) {
+    let ab = b - a;
+    (ab.cross(c - a), (d - a).cross(ab))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tetra() -> (Vec<Vec3>, Vec<[u32; 3]>) {
+        let p = vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z];
+        (p, vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
+    }
+
+    #[test]
+    fn closed_tetrahedron_has_six_quads() {
+        let (p, t) = tetra();
+        let e = Edges::build(&p, &t).unwrap();
+        assert_eq!((e.quads.len(), e.irregular.len(), e.boundary.len()), (6, 0, 0));
+        for (q, f) in e.quads.iter().zip(&e.quad_faces) {
+            // Face 1 winds a → b and contains c; face 2 winds b → a and contains d.
+            let (f1, f2) = (t[f[0] as usize], t[f[1] as usize]);
+            assert!((0..3).any(|k| [f1[k], f1[(k + 1) % 3], f1[(k + 2) % 3]] == [q[0], q[1], q[2]]));
+            assert!((0..3).any(|k| [f2[k], f2[(k + 1) % 3], f2[(k + 2) % 3]] == [q[1], q[0], q[3]]));
+            // A convex solid has no concave edge and outward normals.
+            assert!(!concave(&p, q));
+        }
+    }
+
+    #[test]
+    fn boundary_irregular_and_bad_input() {
+        let (p, t) = tetra();
+        let open = Edges::build(&p, &t[..3]).unwrap();
+        assert_eq!((open.quads.len(), open.boundary.len()), (3, 3));
+        // A fin: a third face on edge 0–1, and a face wound the same way as its neighbour.
+        let mut fin = t.clone();
+        fin.push([1, 0, 2]);
+        let e = Edges::build(&p, &fin).unwrap();
+        assert_eq!(e.irregular.len(), 3, "{e:?}");
+        assert!(e.irregular.iter().any(|i| i.edge == [0, 1] && i.faces.len() == 3));
+        assert_eq!(e.len(), 6);
+        let e = Edges::build(&p, &[[0, 1, 1], [0, 1, 2]]).unwrap();
+        assert_eq!((e.skipped_triangles, e.boundary.len()), (1, 3));
+        let err = Edges::build(&p, &[[0, 1, 9]]).unwrap_err().to_string();
+        assert!(err.contains("triangle 0") && err.contains("index 9"), "{err}");
+        let err = Edges::build(&[Vec3::NAN], &[]).unwrap_err().to_string();
+        assert!(err.contains("vertex 0"), "{err}");
+    }
+
+    #[test]
+    fn concave_filter() {
+        // Two triangles folded up along x: a valley seen from +z.
+        let p = vec![Vec3::ZERO, Vec3::X, Vec3::new(0.5, 1.0, 1.0), Vec3::new(0.5, -1.0, 1.0)];
+        let mut e = Edges::build(&p, &[[0, 1, 2], [1, 0, 3]]).unwrap();
+        assert_eq!(e.quads.len(), 1);
+        let mut ridge = e.clone();
+        e.drop_concave(&p, |_| true);
+        assert_eq!((e.quads.len(), e.dropped_concave), (0, 1));
+        // Mirrored in z it is a ridge and stays.
+        let q: Vec<Vec3> = p.iter().map(|v| Vec3::new(v.x, v.y, -v.z)).collect();
+        ridge.drop_concave(&q, |_| true);
+        assert_eq!(ridge.quads.len(), 1);
+    }
+}

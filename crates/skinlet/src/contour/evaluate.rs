@@ -1,0 +1,258 @@
+//! The evaluation protocol of Tsiapkolis & Bénard 2024 (section 4.3): every extractor runs
+//! from 42 directions (a once-subdivided icosahedron's vertices) at 6 distances (5, 10, 25,
+//! 50, 75, 100 model sizes from the model's box center; the paper scales models to unit
+//! size); reported: share of edges tested, time per view against brute force in the same
+//! run, build time, patch count, mean radius and cone angle, and every view whose edge set
+//! differs from brute force's. Also the hardware calibration of `t_P / t_e` (section 4.2).
+
+use super::patches::{self, BuiltPatch, PatchParams, Patches, SphereKind};
+use super::snch::Snch;
+use super::{Edges, Projection, Tested, brute_force, meshlets};
+use crate::overdraw::viewpoints::icosphere;
+use glam::{DVec3, Vec3};
+use std::time::Instant;
+
+/// Viewing distances, in model sizes.
+pub const DISTANCES: [f64; 6] = [5.0, 10.0, 25.0, 50.0, 75.0, 100.0];
+
+/// The contour extractors compared.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    Brute,
+    /// Patch decomposition with the Reduced Sphere.
+    Patches,
+    /// Patch decomposition with the Mean Sphere.
+    PatchesMean,
+    Snch,
+    /// meshoptimizer 16-face meshlets as patches.
+    Meshlets,
+}
+
+impl Method {
+    pub const ALL: [Method; 5] = [Method::Brute, Method::Patches, Method::PatchesMean, Method::Snch, Method::Meshlets];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Brute => "brute",
+            Method::Patches => "patches",
+            Method::PatchesMean => "patches-mean",
+            Method::Snch => "snch",
+            Method::Meshlets => "meshlets",
+        }
+    }
+
+    pub fn from_name(s: &str) -> Option<Method> {
+        Method::ALL.into_iter().find(|m| m.name() == s)
+    }
+}
+
+/// A built extractor.
+#[derive(Clone, Debug)]
+pub enum Extractor {
+    Brute,
+    Patches(Patches),
+    Snch(Snch),
+}
+
+impl Extractor {
+    pub fn build(
+        method: Method,
+        positions: &[Vec3],
+        triangles: &[[u32; 3]],
+        edges: &Edges,
+        params: &PatchParams,
+    ) -> Extractor {
+        match method {
+            Method::Brute => Extractor::Brute,
+            Method::Patches => Extractor::Patches(patches::build(positions, edges, params)),
+            Method::PatchesMean => Extractor::Patches(patches::build(
+                positions,
+                edges,
+                &PatchParams { sphere: SphereKind::Mean, ..*params },
+            )),
+            Method::Snch => Extractor::Snch(Snch::build(positions, edges)),
+            Method::Meshlets => Extractor::Patches(meshlets::build(positions, triangles, edges, 16)),
+        }
+    }
+
+    pub fn extract(&self, positions: &[Vec3], edges: &Edges, projection: Projection, out: &mut Vec<u32>) -> Tested {
+        match self {
+            Extractor::Brute => brute_force(positions, edges, projection, out),
+            Extractor::Patches(p) => p.extract(positions, edges, projection, out),
+            Extractor::Snch(s) => s.extract(positions, edges, projection, out),
+        }
+    }
+
+    /// Patches or hierarchy nodes.
+    pub fn bounds(&self) -> usize {
+        match self {
+            Extractor::Brute => 0,
+            Extractor::Patches(p) => p.len(),
+            Extractor::Snch(s) => s.len(),
+        }
+    }
+}
+
+/// The 42 × 6 perspective views around the box of `positions`.
+pub fn views(positions: &[Vec3]) -> Vec<Projection> {
+    let (center, size) = frame(positions);
+    let dirs = icosphere(1);
+    DISTANCES
+        .iter()
+        .flat_map(|&d| dirs.iter().map(move |&dir| Projection::Perspective { eye: center + dir * (d * size) as f32 }))
+        .collect()
+}
+
+/// Center and largest side of the box around `positions` (size 1 when empty or flat).
+pub fn frame(positions: &[Vec3]) -> (Vec3, f64) {
+    let lo = positions.iter().fold(DVec3::INFINITY, |a, p| a.min(p.as_dvec3()));
+    let hi = positions.iter().fold(DVec3::NEG_INFINITY, |a, p| a.max(p.as_dvec3()));
+    let size = (hi - lo).max_element();
+    if size.is_finite() && size > 0.0 { (((lo + hi) * 0.5).as_vec3(), size) } else { (Vec3::ZERO, 1.0) }
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct MethodResult {
+    pub method: Method,
+    pub patches: usize,
+    /// Edges tested ÷ edges, over all views, in percent.
+    pub tested_edges_pct: f64,
+    pub ms_per_view: f64,
+    pub speedup_vs_brute: f64,
+    pub build_s: f64,
+    /// Views whose edge set differs from brute force's.
+    pub mismatched_views: usize,
+    /// Mean patch radius (model sizes) and cone half-angle (degrees); 0 when not patches.
+    pub mean_radius: f64,
+    pub mean_angle_deg: f64,
+}
+
+/// Runs `methods` over `views` (positions fixed), timing each over `repeats` rounds (the
+/// fastest round counts) and checking every view against brute force.
+pub fn evaluate(
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+    edges: &Edges,
+    methods: &[Method],
+    params: &PatchParams,
+    views: &[Projection],
+    repeats: usize,
+) -> Vec<MethodResult> {
+    let built: Vec<(Method, Extractor, f64)> = methods
+        .iter()
+        .map(|&m| {
+            let t = Instant::now();
+            let x = Extractor::build(m, positions, triangles, edges, params);
+            (m, x, t.elapsed().as_secs_f64())
+        })
+        .collect();
+    let mut reference = Vec::new();
+    let mut out = Vec::new();
+    let mut tested = vec![0usize; built.len()];
+    let mut mismatched = vec![0usize; built.len()];
+    for &view in views {
+        brute_force(positions, edges, view, &mut reference);
+        for (k, (_, x, _)) in built.iter().enumerate() {
+            tested[k] += x.extract(positions, edges, view, &mut out).edges;
+            out.sort_unstable();
+            mismatched[k] += usize::from(out != reference);
+        }
+    }
+    // Timing: rounds interleave the methods so that machine noise hits them alike.
+    let mut best = vec![f64::INFINITY; built.len()];
+    for _ in 0..repeats.max(1) {
+        for (k, (_, x, _)) in built.iter().enumerate() {
+            let t = Instant::now();
+            for &view in views {
+                x.extract(positions, edges, view, &mut out);
+            }
+            best[k] = best[k].min(t.elapsed().as_secs_f64());
+        }
+    }
+    let brute_s = time_brute(positions, edges, views, repeats);
+    let total = (edges.len() * views.len()).max(1) as f64;
+    built
+        .iter()
+        .enumerate()
+        .map(|(k, (m, x, build_s))| {
+            let (mean_radius, mean_angle_deg) = match x {
+                Extractor::Patches(p) => (p.mean_radius, p.mean_angle_deg),
+                _ => (0.0, 0.0),
+            };
+            MethodResult {
+                method: *m,
+                patches: x.bounds(),
+                tested_edges_pct: 100.0 * tested[k] as f64 / total,
+                ms_per_view: 1e3 * best[k] / views.len().max(1) as f64,
+                speedup_vs_brute: brute_s / best[k],
+                build_s: *build_s,
+                mismatched_views: mismatched[k],
+                mean_radius,
+                mean_angle_deg,
+            }
+        })
+        .collect()
+}
+
+fn time_brute(positions: &[Vec3], edges: &Edges, views: &[Projection], repeats: usize) -> f64 {
+    let mut out = Vec::new();
+    let mut best = f64::INFINITY;
+    for _ in 0..repeats.max(1) {
+        let t = Instant::now();
+        for &view in views {
+            brute_force(positions, edges, view, &mut out);
+        }
+        best = best.min(t.elapsed().as_secs_f64());
+    }
+    best
+}
+
+/// Hardware calibration (section 4.2): `t_e` from brute force, `t_P` from one patch per
+/// edge, `t_P = (t − τ·t_e) / ξ`. Returns `(t_e, t_P)` in nanoseconds.
+pub fn calibrate(positions: &[Vec3], edges: &Edges, views: &[Projection], repeats: usize) -> (f64, f64) {
+    let xi = edges.quads.len().max(1) as f64;
+    let t_e = time_brute(positions, edges, views, repeats) / (xi * views.len().max(1) as f64);
+    let singles: Vec<BuiltPatch> =
+        (0..edges.quads.len() as u32).filter_map(|q| patches::bounds_of(positions, edges, &[q])).collect();
+    let kept: std::collections::HashSet<u32> = singles.iter().map(|b| b.edges[0]).collect();
+    let always = (0..edges.quads.len() as u32).filter(|q| !kept.contains(q)).collect();
+    let one_each = patches::assemble(edges, singles, always, patches::size_of(positions, edges));
+    let mut out = Vec::new();
+    let mut best = f64::INFINITY;
+    let mut tau = 0;
+    for _ in 0..repeats.max(1) {
+        tau = 0;
+        let t = Instant::now();
+        for &view in views {
+            tau += one_each.extract(positions, edges, view, &mut out).edges;
+        }
+        best = best.min(t.elapsed().as_secs_f64());
+    }
+    let per_view = views.len().max(1) as f64;
+    let t_p = (best - tau as f64 * t_e) / (xi * per_view);
+    (t_e * 1e9, t_p * 1e9)
+}
+
+/// A UV sphere of unit radius (`rings` ≥ 2 latitude bands, `segments` ≥ 3), closed with
+/// pole vertices; for tests and examples.
+pub fn uv_sphere(rings: u32, segments: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let mut p = vec![Vec3::Z, Vec3::NEG_Z];
+    for r in 1..rings {
+        let th = std::f32::consts::PI * r as f32 / rings as f32;
+        for s in 0..segments {
+            let ph = std::f32::consts::TAU * s as f32 / segments as f32;
+            p.push(Vec3::new(th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()));
+        }
+    }
+    let v = |r: u32, s: u32| 2 + (r - 1) * segments + s % segments;
+    let mut t = Vec::new();
+    for s in 0..segments {
+        t.push([0, v(1, s), v(1, s + 1)]);
+        t.push([1, v(rings - 1, s + 1), v(rings - 1, s)]);
+        for r in 1..rings - 1 {
+            t.push([v(r, s), v(r + 1, s), v(r + 1, s + 1)]);
+            t.push([v(r, s), v(r + 1, s + 1), v(r, s + 1)]);
+        }
+    }
+    (p, t)
+}
