@@ -17,6 +17,7 @@ pub struct Options<'a> {
     pub repeats: usize,
     pub cost_ratio: Option<f64>,
     pub calibrate: bool,
+    pub params: PatchParams,
     pub svg: Option<&'a Path>,
     pub json: bool,
 }
@@ -42,7 +43,13 @@ pub fn command(file: &str, o: &Options) -> Result<()> {
         edges.drop_concave(&mesh.positions, |_| true);
     }
     let all_views = views(&mesh.positions);
-    let mut params = PatchParams::default();
+    anyhow::ensure!(o.params.d_cam.is_finite() && o.params.d_cam > 0.0, "--d-cam must be > 0");
+    anyhow::ensure!(o.params.group >= 1, "--group must be at least 1");
+    anyhow::ensure!(
+        o.params.max_edges != Some(0) && o.params.max_vertices.is_none_or(|v| v >= 2),
+        "--max-edges must be >= 1 and --max-vertices >= 2"
+    );
+    let mut params = o.params;
     let mut calibration = None;
     if o.calibrate {
         let (t_e, t_p) = skinlet::contour::evaluate::calibrate(&mesh.positions, &edges, &all_views, o.repeats);

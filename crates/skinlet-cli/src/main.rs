@@ -299,6 +299,18 @@ enum Command {
         /// Measure t_e and t_P on this machine first (section 4.2) and use their ratio.
         #[arg(long)]
         calibrate: bool,
+        /// Viewing distance the decomposition optimizes for, in model sizes (d_cam).
+        #[arg(long, default_value_t = 10.0)]
+        d_cam: f64,
+        /// Largest group of edges fused together (c_max): larger is slower to build and
+        /// slightly better.
+        #[arg(long, default_value_t = 4096)]
+        group: usize,
+        /// GPU limits per patch (e.g. --max-edges 126 --max-vertices 64 for mesh shaders).
+        #[arg(long)]
+        max_edges: Option<usize>,
+        #[arg(long)]
+        max_vertices: Option<usize>,
         /// Also draw the contours from a front view into this SVG file.
         #[arg(long)]
         svg: Option<PathBuf>,
@@ -348,7 +360,22 @@ fn main() {
         Command::Overdraw { file, clips, k, lambda, max_keyframes, views, seed, heatmap, json } => {
             overdraw::command(&file, clips.as_deref(), k, lambda, max_keyframes, views, seed, heatmap.as_deref(), json)
         }
-        Command::Contours { file, method, visible_only, repeats, cost_ratio, calibrate, svg, json } => {
+        Command::Contours {
+            file,
+            method,
+            visible_only,
+            repeats,
+            cost_ratio,
+            calibrate,
+            d_cam,
+            group,
+            max_edges,
+            max_vertices,
+            svg,
+            json,
+        } => {
+            let params =
+                skinlet::contour::patches::PatchParams { d_cam, group, max_edges, max_vertices, ..Default::default() };
             contours::command(
                 &file,
                 &contours::Options {
@@ -357,6 +384,7 @@ fn main() {
                     repeats,
                     cost_ratio,
                     calibrate,
+                    params,
                     svg: svg.as_deref(),
                     json,
                 },

@@ -142,22 +142,31 @@ impl PatchBounds {
     #[inline(always)]
     pub fn accepts(&self, view: &ViewF) -> bool {
         match view {
-            ViewF::Eye(eye) => {
-                let d = self.center - *eye;
-                let dist2 = d.length_squared();
-                let r = self.radius;
-                if dist2 <= r * r * (1.0 + 1e-4) {
-                    return true;
-                }
-                let inv = dist2.sqrt().recip();
-                let sin_b = r * inv;
-                let cos_b = (1.0 - sin_b * sin_b).max(0.0).sqrt();
-                let cos_sum = self.cos_angle * cos_b - self.sin_angle * sin_b;
-                let sin_sum = self.sin_angle * cos_b + self.cos_angle * sin_b;
-                cos_sum <= MARGIN || (self.axis.dot(d) * inv).abs() <= sin_sum + MARGIN
-            }
-            ViewF::Dir(dir) => self.cos_angle <= MARGIN || self.axis.dot(*dir).abs() <= self.sin_angle + MARGIN,
+            ViewF::Eye(eye) => self.accepts_eye(*eye),
+            ViewF::Dir(dir) => self.accepts_dir(*dir),
         }
+    }
+
+    /// [`Self::accepts`] for a perspective eye, without branches (patches are tested in
+    /// batches, where a mispredicted branch per patch would cost more than the test).
+    #[inline(always)]
+    pub fn accepts_eye(&self, eye: Vec3) -> bool {
+        let d = self.center - eye;
+        let dist2 = d.length_squared();
+        let r = self.radius;
+        let inv = dist2.sqrt().recip();
+        let sin_b = (r * inv).min(1.0);
+        let cos_b = (1.0 - sin_b * sin_b).max(0.0).sqrt();
+        let cos_sum = self.cos_angle * cos_b - self.sin_angle * sin_b;
+        let sin_sum = self.sin_angle * cos_b + self.cos_angle * sin_b;
+        // Inside the sphere (or at its center) the test says nothing: accept.
+        (dist2 <= r * r * (1.0 + 1e-4)) | (cos_sum <= MARGIN) | ((self.axis.dot(d) * inv).abs() <= sin_sum + MARGIN)
+    }
+
+    /// [`Self::accepts`] for an orthographic view along unit `dir`.
+    #[inline(always)]
+    pub fn accepts_dir(&self, dir: Vec3) -> bool {
+        (self.cos_angle <= MARGIN) | (self.axis.dot(dir).abs() <= self.sin_angle + MARGIN)
     }
 }
 

@@ -19,13 +19,15 @@
 //! Guarantee (see [`super`]): extraction returns exactly the brute-force contour set.
 
 use super::bound::{
-    EdgeGeometry, PatchBounds, acceptance, cone_angle, edge_geometry, line_distance, mean_axis, mean_sphere,
+    EdgeGeometry, PatchBounds, ViewF, acceptance, cone_angle, edge_geometry, line_distance, mean_axis, mean_sphere,
     reduced_sphere, viewers,
 };
 use super::{Edges, Projection, Tested, Viewer, extract_uncullable, quad_is_contour};
+use crate::bounds::cone::reference_axis;
 use crate::bounds::meshlet::round_up;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
+use std::f64::consts::PI;
 
 /// Which bounding sphere patches use (section 3.1).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -65,9 +67,10 @@ impl Default for PatchParams {
     }
 }
 
-/// `t_P / t_e` measured with [`super::evaluate::calibrate`] on the 2-core EPYC VM of
-/// docs/PERFORMANCE.md (the paper: 1.4 and 2.0 on its two CPUs).
-pub const DEFAULT_COST_RATIO: f64 = 1.5;
+/// `t_P / t_e` measured with [`super::evaluate::calibrate`] (`skinlet contours --calibrate`)
+/// on the 2-core EPYC VM of docs/PERFORMANCE.md: bunny 0.32, armadillo 0.36 (the paper's
+/// CPUs: 1.4 and 2.0; our patch test is branch-free and batched).
+pub const DEFAULT_COST_RATIO: f64 = 0.35;
 
 /// A patch decomposition, ready for extraction.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -91,10 +94,8 @@ pub struct Patches {
 #[derive(Clone, Debug)]
 struct Node {
     edges: Vec<u32>,
-    mid_sum: DVec3,
     center: DVec3,
     radius: f64,
-    normal_sum: DVec3,
     axis: DVec3,
     angle: f64,
     cost: f64,
@@ -115,7 +116,6 @@ struct Key {
     radius: f32,
     axis: Vec3,
     cos: f32,
-    normal_sum: Vec3,
     sin: f32,
     cost: f32,
     xi: u32,
@@ -130,7 +130,6 @@ impl Key {
             radius: round_up(n.radius),
             axis: finite(n.axis),
             cos: n.angle.cos() as f32,
-            normal_sum: n.normal_sum.as_vec3(),
             sin: n.angle.sin() as f32,
             cost: n.cost as f32,
             xi: n.edges.len() as u32,
@@ -242,8 +241,7 @@ impl Ctx<'_> {
 
     fn leaf(&self, i: u32) -> Node {
         let g = &self.geo[i as usize];
-        let normal_sum = g.n1 + g.n2;
-        let axis = mean_axis(normal_sum).unwrap_or(DVec3::NAN);
+        let axis = mean_axis(g.n1 + g.n2).unwrap_or(DVec3::NAN);
         let angle = cone_angle(axis, [g.n1, g.n2].into_iter());
         let center = g.midpoint();
         let radius = match self.p.sphere {
@@ -257,10 +255,8 @@ impl Ctx<'_> {
         }
         Node {
             edges: vec![i],
-            mid_sum: g.midpoint(),
             center,
             radius,
-            normal_sum,
             axis,
             angle,
             cost: self.cost(1, radius, angle),
@@ -277,37 +273,44 @@ impl Ctx<'_> {
     fn merged_cost(&self, a: &Key, b: &Key) -> f32 {
         let xi = (a.xi + b.xi) as f32;
         let ratio = self.p.cost_ratio as f32;
-        // The merged axis lies on the arc between the parents' axes, so the merged cone is at
-        // least half their angle wide: a cheap bound that rejects most candidates.
+        // A cone around both cones is at least half the angle between their axes wide: a
+        // cheap bound that rejects most candidates.
         let half_sin = ((1.0 - a.axis.dot(b.axis)) * 0.5).max(0.0).sqrt();
         if ratio + half_sin * xi >= a.cost + b.cost {
             return ratio + half_sin * xi;
         }
-        let (wa, wb) = (a.xi as f32 / xi, b.xi as f32 / xi);
-        let center = a.center * wa + b.center * wb;
-        let radius = (a.radius + center.distance(a.center)).max(b.radius + center.distance(b.center));
-        let sum = a.normal_sum + b.normal_sum;
-        let len = sum.length();
-        if len <= 1e-6 {
+        // The smallest sphere around both spheres and the smallest cone around both cones:
+        // the exact merge ([`Ctx::merge`]) is never wider than these.
+        let d = a.center.distance(b.center);
+        let radius = if d + b.radius <= a.radius {
+            a.radius
+        } else if d + a.radius <= b.radius {
+            b.radius
+        } else {
+            (d + a.radius + b.radius) * 0.5
+        };
+        if a.cos <= 0.0 || b.cos <= 0.0 {
             return ratio + xi;
         }
-        let axis = sum / len;
-        // cos and sin of (angle between the axes + the parent's half-angle), without trigonometry.
-        let widen = |n: &Key| {
-            let c1 = n.axis.dot(axis).clamp(-1.0, 1.0);
-            let s1 = (1.0 - c1 * c1).max(0.0).sqrt();
-            let c = c1 * n.cos - s1 * n.sin;
-            (n.cos > 0.0 && c > 0.0).then_some((c, s1 * n.cos + c1 * n.sin))
-        };
-        let h = match (widen(a), widen(b)) {
-            (Some(x), Some(y)) => {
-                let (ca, sa) = if x.0 < y.0 { x } else { y };
-                let sb = (radius / self.d_cam as f32).min(1.0);
-                let cb = (1.0 - sb * sb).sqrt();
-                if ca * cb - sa * sb <= 0.0 { 1.0 } else { sa * cb + ca * sb }
+        // cos/sin of θ (between the axes), θ + α_a, θ + α_b and θ + α_a + α_b, without trigonometry.
+        let ct = a.axis.dot(b.axis).clamp(-1.0, 1.0);
+        let st = (1.0 - ct * ct).max(0.0).sqrt();
+        let add = |(c1, s1): (f32, f32), (c2, s2): (f32, f32)| (c1 * c2 - s1 * s2, s1 * c2 + c1 * s2);
+        let (ta, tb) = (add((ct, st), (a.cos, a.sin)), add((ct, st), (b.cos, b.sin)));
+        let (ca, sa) = if tb.0 >= a.cos {
+            (a.cos, a.sin) // b's cone lies inside a's
+        } else if ta.0 >= b.cos {
+            (b.cos, b.sin)
+        } else {
+            let (cx, sx) = add(ta, (b.cos, b.sin));
+            if sx < 0.0 {
+                return ratio + xi; // θ + α_a + α_b > π: the merged cone passes 90°
             }
-            _ => 1.0,
+            (((1.0 + cx) * 0.5).max(0.0).sqrt(), ((1.0 - cx) * 0.5).max(0.0).sqrt())
         };
+        let sb = (radius / self.d_cam as f32).min(1.0);
+        let cb = (1.0 - sb * sb).sqrt();
+        let h = if ca * cb - sa * sb <= 0.0 { 1.0 } else { sa * cb + ca * sb };
         ratio + h * xi
     }
 
@@ -327,11 +330,26 @@ impl Ctx<'_> {
         let mut edges = a.edges.clone();
         edges.extend_from_slice(&b.edges);
         let geo: Vec<EdgeGeometry> = edges.iter().map(|&i| self.geo[i as usize]).collect();
-        let normal_sum = a.normal_sum + b.normal_sum;
-        let axis = mean_axis(normal_sum).unwrap_or(DVec3::NAN);
-        let angle = cone_angle(axis, geo.iter().flat_map(|g| [g.n1, g.n2]));
+        let normals: Vec<DVec3> = geo.iter().flat_map(|g| [g.n1, g.n2]).collect();
+        // Cone: the narrower of the mean axis / smallest cap ([`reference_axis`]) and the axis
+        // of the smallest cone around both parents' cones.
+        let (ref_axis, _) = reference_axis(&normals);
+        let (axis, angle) = [ref_axis, enclosing_axis(a, b)]
+            .into_iter()
+            .map(|x| (x, cone_angle(x, normals.iter().copied())))
+            .min_by(|x, y| x.1.total_cmp(&y.1))
+            .unwrap_or((DVec3::NAN, PI));
         let (center, radius) = match self.p.sphere {
-            SphereKind::Reduced => reduced_sphere(&geo),
+            SphereKind::Reduced => {
+                // The paper's center (mean midpoint) or the one between the parents' centers
+                // that balances their radii, whichever needs the smaller radius.
+                let (c1, r1) = reduced_sphere(&geo);
+                let d = a.center.distance(b.center);
+                let t = if d > 0.0 { ((d + b.radius - a.radius) / (2.0 * d)).clamp(0.0, 1.0) } else { 0.0 };
+                let c2 = a.center.lerp(b.center, t);
+                let r2 = geo.iter().map(|g| line_distance(c2, g.a, g.b)).fold(0.0, f64::max);
+                if r2 < r1 { (c2, r2) } else { (c1, r1) }
+            }
             SphereKind::Mean => mean_sphere(&mut geo.iter().flat_map(|g| [g.a, g.b]).collect()),
         };
         let mut verts = Vec::new();
@@ -343,10 +361,8 @@ impl Ctx<'_> {
         Node {
             cost: self.cost(edges.len(), radius, angle),
             edges,
-            mid_sum: a.mid_sum + b.mid_sum,
             center,
             radius,
-            normal_sum,
             axis,
             angle,
             verts,
@@ -446,6 +462,20 @@ impl Ctx<'_> {
     }
 }
 
+/// Axis of the smallest cone around the cones of `a` and `b` (on the arc between their axes).
+fn enclosing_axis(a: &Node, b: &Node) -> DVec3 {
+    let theta = a.axis.dot(b.axis).clamp(-1.0, 1.0).acos();
+    if !theta.is_finite() || theta < 1e-9 || theta + b.angle <= a.angle {
+        return a.axis;
+    }
+    if theta + a.angle <= b.angle {
+        return b.axis;
+    }
+    // Rotate a's axis toward b's by φ so that φ + α_a = θ − φ + α_b.
+    let phi = ((theta + b.angle - a.angle) * 0.5).clamp(0.0, theta);
+    ((a.axis * (theta - phi).sin() + b.axis * phi.sin()) / theta.sin()).normalize()
+}
+
 /// A cached fusion with `partner` as it was at `generation`.
 #[derive(Clone, Copy, Debug)]
 struct Fusion {
@@ -513,11 +543,19 @@ impl Patches {
         let (viewer, view) = viewers(projection);
         out.clear();
         let mut tested = 0;
-        for (b, r) in self.bounds.iter().zip(&self.ranges) {
-            if b.accepts(&view) {
-                let range = r[0] as usize..(r[0] + r[1]) as usize;
-                test_quads(positions, &self.quads[range.clone()], &self.order[range], &viewer, out);
-                tested += r[1] as usize;
+        // Cone tests in batches (branch-free), then the edges of the accepted patches.
+        let mut flags = [false; 64];
+        for (bounds, ranges) in self.bounds.chunks(64).zip(self.ranges.chunks(64)) {
+            match view {
+                ViewF::Eye(eye) => flags.iter_mut().zip(bounds).for_each(|(f, b)| *f = b.accepts_eye(eye)),
+                ViewF::Dir(dir) => flags.iter_mut().zip(bounds).for_each(|(f, b)| *f = b.accepts_dir(dir)),
+            }
+            for (&accepted, r) in flags.iter().zip(ranges) {
+                if accepted {
+                    let range = r[0] as usize..(r[0] + r[1]) as usize;
+                    test_quads(positions, &self.quads[range.clone()], &self.order[range], &viewer, out);
+                    tested += r[1] as usize;
+                }
             }
         }
         let rest = self.always_from..self.order.len();
