@@ -14,6 +14,11 @@ use std::path::Path;
 pub struct Options<'a> {
     pub method: &'a str,
     pub visible_only: bool,
+    pub clips: Option<&'a str>,
+    pub frames: usize,
+    pub as_static: bool,
+    pub budget: f64,
+    pub rounds: Option<usize>,
     pub repeats: usize,
     pub cost_ratio: Option<f64>,
     pub calibrate: bool,
@@ -23,6 +28,11 @@ pub struct Options<'a> {
 }
 
 pub fn command(file: &str, o: &Options) -> Result<()> {
+    let asset = load(file)?;
+    let skin = asset.instances.iter().find_map(|i| i.skin);
+    if let (Some(skin), false, false) = (skin, o.as_static, asset.clips.is_empty()) {
+        return skinned(file, &asset, skin, o);
+    }
     let methods: Vec<Method> = match o.method {
         "all" => Method::ALL.to_vec(),
         m => vec![
@@ -34,21 +44,14 @@ pub fn command(file: &str, o: &Options) -> Result<()> {
     };
     let mut methods = methods;
     methods.dedup();
-    let asset = load(file)?;
     // Static geometry: every primitive as drawn without skinning, seams welded.
-    let skin = asset.instances.iter().find_map(|i| i.skin);
     let (mesh, _, _) = skinlet::weld::weld(&asset.combined_mesh(skin));
     let mut edges = Edges::build(&mesh.positions, &mesh.triangles)?;
     if o.visible_only {
         edges.drop_concave(&mesh.positions, |_| true);
     }
+    check_params(o)?;
     let all_views = views(&mesh.positions);
-    anyhow::ensure!(o.params.d_cam.is_finite() && o.params.d_cam > 0.0, "--d-cam must be > 0");
-    anyhow::ensure!(o.params.group >= 1, "--group must be at least 1");
-    anyhow::ensure!(
-        o.params.max_edges != Some(0) && o.params.max_vertices.is_none_or(|v| v >= 2),
-        "--max-edges must be >= 1 and --max-vertices >= 2"
-    );
     let mut params = o.params;
     let mut calibration = None;
     if o.calibrate {
@@ -104,6 +107,128 @@ pub fn command(file: &str, o: &Options) -> Result<()> {
         println!("wrote {}", path.display());
     }
     Ok(())
+}
+
+fn check_params(o: &Options) -> Result<()> {
+    anyhow::ensure!(o.params.d_cam.is_finite() && o.params.d_cam > 0.0, "--d-cam must be > 0");
+    anyhow::ensure!(o.params.group >= 1, "--group must be at least 1");
+    anyhow::ensure!(
+        o.params.max_edges != Some(0) && o.params.max_vertices.is_none_or(|v| v >= 2),
+        "--max-edges must be >= 1 and --max-vertices >= 2"
+    );
+    anyhow::ensure!(o.repeats >= 1 && o.frames >= 1, "--repeats and --frames must be at least 1");
+    if let Some(r) = o.cost_ratio {
+        anyhow::ensure!(r.is_finite() && r > 0.0, "--cost-ratio must be > 0");
+    }
+    Ok(())
+}
+
+/// Skinned files: brute force, rigid parts (the paper) and animated bounds (ours) over frames.
+fn skinned(file: &str, asset: &skinlet::Asset, skin: u32, o: &Options) -> Result<()> {
+    use skinlet::contour::evaluate::{SkinnedInput, evaluate_skinned};
+    use skinlet::contour::skinned::SkinnedMethod;
+    check_params(o)?;
+    let methods = match o.method {
+        "all" => vec![SkinnedMethod::Rigid, SkinnedMethod::Animated],
+        "brute" => vec![],
+        "rigid" => vec![SkinnedMethod::Rigid],
+        "animated" => vec![SkinnedMethod::Animated],
+        m => anyhow::bail!(
+            "unknown --method {m:?} for a skinned file (brute, rigid, animated, all; --static for the static methods)"
+        ),
+    };
+    anyhow::ensure!(!o.calibrate, "--calibrate runs on static geometry: add --static");
+    let clips = crate::select_clips(asset, o.clips)?;
+    let (mesh, _, _) = skinlet::weld::weld(&asset.combined_mesh(Some(skin)));
+    let mut edges = Edges::build(&mesh.positions, &mesh.triangles)?;
+    if o.visible_only {
+        let rigid = skinlet::contour::skinned::rigid_vertices(&mesh);
+        edges.drop_concave(&mesh.positions, |q| skinlet::contour::skinned::rigid_quad(&rigid, q));
+    }
+    let mut params = o.params;
+    if let Some(r) = o.cost_ratio {
+        params.cost_ratio = r;
+    }
+    let input = SkinnedInput {
+        skeleton: &asset.skeleton,
+        skin: &asset.skins[skin as usize],
+        clips: &clips,
+        mesh: &mesh,
+        frames_per_clip: o.frames,
+    };
+    anyhow::ensure!(o.budget.is_finite() && o.budget >= 0.0, "--budget must be a number of seconds >= 0");
+    // Refine until every piece stays within 1.5x its rest radius and 3 degrees of its rest
+    // cone, or stops improving (tighter thresholds cost 3x the time for < 1% fewer tests).
+    let how = skinlet::bounds::refine::Refinement {
+        s_r: 1.5,
+        alpha_t: 3f32.to_radians(),
+        budget: (o.budget > 0.0).then(|| std::time::Duration::from_secs_f64(o.budget)),
+        max_rounds: o.rounds.unwrap_or(if o.budget > 0.0 { usize::MAX } else { 0 }),
+    };
+    let rows = evaluate_skinned(&input, &edges, &methods, &params, &how, o.repeats)?;
+    if let Some(path) = o.svg {
+        write_skinned_svg(path, &input, &edges)?;
+    }
+    if o.json {
+        let out: Vec<_> = rows
+            .iter()
+            .map(|r| {
+                json!({
+                    "method": r.method, "patches": r.patches, "tested_edges_pct": r.tested_edges_pct,
+                    "speedup_vs_brute": r.speedup_vs_brute, "build_s": r.build_s, "mismatched_views": r.mismatched_views,
+                    "ms_per_view": r.ms_per_view, "frames": r.frames, "rigid_quads": r.rigid_quads, "animated_quads": r.animated_quads,
+                })
+            })
+            .collect();
+        println!("{}", serde_json::to_string_pretty(&out)?);
+        return Ok(());
+    }
+    println!(
+        "{file}: {} triangles, {} edges ({} interior{}), {} clips x {} frames x 252 views",
+        mesh.triangles.len(),
+        edges.len(),
+        edges.quads.len(),
+        if o.visible_only { format!(", {} rigid concave dropped", edges.dropped_concave) } else { String::new() },
+        clips.len(),
+        o.frames
+    );
+    println!(
+        "{:<9} {:>8} {:>9} {:>9} {:>8} {:>8} {:>9} {:>8} {:>9}",
+        "method", "patches", "tested %", "ms/view", "speedup", "build s", "mismatch", "rigid", "animated"
+    );
+    for r in &rows {
+        println!(
+            "{:<9} {:>8} {:>9.2} {:>9.4} {:>7.2}x {:>8.2} {:>9} {:>8} {:>9}",
+            r.method,
+            r.patches,
+            r.tested_edges_pct,
+            r.ms_per_view,
+            r.speedup_vs_brute,
+            r.build_s,
+            r.mismatched_views,
+            r.rigid_quads,
+            r.animated_quads
+        );
+    }
+    println!("(rigid / animated: quads in patches of each kind; the rest are tested every time)");
+    if let Some(path) = o.svg {
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+/// The contours of the first clip's middle frame, from the front.
+fn write_skinned_svg(path: &Path, input: &skinlet::contour::evaluate::SkinnedInput, edges: &Edges) -> Result<()> {
+    let inf = input.mesh.influences.as_ref().context("no skin weights")?;
+    let clip = input.clips.first().copied();
+    let keys = clip.map(|c| c.key_times()).unwrap_or_default();
+    let t = (keys.first().copied().unwrap_or(0.0) + keys.last().copied().unwrap_or(0.0)) * 0.5;
+    let mut poser = skinlet::pose::Poser::default();
+    let mut m = Vec::new();
+    poser.skinning_matrices(input.skeleton, input.skin, clip, t, &mut m);
+    let mut p = vec![glam::Vec3::ZERO; input.mesh.positions.len()];
+    skinlet::skinning::skin(inf, &input.mesh.positions, &[], &m, &mut p, &mut [])?;
+    write_svg(path, &p, edges)
 }
 
 fn row_json(r: &MethodResult) -> serde_json::Value {

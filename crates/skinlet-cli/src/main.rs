@@ -273,6 +273,8 @@ enum Command {
     /// Find mesh contours (edges between front- and back-facing faces) and compare
     /// extractors (Tsiapkolis & Bénard 2024).
     ///
+    /// Skinned files (with clips) are evaluated over sampled frames of their clips with the
+    /// skinned methods; static files (and --static) in one pose with the static methods.
     /// Methods: brute (every edge), patches (ours: greedy patch decomposition, Reduced
     /// Sphere), patches-mean (Mean Sphere), snch (Johnson & Cohen's normal cone hierarchy),
     /// meshlets (meshoptimizer 16-face meshlets as patches, with a correct cone). Each runs
@@ -281,15 +283,34 @@ enum Command {
     /// build time, views whose edge set differs from brute force (must be 0), mean patch
     /// radius (model sizes) and cone half-angle.
     Contours {
-        /// .glb, .gltf or .obj file, or @demo[:TRIANGLES] (rest pose).
+        /// .glb, .gltf or .obj file, or @demo[:TRIANGLES].
         file: String,
-        /// brute, patches, patches-mean, snch, meshlets or all (brute always runs: it is the
-        /// reference and the baseline).
+        /// Static meshes: brute, patches, patches-mean, snch, meshlets or all; skinned:
+        /// brute, rigid (the paper: patches on rigid parts), animated (ours: every patch with
+        /// bounds over the clips) or all. Brute always runs: it is the reference and baseline.
         #[arg(long, default_value = "all")]
         method: String,
-        /// Drop concave edges, whose contours are always hidden (as the paper does).
+        /// Drop concave edges, whose contours are always hidden (as the paper does; on
+        /// skinned meshes only rigid ones, whose concavity cannot change).
         #[arg(long)]
         visible_only: bool,
+        /// Skinned files: clip names or indices, comma-separated (default: all clips).
+        #[arg(long)]
+        clips: Option<String>,
+        /// Skinned files: sampled frames per clip.
+        #[arg(long, default_value_t = 8)]
+        frames: usize,
+        /// Treat a skinned file as static (its bind pose) and compare the static methods.
+        #[arg(long = "static")]
+        as_static: bool,
+        /// Skinned files: seconds to spend tightening the animated bounds (halving the time
+        /// pieces where they are loosest); 0: no limit (then --rounds decides).
+        #[arg(long, default_value_t = 60.0)]
+        budget: f64,
+        /// Skinned files: most refinement rounds (default: until converged or the budget is
+        /// spent; 0: key intervals only).
+        #[arg(long)]
+        rounds: Option<usize>,
         /// Timing rounds (the fastest counts).
         #[arg(long, default_value_t = 3)]
         repeats: usize,
@@ -364,6 +385,11 @@ fn main() {
             file,
             method,
             visible_only,
+            clips,
+            frames,
+            as_static,
+            budget,
+            rounds,
             repeats,
             cost_ratio,
             calibrate,
@@ -381,6 +407,11 @@ fn main() {
                 &contours::Options {
                     method: &method,
                     visible_only,
+                    clips: clips.as_deref(),
+                    frames,
+                    as_static,
+                    budget,
+                    rounds,
                     repeats,
                     cost_ratio,
                     calibrate,

@@ -52,6 +52,11 @@ impl EdgeGeometry {
 /// The geometry of a quad, or `None` when a face is too thin (or degenerate) to bound.
 pub fn edge_geometry(p: &[Vec3], q: [u32; 4]) -> Option<EdgeGeometry> {
     let [a, b, c, d] = q.map(|i| p[i as usize].as_dvec3());
+    quad_geometry(a, b, c, d)
+}
+
+/// [`edge_geometry`] of a quad given by its points.
+pub fn quad_geometry(a: DVec3, b: DVec3, c: DVec3, d: DVec3) -> Option<EdgeGeometry> {
     let (n1, n2) = quad_normals(a, b, c, d);
     let ab = (b - a).length();
     let ok = |n: DVec3, other: DVec3| n.length() > THIN * ab * other.length() && n.is_finite();

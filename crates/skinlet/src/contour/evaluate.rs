@@ -256,3 +256,135 @@ pub fn uv_sphere(rings: u32, segments: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
     }
     (p, t)
 }
+
+/// A skinned character for [`evaluate_skinned`].
+pub struct SkinnedInput<'a> {
+    pub skeleton: &'a crate::model::Skeleton,
+    pub skin: &'a crate::model::Skin,
+    pub clips: &'a [&'a crate::clip::Clip],
+    /// Welded mesh with skin weights.
+    pub mesh: &'a crate::model::SkinnedMesh,
+    /// Sample times per clip (evenly spread over its key range).
+    pub frames_per_clip: usize,
+}
+
+/// The skinned rows: brute force, the paper's rigid parts and ours (animated bounds), each
+/// over every sampled frame × 42 directions × 6 distances around the frame's box center.
+pub fn evaluate_skinned(
+    input: &SkinnedInput,
+    edges: &Edges,
+    methods: &[super::skinned::SkinnedMethod],
+    params: &PatchParams,
+    how: &crate::bounds::refine::Refinement,
+    repeats: usize,
+) -> crate::Result<Vec<SkinnedResult>> {
+    use super::skinned::{SkinnedPatches, build};
+    let inf = input.mesh.influences.as_ref().ok_or_else(|| crate::Error::invalid("contours", "no skin weights"))?;
+    let built: Vec<(super::skinned::SkinnedMethod, SkinnedPatches, f64)> = methods
+        .iter()
+        .map(|&m| {
+            let t = Instant::now();
+            let b = build(input.skeleton, input.skin, input.clips, input.mesh, edges, m, params, how)?;
+            Ok((m, b, t.elapsed().as_secs_f64()))
+        })
+        .collect::<crate::Result<_>>()?;
+    // Frames: positions and joint globals.
+    let mut poser = crate::pose::Poser::default();
+    let mut matrices = Vec::new();
+    let mut frames: Vec<(Vec<Vec3>, Vec<glam::DMat4>)> = Vec::new();
+    for clip in input.clips {
+        let keys = clip.key_times();
+        let (t0, t1) = (keys.first().copied().unwrap_or(0.0), keys.last().copied().unwrap_or(0.0));
+        let n = input.frames_per_clip.max(1);
+        for k in 0..n {
+            let t = t0 + (t1 - t0) * (k as f32 + 0.5) / n as f32;
+            let globals = poser.globals(input.skeleton, Some(clip), t).to_vec();
+            crate::pose::skinning_matrices(input.skin, &globals, &mut matrices);
+            let mut p = vec![Vec3::ZERO; input.mesh.positions.len()];
+            crate::skinning::skin(inf, &input.mesh.positions, &[], &matrices, &mut p, &mut [])?;
+            let joints = input.skin.joints.iter().map(|&j| globals[j as usize]).collect();
+            frames.push((p, joints));
+        }
+    }
+    let size = frame(&input.mesh.positions).1;
+    let dirs = icosphere(1);
+    let frame_views: Vec<Vec<Projection>> = frames
+        .iter()
+        .map(|(p, _)| {
+            let center = frame(p).0;
+            DISTANCES
+                .iter()
+                .flat_map(|&d| {
+                    dirs.iter().map(move |&dir| Projection::Perspective { eye: center + dir * (d * size) as f32 })
+                })
+                .collect()
+        })
+        .collect();
+    let (mut reference, mut out) = (Vec::new(), Vec::new());
+    let mut tested = vec![0usize; built.len() + 1];
+    let mut mismatched = vec![0usize; built.len() + 1];
+    for ((p, joints), views) in frames.iter().zip(&frame_views) {
+        for &view in views {
+            tested[0] += brute_force(p, edges, view, &mut reference).edges;
+            for (k, (_, b, _)) in built.iter().enumerate() {
+                tested[k + 1] += b.extract(p, edges, joints, view, &mut out).edges;
+                out.sort_unstable();
+                mismatched[k + 1] += usize::from(out != reference);
+            }
+        }
+    }
+    let mut best = vec![f64::INFINITY; built.len() + 1];
+    for _ in 0..repeats.max(1) {
+        let t = Instant::now();
+        for ((p, _), views) in frames.iter().zip(&frame_views) {
+            for &view in views {
+                brute_force(p, edges, view, &mut out);
+            }
+        }
+        best[0] = best[0].min(t.elapsed().as_secs_f64());
+        for (k, (_, b, _)) in built.iter().enumerate() {
+            let t = Instant::now();
+            for ((p, joints), views) in frames.iter().zip(&frame_views) {
+                for &view in views {
+                    b.extract(p, edges, joints, view, &mut out);
+                }
+            }
+            best[k + 1] = best[k + 1].min(t.elapsed().as_secs_f64());
+        }
+    }
+    let n_views: usize = frame_views.iter().map(Vec::len).sum();
+    let total = (edges.len() * n_views).max(1) as f64;
+    let row = |k: usize, name: &'static str, patches: usize, build_s: f64, quads: (usize, usize)| SkinnedResult {
+        method: name,
+        patches,
+        tested_edges_pct: 100.0 * tested[k] as f64 / total,
+        ms_per_view: 1e3 * best[k] / n_views.max(1) as f64,
+        speedup_vs_brute: best[0] / best[k],
+        build_s,
+        mismatched_views: mismatched[k],
+        frames: frames.len(),
+        rigid_quads: quads.0,
+        animated_quads: quads.1,
+    };
+    let mut rows = vec![row(0, "brute", 0, 0.0, (0, 0))];
+    for (k, (m, b, s)) in built.iter().enumerate() {
+        rows.push(row(k + 1, m.name(), b.patches.len(), *s, (b.rigid_quads, b.animated_quads)));
+    }
+    Ok(rows)
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct SkinnedResult {
+    pub method: &'static str,
+    pub patches: usize,
+    pub tested_edges_pct: f64,
+    pub ms_per_view: f64,
+    pub speedup_vs_brute: f64,
+    pub build_s: f64,
+    /// (frame, view) pairs whose edge set differs from brute force's.
+    pub mismatched_views: usize,
+    pub frames: usize,
+    /// Quads in rigid and in animated patches (the rest are tested every time).
+    pub rigid_quads: usize,
+    pub animated_quads: usize,
+}

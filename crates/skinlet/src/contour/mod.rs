@@ -24,6 +24,7 @@ pub mod edges;
 pub mod evaluate;
 pub mod meshlets;
 pub mod patches;
+pub mod skinned;
 pub mod snch;
 
 pub use crate::cull::Projection;

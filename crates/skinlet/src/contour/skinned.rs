@@ -1,0 +1,330 @@
+//! Contours of skinned characters: patches whose bounds hold over whole animation clips.
+//!
+//! Tsiapkolis & Bénard 2024 (section 4.1) split a character into rigid parts — quads whose
+//! four vertices all follow one bone — build patches per part in the bone's space and move
+//! the viewer into that space at run time; every other edge goes to a group that is never
+//! culled ([`SkinnedMethod::Rigid`]; the paper counts a quad rigid when its two edge vertices
+//! are, but the faces' opposite vertices move the normals too, so we require all four).
+//!
+//! Beyond the paper ([`SkinnedMethod::Animated`]): non-rigid quads are fused too, per
+//! principal joint, and bounded with the conservative animated sphere and normal cone of
+//! Unterguggenberger et al. 2021 ([`crate::bounds`]) over the clips: a patch's "meshlet" is
+//! the set of faces adjacent to its edges, so the sphere holds every edge point and the cone
+//! every adjacent face normal, at every time of every clip, in the principal joint's space.
+//!
+//! Run time: per joint, the eye moves into the joint's space (`G⁻¹·eye`; orthographic:
+//! `A⁻¹·dir`). Facing is invariant under that affine map (`(A·u)×(A·v) = cof(A)(u×v)` and
+//! `cof(A)ᵀA = det(A)·I`: every face's sign flips together when `det < 0`), so the
+//! contour set is the same in either space, and the static cone test applies unchanged.
+//!
+//! Guarantee: the extracted set equals brute force on the f32 skinned positions at any time
+//! of the clips. The bounds hold for exact skinning; the f32 rounding of skinning (at most
+//! [`SKIN_ROUNDING`] of the model's extent per vertex) turns a face normal by at most that
+//! times its `2(|e1| + |e2|)/|n|`, and each patch's cone is widened by four times the
+//! largest such turn among its faces. Tested on every shared asset over sampled frames.
+
+use super::bound::{EdgeGeometry, ViewF, cone_angle, line_distance, quad_geometry, reduced_sphere};
+use super::patches::{BuiltPatch, PatchParams, Patches, assemble, fuse, size_of, test_quads};
+use super::{Edges, Projection, Tested, Viewer, extract_uncullable};
+use crate::bounds::cone::reference_axis;
+use crate::bounds::refine::{Refinement, refine};
+use crate::clip::Clip;
+use crate::meshlet::Meshlets;
+use crate::meshlet::stats::principal_joint;
+use crate::model::{Skeleton, Skin, SkinnedMesh};
+use crate::{Error, Result};
+use glam::{DMat4, DVec3, Vec3};
+use rayon::prelude::*;
+use std::collections::BTreeMap;
+use std::f64::consts::FRAC_PI_2;
+
+/// Relative f32 rounding of skinned positions, as the bounds module allows for it.
+pub const SKIN_ROUNDING: f64 = crate::bounds::INFLATE;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SkinnedMethod {
+    /// The paper: patches on rigid parts only.
+    Rigid,
+    /// Ours: every quad, non-rigid ones with animated bounds.
+    Animated,
+}
+
+impl SkinnedMethod {
+    pub fn name(self) -> &'static str {
+        match self {
+            SkinnedMethod::Rigid => "rigid",
+            SkinnedMethod::Animated => "animated",
+        }
+    }
+}
+
+/// Patches of a skinned mesh, bounds in their joints' spaces.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SkinnedPatches {
+    pub patches: Patches,
+    /// Per patch, its joint (index into the skin's joints); patches of a joint are adjacent.
+    pub joints: Vec<u16>,
+    /// Quads in rigid patches / in animated (non-rigid) patches.
+    pub rigid_quads: usize,
+    pub animated_quads: usize,
+}
+
+/// Builds the patches of `mesh` (welded, skinned by `skin`) for `clips`.
+#[allow(clippy::too_many_arguments)]
+pub fn build(
+    skeleton: &Skeleton,
+    skin: &Skin,
+    clips: &[&Clip],
+    mesh: &SkinnedMesh,
+    edges: &Edges,
+    method: SkinnedMethod,
+    params: &PatchParams,
+    how: &Refinement,
+) -> Result<SkinnedPatches> {
+    if mesh.influences.is_none() {
+        return Err(Error::invalid("contours", "the mesh has no skin weights"));
+    }
+    let p = &mesh.positions;
+    let rigid_vertex = rigid_vertices(mesh);
+    // Group quads by (joint, rigid); rigid quads keep the joint their vertices follow.
+    let mut groups: BTreeMap<(u16, bool), Vec<u32>> = BTreeMap::new();
+    for (i, q) in edges.quads.iter().enumerate() {
+        let r = rigid_vertex[q[0] as usize];
+        let rigid = rigid_quad(&rigid_vertex, q);
+        let joint = match r {
+            Some((j, _)) if rigid => j,
+            _ => principal_joint(mesh, q).map_or(0, |(j, _)| j),
+        };
+        groups.entry((joint, rigid)).or_default().push(i as u32);
+    }
+    let size = size_of(p, edges);
+    let mut always = Vec::new();
+    let work: Vec<(u16, bool, &Vec<u32>)> = groups
+        .iter()
+        .filter_map(|(&(j, rigid), q)| {
+            if rigid || method == SkinnedMethod::Animated {
+                Some((j, rigid, q))
+            } else {
+                always.extend_from_slice(q);
+                None
+            }
+        })
+        .collect();
+    // Fusion on the bind pose; bounds per patch below.
+    let fused: Vec<(u16, bool, Vec<BuiltPatch>, Vec<u32>)> = work
+        .par_iter()
+        .map(|&(j, rigid, q)| {
+            let (b, a) = fuse(p, edges, q, params, size);
+            (j, rigid, b, a)
+        })
+        .collect();
+    let magnitude = model_extent(skeleton, skin, clips, mesh)?;
+    let eta = SKIN_ROUNDING * magnitude;
+    let mut out: Vec<(u16, bool, BuiltPatch)> = Vec::new();
+    let mut animated: Vec<BuiltPatch> = Vec::new();
+    for (j, rigid, built, a) in fused {
+        always.extend(a);
+        for b in built {
+            if rigid {
+                let w = f32::from_bits(rigid_vertex[edges.quads[b.edges[0] as usize][0] as usize].map_or(0, |r| r.1));
+                let to_joint = skin.inverse_bind[j as usize].as_dmat4() * w as f64;
+                match rigid_bounds(p, edges, &b.edges, &to_joint) {
+                    Some(x) => out.push((j, true, x)),
+                    None => always.extend(b.edges),
+                }
+            } else {
+                animated.push(b);
+            }
+        }
+    }
+    // Animated bounds of the non-rigid patches, each as the "meshlet" of its adjacent faces.
+    let mut meshlets = Meshlets::default();
+    let mut kept = Vec::new();
+    for b in animated {
+        match faces_meshlet(mesh, edges, &b.edges) {
+            Some((verts, tris)) => {
+                meshlets.push(&verts, &tris);
+                kept.push(b);
+            }
+            None => always.extend(b.edges),
+        }
+    }
+    if !kept.is_empty() {
+        let bounds = refine(skeleton, skin, clips, mesh, &meshlets, how)?.bounds;
+        for (b, mb) in kept.into_iter().zip(bounds) {
+            let x = BuiltPatch {
+                edges: b.edges,
+                center: mb.center.as_dvec3(),
+                radius: mb.radius as f64,
+                axis: mb.cone_axis.as_dvec3(),
+                angle: mb.cone_angle as f64,
+            };
+            out.push((mb.joint, false, x));
+        }
+    }
+    // Widen for the rounding of skinning, then keep only patches that still pay.
+    let mut final_patches: Vec<(u16, BuiltPatch)> = Vec::new();
+    let (mut rigid_quads, mut animated_quads) = (0, 0);
+    for (j, rigid, mut b) in out {
+        b.angle += 4.0 * eta * thinness(p, edges, &b.edges);
+        let cost =
+            params.cost_ratio + super::bound::acceptance(b.angle, b.radius, params.d_cam * size) * b.edges.len() as f64;
+        if b.angle < FRAC_PI_2 && (b.edges.len() as f64) > cost {
+            *(if rigid { &mut rigid_quads } else { &mut animated_quads }) += b.edges.len();
+            final_patches.push((j, b));
+        } else {
+            always.extend(b.edges);
+        }
+    }
+    final_patches.sort_by_key(|(j, _)| *j);
+    let joints = final_patches.iter().map(|(j, _)| *j).collect();
+    let patches = assemble(edges, final_patches.into_iter().map(|(_, b)| b).collect(), always, size);
+    Ok(SkinnedPatches { patches, joints, rigid_quads, animated_quads })
+}
+
+/// Per vertex, `(joint, weight bits)` when one joint carries all its weight.
+pub fn rigid_vertices(mesh: &SkinnedMesh) -> Vec<Option<(u16, u32)>> {
+    let Some(inf) = &mesh.influences else { return vec![None; mesh.positions.len()] };
+    (0..mesh.positions.len())
+        .map(|v| {
+            let mut it = inf.of(v).filter(|&(_, w)| w != 0.0);
+            match (it.next(), it.next()) {
+                (Some((j, w)), None) => Some((j, w.to_bits())),
+                _ => None,
+            }
+        })
+        .collect()
+}
+
+/// A quad is rigid when its four vertices follow one joint with the same weight.
+pub fn rigid_quad(rigid: &[Option<(u16, u32)>], q: &[u32; 4]) -> bool {
+    let r = rigid[q[0] as usize];
+    r.is_some() && q.iter().all(|&v| rigid[v as usize] == r)
+}
+
+/// Bounds of a rigid patch in its joint's space (`to_joint · x`): Reduced Sphere and the
+/// narrower of the mean / smallest-cap cone.
+fn rigid_bounds(p: &[Vec3], edges: &Edges, quads: &[u32], to_joint: &DMat4) -> Option<BuiltPatch> {
+    let geo: Option<Vec<EdgeGeometry>> = quads
+        .iter()
+        .map(|&q| {
+            let [a, b, c, d] = edges.quads[q as usize].map(|v| to_joint.transform_point3(p[v as usize].as_dvec3()));
+            quad_geometry(a, b, c, d)
+        })
+        .collect();
+    let geo = geo?;
+    let normals: Vec<DVec3> = geo.iter().flat_map(|g| [g.n1, g.n2]).collect();
+    let (axis, _) = reference_axis(&normals);
+    let (center, _) = reduced_sphere(&geo);
+    Some(BuiltPatch {
+        edges: quads.to_vec(),
+        center,
+        radius: geo.iter().map(|g| line_distance(center, g.a, g.b)).fold(0.0, f64::max),
+        axis,
+        angle: cone_angle(axis, normals.into_iter()),
+    })
+}
+
+/// The faces adjacent to `quads` as one meshlet (local vertices, local triangles), or
+/// `None` past 256 vertices.
+fn faces_meshlet(mesh: &SkinnedMesh, edges: &Edges, quads: &[u32]) -> Option<(Vec<u32>, Vec<u8>)> {
+    let mut faces: Vec<u32> = quads.iter().flat_map(|&q| edges.quad_faces[q as usize]).collect();
+    faces.sort_unstable();
+    faces.dedup();
+    let mut verts: Vec<u32> = faces.iter().flat_map(|&f| mesh.triangles[f as usize]).collect();
+    verts.sort_unstable();
+    verts.dedup();
+    if verts.len() > 256 {
+        return None;
+    }
+    let local = |v: u32| verts.binary_search(&v).map(|i| i as u8).ok();
+    let tris: Option<Vec<u8>> = faces.iter().flat_map(|&f| mesh.triangles[f as usize]).map(local).collect();
+    Some((verts.clone(), tris?))
+}
+
+/// Largest `2(|e1| + |e2|)/|n|` over the faces of the quads (bind pose): how far a face
+/// normal turns per unit of vertex displacement.
+fn thinness(p: &[Vec3], edges: &Edges, quads: &[u32]) -> f64 {
+    let mut k: f64 = 0.0;
+    for &q in quads {
+        let [a, b, c, d] = edges.quads[q as usize].map(|v| p[v as usize].as_dvec3());
+        for (x, y) in [(b - a, c - a), (d - a, b - a)] {
+            let n = x.cross(y).length();
+            k = k.max(if n > 0.0 { 2.0 * (x.length() + y.length()) / n } else { f64::INFINITY });
+        }
+    }
+    k
+}
+
+/// An upper bound of |skinned position| over the clips, from the bind pose and the clips'
+/// key times (doubled: a margin for the rounding allowance, not a bound the culling relies
+/// on for anything but its size).
+fn model_extent(skeleton: &Skeleton, skin: &Skin, clips: &[&Clip], mesh: &SkinnedMesh) -> Result<f64> {
+    let inf = mesh.influences.as_ref().ok_or_else(|| Error::invalid("contours", "the mesh has no skin weights"))?;
+    let mut poser = crate::pose::Poser::default();
+    let mut m = Vec::new();
+    let mut out = vec![Vec3::ZERO; mesh.positions.len()];
+    let mut extent = mesh.positions.iter().map(|p| p.length() as f64).fold(0.0, f64::max);
+    for clip in clips {
+        for t in clip.key_times() {
+            poser.skinning_matrices(skeleton, skin, Some(clip), t, &mut m);
+            crate::skinning::skin(inf, &mesh.positions, &[], &m, &mut out, &mut [])?;
+            extent = extent.max(out.iter().map(|p| p.length() as f64).fold(0.0, f64::max));
+        }
+    }
+    Ok(2.0 * extent)
+}
+
+impl SkinnedPatches {
+    /// Contour edges of the skinned `positions` for joints at global (model-space) matrices
+    /// `joint_globals` (one per skin joint).
+    pub fn extract(
+        &self,
+        positions: &[Vec3],
+        edges: &Edges,
+        joint_globals: &[DMat4],
+        projection: Projection,
+        out: &mut Vec<u32>,
+    ) -> Tested {
+        let viewer = Viewer::new(projection);
+        out.clear();
+        let p = &self.patches;
+        let mut tested = 0;
+        let mut flags = [false; 64];
+        let mut start = 0;
+        while start < self.joints.len() {
+            let j = self.joints[start];
+            let end = start + self.joints[start..].iter().take_while(|&&x| x == j).count();
+            let inv = joint_globals.get(j as usize).map_or(DMat4::NAN, |g| g.inverse());
+            let view = match projection {
+                Projection::Perspective { eye } => ViewF::Eye(inv.transform_point3(eye.as_dvec3()).as_vec3()),
+                Projection::Orthographic { dir } => {
+                    ViewF::Dir(inv.transform_vector3(dir.as_dvec3()).normalize_or_zero().as_vec3())
+                }
+            };
+            let finite = match view {
+                ViewF::Eye(e) => e.is_finite(),
+                ViewF::Dir(d) => d.is_finite() && d != Vec3::ZERO,
+            };
+            for (bounds, ranges) in p.bounds[start..end].chunks(64).zip(p.ranges[start..end].chunks(64)) {
+                match view {
+                    ViewF::Eye(eye) => flags.iter_mut().zip(bounds).for_each(|(f, b)| *f = b.accepts_eye(eye)),
+                    ViewF::Dir(dir) => flags.iter_mut().zip(bounds).for_each(|(f, b)| *f = b.accepts_dir(dir)),
+                }
+                for (&accepted, r) in flags.iter().zip(ranges) {
+                    // A singular joint matrix says nothing about facing: test everything.
+                    if accepted || !finite {
+                        let range = r[0] as usize..(r[0] + r[1]) as usize;
+                        test_quads(positions, &p.quads[range.clone()], &p.order[range], &viewer, out);
+                        tested += r[1] as usize;
+                    }
+                }
+            }
+            start = end;
+        }
+        let rest = p.always_from..p.order.len();
+        test_quads(positions, &p.quads[rest.clone()], &p.order[rest.clone()], &viewer, out);
+        tested += rest.len() + extract_uncullable(positions, edges, &viewer, out);
+        Tested { edges: tested, bounds: p.len() }
+    }
+}
