@@ -48,6 +48,7 @@ pub fn bake_asset(
     Ok(out)
 }
 
+#[allow(clippy::too_many_arguments)]
 pub fn run(
     file: &str,
     out: &Path,
@@ -55,6 +56,7 @@ pub fn run(
     clips: Option<&str>,
     args: RefineArgs,
     overdraw: bool,
+    contours: Option<&str>,
     json: bool,
 ) -> Result<()> {
     let builder = Builder::from_name(builder).context("unknown builder")?;
@@ -68,6 +70,22 @@ pub fn run(
             skin,
             &skinlet::overdraw::cluster::ClusterParams::default(),
             16,
+        )?;
+        Some(started.elapsed().as_secs_f64())
+    } else {
+        None
+    };
+    let contours_s = if let Some(which) = contours {
+        let started = std::time::Instant::now();
+        let how = skinlet::contour::skinned::refinement(args.refinement()?.budget, usize::MAX);
+        skinlet::bake::add_contours(
+            &mut baked,
+            &asset,
+            skin,
+            skinlet::contour::skinned::SkinnedMethod::Animated,
+            &skinlet::contour::patches::PatchParams::default(),
+            &how,
+            which == "visible",
         )?;
         Some(started.elapsed().as_secs_f64())
     } else {
@@ -87,6 +105,7 @@ pub fn run(
             "precompute_s": precompute_s, "rounds": s.rounds, "stop": stop_name(s.stop),
             "vertex_influence_intervals": stats.work,
             "overdraw_buffers": baked.overdraw.as_ref().map(|o| o.buffers.len()), "overdraw_s": overdraw_s,
+            "contour_patches": baked.contours.as_ref().map(|c| c.patches.patches.len()), "contours_s": contours_s,
         });
         println!("{}", serde_json::to_string_pretty(&summary)?);
         return Ok(());
@@ -111,6 +130,16 @@ pub fn run(
         stop_name(s.stop),
         stats.work as f64
     );
+    if let (Some(c), Some(secs)) = (&baked.contours, contours_s) {
+        let p = &c.patches;
+        println!(
+            "  {} contour patches ({} rigid + {} animated quads of {}; the rest tested every frame) ({secs:.1} s)",
+            p.patches.len(),
+            p.rigid_quads,
+            p.animated_quads,
+            p.patches.order.len()
+        );
+    }
     if let (Some(o), Some(secs)) = (&baked.overdraw, overdraw_s) {
         println!(
             "  {} overdraw-reducing index buffers over {} keyframes, lookup {} x {} per keyframe ({secs:.1} s)",

@@ -140,11 +140,7 @@ fn skinned(file: &str, asset: &skinlet::Asset, skin: u32, o: &Options) -> Result
     anyhow::ensure!(!o.calibrate, "--calibrate runs on static geometry: add --static");
     let clips = crate::select_clips(asset, o.clips)?;
     let (mesh, _, _) = skinlet::weld::weld(&asset.combined_mesh(Some(skin)));
-    let mut edges = Edges::build(&mesh.positions, &mesh.triangles)?;
-    if o.visible_only {
-        let rigid = skinlet::contour::skinned::rigid_vertices(&mesh);
-        edges.drop_concave(&mesh.positions, |q| skinlet::contour::skinned::rigid_quad(&rigid, q));
-    }
+    let edges = skinlet::contour::skinned::skinned_edges(&mesh, o.visible_only)?;
     let mut params = o.params;
     if let Some(r) = o.cost_ratio {
         params.cost_ratio = r;
@@ -157,14 +153,10 @@ fn skinned(file: &str, asset: &skinlet::Asset, skin: u32, o: &Options) -> Result
         frames_per_clip: o.frames,
     };
     anyhow::ensure!(o.budget.is_finite() && o.budget >= 0.0, "--budget must be a number of seconds >= 0");
-    // Refine until every piece stays within 1.5x its rest radius and 3 degrees of its rest
-    // cone, or stops improving (tighter thresholds cost 3x the time for < 1% fewer tests).
-    let how = skinlet::bounds::refine::Refinement {
-        s_r: 1.5,
-        alpha_t: 3f32.to_radians(),
-        budget: (o.budget > 0.0).then(|| std::time::Duration::from_secs_f64(o.budget)),
-        max_rounds: o.rounds.unwrap_or(if o.budget > 0.0 { usize::MAX } else { 0 }),
-    };
+    let how = skinlet::contour::skinned::refinement(
+        (o.budget > 0.0).then(|| std::time::Duration::from_secs_f64(o.budget)),
+        o.rounds.unwrap_or(if o.budget > 0.0 { usize::MAX } else { 0 }),
+    );
     let rows = evaluate_skinned(&input, &edges, &methods, &params, &how, o.repeats)?;
     if let Some(path) = o.svg {
         write_skinned_svg(path, &input, &edges)?;

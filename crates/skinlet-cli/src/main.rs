@@ -177,6 +177,11 @@ enum Command {
         /// "joint" clustering over up to 16 key times per clip, λ = 0.85; see `skinlet overdraw`).
         #[arg(long)]
         overdraw: bool,
+        /// Also store contour patches with bounds over the clips (see `skinlet contours`):
+        /// `all` for every contour, `visible` without the concave rigid edges whose contours
+        /// are always hidden.
+        #[arg(long, value_parser = ["all", "visible"])]
+        contours: Option<String>,
         /// Print a JSON summary: meshlets, both_pct, frustum_only_pct, none_pct, precompute_s, ...
         #[arg(long)]
         json: bool,
@@ -311,8 +316,8 @@ enum Command {
         /// spent; 0: key intervals only).
         #[arg(long)]
         rounds: Option<usize>,
-        /// Timing rounds (the fastest counts).
-        #[arg(long, default_value_t = 3)]
+        /// Timing rounds, methods interleaved (the fastest round of each counts).
+        #[arg(long, default_value_t = 5)]
         repeats: usize,
         /// Cost of a patch test in edge tests (t_P / t_e) for the decomposition.
         #[arg(long)]
@@ -369,8 +374,8 @@ fn main() {
         Command::Bounds { file, builder, clips, refine, json } => {
             bounds(&file, &builder, clips.as_deref(), refine, json)
         }
-        Command::Bake { file, out, builder, clips, refine, overdraw, json } => {
-            bake::run(&file, &out, &builder, clips.as_deref(), refine, overdraw, json)
+        Command::Bake { file, out, builder, clips, refine, overdraw, contours, json } => {
+            bake::run(&file, &out, &builder, clips.as_deref(), refine, overdraw, contours.as_deref(), json)
         }
         Command::Verify { file, baked, builder, clips, refine, samples, json } => {
             verify(&file, baked.as_deref(), &builder, clips.as_deref(), refine, samples, json)

@@ -2,7 +2,8 @@
 //! one versioned little-endian binary file (layout in `docs/FORMAT.md`): the prepared
 //! vertices and skin weights, the inverse bind matrices, the triangles, the meshlets (the
 //! flat layout of [`crate::meshlet::flat`]) and their conservative bounds and classes, and
-//! optionally overdraw-reducing index buffers with their lookup table ([`add_overdraw`]).
+//! optionally overdraw-reducing index buffers with their lookup table ([`add_overdraw`]) and
+//! contour patches with bounds over the clips ([`add_contours`]).
 //!
 //! Guarantees: [`to_bytes`] is a pure function of the [`Baked`] value (same input and
 //! options, same bytes); [`from_bytes`] accepts exactly what `to_bytes` can produce and
@@ -14,6 +15,9 @@
 use crate::bounds::meshlet::{Class, MeshletBounds, classify};
 use crate::bounds::refine::{Progress, Refinement, Stop, refine_with_progress};
 use crate::clip::Clip;
+use crate::contour::bound::PatchBounds;
+use crate::contour::patches::{PatchParams, Patches};
+use crate::contour::skinned::{SkinnedMethod, SkinnedPatches, skinned_edges};
 use crate::meshlet::{Builder, MeshletLimits, Meshlets, build, canonical, flat, prepare};
 use crate::model::{Asset, Influences, SkinnedMesh};
 use crate::overdraw::cluster::{ClusterParams, Framing, Lookup, Orders, cluster};
@@ -55,6 +59,16 @@ pub struct Baked {
     pub classes: Vec<Class>,
     /// Overdraw-reducing index buffers with their run-time lookup (optional section OVDR).
     pub overdraw: Option<Orders>,
+    /// Contour patches of the mesh (optional section CONT).
+    pub contours: Option<BakedContours>,
+}
+
+/// Contour patches of a bake's mesh; their quads index the edges that
+/// [`skinned_edges`]`(mesh, visible_only)` rebuilds from the stored triangles.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BakedContours {
+    pub visible_only: bool,
+    pub patches: SkinnedPatches,
 }
 
 /// Precomputation figures of a bake (not stored: they depend on the machine).
@@ -100,6 +114,7 @@ pub fn bake(
         meshlets,
         bounds: refined.bounds,
         overdraw: None,
+        contours: None,
     };
     Ok((baked, stats))
 }
@@ -133,8 +148,39 @@ pub fn add_overdraw(
     Ok(())
 }
 
-/// Section tags: the six required ones, then the optional overdraw orders.
-const TAGS: [&[u8; 4]; 7] = [b"INFO", b"SKIN", b"VERT", b"TRIS", b"MLET", b"BNDS", b"OVDR"];
+/// Adds contour patches (see [`crate::contour::skinned`]) with bounds over the clips the
+/// bake was made for.
+pub fn add_contours(
+    baked: &mut Baked,
+    asset: &Asset,
+    skin: u32,
+    method: SkinnedMethod,
+    params: &PatchParams,
+    how: &Refinement,
+    visible_only: bool,
+) -> Result<()> {
+    let s = asset.skins.get(skin as usize).ok_or_else(|| Error::invalid("bake", format!("no skin {skin}")))?;
+    let clips = baked
+        .settings
+        .clips
+        .iter()
+        .map(|name| {
+            asset
+                .clips
+                .iter()
+                .find(|c| &c.name == name)
+                .ok_or_else(|| Error::invalid("bake", format!("no clip {name:?}")))
+        })
+        .collect::<Result<Vec<&Clip>>>()?;
+    let edges = skinned_edges(&baked.mesh, visible_only)?;
+    let patches = crate::contour::skinned::build(&asset.skeleton, s, &clips, &baked.mesh, &edges, method, params, how)?;
+    baked.contours = Some(BakedContours { visible_only, patches });
+    Ok(())
+}
+
+/// Section tags: the six required ones, then the optional overdraw orders and contours.
+const TAGS: [&[u8; 4]; 8] = [b"INFO", b"SKIN", b"VERT", b"TRIS", b"MLET", b"BNDS", b"OVDR", b"CONT"];
+const PATCH_STRIDE: usize = 48;
 const HEADER: usize = 16;
 const ENTRY: usize = 24;
 const BOUNDS_STRIDE: usize = 48;
@@ -175,6 +221,9 @@ impl Out {
     fn str(&mut self, s: &str) {
         self.u32(s.len() as u32);
         self.0.extend_from_slice(s.as_bytes());
+    }
+    fn f64(&mut self, x: f64) {
+        self.0.extend_from_slice(&x.to_le_bytes());
     }
 }
 
@@ -228,7 +277,9 @@ pub fn to_bytes(b: &Baked) -> Vec<u8> {
     }
 
     let mut sections = vec![info.0, skin.0, vert.0, tris.0, flat::to_bytes(&b.meshlets), bnds.0];
+    let mut tags: Vec<&[u8; 4]> = TAGS[..6].to_vec();
     if let Some(o) = &b.overdraw {
+        tags.push(TAGS[6]);
         let mut ov = Out::default();
         let l = &o.lookup;
         for x in [o.buffers.len(), o.keyframes.len(), l.polar, l.azimuth] {
@@ -249,12 +300,36 @@ pub fn to_bytes(b: &Baked) -> Vec<u8> {
         ov.0.resize(ov.0.len().next_multiple_of(4), 0);
         sections.push(ov.0);
     }
+    if let Some(c) = &b.contours {
+        tags.push(TAGS[7]);
+        let (sp, p) = (&c.patches, &c.patches.patches);
+        let mut ct = Out::default();
+        for x in [c.visible_only as usize, p.order.len(), p.len(), p.always_from, sp.rigid_quads, sp.animated_quads] {
+            ct.u32(x as u32);
+        }
+        for x in [p.size, p.mean_radius, p.mean_angle_deg] {
+            ct.f64(x);
+        }
+        ct.0.resize(48, 0);
+        for ((x, r), j) in p.bounds.iter().zip(&p.ranges).zip(&sp.joints) {
+            ct.vec3(x.center);
+            ct.f32(x.radius);
+            ct.vec3(x.axis);
+            ct.f32(x.sin_angle);
+            ct.f32(x.cos_angle);
+            ct.u32(*j as u32);
+            ct.u32(r[0]);
+            ct.u32(r[1]);
+        }
+        p.order.iter().for_each(|&i| ct.u32(i));
+        sections.push(ct.0);
+    }
     let mut out = Vec::new();
     out.extend_from_slice(&MAGIC);
     out.extend_from_slice(&VERSION.to_le_bytes());
     out.extend_from_slice(&(sections.len() as u32).to_le_bytes());
     let mut offset = (HEADER + ENTRY * sections.len()).next_multiple_of(16);
-    for (tag, body) in TAGS.iter().zip(&sections) {
+    for (tag, body) in tags.iter().zip(&sections) {
         out.extend_from_slice(*tag);
         out.extend_from_slice(&0u32.to_le_bytes());
         out.extend_from_slice(&(offset as u64).to_le_bytes());
@@ -358,7 +433,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
         return Err(Error::unsupported("bake header", format!("version {version}; this skinlet reads {VERSION}")));
     }
     let n = head.count("sections", ENTRY)?;
-    let mut found: [Option<&[u8]>; 7] = [None; 7];
+    let mut found: [Option<&[u8]>; 8] = [None; 8];
     for _ in 0..n {
         let tag: [u8; 4] = head.bytes(4)?.try_into().expect("4 bytes");
         head.u32()?;
@@ -470,7 +545,70 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
     }
     s.end()?;
     let overdraw = if found[6].is_some() { Some(read_orders(section(6)?, &mesh, clips_len)?) } else { None };
-    Ok(Baked { settings, joint_names, inverse_bind, mesh, meshlets, bounds, classes, overdraw })
+    let contours = if found[7].is_some() { Some(read_contours(section(7)?, &mesh, joints)?) } else { None };
+    Ok(Baked { settings, joint_names, inverse_bind, mesh, meshlets, bounds, classes, overdraw, contours })
+}
+
+/// The CONT section: patches partition the rebuilt edges' quads, ranges contiguous, joints
+/// and numbers in range.
+fn read_contours(mut s: In, mesh: &SkinnedMesh, joints: usize) -> Result<BakedContours> {
+    let visible_only = match s.u32()? {
+        0 => false,
+        1 => true,
+        x => return Err(s.err(format!("visible-only flag {x}"))),
+    };
+    let (quads, n, always_from) = (s.u32()? as usize, s.u32()? as usize, s.u32()? as usize);
+    let (rigid_quads, animated_quads) = (s.u32()? as usize, s.u32()? as usize);
+    let mut f64s = [0.0; 3];
+    for x in &mut f64s {
+        *x = f64::from_le_bytes(s.bytes(8)?.try_into().expect("8 bytes"));
+        if !x.is_finite() {
+            return Err(s.err("non-finite statistic"));
+        }
+    }
+    s.align(48)?;
+    let edges = skinned_edges(mesh, visible_only).map_err(|e| s.err(e))?;
+    if quads != edges.quads.len() || always_from > quads || n.saturating_mul(PATCH_STRIDE) > s.b.len() {
+        return Err(s.err(format!("{quads} quads ({} in the mesh), {always_from} in {n} patches", edges.quads.len())));
+    }
+    let mut p =
+        Patches { always_from, size: f64s[0], mean_radius: f64s[1], mean_angle_deg: f64s[2], ..Patches::default() };
+    let mut patch_joints = Vec::with_capacity(n);
+    for i in 0..n {
+        let (center, radius, axis, sin_angle, cos_angle) = (s.vec3()?, s.f32()?, s.vec3()?, s.f32()?, s.f32()?);
+        let (joint, first, count) = (s.u32()?, s.u32()?, s.u32()?);
+        let at = p.ranges.last().map_or(0, |r: &[u32; 2]| (r[0] + r[1]) as usize);
+        if joint as usize >= joints.max(1)
+            || first as usize != at
+            || count == 0
+            || radius < 0.0
+            || !(-1.0..=1.0).contains(&sin_angle)
+            || !(-1.0..=1.0).contains(&cos_angle)
+        {
+            return Err(s.err(format!(
+                "patch {i}: joint {joint}, edges {first}+{count}, radius {radius}, sin/cos {sin_angle}/{cos_angle}"
+            )));
+        }
+        p.bounds.push(PatchBounds { center, radius, axis, sin_angle, cos_angle });
+        p.ranges.push([first, count]);
+        patch_joints.push(joint as u16);
+    }
+    if p.ranges.last().map_or(0, |r| (r[0] + r[1]) as usize) != always_from {
+        return Err(s.err(format!("patches hold other than {always_from} quads")));
+    }
+    p.order = (0..quads).map(|_| s.u32()).collect::<Result<Vec<_>>>()?;
+    let mut seen = vec![false; quads];
+    for &q in &p.order {
+        if std::mem::replace(seen.get_mut(q as usize).ok_or_else(|| s.err(format!("quad {q} of {quads}")))?, true) {
+            return Err(s.err(format!("quad {q} appears twice")));
+        }
+    }
+    s.end()?;
+    p.quads = p.order.iter().map(|&q| edges.quads[q as usize]).collect();
+    Ok(BakedContours {
+        visible_only,
+        patches: SkinnedPatches { patches: p, joints: patch_joints, rigid_quads, animated_quads },
+    })
 }
 
 /// The OVDR section: every buffer a permutation of the triangles, table entries in range.
@@ -556,6 +694,36 @@ mod tests {
         bad[at + 4..at + 8].copy_from_slice(&0u32.to_le_bytes());
         let e = from_bytes(&bad).unwrap_err().to_string();
         assert!(e.contains("OVDR") && e.contains("not a reordering"), "{e}");
+    }
+
+    #[test]
+    fn contours_round_trip_extract_like_before_and_are_checked() {
+        let asset = demo_character(&DemoParams { triangles: 2000, ..DemoParams::default() });
+        let mut b = baked();
+        let how = Refinement { max_rounds: 1, ..Refinement::NONE };
+        add_contours(&mut b, &asset, 0, SkinnedMethod::Animated, &PatchParams::default(), &how, true).unwrap();
+        let c = b.contours.as_ref().unwrap();
+        assert!(c.patches.patches.len() > 10, "{}", c.patches.patches.len());
+        let bytes = to_bytes(&b);
+        let back = from_bytes(&bytes).unwrap();
+        assert_eq!(back, b);
+        // The stored patches extract what brute force finds, on the rest pose from outside.
+        let edges = skinned_edges(&back.mesh, true).unwrap();
+        let globals: Vec<glam::DMat4> = back.inverse_bind.iter().map(|m| m.inverse().as_dmat4()).collect();
+        let view = crate::contour::Projection::Perspective { eye: Vec3::new(0.5, 1.0, 4.0) };
+        let (mut want, mut got) = (Vec::new(), Vec::new());
+        crate::contour::brute_force(&back.mesh.positions, &edges, view, &mut want);
+        back.contours.as_ref().unwrap().patches.extract(&back.mesh.positions, &edges, &globals, view, &mut got);
+        got.sort_unstable();
+        assert!(!want.is_empty());
+        assert_eq!(got, want);
+        // Damage: the last quad index repeated.
+        let mut bad = bytes.clone();
+        let n = bad.len();
+        let prev: [u8; 4] = bad[n - 8..n - 4].try_into().unwrap();
+        bad[n - 4..].copy_from_slice(&prev);
+        let e = from_bytes(&bad).unwrap_err().to_string();
+        assert!(e.contains("CONT") && e.contains("twice"), "{e}");
     }
 
     #[test]
