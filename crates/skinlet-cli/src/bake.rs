@@ -78,15 +78,9 @@ pub fn run(
     let contours_s = if let Some(which) = contours {
         let started = std::time::Instant::now();
         let how = skinlet::contour::skinned::refinement(args.refinement()?.budget, usize::MAX);
-        skinlet::bake::add_contours(
-            &mut baked,
-            &asset,
-            skin,
-            skinlet::contour::skinned::SkinnedMethod::Animated,
-            &skinlet::contour::patches::PatchParams::default(),
-            &how,
-            which == "visible",
-        )?;
+        let params =
+            skinlet::contour::skinned::SkinnedParams::new(skinlet::contour::skinned::SkinnedMethod::Animated, how);
+        skinlet::bake::add_contours(&mut baked, &asset, skin, &params, which == "visible")?;
         Some(started.elapsed().as_secs_f64())
     } else {
         None

@@ -19,6 +19,7 @@ pub struct Options<'a> {
     pub as_static: bool,
     pub budget: f64,
     pub rounds: Option<usize>,
+    pub windows: usize,
     pub repeats: usize,
     pub cost_ratio: Option<f64>,
     pub calibrate: bool,
@@ -117,6 +118,7 @@ fn check_params(o: &Options) -> Result<()> {
         "--max-edges must be >= 1 and --max-vertices >= 2"
     );
     anyhow::ensure!(o.repeats >= 1 && o.frames >= 1, "--repeats and --frames must be at least 1");
+    anyhow::ensure!((1..=256).contains(&o.windows), "--windows must be between 1 and 256");
     if let Some(r) = o.cost_ratio {
         anyhow::ensure!(r.is_finite() && r > 0.0, "--cost-ratio must be > 0");
     }
@@ -157,7 +159,13 @@ fn skinned(file: &str, asset: &skinlet::Asset, skin: u32, o: &Options) -> Result
         (o.budget > 0.0).then(|| std::time::Duration::from_secs_f64(o.budget)),
         o.rounds.unwrap_or(if o.budget > 0.0 { usize::MAX } else { 0 }),
     );
-    let rows = evaluate_skinned(&input, &edges, &methods, &params, &how, o.repeats)?;
+    let sp = skinlet::contour::skinned::SkinnedParams {
+        method: SkinnedMethod::Animated,
+        patches: params,
+        refine: how,
+        windows: o.windows,
+    };
+    let rows = evaluate_skinned(&input, &edges, &methods, &sp, o.repeats)?;
     if let Some(path) = o.svg {
         write_skinned_svg(path, &input, &edges)?;
     }

@@ -300,7 +300,7 @@ enum Command {
         #[arg(long)]
         visible_only: bool,
         /// Skinned files: clip names or indices, comma-separated (default: all clips).
-        #[arg(long)]
+        #[arg(long, alias = "clip")]
         clips: Option<String>,
         /// Skinned files: sampled frames per clip.
         #[arg(long, default_value_t = 8)]
@@ -316,6 +316,10 @@ enum Command {
         /// spent; 0: key intervals only).
         #[arg(long)]
         rounds: Option<usize>,
+        /// Skinned files: time windows per clip, each with its own bounds, chosen at run time
+        /// by the playing clip and time (1: one bound over all clips).
+        #[arg(long, default_value_t = skinlet::contour::skinned::DEFAULT_WINDOWS)]
+        windows: usize,
         /// Timing rounds, methods interleaved (the fastest round of each counts).
         #[arg(long, default_value_t = 5)]
         repeats: usize,
@@ -395,6 +399,7 @@ fn main() {
             as_static,
             budget,
             rounds,
+            windows,
             repeats,
             cost_ratio,
             calibrate,
@@ -417,6 +422,7 @@ fn main() {
                     as_static,
                     budget,
                     rounds,
+                    windows,
                     repeats,
                     cost_ratio,
                     calibrate,

@@ -11,7 +11,7 @@ use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::{DMat4, Vec3};
 use skinlet::contour::evaluate::{Extractor, Method, frame, uv_sphere};
 use skinlet::contour::patches::PatchParams;
-use skinlet::contour::skinned::{SkinnedMethod, build, refinement, skinned_edges};
+use skinlet::contour::skinned::{SkinnedMethod, SkinnedParams, build, refinement, skinned_edges};
 use skinlet::contour::{Edges, Projection};
 use skinlet::overdraw::viewpoints::icosphere;
 use skinlet::pose::{Poser, skinning_matrices};
@@ -66,13 +66,14 @@ fn skinned_mesh(c: &mut Criterion) {
     let clips: Vec<_> = asset.clips.iter().collect();
     let how = refinement(None, 8);
     let built: Vec<_> = [SkinnedMethod::Rigid, SkinnedMethod::Animated]
-        .map(|m| (m, build(&asset.skeleton, skin, &clips, &mesh, &edges, m, &PatchParams::default(), &how).unwrap()))
+        .map(|m| (m, build(&asset.skeleton, skin, &clips, &mesh, &edges, &SkinnedParams::new(m, how)).unwrap()))
         .into_iter()
         .collect();
     // One frame in the middle of the first clip.
     let clip = &asset.clips[0];
     let mut poser = Poser::default();
-    let globals = poser.globals(&asset.skeleton, Some(clip), clip.start + 0.5 * clip.duration()).to_vec();
+    let t = clip.start + 0.5 * clip.duration();
+    let globals = poser.globals(&asset.skeleton, Some(clip), t).to_vec();
     let mut m = Vec::new();
     skinning_matrices(skin, &globals, &mut m);
     let mut p = vec![Vec3::ZERO; mesh.positions.len()];
@@ -93,7 +94,7 @@ fn skinned_mesh(c: &mut Criterion) {
         g.bench_function(method.name(), |b| {
             b.iter(|| {
                 for &v in &views {
-                    black_box(x.extract(&p, &edges, &joints, v, &mut out));
+                    black_box(x.extract(&p, &edges, &joints, Some((0, t)), v, &mut out));
                 }
             })
         });

@@ -16,8 +16,8 @@ use crate::bounds::meshlet::{Class, MeshletBounds, classify};
 use crate::bounds::refine::{Progress, Refinement, Stop, refine_with_progress};
 use crate::clip::Clip;
 use crate::contour::bound::PatchBounds;
-use crate::contour::patches::{PatchParams, Patches};
-use crate::contour::skinned::{SkinnedMethod, SkinnedPatches, skinned_edges};
+use crate::contour::patches::Patches;
+use crate::contour::skinned::{ClipWindows, SkinnedParams, SkinnedPatches, skinned_edges};
 use crate::meshlet::{Builder, MeshletLimits, Meshlets, build, canonical, flat, prepare};
 use crate::model::{Asset, Influences, SkinnedMesh};
 use crate::overdraw::cluster::{ClusterParams, Framing, Lookup, Orders, cluster};
@@ -154,9 +154,7 @@ pub fn add_contours(
     baked: &mut Baked,
     asset: &Asset,
     skin: u32,
-    method: SkinnedMethod,
-    params: &PatchParams,
-    how: &Refinement,
+    params: &SkinnedParams,
     visible_only: bool,
 ) -> Result<()> {
     let s = asset.skins.get(skin as usize).ok_or_else(|| Error::invalid("bake", format!("no skin {skin}")))?;
@@ -173,7 +171,7 @@ pub fn add_contours(
         })
         .collect::<Result<Vec<&Clip>>>()?;
     let edges = skinned_edges(&baked.mesh, visible_only)?;
-    let patches = crate::contour::skinned::build(&asset.skeleton, s, &clips, &baked.mesh, &edges, method, params, how)?;
+    let patches = crate::contour::skinned::build(&asset.skeleton, s, &clips, &baked.mesh, &edges, params)?;
     baked.contours = Some(BakedContours { visible_only, patches });
     Ok(())
 }
@@ -322,6 +320,18 @@ pub fn to_bytes(b: &Baked) -> Vec<u8> {
             ct.u32(r[1]);
         }
         p.order.iter().for_each(|&i| ct.u32(i));
+        ct.u32(sp.clips.len() as u32);
+        for w in &sp.clips {
+            ct.f32(w.start);
+            ct.f32(w.end);
+            ct.u32(w.count);
+            ct.u32(w.first);
+        }
+        for x in &sp.window_bounds {
+            ct.f32(x.radius);
+            ct.f32(x.sin_angle);
+            ct.f32(x.cos_angle);
+        }
         sections.push(ct.0);
     }
     let mut out = Vec::new();
@@ -603,11 +613,32 @@ fn read_contours(mut s: In, mesh: &SkinnedMesh, joints: usize) -> Result<BakedCo
             return Err(s.err(format!("quad {q} appears twice")));
         }
     }
+    let n_clips = s.count("clip window lists", 16)?;
+    let mut clips = Vec::with_capacity(n_clips);
+    let mut total = 0u32;
+    for c in 0..n_clips {
+        let w = ClipWindows { start: s.f32()?, end: s.f32()?, count: s.u32()?, first: s.u32()? };
+        if w.first != total || w.count == 0 || w.end < w.start {
+            return Err(s.err(format!("clip {c}: windows {}+{} over [{}, {}]", w.first, w.count, w.start, w.end)));
+        }
+        total = w.first.saturating_add(w.count);
+        clips.push(w);
+    }
+    let cells = (total as usize).checked_mul(n).filter(|c| c.saturating_mul(12) <= s.b.len() - s.at);
+    let cells = cells.ok_or_else(|| s.err(format!("{total} windows x {n} patches do not fit in the section")))?;
+    let mut window_bounds = Vec::with_capacity(cells);
+    for i in 0..cells {
+        let (radius, sin_angle, cos_angle) = (s.f32()?, s.f32()?, s.f32()?);
+        if radius < 0.0 || !(-1.0..=1.0).contains(&sin_angle) || !(-1.0..=1.0).contains(&cos_angle) {
+            return Err(s.err(format!("window bound {i}: radius {radius}, sin/cos {sin_angle}/{cos_angle}")));
+        }
+        window_bounds.push(PatchBounds { radius, sin_angle, cos_angle, ..p.bounds[i % n] });
+    }
     s.end()?;
     p.quads = p.order.iter().map(|&q| edges.quads[q as usize]).collect();
     Ok(BakedContours {
         visible_only,
-        patches: SkinnedPatches { patches: p, joints: patch_joints, rigid_quads, animated_quads },
+        patches: SkinnedPatches { patches: p, joints: patch_joints, rigid_quads, animated_quads, clips, window_bounds },
     })
 }
 
@@ -701,7 +732,8 @@ mod tests {
         let asset = demo_character(&DemoParams { triangles: 2000, ..DemoParams::default() });
         let mut b = baked();
         let how = Refinement { max_rounds: 1, ..Refinement::NONE };
-        add_contours(&mut b, &asset, 0, SkinnedMethod::Animated, &PatchParams::default(), &how, true).unwrap();
+        let params = SkinnedParams::new(crate::contour::skinned::SkinnedMethod::Animated, how);
+        add_contours(&mut b, &asset, 0, &params, true).unwrap();
         let c = b.contours.as_ref().unwrap();
         assert!(c.patches.patches.len() > 10, "{}", c.patches.patches.len());
         let bytes = to_bytes(&b);
@@ -713,17 +745,16 @@ mod tests {
         let view = crate::contour::Projection::Perspective { eye: Vec3::new(0.5, 1.0, 4.0) };
         let (mut want, mut got) = (Vec::new(), Vec::new());
         crate::contour::brute_force(&back.mesh.positions, &edges, view, &mut want);
-        back.contours.as_ref().unwrap().patches.extract(&back.mesh.positions, &edges, &globals, view, &mut got);
+        back.contours.as_ref().unwrap().patches.extract(&back.mesh.positions, &edges, &globals, None, view, &mut got);
         got.sort_unstable();
         assert!(!want.is_empty());
         assert_eq!(got, want);
-        // Damage: the last quad index repeated.
+        // Damage: the last window bound's sine out of range.
         let mut bad = bytes.clone();
         let n = bad.len();
-        let prev: [u8; 4] = bad[n - 8..n - 4].try_into().unwrap();
-        bad[n - 4..].copy_from_slice(&prev);
+        bad[n - 8..n - 4].copy_from_slice(&2f32.to_le_bytes());
         let e = from_bytes(&bad).unwrap_err().to_string();
-        assert!(e.contains("CONT") && e.contains("twice"), "{e}");
+        assert!(e.contains("CONT") && e.contains("window bound"), "{e}");
     }
 
     #[test]

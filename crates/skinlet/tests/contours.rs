@@ -14,7 +14,7 @@ use skinlet::bounds::refine::Refinement;
 use skinlet::clip::Clip;
 use skinlet::contour::evaluate::{frame, uv_sphere, views};
 use skinlet::contour::patches::{self, PatchParams, SphereKind};
-use skinlet::contour::skinned::{SkinnedMethod, SkinnedPatches, build, rigid_quad, rigid_vertices};
+use skinlet::contour::skinned::{SkinnedMethod, SkinnedParams, SkinnedPatches, build, rigid_quad, rigid_vertices};
 use skinlet::contour::snch::Snch;
 use skinlet::contour::{Edges, Projection, Tested, brute_force, meshlets};
 use skinlet::model::{Influences, Skeleton, Skin, SkinnedMesh};
@@ -115,10 +115,12 @@ fn check_skinned(
     frames: usize,
     how: &Refinement,
 ) -> usize {
-    let params = PatchParams::default();
     let built: Vec<SkinnedPatches> = [SkinnedMethod::Rigid, SkinnedMethod::Animated]
         .iter()
-        .map(|&m| build(skeleton, skin, clips, mesh, edges, m, &params, how).unwrap())
+        .map(|&m| {
+            let sp = SkinnedParams { windows: 1 + frames % 5, ..SkinnedParams::new(m, *how) };
+            build(skeleton, skin, clips, mesh, edges, &sp).unwrap()
+        })
         .collect();
     for b in &built {
         let mut seen = b.patches.order.clone();
@@ -130,7 +132,7 @@ fn check_skinned(
     let mut m = Vec::new();
     let mut p = vec![Vec3::ZERO; mesh.positions.len()];
     let mut checked = 0;
-    for clip in clips {
+    for (c, clip) in clips.iter().enumerate() {
         let keys = clip.key_times();
         let (t0, t1) = (keys.first().copied().unwrap_or(0.0), keys.last().copied().unwrap_or(0.0));
         for k in 0..frames {
@@ -146,10 +148,13 @@ fn check_skinned(
                 .collect();
             all.extend(extra_views(&p));
             for (b, method) in built.iter().zip(["rigid", "animated"]) {
-                let bad = mismatches(&format!("{name} {method} t={t}"), &p, edges, &all, |v, o| {
-                    b.extract(&p, edges, &joints, v, o)
-                });
-                assert_eq!(bad, 0, "{name} {method} at t = {t}: views differing from brute force");
+                // With the window of the playing clip and time, and with the bounds over all.
+                for at in [Some((c, t)), None] {
+                    let bad = mismatches(&format!("{name} {method} t={t}"), &p, edges, &all, |v, o| {
+                        b.extract(&p, edges, &joints, at, v, o)
+                    });
+                    assert_eq!(bad, 0, "{name} {method} at {at:?}: views differing from brute force");
+                }
             }
             checked += all.len();
         }

@@ -67,6 +67,10 @@ pub enum Stop {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Refined {
     pub bounds: Vec<MeshletBounds>,
+    /// Per meshlet, its final time pieces: together they cover every key interval of every
+    /// clip, and `bounds` is their union. A caller can bound a sub-range of a clip by the
+    /// pieces that overlap it (same center and axis, their largest radius and angle).
+    pub extents: Vec<Vec<PieceExtent>>,
     /// Rounds completed.
     pub rounds: usize,
     pub stop: Stop,
@@ -74,6 +78,19 @@ pub struct Refined {
     pub pieces: u64,
     /// Vertex-influence-intervals evaluated: per piece, the meshlet's nonzero influences.
     pub work: u64,
+}
+
+/// A meshlet's bound over one time piece of one clip, around its stored center and axis.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PieceExtent {
+    pub clip: u32,
+    pub t1: f32,
+    pub t2: f32,
+    /// Radius over the piece (not below the rest radius).
+    pub radius: f64,
+    /// Cosine of the widest normal around the axis over the piece (≤ 0: no useful cone),
+    /// not above the rest cone's.
+    pub min_cos: f64,
 }
 
 /// One time piece of one meshlet with the meshlet's bounds over it (rest pose included).
@@ -195,6 +212,23 @@ pub fn refine_with_progress(
     };
     let mut pieces = 0;
     let mut work = 0;
+    let extents = states
+        .iter()
+        .zip(&bounds)
+        .map(|(s, b)| {
+            let (r0, c0) = (b.radius as f64, (b.rest_cone_angle as f64).cos());
+            s.pieces
+                .iter()
+                .map(|p| PieceExtent {
+                    clip: p.clip,
+                    t1: p.t1,
+                    t2: p.t2,
+                    radius: p.radius.max(r0),
+                    min_cos: p.min_cos.min(c0),
+                })
+                .collect()
+        })
+        .collect();
     for ((b, s), m) in bounds.iter_mut().zip(&states).zip(&meshlets.meshlets) {
         let radius = s.pieces.iter().map(|p| p.radius).fold(b.radius as f64, f64::max);
         let min_cos = s.pieces.iter().map(|p| p.min_cos).fold((b.rest_cone_angle as f64).cos(), f64::min);
@@ -204,7 +238,7 @@ pub fn refine_with_progress(
         let per_piece: usize = meshlets.vertices_of(m).iter().map(|&v| inf.count(v as usize)).sum();
         work += s.pieces_evaluated * per_piece as u64;
     }
-    Ok(Refined { bounds, rounds, stop, pieces, work })
+    Ok(Refined { bounds, extents, rounds, stop, pieces, work })
 }
 
 /// Read-only inputs of the per-piece evaluation.

@@ -122,24 +122,33 @@ pub struct PatchBounds {
 impl PatchBounds {
     /// Never culled.
     pub const ALWAYS: PatchBounds =
-        PatchBounds { center: Vec3::ZERO, radius: f32::INFINITY, axis: Vec3::Z, sin_angle: 1.0, cos_angle: -1.0 };
+        PatchBounds { center: Vec3::ZERO, radius: 0.0, axis: Vec3::Z, sin_angle: 1.0, cos_angle: -1.0 };
 
-    /// From f64 bounds, the radius and angle rounded up (an axis that is not finite: never culled).
+    /// From f64 bounds, the radius and angle rounded up (a radius that is not finite or an
+    /// angle from π/2 on: never culled, center and axis kept; a center or axis that is not
+    /// finite: [`Self::ALWAYS`]).
     pub fn new(center: DVec3, radius: f64, axis: DVec3, angle: f64) -> PatchBounds {
-        if !(axis.is_finite() && center.is_finite() && radius.is_finite()) || angle >= FRAC_PI_2 {
+        if !(axis.is_finite() && center.is_finite()) {
             return PatchBounds::ALWAYS;
+        }
+        let axis32 = axis.as_vec3().normalize();
+        PatchBounds { center: center.as_vec3(), axis: axis32, ..PatchBounds::ALWAYS }.with_extent(center, radius, angle)
+    }
+
+    /// The same center and axis with another radius and angle around them (e.g. a bound over
+    /// part of a clip): radius and angle rounded up; from π/2 on, never culled.
+    pub fn with_extent(&self, center: DVec3, radius: f64, angle: f64) -> PatchBounds {
+        if angle >= FRAC_PI_2 || !radius.is_finite() {
+            return PatchBounds { sin_angle: 1.0, cos_angle: -1.0, ..*self };
         }
         // 1e-7 rad covers the f32 rounding of the stored axis and the sin/cos below.
         let angle = angle + 1e-7;
-        let axis32 = axis.as_vec3().normalize();
-        let center32 = center.as_vec3();
-        let radius = radius * (1.0 + 1e-6) + center.distance(center32.as_dvec3());
+        let radius = radius * (1.0 + 1e-6) + center.distance(self.center.as_dvec3());
         PatchBounds {
-            center: center32,
             radius: round_up(radius),
-            axis: axis32,
             sin_angle: round_up(angle.sin()),
             cos_angle: (angle.cos() as f32).min(angle.cos() as f32 - f32::EPSILON * 0.5),
+            ..*self
         }
     }
 
@@ -226,6 +235,7 @@ mod tests {
         assert!(!b.accepts(&ViewF::Dir(Vec3::NEG_Z)));
         assert!(b.accepts(&ViewF::Dir(Vec3::X)));
         assert!(PatchBounds::ALWAYS.accepts(&ViewF::Eye(Vec3::splat(1e6))));
-        assert_eq!(PatchBounds::new(DVec3::ZERO, 1.0, DVec3::Z, 2.0), PatchBounds::ALWAYS);
+        assert!(PatchBounds::new(DVec3::X, 1.0, DVec3::Z, 2.0).accepts(&ViewF::Dir(Vec3::Z)));
+        assert_eq!(PatchBounds::new(DVec3::NAN, 1.0, DVec3::Z, 0.1), PatchBounds::ALWAYS);
     }
 }

@@ -278,8 +278,7 @@ pub fn evaluate_skinned(
     input: &SkinnedInput,
     edges: &Edges,
     methods: &[super::skinned::SkinnedMethod],
-    params: &PatchParams,
-    how: &crate::bounds::refine::Refinement,
+    params: &super::skinned::SkinnedParams,
     repeats: usize,
 ) -> crate::Result<Vec<SkinnedResult>> {
     use super::skinned::{SkinnedPatches, build};
@@ -288,15 +287,18 @@ pub fn evaluate_skinned(
         .iter()
         .map(|&m| {
             let t = Instant::now();
-            let b = build(input.skeleton, input.skin, input.clips, input.mesh, edges, m, params, how)?;
+            let sp = super::skinned::SkinnedParams { method: m, ..*params };
+            let b = build(input.skeleton, input.skin, input.clips, input.mesh, edges, &sp)?;
             Ok((m, b, t.elapsed().as_secs_f64()))
         })
         .collect::<crate::Result<_>>()?;
-    // Frames: positions and joint globals.
+    // Frames: positions and the joints' inverse global matrices (once per frame).
     let mut poser = crate::pose::Poser::default();
     let mut matrices = Vec::new();
-    let mut frames: Vec<(Vec<Vec3>, Vec<glam::DMat4>)> = Vec::new();
-    for clip in input.clips {
+    // (skinned positions, inverse joint globals, (clip, time)) per frame.
+    type Frame = (Vec<Vec3>, Vec<glam::DMat4>, (usize, f32));
+    let mut frames: Vec<Frame> = Vec::new();
+    for (c, clip) in input.clips.iter().enumerate() {
         let keys = clip.key_times();
         let (t0, t1) = (keys.first().copied().unwrap_or(0.0), keys.last().copied().unwrap_or(0.0));
         let n = input.frames_per_clip.max(1);
@@ -306,15 +308,15 @@ pub fn evaluate_skinned(
             crate::pose::skinning_matrices(input.skin, &globals, &mut matrices);
             let mut p = vec![Vec3::ZERO; input.mesh.positions.len()];
             crate::skinning::skin(inf, &input.mesh.positions, &[], &matrices, &mut p, &mut [])?;
-            let joints = input.skin.joints.iter().map(|&j| globals[j as usize]).collect();
-            frames.push((p, joints));
+            let inverses = input.skin.joints.iter().map(|&j| globals[j as usize].inverse()).collect();
+            frames.push((p, inverses, (c, t)));
         }
     }
     let size = frame(&input.mesh.positions).1;
     let dirs = icosphere(1);
     let frame_views: Vec<Vec<Projection>> = frames
         .iter()
-        .map(|(p, _)| {
+        .map(|(p, _, _)| {
             let center = frame(p).0;
             DISTANCES
                 .iter()
@@ -327,11 +329,11 @@ pub fn evaluate_skinned(
     let (mut reference, mut out) = (Vec::new(), Vec::new());
     let mut tested = vec![0usize; built.len() + 1];
     let mut mismatched = vec![0usize; built.len() + 1];
-    for ((p, joints), views) in frames.iter().zip(&frame_views) {
+    for ((p, joints, at), views) in frames.iter().zip(&frame_views) {
         for &view in views {
             tested[0] += brute_force(p, edges, view, &mut reference).edges;
             for (k, (_, b, _)) in built.iter().enumerate() {
-                tested[k + 1] += b.extract(p, edges, joints, view, &mut out).edges;
+                tested[k + 1] += b.extract_prepared(p, edges, joints, Some(*at), view, &mut out).edges;
                 out.sort_unstable();
                 mismatched[k + 1] += usize::from(out != reference);
             }
@@ -340,7 +342,7 @@ pub fn evaluate_skinned(
     let mut best = vec![f64::INFINITY; built.len() + 1];
     for _ in 0..repeats.max(1) {
         let t = Instant::now();
-        for ((p, _), views) in frames.iter().zip(&frame_views) {
+        for ((p, _, _), views) in frames.iter().zip(&frame_views) {
             for &view in views {
                 brute_force(p, edges, view, &mut out);
             }
@@ -348,9 +350,9 @@ pub fn evaluate_skinned(
         best[0] = best[0].min(t.elapsed().as_secs_f64());
         for (k, (_, b, _)) in built.iter().enumerate() {
             let t = Instant::now();
-            for ((p, joints), views) in frames.iter().zip(&frame_views) {
+            for ((p, joints, at), views) in frames.iter().zip(&frame_views) {
                 for &view in views {
-                    b.extract(p, edges, joints, view, &mut out);
+                    b.extract_prepared(p, edges, joints, Some(*at), view, &mut out);
                 }
             }
             best[k + 1] = best[k + 1].min(t.elapsed().as_secs_f64());
