@@ -63,8 +63,3 @@ pub fn build(positions: &[Vec3], triangles: &[[u32; 3]], edges: &Edges, max_tria
     }
     assemble(edges, built, always, size_of(positions, edges))
 }
-
-/// Mean edges per patch of a decomposition.
-pub fn edges_per_patch(p: &Patches) -> f64 {
-    p.patched_quads() as f64 / p.len().max(1) as f64
-}

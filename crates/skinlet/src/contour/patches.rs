@@ -150,8 +150,9 @@ pub struct BuiltPatch {
 /// Decomposes the quads of `edges` into patches over `positions` (rest or static geometry).
 pub fn build(positions: &[Vec3], edges: &Edges, params: &PatchParams) -> Patches {
     let all: Vec<u32> = (0..edges.quads.len() as u32).collect();
-    let (built, always) = fuse(positions, edges, &all, params, size_of(positions, edges));
-    assemble(edges, built, always, size_of(positions, edges))
+    let size = size_of(positions, edges);
+    let (built, always) = fuse(positions, edges, &all, params, size);
+    assemble(edges, built, always, size)
 }
 
 /// Largest side of the box around the quads' vertices (1 when empty or flat).
@@ -542,26 +543,8 @@ impl Patches {
     pub fn extract(&self, positions: &[Vec3], edges: &Edges, projection: Projection, out: &mut Vec<u32>) -> Tested {
         let (viewer, view) = viewers(projection);
         out.clear();
-        let mut tested = 0;
-        // Cone tests in batches (branch-free), then the edges of the accepted patches.
-        let mut flags = [false; 64];
-        for (bounds, ranges) in self.bounds.chunks(64).zip(self.ranges.chunks(64)) {
-            match view {
-                ViewF::Eye(eye) => flags.iter_mut().zip(bounds).for_each(|(f, b)| *f = b.accepts_eye(eye)),
-                ViewF::Dir(dir) => flags.iter_mut().zip(bounds).for_each(|(f, b)| *f = b.accepts_dir(dir)),
-            }
-            for (&accepted, r) in flags.iter().zip(ranges) {
-                if accepted {
-                    let range = r[0] as usize..(r[0] + r[1]) as usize;
-                    test_quads(positions, &self.quads[range.clone()], &self.order[range], &viewer, out);
-                    tested += r[1] as usize;
-                }
-            }
-        }
-        let rest = self.always_from..self.order.len();
-        test_quads(positions, &self.quads[rest.clone()], &self.order[rest.clone()], &viewer, out);
-        tested += rest.len();
-        tested += extract_uncullable(positions, edges, &viewer, out);
+        let mut tested = self.test_patches(positions, 0..self.len(), &self.bounds, Some(view), &viewer, out);
+        tested += self.test_always(positions, edges, &viewer, out);
         Tested { edges: tested, bounds: self.bounds.len() }
     }
 
@@ -573,9 +556,43 @@ impl Patches {
         self.bounds.is_empty()
     }
 
-    /// Quads in patches (the rest are tested every time).
-    pub fn patched_quads(&self) -> usize {
-        self.always_from
+    /// Tests the quads outside patches, the irregular edges, and adds the boundary edges;
+    /// returns the edges tested.
+    pub(crate) fn test_always(&self, positions: &[Vec3], edges: &Edges, viewer: &Viewer, out: &mut Vec<u32>) -> usize {
+        let rest = self.always_from..self.order.len();
+        test_quads(positions, &self.quads[rest.clone()], &self.order[rest.clone()], viewer, out);
+        rest.len() + extract_uncullable(positions, edges, viewer, out)
+    }
+
+    /// Tests patches `which` with `bounds` (one per patch in `which`) from `view` (`None`:
+    /// accept all), then the quads of the accepted ones; returns the quads tested. Cone tests
+    /// run in batches of 64 without branches, then the accepted patches' edges.
+    pub(crate) fn test_patches(
+        &self,
+        positions: &[Vec3],
+        which: std::ops::Range<usize>,
+        bounds: &[PatchBounds],
+        view: Option<ViewF>,
+        viewer: &Viewer,
+        out: &mut Vec<u32>,
+    ) -> usize {
+        let mut tested = 0;
+        let mut flags = [true; 64];
+        for (bounds, ranges) in bounds.chunks(64).zip(self.ranges[which].chunks(64)) {
+            match view {
+                Some(ViewF::Eye(eye)) => flags.iter_mut().zip(bounds).for_each(|(f, b)| *f = b.accepts_eye(eye)),
+                Some(ViewF::Dir(dir)) => flags.iter_mut().zip(bounds).for_each(|(f, b)| *f = b.accepts_dir(dir)),
+                None => {}
+            }
+            for (&accepted, r) in flags.iter().zip(ranges) {
+                if accepted {
+                    let range = r[0] as usize..(r[0] + r[1]) as usize;
+                    test_quads(positions, &self.quads[range.clone()], &self.order[range], viewer, out);
+                    tested += r[1] as usize;
+                }
+            }
+        }
+        tested
     }
 }
 

@@ -24,8 +24,8 @@
 //! largest such turn among its faces. Tested on every shared asset over sampled frames.
 
 use super::bound::{EdgeGeometry, PatchBounds, ViewF, cone_angle, line_distance, quad_geometry, reduced_sphere};
-use super::patches::{BuiltPatch, PatchParams, Patches, assemble, fuse, size_of, test_quads};
-use super::{Edges, Projection, Tested, Viewer, extract_uncullable};
+use super::patches::{BuiltPatch, PatchParams, Patches, assemble, fuse, size_of};
+use super::{Edges, Projection, Tested, Viewer};
 use crate::bounds::cone::reference_axis;
 use crate::bounds::refine::{PieceExtent, Refinement, refine};
 use crate::clip::Clip;
@@ -451,7 +451,6 @@ impl SkinnedPatches {
         out.clear();
         let p = &self.patches;
         let mut tested = 0;
-        let mut flags = [false; 64];
         let mut start = 0;
         while start < self.joints.len() {
             let j = self.joints[start];
@@ -463,29 +462,16 @@ impl SkinnedPatches {
                     ViewF::Dir(inv.transform_vector3(dir.as_dvec3()).normalize_or_zero().as_vec3())
                 }
             };
+            // A singular joint matrix says nothing about facing: test everything.
             let finite = match view {
                 ViewF::Eye(e) => e.is_finite(),
                 ViewF::Dir(d) => d.is_finite() && d != Vec3::ZERO,
             };
-            for (bounds, ranges) in all_bounds[start..end].chunks(64).zip(p.ranges[start..end].chunks(64)) {
-                match view {
-                    ViewF::Eye(eye) => flags.iter_mut().zip(bounds).for_each(|(f, b)| *f = b.accepts_eye(eye)),
-                    ViewF::Dir(dir) => flags.iter_mut().zip(bounds).for_each(|(f, b)| *f = b.accepts_dir(dir)),
-                }
-                for (&accepted, r) in flags.iter().zip(ranges) {
-                    // A singular joint matrix says nothing about facing: test everything.
-                    if accepted || !finite {
-                        let range = r[0] as usize..(r[0] + r[1]) as usize;
-                        test_quads(positions, &p.quads[range.clone()], &p.order[range], &viewer, out);
-                        tested += r[1] as usize;
-                    }
-                }
-            }
+            tested +=
+                p.test_patches(positions, start..end, &all_bounds[start..end], finite.then_some(view), &viewer, out);
             start = end;
         }
-        let rest = p.always_from..p.order.len();
-        test_quads(positions, &p.quads[rest.clone()], &p.order[rest.clone()], &viewer, out);
-        tested += rest.len() + extract_uncullable(positions, edges, &viewer, out);
+        tested += p.test_always(positions, edges, &viewer, out);
         Tested { edges: tested, bounds: p.len() }
     }
 }
