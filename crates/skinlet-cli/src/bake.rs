@@ -77,7 +77,8 @@ pub fn run(
     };
     let contours_s = if let Some(which) = contours {
         let started = std::time::Instant::now();
-        let how = skinlet::contour::skinned::refinement(args.refinement()?.budget, usize::MAX);
+        let r = args.refinement()?;
+        let how = skinlet::contour::skinned::refinement(r.budget, r.max_rounds);
         let params =
             skinlet::contour::skinned::SkinnedParams::new(skinlet::contour::skinned::SkinnedMethod::Animated, how);
         skinlet::bake::add_contours(&mut baked, &asset, skin, &params, which == "visible")?;

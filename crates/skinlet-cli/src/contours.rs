@@ -93,7 +93,7 @@ pub fn command(file: &str, o: &Options) -> Result<()> {
     for r in &rows {
         println!(
             "{:<13} {:>8} {:>9.2} {:>9.4} {:>7.2}x {:>8.2} {:>10} {:>7.4} {:>6.1}°",
-            r.method.name(),
+            r.method,
             r.patches,
             r.tested_edges_pct,
             r.ms_per_view,
@@ -170,16 +170,7 @@ fn skinned(file: &str, asset: &skinlet::Asset, skin: u32, o: &Options) -> Result
         write_skinned_svg(path, &input, &edges)?;
     }
     if o.json {
-        let out: Vec<_> = rows
-            .iter()
-            .map(|r| {
-                json!({
-                    "method": r.method, "patches": r.patches, "tested_edges_pct": r.tested_edges_pct,
-                    "speedup_vs_brute": r.speedup_vs_brute, "build_s": r.build_s, "mismatched_views": r.mismatched_views,
-                    "ms_per_view": r.ms_per_view, "frames": r.frames, "rigid_quads": r.rigid_quads, "animated_quads": r.animated_quads,
-                })
-            })
-            .collect();
+        let out: Vec<_> = rows.iter().map(row_json).collect();
         println!("{}", serde_json::to_string_pretty(&out)?);
         return Ok(());
     }
@@ -232,11 +223,18 @@ fn write_skinned_svg(path: &Path, input: &skinlet::contour::evaluate::SkinnedInp
 }
 
 fn row_json(r: &MethodResult) -> serde_json::Value {
-    json!({
-        "method": r.method.name(), "patches": r.patches, "tested_edges_pct": r.tested_edges_pct,
+    let mut v = json!({
+        "method": r.method, "patches": r.patches, "tested_edges_pct": r.tested_edges_pct,
         "speedup_vs_brute": r.speedup_vs_brute, "build_s": r.build_s, "mismatched_views": r.mismatched_views,
-        "ms_per_view": r.ms_per_view, "mean_radius": r.mean_radius, "mean_angle_deg": r.mean_angle_deg,
-    })
+        "ms_per_view": r.ms_per_view,
+    });
+    let extra = if r.frames > 0 {
+        json!({"frames": r.frames, "rigid_quads": r.rigid_quads, "animated_quads": r.animated_quads})
+    } else {
+        json!({"mean_radius": r.mean_radius, "mean_angle_deg": r.mean_angle_deg})
+    };
+    v.as_object_mut().expect("object").extend(extra.as_object().expect("object").clone());
+    v
 }
 
 /// The contour edges from a front view (slightly above, 3 model sizes away) as SVG lines.

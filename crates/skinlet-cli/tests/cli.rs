@@ -353,3 +353,44 @@ fn bake_can_store_overdraw_orders() {
     assert_eq!(v["violations"], 0);
     std::fs::remove_file(&out).unwrap();
 }
+
+#[test]
+fn contours_compare_methods_exactly_draw_svg_and_bake() {
+    // Static: the demo's bind pose; every method, JSON rows with the fields.
+    let svg = std::env::temp_dir().join(format!("skinlet-contours-{}.svg", std::process::id()));
+    let rows =
+        json_of(&["contours", "@demo:1500", "--static", "--repeats", "1", "--svg", svg.to_str().unwrap(), "--json"]);
+    let names: Vec<&str> = rows.as_array().unwrap().iter().map(|r| r["method"].as_str().unwrap()).collect();
+    assert_eq!(names, ["brute", "patches", "patches-mean", "snch", "meshlets"]);
+    for r in rows.as_array().unwrap() {
+        assert_eq!(r["mismatched_views"], 0, "{r}");
+        for field in ["patches", "tested_edges_pct", "speedup_vs_brute", "build_s"] {
+            assert!(r[field].as_f64().is_some_and(|x| x >= 0.0), "{field} missing in {r}");
+        }
+    }
+    let drawing = std::fs::read_to_string(&svg).unwrap();
+    assert!(drawing.starts_with("<svg") && drawing.matches("<line").count() > 20, "{drawing}");
+    std::fs::remove_file(&svg).unwrap();
+    // Skinned: over frames of the clips.
+    let rows = json_of(&["contours", "@demo:1500", "--frames", "2", "--rounds", "1", "--repeats", "1", "--json"]);
+    let names: Vec<&str> = rows.as_array().unwrap().iter().map(|r| r["method"].as_str().unwrap()).collect();
+    assert_eq!(names, ["brute", "rigid", "animated"]);
+    assert!(rows.as_array().unwrap().iter().all(|r| r["mismatched_views"] == 0), "{rows}");
+    let (code, _, err) = skinlet(&["contours", "@demo:1500", "--method", "nope"]);
+    assert!(code != 0 && err.contains("--method"), "{err}");
+    // The bake stores patches.
+    let out = std::env::temp_dir().join(format!("skinlet-contours-{}.skinlet", std::process::id()));
+    let j = json_of(&[
+        "bake",
+        "@demo:1500",
+        "-o",
+        out.to_str().unwrap(),
+        "--contours",
+        "visible",
+        "--rounds",
+        "2",
+        "--json",
+    ]);
+    assert!(j["contour_patches"].as_u64().is_some_and(|n| n > 10), "{j}");
+    std::fs::remove_file(&out).unwrap();
+}

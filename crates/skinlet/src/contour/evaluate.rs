@@ -111,20 +111,27 @@ pub fn frame(positions: &[Vec3]) -> (Vec3, f64) {
     if size.is_finite() && size > 0.0 { (((lo + hi) * 0.5).as_vec3(), size) } else { (Vec3::ZERO, 1.0) }
 }
 
-#[derive(Clone, Debug, PartialEq)]
+/// One row of the evaluation (static or skinned).
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct MethodResult {
-    pub method: Method,
+    pub method: &'static str,
+    /// Patches, or tree nodes for the SNCH.
     pub patches: usize,
-    /// Edges tested ÷ edges, over all views, in percent.
+    /// Edges tested ÷ edges, over all views (and frames), in percent.
     pub tested_edges_pct: f64,
     pub ms_per_view: f64,
     pub speedup_vs_brute: f64,
     pub build_s: f64,
-    /// Views whose edge set differs from brute force's.
+    /// Views (frame-views) whose edge set differs from brute force's.
     pub mismatched_views: usize,
     /// Mean patch radius (model sizes) and cone half-angle (degrees); 0 when not patches.
     pub mean_radius: f64,
     pub mean_angle_deg: f64,
+    /// Skinned rows: frames, and quads in rigid and in animated patches (the rest are
+    /// tested every time).
+    pub frames: usize,
+    pub rigid_quads: usize,
+    pub animated_quads: usize,
 }
 
 /// Runs `methods` over `views` (positions fixed), timing each over `repeats` rounds (the
@@ -184,7 +191,7 @@ pub fn evaluate(
                 _ => (0.0, 0.0),
             };
             MethodResult {
-                method: *m,
+                method: m.name(),
                 patches: x.bounds(),
                 tested_edges_pct: 100.0 * tested[k] as f64 / total,
                 ms_per_view: 1e3 * best[k] / views.len().max(1) as f64,
@@ -193,6 +200,7 @@ pub fn evaluate(
                 mismatched_views: mismatched[k],
                 mean_radius,
                 mean_angle_deg,
+                ..MethodResult::default()
             }
         })
         .collect()
@@ -280,7 +288,7 @@ pub fn evaluate_skinned(
     methods: &[super::skinned::SkinnedMethod],
     params: &super::skinned::SkinnedParams,
     repeats: usize,
-) -> crate::Result<Vec<SkinnedResult>> {
+) -> crate::Result<Vec<MethodResult>> {
     use super::skinned::{SkinnedPatches, build};
     let inf = input.mesh.influences.as_ref().ok_or_else(|| crate::Error::invalid("contours", "no skin weights"))?;
     let built: Vec<(super::skinned::SkinnedMethod, SkinnedPatches, f64)> = methods
@@ -360,7 +368,7 @@ pub fn evaluate_skinned(
     }
     let n_views: usize = frame_views.iter().map(Vec::len).sum();
     let total = (edges.len() * n_views).max(1) as f64;
-    let row = |k: usize, name: &'static str, patches: usize, build_s: f64, quads: (usize, usize)| SkinnedResult {
+    let row = |k: usize, name: &'static str, patches: usize, build_s: f64, quads: (usize, usize)| MethodResult {
         method: name,
         patches,
         tested_edges_pct: 100.0 * tested[k] as f64 / total,
@@ -371,26 +379,11 @@ pub fn evaluate_skinned(
         frames: frames.len(),
         rigid_quads: quads.0,
         animated_quads: quads.1,
+        ..MethodResult::default()
     };
     let mut rows = vec![row(0, "brute", 0, 0.0, (0, 0))];
     for (k, (m, b, s)) in built.iter().enumerate() {
         rows.push(row(k + 1, m.name(), b.patches.len(), *s, (b.rigid_quads, b.animated_quads)));
     }
     Ok(rows)
-}
-
-#[derive(Clone, Debug, PartialEq)]
-pub struct SkinnedResult {
-    pub method: &'static str,
-    pub patches: usize,
-    pub tested_edges_pct: f64,
-    pub ms_per_view: f64,
-    pub speedup_vs_brute: f64,
-    pub build_s: f64,
-    /// (frame, view) pairs whose edge set differs from brute force's.
-    pub mismatched_views: usize,
-    pub frames: usize,
-    /// Quads in rigid and in animated patches (the rest are tested every time).
-    pub rigid_quads: usize,
-    pub animated_quads: usize,
 }
