@@ -11,7 +11,9 @@
 //! - [`patches`]: greedy patch fusion with the k-best cache and space partition (3.3).
 //! - [`snch`], [`meshlets`]: the baselines (Johnson & Cohen 2001's hierarchy; meshoptimizer
 //!   meshlets used as patches, with a correct cone).
-//! - [`evaluate`]: the paper's protocol (42 directions × 6 distances).
+//! - [`skinned`]: skinned characters — the paper's rigid parts, and patches bounded over the
+//!   clips with the conservative animated bounds of [`crate::bounds`], per time window.
+//! - [`evaluate`]: the paper's protocol (42 directions × 6 distances, and frames of clips).
 //!
 //! Guarantee, for every extractor: the extracted edge set equals [`brute_force`]'s. All of
 //! them run the same per-edge test ([`quad_is_contour`], in f64 on the f32 positions), and

@@ -141,7 +141,7 @@ pub fn build(
         let r = rigid_vertex[q[0] as usize];
         let rigid = rigid_quad(&rigid_vertex, q);
         let joint = match r {
-            Some((j, _)) if rigid => j,
+            Some(j) if rigid => j,
             _ => principal_joint(mesh, q).map_or(0, |(j, _)| j),
         };
         groups.entry((joint, rigid)).or_default().push(i as u32);
@@ -175,8 +175,8 @@ pub fn build(
         always.extend(a);
         for b in built {
             if rigid {
-                let w = f32::from_bits(rigid_vertex[edges.quads[b.edges[0] as usize][0] as usize].map_or(0, |r| r.1));
-                let to_joint = skin.inverse_bind[j as usize].as_dmat4() * w as f64;
+                // Rigid vertices sit still in the joint's space at their bind position there.
+                let to_joint = skin.inverse_bind[j as usize].as_dmat4();
                 match rigid_bounds(p, edges, &b.edges, &to_joint) {
                     Some(x) => out.push((j, true, x, Vec::new())),
                     None => always.extend(b.edges),
@@ -303,22 +303,23 @@ pub fn skinned_edges(mesh: &SkinnedMesh, visible_only: bool) -> Result<Edges> {
     Ok(edges)
 }
 
-/// Per vertex, `(joint, weight bits)` when one joint carries all its weight.
-pub fn rigid_vertices(mesh: &SkinnedMesh) -> Vec<Option<(u16, u32)>> {
+/// Per vertex, the joint that carries all its weight (a single influence of weight exactly
+/// 1; with any other weight `w`, `w·G·x` is not fixed in the joint's space).
+pub fn rigid_vertices(mesh: &SkinnedMesh) -> Vec<Option<u16>> {
     let Some(inf) = &mesh.influences else { return vec![None; mesh.positions.len()] };
     (0..mesh.positions.len())
         .map(|v| {
             let mut it = inf.of(v).filter(|&(_, w)| w != 0.0);
             match (it.next(), it.next()) {
-                (Some((j, w)), None) => Some((j, w.to_bits())),
+                (Some((j, 1.0)), None) => Some(j),
                 _ => None,
             }
         })
         .collect()
 }
 
-/// A quad is rigid when its four vertices follow one joint with the same weight.
-pub fn rigid_quad(rigid: &[Option<(u16, u32)>], q: &[u32; 4]) -> bool {
+/// A quad is rigid when its four vertices follow one joint rigidly.
+pub fn rigid_quad(rigid: &[Option<u16>], q: &[u32; 4]) -> bool {
     let r = rigid[q[0] as usize];
     r.is_some() && q.iter().all(|&v| rigid[v as usize] == r)
 }
