@@ -305,10 +305,10 @@ pub fn to_bytes(b: &Baked) -> Vec<u8> {
         for x in [c.visible_only as usize, p.order.len(), p.len(), p.always_from, sp.rigid_quads, sp.animated_quads] {
             ct.u32(x as u32);
         }
-        for x in [p.size, p.mean_radius, p.mean_angle_deg] {
+        for x in [p.size, p.mean_radius, p.mean_angle_deg, p.cost_ratio] {
             ct.f64(x);
         }
-        ct.0.resize(48, 0);
+        ct.0.resize(64, 0);
         for ((x, r), j) in p.bounds.iter().zip(&p.ranges).zip(&sp.joints) {
             ct.vec3(x.center);
             ct.f32(x.radius);
@@ -569,20 +569,26 @@ fn read_contours(mut s: In, mesh: &SkinnedMesh, joints: usize) -> Result<BakedCo
     };
     let (quads, n, always_from) = (s.u32()? as usize, s.u32()? as usize, s.u32()? as usize);
     let (rigid_quads, animated_quads) = (s.u32()? as usize, s.u32()? as usize);
-    let mut f64s = [0.0; 3];
+    let mut f64s = [0.0; 4];
     for x in &mut f64s {
         *x = f64::from_le_bytes(s.bytes(8)?.try_into().expect("8 bytes"));
         if !x.is_finite() {
             return Err(s.err("non-finite statistic"));
         }
     }
-    s.align(48)?;
+    s.align(64)?;
     let edges = skinned_edges(mesh, visible_only).map_err(|e| s.err(e))?;
     if quads != edges.quads.len() || always_from > quads || n.saturating_mul(PATCH_STRIDE) > s.b.len() {
         return Err(s.err(format!("{quads} quads ({} in the mesh), {always_from} in {n} patches", edges.quads.len())));
     }
-    let mut p =
-        Patches { always_from, size: f64s[0], mean_radius: f64s[1], mean_angle_deg: f64s[2], ..Patches::default() };
+    let mut p = Patches {
+        always_from,
+        size: f64s[0],
+        mean_radius: f64s[1],
+        mean_angle_deg: f64s[2],
+        cost_ratio: f64s[3],
+        ..Patches::default()
+    };
     let mut patch_joints = Vec::with_capacity(n);
     for i in 0..n {
         let (center, radius, axis, sin_angle, cos_angle) = (s.vec3()?, s.f32()?, s.vec3()?, s.f32()?, s.f32()?);

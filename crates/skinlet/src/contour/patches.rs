@@ -85,6 +85,8 @@ pub struct Patches {
     pub always_from: usize,
     /// Model size the metric used (largest side of the quads' box).
     pub size: f64,
+    /// The `t_P / t_e` the decomposition was optimized for (calibrated per machine).
+    pub cost_ratio: f64,
     /// Mean radius (in model sizes) and cone half-angle (degrees) of the patches.
     pub mean_radius: f64,
     pub mean_angle_deg: f64,
@@ -152,7 +154,7 @@ pub fn build(positions: &[Vec3], edges: &Edges, params: &PatchParams) -> Patches
     let all: Vec<u32> = (0..edges.quads.len() as u32).collect();
     let size = size_of(positions, edges);
     let (built, always) = fuse(positions, edges, &all, params, size);
-    assemble(edges, built, always, size)
+    Patches { cost_ratio: params.cost_ratio, ..assemble(edges, built, always, size) }
 }
 
 /// Largest side of the box around the quads' vertices (1 when empty or flat).

@@ -247,7 +247,10 @@ pub fn build(
     final_patches.sort_by_key(|(j, _, _)| *j);
     let joints = final_patches.iter().map(|(j, _, _)| *j).collect();
     let extents: Vec<(DVec3, Vec<(f64, f64)>)> = final_patches.iter().map(|(_, b, w)| (b.center, w.clone())).collect();
-    let patches = assemble(edges, final_patches.into_iter().map(|(_, b, _)| b).collect(), always, size);
+    let patches = Patches {
+        cost_ratio: params.cost_ratio,
+        ..assemble(edges, final_patches.into_iter().map(|(_, b, _)| b).collect(), always, size)
+    };
     let total = first as usize;
     let mut window_bounds = Vec::with_capacity(total * patches.len());
     for w in 0..total {
