@@ -86,24 +86,7 @@ pub fn command(file: &str, o: &Options) -> Result<()> {
     if let Some((t_e, t_p)) = calibration {
         println!("calibration: t_e {t_e:.2} ns, t_P {t_p:.2} ns, t_P/t_e {:.2}", t_p / t_e);
     }
-    println!(
-        "{:<13} {:>8} {:>9} {:>9} {:>8} {:>8} {:>10} {:>7} {:>7}",
-        "method", "patches", "tested %", "ms/view", "speedup", "build s", "mismatch", "mean r", "mean a"
-    );
-    for r in &rows {
-        println!(
-            "{:<13} {:>8} {:>9.2} {:>9.4} {:>7.2}x {:>8.2} {:>10} {:>7.4} {:>6.1}°",
-            r.method,
-            r.patches,
-            r.tested_edges_pct,
-            r.ms_per_view,
-            r.speedup_vs_brute,
-            r.build_s,
-            r.mismatched_views,
-            r.mean_radius,
-            r.mean_angle_deg
-        );
-    }
+    print_rows(&rows);
     if let Some(path) = o.svg {
         println!("wrote {}", path.display());
     }
@@ -183,24 +166,7 @@ fn skinned(file: &str, asset: &skinlet::Asset, skin: u32, o: &Options) -> Result
         clips.len(),
         o.frames
     );
-    println!(
-        "{:<9} {:>8} {:>9} {:>9} {:>8} {:>8} {:>9} {:>8} {:>9}",
-        "method", "patches", "tested %", "ms/view", "speedup", "build s", "mismatch", "rigid", "animated"
-    );
-    for r in &rows {
-        println!(
-            "{:<9} {:>8} {:>9.2} {:>9.4} {:>7.2}x {:>8.2} {:>9} {:>8} {:>9}",
-            r.method,
-            r.patches,
-            r.tested_edges_pct,
-            r.ms_per_view,
-            r.speedup_vs_brute,
-            r.build_s,
-            r.mismatched_views,
-            r.rigid_quads,
-            r.animated_quads
-        );
-    }
+    print_rows(&rows);
     println!("(rigid / animated: quads in patches of each kind; the rest are tested every time)");
     if let Some(path) = o.svg {
         println!("wrote {}", path.display());
@@ -220,6 +186,28 @@ fn write_skinned_svg(path: &Path, input: &skinlet::contour::evaluate::SkinnedInp
     let mut p = vec![glam::Vec3::ZERO; input.mesh.positions.len()];
     skinlet::skinning::skin(inf, &input.mesh.positions, &[], &m, &mut p, &mut [])?;
     write_svg(path, &p, edges)
+}
+
+/// The table: static rows end with the mean patch radius and angle, skinned rows with the
+/// quads in rigid and animated patches.
+fn print_rows(rows: &[MethodResult]) {
+    let skinned = rows.iter().any(|r| r.frames > 0);
+    let (a, b) = if skinned { ("rigid", "animated") } else { ("mean r", "mean a") };
+    println!(
+        "{:<13} {:>8} {:>9} {:>9} {:>8} {:>8} {:>9} {:>8} {:>9}",
+        "method", "patches", "tested %", "ms/view", "speedup", "build s", "mismatch", a, b
+    );
+    for r in rows {
+        let (x, y) = if skinned {
+            (r.rigid_quads.to_string(), r.animated_quads.to_string())
+        } else {
+            (format!("{:.4}", r.mean_radius), format!("{:.1}°", r.mean_angle_deg))
+        };
+        println!(
+            "{:<13} {:>8} {:>9.2} {:>9.4} {:>7.2}x {:>8.2} {:>9} {x:>8} {y:>9}",
+            r.method, r.patches, r.tested_edges_pct, r.ms_per_view, r.speedup_vs_brute, r.build_s, r.mismatched_views
+        );
+    }
 }
 
 fn row_json(r: &MethodResult) -> serde_json::Value {
