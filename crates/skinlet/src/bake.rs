@@ -130,12 +130,7 @@ pub fn add_overdraw(
 ) -> Result<()> {
     let mut keys = Vec::new();
     let mut positions = Vec::new();
-    for (i, name) in baked.settings.clips.iter().enumerate() {
-        let clip = asset
-            .clips
-            .iter()
-            .find(|c| &c.name == name)
-            .ok_or_else(|| Error::invalid("bake", format!("no clip {name:?}")))?;
+    for (i, clip) in baked_clips(baked, asset)?.into_iter().enumerate() {
         let (times, pos) = keyframes(asset, skin, &baked.mesh, clip, max_keyframes)?;
         keys.extend(times.into_iter().map(|t| (i as u32, t)));
         positions.extend(pos);
@@ -158,10 +153,16 @@ pub fn add_contours(
     visible_only: bool,
 ) -> Result<()> {
     let s = asset.skins.get(skin as usize).ok_or_else(|| Error::invalid("bake", format!("no skin {skin}")))?;
-    let clips = baked
-        .settings
-        .clips
-        .iter()
+    let clips = baked_clips(baked, asset)?;
+    let edges = skinned_edges(&baked.mesh, visible_only)?;
+    let patches = crate::contour::skinned::build(&asset.skeleton, s, &clips, &baked.mesh, &edges, params)?;
+    baked.contours = Some(BakedContours { visible_only, patches });
+    Ok(())
+}
+
+/// The clips a bake's bounds were computed for, found in `asset` by name.
+fn baked_clips<'a>(baked: &Baked, asset: &'a Asset) -> Result<Vec<&'a Clip>> {
+    (baked.settings.clips.iter())
         .map(|name| {
             asset
                 .clips
@@ -169,11 +170,7 @@ pub fn add_contours(
                 .find(|c| &c.name == name)
                 .ok_or_else(|| Error::invalid("bake", format!("no clip {name:?}")))
         })
-        .collect::<Result<Vec<&Clip>>>()?;
-    let edges = skinned_edges(&baked.mesh, visible_only)?;
-    let patches = crate::contour::skinned::build(&asset.skeleton, s, &clips, &baked.mesh, &edges, params)?;
-    baked.contours = Some(BakedContours { visible_only, patches });
-    Ok(())
+        .collect()
 }
 
 /// Section tags: the six required ones, then the optional overdraw orders and contours.

@@ -96,6 +96,11 @@ impl Extractor {
 /// The 42 × 6 perspective views around the box of `positions`.
 pub fn views(positions: &[Vec3]) -> Vec<Projection> {
     let (center, size) = frame(positions);
+    views_around(center, size)
+}
+
+/// Eyes in the 42 directions at each of [`DISTANCES`] model sizes `size` from `center`.
+pub fn views_around(center: Vec3, size: f64) -> Vec<Projection> {
     let dirs = icosphere(1);
     DISTANCES
         .iter()
@@ -321,19 +326,7 @@ pub fn evaluate_skinned(
         }
     }
     let size = frame(&input.mesh.positions).1;
-    let dirs = icosphere(1);
-    let frame_views: Vec<Vec<Projection>> = frames
-        .iter()
-        .map(|(p, _, _)| {
-            let center = frame(p).0;
-            DISTANCES
-                .iter()
-                .flat_map(|&d| {
-                    dirs.iter().map(move |&dir| Projection::Perspective { eye: center + dir * (d * size) as f32 })
-                })
-                .collect()
-        })
-        .collect();
+    let frame_views: Vec<Vec<Projection>> = frames.iter().map(|(p, _, _)| views_around(frame(p).0, size)).collect();
     let (mut reference, mut out) = (Vec::new(), Vec::new());
     let mut tested = vec![0usize; built.len() + 1];
     let mut mismatched = vec![0usize; built.len() + 1];

@@ -14,7 +14,7 @@ use super::Edges;
 use super::bound::{cone_angle, edge_geometry};
 use super::patches::{BuiltPatch, Patches, assemble, size_of};
 use crate::meshlet::{MeshletLimits, canonical, greedy};
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use std::collections::HashMap;
 
 /// meshoptimizer meshlets of at most `max_triangles` faces as patches.
@@ -27,11 +27,12 @@ pub fn build(positions: &[Vec3], triangles: &[[u32; 3]], edges: &Edges, max_tria
             of_face.entry(canonical(t)).or_insert(k);
         }
     }
-    let mut members: Vec<Vec<u32>> = vec![Vec::new(); m.len()];
+    // Per meshlet, its quads and their two face normals.
+    let mut members: Vec<Vec<(u32, [DVec3; 2])>> = vec![Vec::new(); m.len()];
     let mut always = Vec::new();
     for (i, (q, f)) in edges.quads.iter().zip(&edges.quad_faces).enumerate() {
         match (edge_geometry(positions, *q), of_face.get(&canonical(triangles[f[0] as usize]))) {
-            (Some(_), Some(&k)) => members[k].push(i as u32),
+            (Some(g), Some(&k)) => members[k].push((i as u32, [g.n1, g.n2])),
             _ => always.push(i as u32),
         }
     }
@@ -48,13 +49,10 @@ pub fn build(positions: &[Vec3], triangles: &[[u32; 3]], edges: &Edges, max_tria
             &adapter,
         );
         let axis = Vec3::from(b.cone_axis).as_dvec3().normalize();
-        let normals = quads.iter().flat_map(|&q| {
-            let g = edge_geometry(positions, edges.quads[q as usize]).expect("checked above");
-            [g.n1, g.n2]
-        });
+        let normals = quads.iter().flat_map(|(_, n)| *n);
         let angle = cone_angle(axis, normals).max((b.cone_cutoff as f64).clamp(-1.0, 1.0).asin());
         built.push(BuiltPatch {
-            edges: quads,
+            edges: quads.iter().map(|(q, _)| *q).collect(),
             center: Vec3::from(b.center).as_dvec3(),
             radius: b.radius as f64,
             axis,

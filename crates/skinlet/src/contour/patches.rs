@@ -613,13 +613,12 @@ pub fn bounds_of(positions: &[Vec3], edges: &Edges, quads: &[u32]) -> Option<Bui
         quads.iter().map(|&q| edge_geometry(positions, edges.quads[q as usize])).collect();
     let geo = geo?;
     let axis = mean_axis(geo.iter().map(|g| g.n1 + g.n2).sum())?;
-    let (center, _) = reduced_sphere(&geo);
-    let radius = geo.iter().map(|g| line_distance(center, g.a, g.b)).fold(0.0, f64::max);
-    Some(BuiltPatch {
-        edges: quads.to_vec(),
-        center,
-        radius,
-        axis,
-        angle: cone_angle(axis, geo.iter().flat_map(|g| [g.n1, g.n2])),
-    })
+    Some(patch_around(quads.to_vec(), &geo, axis))
+}
+
+/// The patch of `quads` (geometry `geo`) with its cone around `axis`: Reduced Sphere, and
+/// the angle of the widest face normal.
+pub(crate) fn patch_around(quads: Vec<u32>, geo: &[EdgeGeometry], axis: DVec3) -> BuiltPatch {
+    let (center, radius) = reduced_sphere(geo);
+    BuiltPatch { edges: quads, center, radius, axis, angle: cone_angle(axis, geo.iter().flat_map(|g| [g.n1, g.n2])) }
 }

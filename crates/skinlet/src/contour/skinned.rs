@@ -23,15 +23,15 @@
 //! times its `2(|e1| + |e2|)/|n|`, and each patch's cone is widened by four times the
 //! largest such turn among its faces. Tested on every shared asset over sampled frames.
 
-use super::bound::{EdgeGeometry, PatchBounds, ViewF, cone_angle, line_distance, quad_geometry, reduced_sphere};
-use super::patches::{BuiltPatch, PatchParams, Patches, assemble, fuse, size_of};
+use super::bound::{EdgeGeometry, PatchBounds, ViewF, quad_geometry};
+use super::patches::{BuiltPatch, PatchParams, Patches, assemble, fuse, patch_around, size_of};
 use super::{Edges, Projection, Tested, Viewer};
 use crate::bounds::cone::reference_axis;
 use crate::bounds::refine::{PieceExtent, Refinement, refine};
 use crate::clip::Clip;
 use crate::meshlet::Meshlets;
 use crate::meshlet::stats::principal_joint;
-use crate::model::{Skeleton, Skin, SkinnedMesh};
+use crate::model::{Influences, Skeleton, Skin, SkinnedMesh};
 use crate::{Error, Result};
 use glam::{DMat4, DVec3, Vec3};
 use rayon::prelude::*;
@@ -130,9 +130,9 @@ pub fn build(
     sp: &SkinnedParams,
 ) -> Result<SkinnedPatches> {
     let (method, params, how) = (sp.method, &sp.patches, &sp.refine);
-    if mesh.influences.is_none() {
+    let Some(inf) = &mesh.influences else {
         return Err(Error::invalid("contours", "the mesh has no skin weights"));
-    }
+    };
     let p = &mesh.positions;
     let rigid_vertex = rigid_vertices(mesh);
     // Group quads by (joint, rigid); rigid quads keep the joint their vertices follow.
@@ -167,7 +167,7 @@ pub fn build(
             (j, rigid, b, a)
         })
         .collect();
-    let magnitude = model_extent(skeleton, skin, clips, mesh)?;
+    let magnitude = model_extent(skeleton, skin, clips, &mesh.positions, inf)?;
     let eta = SKIN_ROUNDING * magnitude;
     let mut out: Vec<(u16, bool, BuiltPatch, Vec<PieceExtent>)> = Vec::new();
     let mut animated: Vec<BuiltPatch> = Vec::new();
@@ -245,12 +245,13 @@ pub fn build(
         }
     }
     final_patches.sort_by_key(|(j, _, _)| *j);
-    let joints = final_patches.iter().map(|(j, _, _)| *j).collect();
-    let extents: Vec<(DVec3, Vec<(f64, f64)>)> = final_patches.iter().map(|(_, b, w)| (b.center, w.clone())).collect();
-    let patches = Patches {
-        cost_ratio: params.cost_ratio,
-        ..assemble(edges, final_patches.into_iter().map(|(_, b, _)| b).collect(), always, size)
-    };
+    let (mut joints, mut built, mut extents) = (Vec::new(), Vec::new(), Vec::new());
+    for (j, b, w) in final_patches {
+        joints.push(j);
+        extents.push((b.center, w));
+        built.push(b);
+    }
+    let patches = Patches { cost_ratio: params.cost_ratio, ..assemble(edges, built, always, size) };
     let total = first as usize;
     let mut window_bounds = Vec::with_capacity(total * patches.len());
     for w in 0..total {
@@ -339,15 +340,7 @@ fn rigid_bounds(p: &[Vec3], edges: &Edges, quads: &[u32], to_joint: &DMat4) -> O
         .collect();
     let geo = geo?;
     let normals: Vec<DVec3> = geo.iter().flat_map(|g| [g.n1, g.n2]).collect();
-    let (axis, _) = reference_axis(&normals);
-    let (center, _) = reduced_sphere(&geo);
-    Some(BuiltPatch {
-        edges: quads.to_vec(),
-        center,
-        radius: geo.iter().map(|g| line_distance(center, g.a, g.b)).fold(0.0, f64::max),
-        axis,
-        angle: cone_angle(axis, normals.into_iter()),
-    })
+    Some(patch_around(quads.to_vec(), &geo, reference_axis(&normals).0))
 }
 
 /// The faces adjacent to `quads` as one meshlet (local vertices, local triangles), or
@@ -363,8 +356,8 @@ fn faces_meshlet(mesh: &SkinnedMesh, edges: &Edges, quads: &[u32]) -> Option<(Ve
         return None;
     }
     let local = |v: u32| verts.binary_search(&v).map(|i| i as u8).ok();
-    let tris: Option<Vec<u8>> = faces.iter().flat_map(|&f| mesh.triangles[f as usize]).map(local).collect();
-    Some((verts.clone(), tris?))
+    let tris: Vec<u8> = faces.iter().flat_map(|&f| mesh.triangles[f as usize]).map(local).collect::<Option<_>>()?;
+    Some((verts, tris))
 }
 
 /// Largest `2(|e1| + |e2|)/|n|` over the faces of the quads (bind pose): how far a face
@@ -384,16 +377,15 @@ fn thinness(p: &[Vec3], edges: &Edges, quads: &[u32]) -> f64 {
 /// An upper bound of |skinned position| over the clips, from the bind pose and the clips'
 /// key times (doubled: a margin for the rounding allowance, not a bound the culling relies
 /// on for anything but its size).
-fn model_extent(skeleton: &Skeleton, skin: &Skin, clips: &[&Clip], mesh: &SkinnedMesh) -> Result<f64> {
-    let inf = mesh.influences.as_ref().ok_or_else(|| Error::invalid("contours", "the mesh has no skin weights"))?;
+fn model_extent(skeleton: &Skeleton, skin: &Skin, clips: &[&Clip], rest: &[Vec3], inf: &Influences) -> Result<f64> {
     let mut poser = crate::pose::Poser::default();
     let mut m = Vec::new();
-    let mut out = vec![Vec3::ZERO; mesh.positions.len()];
-    let mut extent = mesh.positions.iter().map(|p| p.length() as f64).fold(0.0, f64::max);
+    let mut out = vec![Vec3::ZERO; rest.len()];
+    let mut extent = rest.iter().map(|p| p.length() as f64).fold(0.0, f64::max);
     for clip in clips {
         for t in clip.key_times() {
             poser.skinning_matrices(skeleton, skin, Some(clip), t, &mut m);
-            crate::skinning::skin(inf, &mesh.positions, &[], &m, &mut out, &mut [])?;
+            crate::skinning::skin(inf, rest, &[], &m, &mut out, &mut [])?;
             extent = extent.max(out.iter().map(|p| p.length() as f64).fold(0.0, f64::max));
         }
     }
