@@ -9,32 +9,103 @@ use skinlet::contour::patches::PatchParams;
 use skinlet::contour::{Edges, Projection, brute_force};
 use skinlet::cull::Camera;
 use std::fmt::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-pub struct Options<'a> {
-    pub method: &'a str,
+/// The options of `skinlet contours` (the file is `Command::Contours::file`).
+#[derive(clap::Args)]
+pub struct Args {
+    /// Static meshes: brute, patches, patches-mean, snch, meshlets or all; skinned:
+    /// brute, rigid (the paper: patches on rigid parts), animated (ours: every patch with
+    /// bounds over the clips) or all. Brute always runs: it is the reference and baseline.
+    #[arg(long, default_value = "all")]
+    pub method: String,
+    /// Drop concave edges, whose contours are always hidden (as the paper does; on
+    /// skinned meshes only rigid ones, whose concavity cannot change).
+    #[arg(long)]
     pub visible_only: bool,
-    pub clips: Option<&'a str>,
+    /// Skinned files: clip names or indices, comma-separated (default: all clips).
+    #[arg(long, alias = "clip")]
+    pub clips: Option<String>,
+    /// Skinned files: sampled frames per clip.
+    #[arg(long, default_value_t = 8)]
     pub frames: usize,
+    /// Treat a skinned file as static (its bind pose) and compare the static methods.
+    #[arg(long = "static")]
     pub as_static: bool,
+    /// Skinned files: seconds to spend tightening the animated bounds (halving the time
+    /// pieces where they are loosest); 0: no limit (then --rounds decides).
+    #[arg(long, default_value_t = 60.0)]
     pub budget: f64,
+    /// Skinned files: most refinement rounds (default: until converged or the budget is
+    /// spent; 0: key intervals only).
+    #[arg(long)]
     pub rounds: Option<usize>,
+    /// Skinned files: time windows per clip, each with its own bounds, chosen at run time
+    /// by the playing clip and time (1: one bound over all clips).
+    #[arg(long, default_value_t = skinlet::contour::skinned::DEFAULT_WINDOWS)]
     pub windows: usize,
+    /// Timing rounds, methods interleaved (the fastest round of each counts).
+    #[arg(long, default_value_t = 5)]
     pub repeats: usize,
+    /// Cost of a patch test in edge tests (t_P / t_e) for the decomposition.
+    #[arg(long)]
     pub cost_ratio: Option<f64>,
+    /// Measure t_e and t_P on this machine first (section 4.2) and use their ratio.
+    #[arg(long)]
     pub calibrate: bool,
-    pub params: PatchParams,
-    pub svg: Option<&'a Path>,
+    /// Viewing distance the decomposition optimizes for, in model sizes (d_cam).
+    #[arg(long, default_value_t = 10.0)]
+    pub d_cam: f64,
+    /// Largest group of edges fused together (c_max): larger is slower to build and
+    /// slightly better.
+    #[arg(long, default_value_t = 4096)]
+    pub group: usize,
+    /// GPU limits per patch (e.g. --max-edges 126 --max-vertices 64 for mesh shaders).
+    #[arg(long)]
+    pub max_edges: Option<usize>,
+    #[arg(long)]
+    pub max_vertices: Option<usize>,
+    /// Also draw the contours from a front view into this SVG file.
+    #[arg(long)]
+    pub svg: Option<PathBuf>,
+    #[arg(long)]
     pub json: bool,
 }
 
-pub fn command(file: &str, o: &Options) -> Result<()> {
+impl Args {
+    /// The decomposition parameters the options ask for, checked.
+    fn patch_params(&self) -> Result<PatchParams> {
+        anyhow::ensure!(self.d_cam.is_finite() && self.d_cam > 0.0, "--d-cam must be > 0");
+        anyhow::ensure!(self.group >= 1, "--group must be at least 1");
+        anyhow::ensure!(
+            self.max_edges != Some(0) && self.max_vertices.is_none_or(|v| v >= 2),
+            "--max-edges must be >= 1 and --max-vertices >= 2"
+        );
+        anyhow::ensure!(self.repeats >= 1 && self.frames >= 1, "--repeats and --frames must be at least 1");
+        anyhow::ensure!((1..=256).contains(&self.windows), "--windows must be between 1 and 256");
+        let mut params = PatchParams {
+            d_cam: self.d_cam,
+            group: self.group,
+            max_edges: self.max_edges,
+            max_vertices: self.max_vertices,
+            ..PatchParams::default()
+        };
+        if let Some(r) = self.cost_ratio {
+            anyhow::ensure!(r.is_finite() && r > 0.0, "--cost-ratio must be > 0");
+            params.cost_ratio = r;
+        }
+        Ok(params)
+    }
+}
+
+pub fn command(file: &str, o: &Args) -> Result<()> {
+    let params = o.patch_params()?;
     let asset = load(file)?;
     let skin = asset.instances.iter().find_map(|i| i.skin);
     if let (Some(skin), false, false) = (skin, o.as_static, asset.clips.is_empty()) {
-        return skinned(file, &asset, skin, o);
+        return skinned(file, &asset, skin, o, params);
     }
-    let methods: Vec<Method> = match o.method {
+    let mut methods: Vec<Method> = match o.method.as_str() {
         "all" => Method::ALL.to_vec(),
         m => vec![
             Method::Brute,
@@ -43,7 +114,6 @@ pub fn command(file: &str, o: &Options) -> Result<()> {
             })?,
         ],
     };
-    let mut methods = methods;
     methods.dedup();
     // Static geometry: every primitive as drawn without skinning, seams welded.
     let (mesh, _, _) = skinlet::weld::weld(&asset.combined_mesh(skin));
@@ -51,29 +121,9 @@ pub fn command(file: &str, o: &Options) -> Result<()> {
     if o.visible_only {
         edges.drop_concave(&mesh.positions, |_| true);
     }
-    check_params(o)?;
     let all_views = views(&mesh.positions);
-    let mut params = o.params;
-    let mut calibration = None;
-    if o.calibrate {
-        let (t_e, t_p) = skinlet::contour::evaluate::calibrate(&mesh.positions, &edges, &all_views, o.repeats);
-        calibration = Some((t_e, t_p));
-        params.cost_ratio = (t_p / t_e).max(0.1);
-    }
-    if let Some(r) = o.cost_ratio {
-        anyhow::ensure!(r.is_finite() && r > 0.0, "--cost-ratio must be > 0");
-        params.cost_ratio = r;
-    }
-    let rows = evaluate(&mesh.positions, &mesh.triangles, &edges, &methods, &params, &all_views, o.repeats);
-    if let Some(path) = o.svg {
-        write_svg(path, &mesh.positions, &edges)?;
-    }
-    if o.json {
-        let out: Vec<_> = rows.iter().map(row_json).collect();
-        println!("{}", serde_json::to_string_pretty(&out)?);
-        return Ok(());
-    }
-    println!(
+    let mut params = params;
+    let mut header = format!(
         "{file}: {} triangles, {} edges ({} interior, {} irregular, {} boundary{}), {} views (42 directions x 6 distances)",
         mesh.triangles.len(),
         edges.len(),
@@ -83,37 +133,26 @@ pub fn command(file: &str, o: &Options) -> Result<()> {
         if o.visible_only { format!(", {} concave dropped", edges.dropped_concave) } else { String::new() },
         all_views.len()
     );
-    if let Some((t_e, t_p)) = calibration {
-        println!("calibration: t_e {t_e:.2} ns, t_P {t_p:.2} ns, t_P/t_e {:.2}", t_p / t_e);
+    if o.calibrate {
+        let (t_e, t_p) = skinlet::contour::evaluate::calibrate(&mesh.positions, &edges, &all_views, o.repeats);
+        write!(header, "\ncalibration: t_e {t_e:.2} ns, t_P {t_p:.2} ns, t_P/t_e {:.2}", t_p / t_e)?;
+        // An explicit --cost-ratio wins over the measured one.
+        if o.cost_ratio.is_none() {
+            params.cost_ratio = (t_p / t_e).max(0.1);
+        }
     }
-    print_rows(&rows);
-    if let Some(path) = o.svg {
-        println!("wrote {}", path.display());
+    let rows = evaluate(&mesh.positions, &mesh.triangles, &edges, &methods, &params, &all_views, o.repeats);
+    if let Some(path) = &o.svg {
+        write_svg(path, &mesh.positions, &edges)?;
     }
-    Ok(())
-}
-
-fn check_params(o: &Options) -> Result<()> {
-    anyhow::ensure!(o.params.d_cam.is_finite() && o.params.d_cam > 0.0, "--d-cam must be > 0");
-    anyhow::ensure!(o.params.group >= 1, "--group must be at least 1");
-    anyhow::ensure!(
-        o.params.max_edges != Some(0) && o.params.max_vertices.is_none_or(|v| v >= 2),
-        "--max-edges must be >= 1 and --max-vertices >= 2"
-    );
-    anyhow::ensure!(o.repeats >= 1 && o.frames >= 1, "--repeats and --frames must be at least 1");
-    anyhow::ensure!((1..=256).contains(&o.windows), "--windows must be between 1 and 256");
-    if let Some(r) = o.cost_ratio {
-        anyhow::ensure!(r.is_finite() && r > 0.0, "--cost-ratio must be > 0");
-    }
-    Ok(())
+    report(o, &header, &rows)
 }
 
 /// Skinned files: brute force, rigid parts (the paper) and animated bounds (ours) over frames.
-fn skinned(file: &str, asset: &skinlet::Asset, skin: u32, o: &Options) -> Result<()> {
+fn skinned(file: &str, asset: &skinlet::Asset, skin: u32, o: &Args, params: PatchParams) -> Result<()> {
     use skinlet::contour::evaluate::{SkinnedInput, evaluate_skinned};
     use skinlet::contour::skinned::SkinnedMethod;
-    check_params(o)?;
-    let methods = match o.method {
+    let methods = match o.method.as_str() {
         "all" => vec![SkinnedMethod::Rigid, SkinnedMethod::Animated],
         "brute" => vec![],
         "rigid" => vec![SkinnedMethod::Rigid],
@@ -123,13 +162,10 @@ fn skinned(file: &str, asset: &skinlet::Asset, skin: u32, o: &Options) -> Result
         ),
     };
     anyhow::ensure!(!o.calibrate, "--calibrate runs on static geometry: add --static");
-    let clips = crate::select_clips(asset, o.clips)?;
+    anyhow::ensure!(o.budget.is_finite() && o.budget >= 0.0, "--budget must be a number of seconds >= 0");
+    let clips = crate::select_clips(asset, o.clips.as_deref())?;
     let (mesh, _, _) = skinlet::weld::weld(&asset.combined_mesh(Some(skin)));
     let edges = skinlet::contour::skinned::skinned_edges(&mesh, o.visible_only)?;
-    let mut params = o.params;
-    if let Some(r) = o.cost_ratio {
-        params.cost_ratio = r;
-    }
     let input = SkinnedInput {
         skeleton: &asset.skeleton,
         skin: &asset.skins[skin as usize],
@@ -137,7 +173,6 @@ fn skinned(file: &str, asset: &skinlet::Asset, skin: u32, o: &Options) -> Result
         mesh: &mesh,
         frames_per_clip: o.frames,
     };
-    anyhow::ensure!(o.budget.is_finite() && o.budget >= 0.0, "--budget must be a number of seconds >= 0");
     let how = skinlet::contour::skinned::refinement(
         (o.budget > 0.0).then(|| std::time::Duration::from_secs_f64(o.budget)),
         o.rounds.unwrap_or(if o.budget > 0.0 { usize::MAX } else { 0 }),
@@ -149,15 +184,10 @@ fn skinned(file: &str, asset: &skinlet::Asset, skin: u32, o: &Options) -> Result
         windows: o.windows,
     };
     let rows = evaluate_skinned(&input, &edges, &methods, &sp, o.repeats)?;
-    if let Some(path) = o.svg {
+    if let Some(path) = &o.svg {
         write_skinned_svg(path, &input, &edges)?;
     }
-    if o.json {
-        let out: Vec<_> = rows.iter().map(row_json).collect();
-        println!("{}", serde_json::to_string_pretty(&out)?);
-        return Ok(());
-    }
-    println!(
+    let header = format!(
         "{file}: {} triangles, {} edges ({} interior{}), {} clips x {} frames x 252 views",
         mesh.triangles.len(),
         edges.len(),
@@ -166,9 +196,19 @@ fn skinned(file: &str, asset: &skinlet::Asset, skin: u32, o: &Options) -> Result
         clips.len(),
         o.frames
     );
-    print_rows(&rows);
-    println!("(rigid / animated: quads in patches of each kind; the rest are tested every time)");
-    if let Some(path) = o.svg {
+    report(o, &header, &rows)
+}
+
+/// Prints the rows as JSON, or as the header and the table.
+fn report(o: &Args, header: &str, rows: &[MethodResult]) -> Result<()> {
+    if o.json {
+        let out: Vec<_> = rows.iter().map(row_json).collect();
+        println!("{}", serde_json::to_string_pretty(&out)?);
+        return Ok(());
+    }
+    println!("{header}");
+    print_rows(rows);
+    if let Some(path) = &o.svg {
         println!("wrote {}", path.display());
     }
     Ok(())
@@ -207,6 +247,9 @@ fn print_rows(rows: &[MethodResult]) {
             "{:<13} {:>8} {:>9.2} {:>9.4} {:>7.2}x {:>8.2} {:>9} {x:>8} {y:>9}",
             r.method, r.patches, r.tested_edges_pct, r.ms_per_view, r.speedup_vs_brute, r.build_s, r.mismatched_views
         );
+    }
+    if skinned {
+        println!("(rigid / animated: quads in patches of each kind; the rest are tested every time)");
     }
 }
 

@@ -290,62 +290,8 @@ enum Command {
     Contours {
         /// .glb, .gltf or .obj file, or @demo[:TRIANGLES].
         file: String,
-        /// Static meshes: brute, patches, patches-mean, snch, meshlets or all; skinned:
-        /// brute, rigid (the paper: patches on rigid parts), animated (ours: every patch with
-        /// bounds over the clips) or all. Brute always runs: it is the reference and baseline.
-        #[arg(long, default_value = "all")]
-        method: String,
-        /// Drop concave edges, whose contours are always hidden (as the paper does; on
-        /// skinned meshes only rigid ones, whose concavity cannot change).
-        #[arg(long)]
-        visible_only: bool,
-        /// Skinned files: clip names or indices, comma-separated (default: all clips).
-        #[arg(long, alias = "clip")]
-        clips: Option<String>,
-        /// Skinned files: sampled frames per clip.
-        #[arg(long, default_value_t = 8)]
-        frames: usize,
-        /// Treat a skinned file as static (its bind pose) and compare the static methods.
-        #[arg(long = "static")]
-        as_static: bool,
-        /// Skinned files: seconds to spend tightening the animated bounds (halving the time
-        /// pieces where they are loosest); 0: no limit (then --rounds decides).
-        #[arg(long, default_value_t = 60.0)]
-        budget: f64,
-        /// Skinned files: most refinement rounds (default: until converged or the budget is
-        /// spent; 0: key intervals only).
-        #[arg(long)]
-        rounds: Option<usize>,
-        /// Skinned files: time windows per clip, each with its own bounds, chosen at run time
-        /// by the playing clip and time (1: one bound over all clips).
-        #[arg(long, default_value_t = skinlet::contour::skinned::DEFAULT_WINDOWS)]
-        windows: usize,
-        /// Timing rounds, methods interleaved (the fastest round of each counts).
-        #[arg(long, default_value_t = 5)]
-        repeats: usize,
-        /// Cost of a patch test in edge tests (t_P / t_e) for the decomposition.
-        #[arg(long)]
-        cost_ratio: Option<f64>,
-        /// Measure t_e and t_P on this machine first (section 4.2) and use their ratio.
-        #[arg(long)]
-        calibrate: bool,
-        /// Viewing distance the decomposition optimizes for, in model sizes (d_cam).
-        #[arg(long, default_value_t = 10.0)]
-        d_cam: f64,
-        /// Largest group of edges fused together (c_max): larger is slower to build and
-        /// slightly better.
-        #[arg(long, default_value_t = 4096)]
-        group: usize,
-        /// GPU limits per patch (e.g. --max-edges 126 --max-vertices 64 for mesh shaders).
-        #[arg(long)]
-        max_edges: Option<usize>,
-        #[arg(long)]
-        max_vertices: Option<usize>,
-        /// Also draw the contours from a front view into this SVG file.
-        #[arg(long)]
-        svg: Option<PathBuf>,
-        #[arg(long)]
-        json: bool,
+        #[command(flatten)]
+        args: contours::Args,
     },
     /// Describe the built-in demo character and pose it through each clip.
     Demo {
@@ -390,48 +336,7 @@ fn main() {
         Command::Overdraw { file, clips, k, lambda, max_keyframes, views, seed, heatmap, json } => {
             overdraw::command(&file, clips.as_deref(), k, lambda, max_keyframes, views, seed, heatmap.as_deref(), json)
         }
-        Command::Contours {
-            file,
-            method,
-            visible_only,
-            clips,
-            frames,
-            as_static,
-            budget,
-            rounds,
-            windows,
-            repeats,
-            cost_ratio,
-            calibrate,
-            d_cam,
-            group,
-            max_edges,
-            max_vertices,
-            svg,
-            json,
-        } => {
-            let params =
-                skinlet::contour::patches::PatchParams { d_cam, group, max_edges, max_vertices, ..Default::default() };
-            contours::command(
-                &file,
-                &contours::Options {
-                    method: &method,
-                    visible_only,
-                    clips: clips.as_deref(),
-                    frames,
-                    as_static,
-                    budget,
-                    rounds,
-                    windows,
-                    repeats,
-                    cost_ratio,
-                    calibrate,
-                    params,
-                    svg: svg.as_deref(),
-                    json,
-                },
-            )
-        }
+        Command::Contours { file, args } => contours::command(&file, &args),
         Command::Demo { triangles, seed, json } => demo(triangles, seed, json),
     };
     if let Err(e) = result {
