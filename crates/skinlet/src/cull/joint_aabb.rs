@@ -120,6 +120,10 @@ pub struct JointBoxes {
     pub joints: Vec<u16>,
     pub center: Vec<Vec3A>,
     pub half: Vec<Vec3A>,
+    /// The same boxes two by two, centers and half extents splatted for [`wide::update`].
+    pairs: Vec<wide::Pair>,
+    /// One more than the largest joint index: the matrices `update` needs.
+    needs: usize,
 }
 
 impl JointBoxes {
@@ -147,7 +151,8 @@ impl JointBoxes {
     }
 
     fn from_boxes(space: JointSpace, boxes: &[DAabb]) -> JointBoxes {
-        let mut out = JointBoxes { space, joints: Vec::new(), center: Vec::new(), half: Vec::new() };
+        let mut out =
+            JointBoxes { space, joints: Vec::new(), center: Vec::new(), half: Vec::new(), pairs: Vec::new(), needs: 0 };
         for (j, b) in boxes.iter().enumerate() {
             if b.min.cmple(b.max).all() {
                 // Stored in f32: round outward by a relative margin far above f32 rounding.
@@ -157,13 +162,58 @@ impl JointBoxes {
                 out.half.push(((b.max - b.min) / 2.0 * (1.0 + 1e-6)).as_vec3a());
             }
         }
+        out.needs = out.joints.iter().map(|&j| j as usize + 1).max().unwrap_or(0);
+        out.pairs = wide::pairs(&out.joints, &out.center, &out.half);
         out
     }
 
     /// The entity-space box for this frame. `matrices[j]`, per skin joint: the skinning
     /// matrix (space [`JointSpace::Mesh`]) or the joint's global matrix ([`JointSpace::Joint`]),
-    /// both relative to the entity. Returns [`Box3::EMPTY`] when there are no boxes.
+    /// both relative to the entity. Returns [`Box3::EMPTY`] when there are no boxes, and the
+    /// infinite box (never culled) when `matrices` has fewer entries than the skin's joints.
     pub fn update(&self, matrices: &[Affine3A]) -> Box3 {
+        let mut out = [Box3::EMPTY];
+        match self.update_all(matrices, matrices.len(), &mut out) {
+            Ok(()) => out[0],
+            Err(_) => Box3 { min: Vec3::NEG_INFINITY, max: Vec3::INFINITY },
+        }
+    }
+
+    /// [`JointBoxes::update`] for many instances of the mesh at once: instance `i`'s matrices
+    /// are `palette[i * stride..(i + 1) * stride]` (an engine's joint matrix palette), its box
+    /// goes to `out[i]`. Errors when `stride` is smaller than the skin's joint count or the
+    /// palette does not hold `out.len()` instances.
+    ///
+    /// Where the CPU has AVX2 and FMA (checked at run time) two boxes are moved per 256-bit
+    /// register; elsewhere one per 128-bit register. Both round to nearest in f32, so their
+    /// results differ by an ulp or so, far inside the boxes' outward rounding margin.
+    pub fn update_all(&self, palette: &[Affine3A], stride: usize, out: &mut [Box3]) -> Result<()> {
+        if stride < self.needs || palette.len() != stride * out.len() {
+            return Err(Error::invalid(
+                "joint boxes",
+                format!(
+                    "{} matrices for {} instances of stride {stride} (the boxes use {} joints)",
+                    palette.len(),
+                    out.len(),
+                    self.needs
+                ),
+            ));
+        }
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+            // SAFETY: the features are present, and every joint in `pairs` is below `needs`,
+            // so below `stride`: each instance's slice holds it.
+            unsafe { wide::update_all(&self.pairs, palette, stride, out) };
+            return Ok(());
+        }
+        for (m, b) in palette.chunks_exact(stride.max(1)).zip(out) {
+            *b = self.update_narrow(m);
+        }
+        Ok(())
+    }
+
+    /// One instance's box, one joint box at a time (also the reference for the wide path).
+    fn update_narrow(&self, matrices: &[Affine3A]) -> Box3 {
         let (mut lo, mut hi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
         for ((&j, &c), &h) in self.joints.iter().zip(&self.center).zip(&self.half) {
             let (c, h) = arvo(&matrices[j as usize], c, h);
@@ -284,6 +334,81 @@ impl JointBoxes {
     }
 }
 
+/// Arvo's update two boxes per AVX register (x86-64 with AVX2 and FMA).
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+mod wide {
+    use super::Box3;
+    use glam::{Affine3A, Vec3A};
+
+    /// Two boxes: their joints, then per box axis the center coordinate and the half extent,
+    /// each repeated over the box's four lanes (first box in lanes 0–3, second in 4–7).
+    #[derive(Clone, Debug, PartialEq)]
+    #[repr(C, align(32))]
+    pub(super) struct Pair {
+        center: [[f32; 8]; 3],
+        half: [[f32; 8]; 3],
+        joints: [u32; 2],
+    }
+
+    /// Boxes paired in order; an odd last box is paired with itself.
+    pub(super) fn pairs(joints: &[u16], center: &[Vec3A], half: &[Vec3A]) -> Vec<Pair> {
+        (0..joints.len().div_ceil(2))
+            .map(|p| {
+                let (a, b) = (2 * p, (2 * p + 1).min(joints.len() - 1));
+                let splat = |v: [Vec3A; 2], axis: usize| {
+                    let mut out = [v[0][axis]; 8];
+                    out[4..].fill(v[1][axis]);
+                    out
+                };
+                Pair {
+                    center: [0, 1, 2].map(|k| splat([center[a], center[b]], k)),
+                    half: [0, 1, 2].map(|k| splat([half[a], half[b]], k)),
+                    joints: [joints[a] as u32, joints[b] as u32],
+                }
+            })
+            .collect()
+    }
+
+    /// The union box of the moved boxes of each instance (see `JointBoxes::update_all`).
+    ///
+    /// # Safety
+    /// The CPU must have AVX2 and FMA, every joint in `pairs` must be below `stride`, and
+    /// `palette` must hold `out.len()` instances of `stride` matrices.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) unsafe fn update_all(pairs: &[Pair], palette: &[Affine3A], stride: usize, out: &mut [Box3]) {
+        use std::arch::x86_64::*;
+        let abs = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fff_ffff));
+        for (i, b) in out.iter_mut().enumerate() {
+            let (mut lo, mut hi) = (_mm256_set1_ps(f32::INFINITY), _mm256_set1_ps(f32::NEG_INFINITY));
+            // SAFETY: instance i's matrices are in `palette` and every joint is below `stride`
+            // (the caller's promise); an Affine3A is 16 f32: three columns then the
+            // translation, each padded to four lanes.
+            unsafe {
+                let m = palette.as_ptr().add(i * stride).cast::<f32>();
+                for p in pairs {
+                    let (a, b) = (m.add(16 * p.joints[0] as usize), m.add(16 * p.joints[1] as usize));
+                    let column = |k: usize| _mm256_loadu2_m128(b.add(4 * k), a.add(4 * k));
+                    let (x, y, z, t) = (column(0), column(1), column(2), column(3));
+                    let c = |k: usize| _mm256_load_ps(p.center[k].as_ptr());
+                    let h = |k: usize| _mm256_load_ps(p.half[k].as_ptr());
+                    let center = _mm256_fmadd_ps(z, c(2), _mm256_fmadd_ps(y, c(1), _mm256_fmadd_ps(x, c(0), t)));
+                    let half = _mm256_fmadd_ps(
+                        _mm256_and_ps(z, abs),
+                        h(2),
+                        _mm256_fmadd_ps(_mm256_and_ps(y, abs), h(1), _mm256_mul_ps(_mm256_and_ps(x, abs), h(0))),
+                    );
+                    lo = _mm256_min_ps(lo, _mm256_sub_ps(center, half));
+                    hi = _mm256_max_ps(hi, _mm256_add_ps(center, half));
+                }
+            }
+            let lo = _mm_min_ps(_mm256_castps256_ps128(lo), _mm256_extractf128_ps::<1>(lo));
+            let hi = _mm_max_ps(_mm256_castps256_ps128(hi), _mm256_extractf128_ps::<1>(hi));
+            *b = Box3 { min: Vec3A::from(lo).into(), max: Vec3A::from(hi).into() };
+        }
+    }
+}
+
 /// The exact box of points (for measuring how loose a bound is).
 pub fn points_box(points: &[Vec3]) -> Box3 {
     points.iter().fold(Box3::EMPTY, |b, &p| Box3 { min: b.min.min(p), max: b.max.max(p) })
@@ -330,5 +455,41 @@ mod tests {
         let rel = box_of(Policy::FixedJointRelative { joint: 3, min, max }).unwrap();
         assert!(rel.contains(Vec3::from(joint_globals[3].translation)));
         assert_eq!(box_of(Policy::NoCulling), None);
+    }
+
+    #[test]
+    fn wide_and_narrow_updates_agree() {
+        let asset = demo_character(&DemoParams { triangles: 2000, ..DemoParams::default() });
+        let (skin, mesh) = (&asset.skins[0], asset.combined_mesh(Some(0)));
+        let boxes = JointBoxes::new(&mesh, skin, JointSpace::Joint).unwrap();
+        let mut poser = Poser::default();
+        let clip = &asset.clips[0];
+        // Odd and even box counts (the wide path pairs an odd last box with itself).
+        for keep in [boxes.joints.len(), boxes.joints.len() - 1, 1] {
+            let b = JointBoxes::from_boxes(
+                JointSpace::Joint,
+                &(0..skin.joints.len())
+                    .map(|j| match boxes.joints.iter().position(|&x| x as usize == j).filter(|&i| i < keep) {
+                        Some(i) => DAabb {
+                            min: (boxes.center[i] - boxes.half[i]).as_dvec3(),
+                            max: (boxes.center[i] + boxes.half[i]).as_dvec3(),
+                        },
+                        None => DAabb::EMPTY,
+                    })
+                    .collect::<Vec<_>>(),
+            );
+            for k in 0..8 {
+                let g = poser.globals(&asset.skeleton, Some(clip), clip.start + k as f32 / 8.0 * clip.duration());
+                let m: Vec<Affine3A> =
+                    skin.joints.iter().map(|&j| Affine3A::from_mat4(g[j as usize].as_mat4())).collect();
+                let (fast, slow) = (b.update(&m), b.update_narrow(&m));
+                let tol = 1e-5 * (slow.max - slow.min).abs().max_element().max(1.0);
+                assert!(
+                    (fast.min - slow.min).abs().max_element() <= tol
+                        && (fast.max - slow.max).abs().max_element() <= tol
+                );
+            }
+            assert_eq!(b.update(&[]).max, Vec3::INFINITY, "too few matrices: never culled");
+        }
     }
 }
