@@ -8,6 +8,7 @@ use skinlet::Asset;
 use skinlet::bake::{BakeStats, Baked, bake};
 use skinlet::bounds::meshlet::Class;
 use skinlet::bounds::refine::Progress;
+use skinlet::clip::Clip;
 use skinlet::meshlet::{Builder, MeshletLimits};
 use std::path::Path;
 
@@ -15,6 +16,28 @@ use std::path::Path;
 pub fn class_shares(b: &Baked) -> (f64, f64, f64) {
     let pct = |c: Class| 100.0 * b.classes.iter().filter(|&&x| x == c).count() as f64 / b.classes.len().max(1) as f64;
     (pct(Class::Both), pct(Class::FrustumOnly), pct(Class::None))
+}
+
+/// The clips `baked`'s bounds hold for, found by name in `asset` (loaded from `file`).
+pub fn clips_of<'a>(baked: &Baked, asset: &'a Asset, file: &str) -> Result<Vec<&'a Clip>> {
+    baked
+        .settings
+        .clips
+        .iter()
+        .map(|n| asset.clips.iter().find(|c| &c.name == n).with_context(|| format!("{file} has no clip {n:?}")))
+        .collect()
+}
+
+/// Errors unless the bake at `path` was made from skin `skin` of `asset` (loaded from `file`):
+/// same welded vertices and inverse bind matrices.
+pub fn check_source(baked: &Baked, asset: &Asset, skin: u32, file: &str, path: &Path) -> Result<()> {
+    let prepared = skinlet::meshlet::prepare(&asset.combined_mesh(Some(skin)));
+    anyhow::ensure!(
+        prepared.mesh == baked.mesh && asset.skins[skin as usize].inverse_bind == baked.inverse_bind,
+        "{} was not baked from {file} (its vertices or inverse bind matrices differ)",
+        path.display()
+    );
+    Ok(())
 }
 
 /// Bakes skin `skin` of `asset` with a progress bar on stderr (hidden when stderr is not a

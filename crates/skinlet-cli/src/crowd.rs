@@ -1,22 +1,27 @@
-//! `skinlet crowd`: the paper's crowd scene (fig. 10) on the CPU, with table 1's columns.
+//! `skinlet cull --scene crowd`: the paper's crowd scene (fig. 10) on the CPU, with table
+//! 1's columns.
 
 use crate::{RefineArgs, bake::bake_asset};
-use anyhow::Result;
+use anyhow::{Context, Result};
 use serde_json::{Value, json};
 use skinlet::clip::Clip;
 use skinlet::cull::crowd::{CrowdParams, CrowdStats, WHOLE_MESH_BOUNDS, crowd, run};
 use skinlet::meshlet::Builder;
 
-pub fn to_json(s: &CrowdStats) -> Value {
+/// The report: `meshlets_total` over all instances and frames; the three pipelines'
+/// culled shares (backface test only, frustum test only, both: `culled_total_pct`);
+/// `false_culls` is null unless checked.
+pub fn to_json(s: &CrowdStats, checked: bool) -> Value {
     let loose = s.looseness();
     json!({
-        "instances": s.instances, "frames": s.frames, "meshlets": s.meshlets,
-        "culled_backface_only_pct": s.backface_only_pct(), "culled_frustum_only_pct": s.frustum_only_pct(),
-        "culled_both_pct": s.both_pct(), "triangles_saved_pct": s.triangles_saved_pct(),
-        "skinning_saved_pct": s.skinning_saved_pct(), "whole_mesh_culled_pct": s.whole_mesh_pct(),
+        "instances": s.instances, "frames": s.frames, "meshlets_total": s.meshlets,
+        "culled_backface_pct": s.backface_only_pct(), "culled_frustum_pct": s.frustum_only_pct(),
+        "culled_total_pct": s.both_pct(), "triangles_saved_pct": s.triangles_saved_pct(),
+        "skinning_saved_pct": s.skinning_saved_pct(), "mesh_aabb_culled_pct": s.whole_mesh_pct(),
         "ns_per_meshlet": s.ns_per_meshlet(),
         "whole_mesh_looseness": WHOLE_MESH_BOUNDS.iter().zip(loose).map(|(n, l)| json!({"bound": n, "volume_ratio": l})).collect::<Vec<_>>(),
-        "checked_triangles": s.checked_triangles, "false_culls": s.false_culls,
+        "checked_triangles": s.checked_triangles,
+        "false_culls": if checked { json!(s.false_culls) } else { Value::Null },
     })
 }
 
@@ -48,29 +53,46 @@ pub fn print(s: &CrowdStats, verify: bool) {
     }
 }
 
-#[allow(clippy::too_many_arguments)]
+/// Runs the crowd for `file`: a bake (with `gltf`, the file it was baked from) or a glTF
+/// file, baked first.
 pub fn command(
     file: &str,
-    instances: usize,
-    frames: usize,
-    seed: u64,
-    orthographic: bool,
-    verify: bool,
+    gltf: Option<&str>,
+    params: &CrowdParams,
+    check: bool,
     args: RefineArgs,
     json: bool,
 ) -> Result<()> {
-    anyhow::ensure!(instances >= 1 && frames >= 1, "--instances and --frames must be at least 1");
-    let (asset, skin) = crate::load_skinned(file)?;
-    let (baked, _) = bake_asset(&asset, skin, None, Builder::SkinAware, args, json)?;
-    let params = CrowdParams { instances, frames, seed, orthographic, ..CrowdParams::default() };
-    let clips: Vec<&Clip> = asset.clips.iter().collect();
-    let scene = crowd(&baked.mesh.positions, clips.len(), &params);
-    let s = run(&baked, &asset.skeleton, &asset.skins[skin as usize], &clips, &scene, &params, verify)?;
-    if json {
-        println!("{}", serde_json::to_string_pretty(&to_json(&s))?);
+    anyhow::ensure!(params.instances >= 1 && params.frames >= 1, "--instances and --frames must be at least 1");
+    let is_bake = std::fs::File::open(file)
+        .and_then(|mut f| {
+            let mut magic = [0u8; 8];
+            std::io::Read::read_exact(&mut f, &mut magic).map(|_| &magic == b"SKINLET\0")
+        })
+        .unwrap_or(false);
+    let (asset, skin, baked) = if is_bake {
+        let gltf =
+            gltf.with_context(|| format!("{file} is a bake: name the glTF file it was baked from with --gltf"))?;
+        let (asset, skin) = crate::load_skinned(gltf)?;
+        let baked = skinlet::bake::read(std::path::Path::new(file))?;
+        crate::bake::check_source(&baked, &asset, skin, gltf, std::path::Path::new(file))?;
+        (asset, skin, baked)
     } else {
-        println!("{file}: crowd scene ({} camera)", if orthographic { "orthographic" } else { "perspective" });
-        print(&s, verify);
+        anyhow::ensure!(gltf.is_none(), "--gltf goes with a bake file; {file} is not one");
+        let (asset, skin) = crate::load_skinned(file)?;
+        let (baked, _) = bake_asset(&asset, skin, None, Builder::SkinAware, args, json)?;
+        (asset, skin, baked)
+    };
+    let source = gltf.unwrap_or(file);
+    let clips: Vec<&Clip> = crate::bake::clips_of(&baked, &asset, source)?;
+    let scene = crowd(&baked.mesh.positions, clips.len(), params);
+    let s = run(&baked, &asset.skeleton, &asset.skins[skin as usize], &clips, &scene, params, check)?;
+    if json {
+        println!("{}", serde_json::to_string_pretty(&to_json(&s, check))?);
+    } else {
+        let camera = if params.orthographic { "orthographic" } else { "perspective" };
+        println!("{file}: crowd scene ({camera} camera)");
+        print(&s, check);
     }
     if s.false_culls > 0 {
         std::process::exit(1);

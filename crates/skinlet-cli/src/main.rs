@@ -13,6 +13,7 @@ use skinlet::summary::summarize;
 use std::path::{Path, PathBuf};
 
 mod bake;
+mod bench;
 mod contours;
 mod crowd;
 mod overdraw;
@@ -219,12 +220,22 @@ enum Command {
     /// and overflows the view, a quarter of them on the frustum's side planes, each playing a
     /// clip from a random offset, a fixed camera. Per frame and instance: per-meshlet culling
     /// with the baked bounds by each pipeline (backface only, frustum only, both), per-triangle
-    /// culling in the kept meshlets, whole-mesh culling by per-joint boxes. --verify checks
+    /// culling in the kept meshlets, whole-mesh culling by per-joint boxes. --check verifies
     /// every culled triangle by brute force on the reference-skinned mesh (exit 1 if one was
     /// visible).
-    Crowd {
-        /// .glb or .gltf file, or @demo[:TRIANGLES].
+    ///
+    /// FILE is a bake (`skinlet bake`; then --gltf names the glTF file it was baked from,
+    /// for the skeleton and clips) or a glTF file, baked first.
+    #[command(alias = "crowd")]
+    Cull {
+        /// A bake file, a .glb or .gltf file, or @demo[:TRIANGLES].
         file: String,
+        /// The glTF file a bake was made from (required with a bake file).
+        #[arg(long)]
+        gltf: Option<String>,
+        /// The scene: the paper's crowd.
+        #[arg(long, default_value = "crowd", value_parser = ["crowd"])]
+        scene: String,
         #[arg(long, default_value_t = 64)]
         instances: usize,
         #[arg(long, default_value_t = 30)]
@@ -234,8 +245,9 @@ enum Command {
         /// An orthographic camera instead of a perspective one.
         #[arg(long)]
         ortho: bool,
-        #[arg(long)]
-        verify: bool,
+        /// Check every culled triangle by brute force (reports false_culls).
+        #[arg(long, alias = "verify")]
+        check: bool,
         #[command(flatten)]
         refine: RefineArgs,
         #[arg(long)]
@@ -293,6 +305,11 @@ enum Command {
         #[command(flatten)]
         args: contours::Args,
     },
+    /// Measure skinlet's speed against a baseline, in the same run.
+    Bench {
+        #[command(subcommand)]
+        what: bench::What,
+    },
     /// Describe the built-in demo character and pose it through each clip.
     Demo {
         /// Approximate triangle count (1000 to 1000000).
@@ -330,13 +347,21 @@ fn main() {
         Command::Verify { file, baked, builder, clips, refine, samples, json } => {
             verify(&file, baked.as_deref(), &builder, clips.as_deref(), refine, samples, json)
         }
-        Command::Crowd { file, instances, frames, seed, ortho, verify, refine, json } => {
-            crowd::command(&file, instances, frames, seed, ortho, verify, refine, json)
+        Command::Cull { file, gltf, scene: _, instances, frames, seed, ortho, check, refine, json } => {
+            let params = skinlet::cull::crowd::CrowdParams {
+                instances,
+                frames,
+                seed,
+                orthographic: ortho,
+                ..Default::default()
+            };
+            crowd::command(&file, gltf.as_deref(), &params, check, refine, json)
         }
         Command::Overdraw { file, clips, k, lambda, max_keyframes, views, seed, heatmap, json } => {
             overdraw::command(&file, clips.as_deref(), k, lambda, max_keyframes, views, seed, heatmap.as_deref(), json)
         }
         Command::Contours { file, args } => contours::command(&file, &args),
+        Command::Bench { what } => bench::command(&what),
         Command::Demo { triangles, seed, json } => demo(triangles, seed, json),
     };
     if let Err(e) = result {
@@ -588,7 +613,7 @@ fn demo(triangles: usize, seed: u64, json: bool) -> Result<()> {
             "meshlets": meshlets.len(), "both_pct": both, "frustum_only_pct": frustum, "none_pct": none,
             "precompute_s": precompute_s, "refine_rounds": baked.settings.rounds, "bake_bytes": bake_bytes,
             "verify_samples": check.samples, "violations": check.violations(),
-            "crowd": crowd::to_json(&crowd_stats),
+            "crowd": crowd::to_json(&crowd_stats, true),
             "seed": seed,
             "vertices": s.vertices,
             "triangles": s.triangles,
@@ -642,7 +667,7 @@ fn demo(triangles: usize, seed: u64, json: bool) -> Result<()> {
     println!("  crowd scene (CPU culling with the baked bounds):");
     crowd::print(&crowd_stats, true);
     println!(
-        "  next: `skinlet inspect @demo`, `skinlet meshlets @demo`, `skinlet bounds @demo`, `skinlet bake @demo -o demo.skinlet`, `skinlet verify @demo --baked demo.skinlet`, `skinlet crowd @demo`"
+        "  next: `skinlet inspect @demo`, `skinlet meshlets @demo`, `skinlet bounds @demo`, `skinlet bake @demo -o demo.skinlet`, `skinlet verify @demo --baked demo.skinlet`, `skinlet cull demo.skinlet --gltf @demo`"
     );
     Ok(())
 }
@@ -862,19 +887,9 @@ fn verify(
         None => bake::bake_asset(&asset, skin_index, clips, builder, args, json)?.0,
     };
     let skin = &asset.skins[skin_index as usize];
-    let clips = b
-        .settings
-        .clips
-        .iter()
-        .map(|n| asset.clips.iter().find(|c| &c.name == n).with_context(|| format!("{file} has no clip {n:?}")))
-        .collect::<Result<Vec<_>>>()?;
+    let clips = bake::clips_of(&b, &asset, file)?;
     if let Some(path) = baked {
-        let prepared = skinlet::meshlet::prepare(&asset.combined_mesh(Some(skin_index)));
-        anyhow::ensure!(
-            prepared.mesh == b.mesh && skin.inverse_bind == b.inverse_bind,
-            "{} was not baked from {file} (its vertices or inverse bind matrices differ)",
-            path.display()
-        );
+        bake::check_source(&b, &asset, skin_index, file, path)?;
     }
     let builder = b.settings.builder;
     let (meshlets, bounds) = (&b.meshlets, &b.bounds);

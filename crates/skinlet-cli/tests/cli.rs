@@ -296,24 +296,61 @@ fn bake_is_deterministic_verifiable_and_its_errors_are_clear() {
 }
 
 #[test]
-fn crowd_reports_table_one_columns_and_never_culls_visible_triangles() {
-    let j = json_of(&["crowd", "@demo:2000", "--instances", "8", "--frames", "3", "--verify", "--json"]);
+fn cull_reports_table_one_columns_and_never_culls_visible_triangles() {
+    let j =
+        json_of(&["cull", "@demo:2000", "--scene", "crowd", "--instances", "8", "--frames", "3", "--check", "--json"]);
     for field in [
-        "culled_backface_only_pct",
-        "culled_frustum_only_pct",
-        "culled_both_pct",
+        "culled_backface_pct",
+        "culled_frustum_pct",
+        "culled_total_pct",
         "triangles_saved_pct",
         "skinning_saved_pct",
-        "whole_mesh_culled_pct",
+        "mesh_aabb_culled_pct",
         "ns_per_meshlet",
     ] {
         assert!(j[field].as_f64().is_some_and(|x| x >= 0.0), "{field} missing in {j}");
     }
     assert_eq!(j["false_culls"], 0, "{j}");
     assert!(j["checked_triangles"].as_u64().unwrap() > 0);
-    let both = j["culled_both_pct"].as_f64().unwrap();
-    assert!(both >= j["culled_frustum_only_pct"].as_f64().unwrap() && both <= 100.0, "{j}");
-    let (code, _, err) = skinlet(&["crowd", "@demo:2000", "--instances", "0"]);
+    let total = j["culled_total_pct"].as_f64().unwrap();
+    assert!(total >= j["culled_frustum_pct"].as_f64().unwrap() && total <= 100.0, "{j}");
+    let (code, _, err) = skinlet(&["cull", "@demo:2000", "--instances", "0"]);
+    assert_eq!(code, 2);
+    assert!(err.contains("--instances"), "{err}");
+
+    // From a bake file: the same scene and bounds give the same table.
+    let dir = std::env::temp_dir().join(format!("skinlet-cull-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bake = dir.join("demo.skinlet");
+    let bake = bake.to_str().unwrap();
+    let (code, _, err) = skinlet(&["bake", "@demo:2000", "-o", bake]);
+    assert_eq!(code, 0, "{err}");
+    let b = json_of(&["cull", bake, "--gltf", "@demo:2000", "--instances", "8", "--frames", "3", "--check", "--json"]);
+    for field in ["meshlets_total", "culled_backface_pct", "culled_frustum_pct", "culled_total_pct", "false_culls"] {
+        assert_eq!(b[field], j[field], "{field}: bake {b} vs glTF {j}");
+    }
+    let (code, _, err) = skinlet(&["cull", bake]);
+    assert_eq!(code, 2);
+    assert!(err.contains("--gltf"), "{err}");
+    let (code, _, err) = skinlet(&["cull", bake, "--gltf", "@demo:3000"]);
+    assert_eq!(code, 2);
+    assert!(err.contains("was not baked from"), "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn bench_joint_aabb_measures_both_updates() {
+    let rows = json_of(&["bench", "joint-aabb", "@demo:2000", "--instances", "20,50", "--seconds", "0.05", "--json"]);
+    let rows = rows.as_array().unwrap();
+    assert_eq!(rows.len(), 2);
+    for r in rows {
+        for field in ["ours_joints_per_us", "bevy_joints_per_us", "ratio", "folded_ratio"] {
+            assert!(r[field].as_f64().is_some_and(|x| x > 0.0 && x.is_finite()), "{field} in {r}");
+        }
+        let ratio = r["bevy_joints_per_us"].as_f64().unwrap() / r["ours_joints_per_us"].as_f64().unwrap();
+        assert!((ratio * r["ratio"].as_f64().unwrap() - 1.0).abs() < 1e-9, "{r}");
+    }
+    let (code, _, err) = skinlet(&["bench", "joint-aabb", "@demo:2000", "--instances", "0"]);
     assert_eq!(code, 2);
     assert!(err.contains("--instances"), "{err}");
 }

@@ -1,13 +1,15 @@
 //! Run-time culling on the CPU: per-meshlet frustum and backface culling with the baked
 //! conservative bounds ([`meshlet`]), per-triangle culling inside visible meshlets
 //! ([`triangle`]), whole-mesh boxes from per-joint boxes ([`joint_aabb`]), and the crowd
-//! scene that measures them ([`crowd`]).
+//! scene that measures them ([`crowd`]); [`bevy_baseline`] is the joint-box update we
+//! measure ours against.
 //!
 //! This module holds the camera: a view-projection matrix, its six frustum planes
 //! (Gribb & Hartmann's extraction, normalized), and the eye position (perspective) or view
 //! direction (orthographic) that backface tests need. Conventions are glam's right-handed
 //! ones with depth in [0, 1] (`Mat4::perspective_rh`, `Mat4::orthographic_rh`).
 
+pub mod bevy_baseline;
 pub mod crowd;
 pub mod joint_aabb;
 pub mod meshlet;
