@@ -126,6 +126,13 @@ pub struct JointBoxes {
     needs: usize,
 }
 
+impl Default for JointBoxes {
+    /// No boxes (joint space).
+    fn default() -> JointBoxes {
+        JointBoxes::from_boxes(JointSpace::Joint, &[])
+    }
+}
+
 impl JointBoxes {
     /// Boxes of the vertices with a nonzero weight on each joint. Errors when the mesh has no
     /// skin weights or a joint index has no inverse bind matrix.
@@ -150,7 +157,7 @@ impl JointBoxes {
         Ok(Self::from_boxes(space, &boxes))
     }
 
-    fn from_boxes(space: JointSpace, boxes: &[DAabb]) -> JointBoxes {
+    pub(crate) fn from_boxes(space: JointSpace, boxes: &[DAabb]) -> JointBoxes {
         let mut out =
             JointBoxes { space, joints: Vec::new(), center: Vec::new(), half: Vec::new(), pairs: Vec::new(), needs: 0 };
         for (j, b) in boxes.iter().enumerate() {

@@ -25,9 +25,11 @@
 //! `A⁻¹`), far above f32 rounding, so a meshlet culled here is culled in exact arithmetic
 //! too; the crowd scene checks this triangle by triangle against reference skinning.
 
+use super::joint_aabb::{JointBoxes, JointSpace};
 use super::{Camera, Projection};
+use crate::bounds::Aabb as DAabb;
 use crate::bounds::meshlet::{Class, MeshletBounds};
-use glam::{Affine3A, Vec3, Vec3A};
+use glam::{Affine3A, BVec4A, Mat4, Vec3, Vec3A, Vec4};
 
 /// Which tests run (the paper's three culling pipelines).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -65,6 +67,16 @@ pub struct MeshletCuller {
     group_radius: Vec<f32>,
     /// Per joint: whether any of its meshlets may be backface-culled.
     group_cones: Vec<bool>,
+    /// Per joint, padded with zeros to a multiple of four (one SIMD lane per joint): group
+    /// sphere center and radius, and `extent`.
+    lane_cx: Vec<f32>,
+    lane_cy: Vec<f32>,
+    lane_cz: Vec<f32>,
+    lane_radius: Vec<f32>,
+    lane_extent: Vec<f32>,
+    /// Per joint, the box around its group sphere (joint space): moved by the joint matrices
+    /// ([`JointBoxes::update`]), their union bounds the whole instance's cullable meshlets.
+    instance: JointBoxes,
 }
 
 /// Joint world matrices from what a renderer usually holds: the instance's model matrix and
@@ -73,6 +85,60 @@ pub struct MeshletCuller {
 pub fn joints_from_skinning(model: &Affine3A, skinning: &[Affine3A], bind: &[Affine3A], out: &mut Vec<Affine3A>) {
     out.clear();
     out.extend(skinning.iter().zip(bind).map(|(s, b)| *model * *s * *b));
+}
+
+/// Three coordinates of four joints (structure of arrays: lane `i` is joint `i`).
+#[derive(Clone, Copy)]
+struct V4 {
+    x: Vec4,
+    y: Vec4,
+    z: Vec4,
+}
+
+impl V4 {
+    /// Four vectors, one per lane.
+    fn columns(v: [Vec3A; 4]) -> V4 {
+        let m = Mat4::from_cols(v[0].extend(0.0), v[1].extend(0.0), v[2].extend(0.0), v[3].extend(0.0)).transpose();
+        V4 { x: m.x_axis, y: m.y_axis, z: m.z_axis }
+    }
+
+    fn splat(v: Vec3) -> V4 {
+        V4 { x: Vec4::splat(v.x), y: Vec4::splat(v.y), z: Vec4::splat(v.z) }
+    }
+
+    fn dot(self, o: V4) -> Vec4 {
+        self.x * o.x + self.y * o.y + self.z * o.z
+    }
+
+    /// Each lane's vector dotted with the same `v`.
+    fn dot_splat(self, v: Vec3) -> Vec4 {
+        self.x * v.x + self.y * v.y + self.z * v.z
+    }
+
+    fn cross(self, o: V4) -> V4 {
+        V4 { x: self.y * o.z - self.z * o.y, y: self.z * o.x - self.x * o.z, z: self.x * o.y - self.y * o.x }
+    }
+}
+
+impl std::ops::Add for V4 {
+    type Output = V4;
+    fn add(self, o: V4) -> V4 {
+        V4 { x: self.x + o.x, y: self.y + o.y, z: self.z + o.z }
+    }
+}
+
+impl std::ops::Sub for V4 {
+    type Output = V4;
+    fn sub(self, o: V4) -> V4 {
+        V4 { x: self.x - o.x, y: self.y - o.y, z: self.z - o.z }
+    }
+}
+
+impl std::ops::Mul<Vec4> for V4 {
+    type Output = V4;
+    fn mul(self, s: Vec4) -> V4 {
+        V4 { x: self.x * s, y: self.y * s, z: self.z * s }
+    }
 }
 
 /// Where a joint's meshlet group lies relative to the frustum.
@@ -163,6 +229,25 @@ impl MeshletCuller {
             c.group_radius.push(radius * (1.0 + 1e-5));
             c.group_cones.push((c.groups[j] as usize..c.groups[j + 1] as usize).any(|i| c.sin[i] <= 1.0));
         }
+        let padded = joints.div_ceil(4) * 4;
+        let lanes = |v: Vec<f32>| {
+            let mut v = v;
+            v.resize(padded, 0.0);
+            v
+        };
+        c.lane_cx = lanes(c.group_center.iter().map(|p| p.x).collect());
+        c.lane_cy = lanes(c.group_center.iter().map(|p| p.y).collect());
+        c.lane_cz = lanes(c.group_center.iter().map(|p| p.z).collect());
+        c.lane_radius = lanes(c.group_radius.clone());
+        c.lane_extent = lanes(c.extent.clone());
+        let group_boxes: Vec<DAabb> = (0..joints)
+            .map(|j| {
+                let cullable = (c.groups[j]..c.groups[j + 1]).any(|i| c.frustum_ok[i as usize] == 1);
+                let (center, r) = (c.group_center[j].as_dvec3(), c.group_radius[j] as f64);
+                if cullable { DAabb { min: center - r, max: center + r } } else { DAabb::EMPTY }
+            })
+            .collect();
+        c.instance = JointBoxes::from_boxes(JointSpace::Joint, &group_boxes);
         c
     }
 
@@ -182,88 +267,148 @@ impl MeshletCuller {
     /// transform, i.e. model matrix × the joint's global transform) and the tests to run.
     /// Each joint's meshlet group is first tested as one sphere in world space (radius scaled
     /// by a Gershgorin bound of the largest singular value); only groups that straddle a
-    /// plane get joint-space planes, and only groups that may be drawn get the eye.
+    /// plane get joint-space planes, and only groups that may be drawn get the eye. Four
+    /// joints are prepared at once, one per SIMD lane.
     pub fn prepare(&self, joint_to_world: &[Affine3A], camera: &Camera, tests: Tests, frame: &mut JointFrame) {
         let n = joint_to_world.len().min(self.joints());
-        frame.planes.clear();
-        frame.len.clear();
-        frame.margin.clear();
-        frame.view.clear();
+        // Planes, lengths, margins, views and backface margins are read only for joints
+        // whose group straddles the frustum or whose sign is set below, so they need no reset.
+        frame.planes.resize(n, [[0.0; 4]; 6]);
+        frame.len.resize(n, [0.0; 6]);
+        frame.margin.resize(n, 0.0);
+        frame.view.resize(n, Vec3::ZERO);
+        frame.backface_margin.resize(n, 0.0);
         frame.sign.clear();
-        frame.backface_margin.clear();
-        frame.group.clear();
+        frame.sign.resize(n, 0.0);
         frame.orthographic = matches!(camera.projection, Projection::Orthographic { .. });
         frame.tests = tests;
         let (do_frustum, do_back) = (tests != Tests::Backface, tests != Tests::Frustum);
-        for (j, g) in joint_to_world[..n].iter().enumerate() {
-            let (mut planes, mut len, mut margin) = ([[0.0f32; 4]; 6], [0.0f32; 6], 0.0f32);
-            let (mut view, mut sign, mut bmargin, mut group) = (Vec3::ZERO, 0.0, 0.0, Group::Inside);
-            if self.groups[j] < self.groups[j + 1] {
-                let (a, t) = (&g.matrix3, g.translation);
-                let ext = self.extent[j];
-                // Shared by both tests: the Gram matrix AᵀA (squared column norms and their
-                // dot products) and the cofactor columns (y×z, z×x, x×y).
-                let (x, y, z) = (a.x_axis, a.y_axis, a.z_axis);
-                let (xx, yy, zz) = (x.dot(x), y.dot(y), z.dot(z));
-                if do_frustum {
-                    // Largest singular value: Gershgorin on AᵀA (exact for rotation × scale).
-                    let (xy, xz, yz) = (x.dot(y).abs(), x.dot(z).abs(), y.dot(z).abs());
-                    let smax = (xx + xy + xz).max(yy + xy + yz).max(zz + xz + yz).sqrt() * (1.0 + 1e-6);
-                    let c = g.transform_point3a(self.group_center[j].into());
-                    let r = self.group_radius[j] * smax * (1.0 + 1e-5) + 1e-5 * (c.abs().element_sum() + ext);
-                    let d = camera.planes.map(|p| Vec3A::from(p.truncate()).dot(c) + p.w);
-                    group = if d.iter().any(|&d| d < -r) {
+        // The whole instance first: when the box around every group sphere is outside a plane
+        // or inside all six, no group needs its own frustum test (and outside, no eye).
+        let whole = if do_frustum { self.instance_side(&joint_to_world[..n], camera) } else { Group::Inside };
+        frame.group.clear();
+        frame.group.resize(n, whole);
+        if whole == Group::Outside {
+            return;
+        }
+        for base in (0..n).step_by(4) {
+            let lanes = (n - base).min(4);
+            let active: [bool; 4] =
+                std::array::from_fn(|i| i < lanes && self.groups[base + i] < self.groups[base + i + 1]);
+            let cones = |i: usize| active[i] && self.group_cones[base + i];
+            if !(active.contains(&true) && (whole == Group::Straddles || do_back && (0..4).any(cones))) {
+                continue;
+            }
+            let g: [Affine3A; 4] =
+                std::array::from_fn(|i| if i < lanes { joint_to_world[base + i] } else { Affine3A::IDENTITY });
+            let (x, y, z, t) = (
+                V4::columns(g.map(|m| m.matrix3.x_axis)),
+                V4::columns(g.map(|m| m.matrix3.y_axis)),
+                V4::columns(g.map(|m| m.matrix3.z_axis)),
+                V4::columns(g.map(|m| m.translation)),
+            );
+            let at = |v: &[f32]| Vec4::from_slice(&v[base..base + 4]);
+            let ext = at(&self.lane_extent);
+            // Shared by both tests: the Gram matrix AᵀA (squared column norms and their dot
+            // products) and the cofactor columns (y×z, z×x, x×y).
+            let (xx, yy, zz) = (x.dot(x), y.dot(y), z.dot(z));
+            let mut group = [whole; 4];
+            if whole == Group::Straddles {
+                // Largest singular value: Gershgorin on AᵀA (exact for rotation × scale).
+                let (xy, xz, yz) = (x.dot(y).abs(), x.dot(z).abs(), y.dot(z).abs());
+                let smax = (xx + xy + xz).max(yy + xy + yz).max(zz + xz + yz).map(f32::sqrt) * (1.0 + 1e-6);
+                let gc = V4 { x: at(&self.lane_cx), y: at(&self.lane_cy), z: at(&self.lane_cz) };
+                let c = x * gc.x + y * gc.y + z * gc.z + t;
+                let r = at(&self.lane_radius) * smax * (1.0 + 1e-5) + 1e-5 * (c.x.abs() + c.y.abs() + c.z.abs() + ext);
+                let (mut outside, mut inside) = (BVec4A::FALSE, BVec4A::TRUE);
+                for p in &camera.planes {
+                    let d = c.x * p.x + c.y * p.y + c.z * p.z + p.w;
+                    outside |= d.cmplt(-r);
+                    inside &= d.cmpgt(r);
+                }
+                let (outside, inside) = (outside.bitmask(), inside.bitmask());
+                group = std::array::from_fn(|i| {
+                    if outside & (1 << i) != 0 {
                         Group::Outside
-                    } else if d.iter().all(|&d| d > r) {
+                    } else if inside & (1 << i) != 0 {
                         Group::Inside
                     } else {
                         Group::Straddles
-                    };
-                }
-                if group == Group::Straddles {
-                    let (at, t_len) = (a.transpose(), t.length());
-                    for (k, p) in camera.planes.iter().enumerate() {
-                        let n = Vec3A::from(p.truncate());
-                        let nj = at * n;
-                        let wj = n.dot(t) + p.w;
-                        planes[k] = [nj.x, nj.y, nj.z, wj];
-                        len[k] = nj.length();
-                        margin = margin.max(1e-5 * (wj.abs() + len[k] * ext + t_len + p.w.abs()));
+                    }
+                });
+            }
+            let straddles: [bool; 4] = std::array::from_fn(|i| active[i] && group[i] == Group::Straddles);
+            if straddles.contains(&true) {
+                let t_len = t.dot(t).map(f32::sqrt);
+                let mut margin = Vec4::ZERO;
+                for (k, p) in camera.planes.iter().enumerate() {
+                    let nj =
+                        V4 { x: x.dot_splat(p.truncate()), y: y.dot_splat(p.truncate()), z: z.dot_splat(p.truncate()) };
+                    let wj = t.dot_splat(p.truncate()) + p.w;
+                    let len = nj.dot(nj).map(f32::sqrt);
+                    margin = margin.max(1e-5 * (wj.abs() + len * ext + t_len + p.w.abs()));
+                    for i in (0..4).filter(|&i| straddles[i]) {
+                        frame.planes[base + i][k] = [nj.x[i], nj.y[i], nj.z[i], wj[i]];
+                        frame.len[base + i][k] = len[i];
                     }
                 }
-                if do_back && self.group_cones[j] && group != Group::Outside {
-                    // The eye moves into joint space through A⁻¹ = cof(A)ᵀ / det(A). Its f32
-                    // error grows with the condition number, bounded by |A|·|A⁻¹|
-                    // (Frobenius), which the margin covers.
-                    let (c0, c1, c2) = (y.cross(z), z.cross(x), x.cross(y));
-                    let det = x.dot(c0);
-                    let scale2 = xx.max(yy).max(zz);
-                    if det * det > 1e-18 * scale2 * scale2 * scale2 && det.is_finite() {
-                        let inv_frob2 = (c0.length_squared() + c1.length_squared() + c2.length_squared()) / (det * det);
-                        let cond = ((xx + yy + zz) * inv_frob2).sqrt();
-                        let solve = |v: Vec3A| Vec3::new(v.dot(c0), v.dot(c1), v.dot(c2)) / det;
-                        sign = det.signum();
-                        (view, bmargin) = match camera.projection {
-                            Projection::Perspective { eye } => {
-                                // |e|₁ ≥ |e|: a margin without a square root.
-                                let ej = solve(Vec3A::from(eye) - t);
-                                (ej, (1e-5 + 1e-6 * cond) * (ej.abs().element_sum() + ext))
-                            }
-                            Projection::Orthographic { dir } => {
-                                (solve(Vec3A::from(dir)).normalize_or_zero(), 1e-5 + 1e-6 * cond)
-                            }
-                        };
-                    }
+                for i in (0..4).filter(|&i| straddles[i]) {
+                    frame.margin[base + i] = margin[i];
                 }
             }
-            frame.planes.push(planes);
-            frame.len.push(len);
-            frame.margin.push(margin);
-            frame.view.push(view);
-            frame.sign.push(sign);
-            frame.backface_margin.push(bmargin);
-            frame.group.push(group);
+            let backface: [bool; 4] = std::array::from_fn(|i| {
+                do_back && active[i] && self.group_cones[base + i] && group[i] != Group::Outside
+            });
+            if backface.contains(&true) {
+                // The eye moves into joint space through A⁻¹ = cof(A)ᵀ / det(A). Its f32
+                // error grows with the condition number, bounded by |A|·|A⁻¹| (Frobenius),
+                // which the margin covers.
+                let (c0, c1, c2) = (y.cross(z), z.cross(x), x.cross(y));
+                let det = x.dot(c0);
+                let scale2 = xx.max(yy).max(zz);
+                let regular =
+                    (det * det).cmpgt(1e-18 * scale2 * scale2 * scale2).bitmask() & det.is_finite_mask().bitmask();
+                let inv_frob2 = (c0.dot(c0) + c1.dot(c1) + c2.dot(c2)) / (det * det);
+                let cond = ((xx + yy + zz) * inv_frob2).map(f32::sqrt);
+                let solve = |v: V4| V4 { x: v.dot(c0) / det, y: v.dot(c1) / det, z: v.dot(c2) / det };
+                let (view, bmargin) = match camera.projection {
+                    Projection::Perspective { eye } => {
+                        // |e|₁ ≥ |e|: a margin without a square root.
+                        let ej = solve(V4::splat(eye) - t);
+                        (ej, (1e-5 + 1e-6 * cond) * (ej.x.abs() + ej.y.abs() + ej.z.abs() + ext))
+                    }
+                    Projection::Orthographic { dir } => (solve(V4::splat(dir)), 1e-5 + 1e-6 * cond),
+                };
+                for i in (0..4).filter(|&i| backface[i] && regular & (1 << i) != 0) {
+                    let v = Vec3::new(view.x[i], view.y[i], view.z[i]);
+                    frame.view[base + i] = if frame.orthographic { v.normalize_or_zero() } else { v };
+                    frame.sign[base + i] = det[i].signum();
+                    frame.backface_margin[base + i] = bmargin[i];
+                }
+            }
+            frame.group[base..base + lanes].copy_from_slice(&group[..lanes]);
         }
+    }
+
+    /// Where the box around all group spheres, moved by the joint matrices, lies relative to
+    /// the frustum (with a rounding margin of 1e-5 of the magnitudes involved).
+    fn instance_side(&self, joint_to_world: &[Affine3A], camera: &Camera) -> Group {
+        let b = self.instance.update(joint_to_world);
+        let (c, h) = ((b.min + b.max) / 2.0, (b.max - b.min) / 2.0);
+        if !(c.is_finite() && h.is_finite()) || self.instance.joints.is_empty() {
+            return Group::Straddles;
+        }
+        let mut inside = true;
+        for p in &camera.planes {
+            let n = p.truncate();
+            let (d, e) = (n.dot(c) + p.w, n.abs().dot(h));
+            let margin = 1e-5 * (n.abs().dot(c.abs()) + e + p.w.abs());
+            if d + e + margin < 0.0 {
+                return Group::Outside;
+            }
+            inside &= d - e - margin > 0.0;
+        }
+        if inside { Group::Inside } else { Group::Straddles }
     }
 
     /// Culls every meshlet of one instance: appends the original indices of the visible ones
@@ -292,13 +437,18 @@ impl MeshletCuller {
             }
         }
         let mut counts = CullCounts { meshlets: self.len(), ..CullCounts::default() };
-        for (slot, &fl) in flags.iter().enumerate() {
-            if fl == 0 {
-                visible.push(self.ids[slot]);
-            }
+        // Branch-free compaction: every id is written, the end moves past the visible ones
+        // (a branch per meshlet mispredicts on the mixed flags of a typical frame).
+        let start = visible.len();
+        visible.resize(start + flags.len(), 0);
+        let mut end = start;
+        for (&fl, &id) in flags.iter().zip(&self.ids) {
+            visible[end] = id;
+            end += (fl == 0) as usize;
             counts.frustum += (fl & 1) as usize;
             counts.backface += (fl == 2) as usize;
         }
+        visible.truncate(end);
         counts.visible = counts.meshlets - counts.frustum - counts.backface;
         counts
     }
