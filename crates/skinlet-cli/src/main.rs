@@ -8,6 +8,7 @@ use skinlet::Asset;
 use skinlet::clip::Clip;
 use skinlet::demo::{DemoParams, demo_character};
 use skinlet::meshlet::{Builder, MeshletLimits};
+use skinlet::overdraw::cluster::PatchOrder;
 use skinlet::pose::Poser;
 use skinlet::summary::summarize;
 use std::path::{Path, PathBuf};
@@ -280,6 +281,10 @@ enum Command {
         views: usize,
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// How clusters order their patches: by measured occlusion between patches (ours), or
+        /// by mean distance to the eye (the paper's).
+        #[arg(long, default_value = "occlusion", value_parser = ["occlusion", "distance"])]
+        order: String,
         /// Also write an overdraw heat map (PNG): keyframe 0 of the first clip from the front,
         /// original order left, clustered order right (blue 1, green 2, yellow 3, red 5+).
         #[arg(long)]
@@ -357,8 +362,10 @@ fn main() {
             };
             crowd::command(&file, gltf.as_deref(), &params, check, refine, json)
         }
-        Command::Overdraw { file, clips, k, lambda, max_keyframes, views, seed, heatmap, json } => {
-            overdraw::command(&file, clips.as_deref(), k, lambda, max_keyframes, views, seed, heatmap.as_deref(), json)
+        Command::Overdraw { file, clips, k, lambda, max_keyframes, views, seed, order, heatmap, json } => {
+            let order = if order == "distance" { PatchOrder::Distance } else { PatchOrder::Occlusion };
+            let params = skinlet::overdraw::cluster::ClusterParams { k, seed, order, ..Default::default() };
+            overdraw::command(&file, clips.as_deref(), lambda, max_keyframes, views, &params, heatmap.as_deref(), json)
         }
         Command::Contours { file, args } => contours::command(&file, &args),
         Command::Bench { what } => bench::command(&what),

@@ -41,19 +41,20 @@ fn heatmap(
     Ok((ratios[0], ratios[1]))
 }
 
+/// The table for `file`; `base` gives k, the seed and the patch order (λ comes from `lambda`,
+/// or both 0.85 and 3).
 #[allow(clippy::too_many_arguments)]
 pub fn command(
     file: &str,
     clips: Option<&str>,
-    k: usize,
     lambda: Option<f32>,
     max_keyframes: usize,
     views: usize,
-    seed: u64,
+    base: &ClusterParams,
     heatmap_path: Option<&Path>,
     json: bool,
 ) -> Result<()> {
-    anyhow::ensure!((1..=255).contains(&k), "--k must be between 1 and 255");
+    anyhow::ensure!((1..=255).contains(&base.k), "--k must be between 1 and 255");
     anyhow::ensure!(max_keyframes >= 1 && views >= 1, "--max-keyframes and --views must be at least 1");
     let (asset, skin, prepared) = skinned(file)?;
     let clips = select_clips(&asset, clips)?;
@@ -64,7 +65,7 @@ pub fn command(
         .collect::<Result<Vec<Vec<Vec<glam::Vec3>>>>>()?;
     let lambdas = lambda.map_or(vec![0.85, 3.0], |l| vec![l]);
     if let Some(path) = heatmap_path {
-        let params = ClusterParams { k, lambda: lambdas[0], seed, ..ClusterParams::default() };
+        let params = ClusterParams { lambda: lambdas[0], ..*base };
         let (before, after) = heatmap(path, &frames[0], &prepared.mesh.triangles, &params)?;
         if !json {
             println!(
@@ -76,11 +77,7 @@ pub fn command(
     }
     let mut rows = Vec::new();
     for l in lambdas {
-        let params = EvalParams {
-            cluster: ClusterParams { k, lambda: l, seed, ..ClusterParams::default() },
-            views,
-            ..EvalParams::default()
-        };
+        let params = EvalParams { cluster: ClusterParams { lambda: l, ..*base }, views, ..EvalParams::default() };
         rows.extend(evaluate(&frames, &prepared.mesh.triangles, &params));
     }
     if json {

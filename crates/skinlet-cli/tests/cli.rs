@@ -379,6 +379,26 @@ fn overdraw_prints_one_row_per_method() {
         }
         assert!(r["ovr"].as_f64().unwrap() >= 1.0 && r["acmr"].as_f64().unwrap() <= 3.0, "{r}");
     }
+    // The paper's patch order still runs; a made-up one is refused.
+    let paper = json_of(&[
+        "overdraw",
+        "@demo:1000",
+        "--max-keyframes",
+        "2",
+        "--views",
+        "20",
+        "--k",
+        "2",
+        "--lambda",
+        "0.85",
+        "--order",
+        "distance",
+        "--json",
+    ]);
+    assert_eq!(paper.as_array().unwrap().len(), 4);
+    let (code, _, err) = skinlet(&["overdraw", "@demo:1000", "--order", "random"]);
+    assert_eq!(code, 2);
+    assert!(err.contains("--order"), "{err}");
 }
 
 #[test]

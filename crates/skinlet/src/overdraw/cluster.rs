@@ -9,11 +9,16 @@
 //! cluster's nodes in which the patch has a front-facing triangle (patches never seen keep
 //! their order, at the end). Stops when no node changes cluster or after `iterations`.
 //!
+//! Beyond the paper ([`PatchOrder::Occlusion`], the default): step 2 also orders the patches
+//! by the occlusion measured between them on the cluster's nodes ([`super::occlusion`]) and
+//! keeps whichever order shades fewer fragments over those nodes.
+//!
 //! Guarantees: every buffer is a permutation of the input triangles with windings kept
 //! (patches are moved whole); the output is deterministic for a seed (nodes are rendered in
 //! parallel, but each result lands in its own slot).
 
 use super::measure::{Fragments, Raster};
+use super::occlusion::Occlusion;
 use super::tipsify::{patches, tipsify};
 use super::viewpoints::icosphere;
 use glam::{Mat4, Vec3};
@@ -35,6 +40,19 @@ pub struct ClusterParams {
     /// Most bytes of node fragments kept between k-means iterations (beyond: rasterized
     /// again in every iteration; same result, slower).
     pub cache_bytes: usize,
+    /// How each cluster orders its patches (step 2).
+    pub order: PatchOrder,
+}
+
+/// How a cluster's patches are ordered in k-means step 2.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PatchOrder {
+    /// The paper's: by centroid distance to the eye, averaged over the nodes that see them.
+    Distance,
+    /// Ours: by measured occlusion between patches over the cluster's nodes
+    /// ([`super::occlusion`]), ties by distance.
+    #[default]
+    Occlusion,
 }
 
 impl Default for ClusterParams {
@@ -48,6 +66,7 @@ impl Default for ClusterParams {
             iterations: 6,
             seed: 1,
             cache_bytes: 1 << 30,
+            order: PatchOrder::default(),
         }
     }
 }
@@ -118,6 +137,7 @@ pub fn cluster(keyframes: &[Vec<Vec3>], triangles: &[[u32; 3]], params: &Cluster
     // Patch `p` as a range of indices into `order` (buffers are lists of such indices).
     let range = |p: usize| starts[p]..starts.get(p + 1).copied().unwrap_or(order.len() as u32);
     let patch = |p: usize| &order[starts[p] as usize..range(p).end as usize];
+    let patch_of: Vec<u32> = (0..starts.len()).flat_map(|p| std::iter::repeat_n(p as u32, range(p).len())).collect();
     let framing = Framing::of(keyframes);
     let views = icosphere(params.view_levels);
     let nodes = keyframes.len() * views.len();
@@ -267,7 +287,48 @@ pub fn cluster(keyframes: &[Vec<Vec3>], triangles: &[[u32; 3]], params: &Cluster
                         }
                     }
                 }
-                by_key(&mut |p| (seen[p] > 0).then(|| (sum[p] / seen[p] as f64) as f32))
+                let key: Vec<Option<f32>> =
+                    (0..starts.len()).map(|p| (seen[p] > 0).then(|| (sum[p] / seen[p] as f64) as f32)).collect();
+                if params.order == PatchOrder::Distance {
+                    return by_key(&mut |p| key[p]);
+                }
+                // The occlusion order, the distance order or the current buffer, whichever
+                // shades the fewest fragments over the cluster's nodes (so no iteration makes
+                // a cluster worse for its nodes).
+                let mut occlusion = Occlusion::default();
+                let (mut raster, mut scratch, mut pairs) = (None, Fragments::default(), Vec::new());
+                let mut with_frags = |f: &mut dyn FnMut(&Fragments)| {
+                    for &n in &members {
+                        if cache {
+                            f(&cached[n]);
+                        } else {
+                            let r = raster.get_or_insert_with(|| Raster::new(params.resolution, params.resolution));
+                            rasterize(r, n, &mut scratch);
+                            f(&scratch);
+                        }
+                    }
+                };
+                with_frags(&mut |frags| frags.occlusions(&patch_of, &mut pairs, |a, b| occlusion.add(a, b)));
+                let candidates = [
+                    occlusion.order(&key).into_iter().flat_map(|p| range(p as usize)).collect(),
+                    by_key(&mut |p| key[p]),
+                    buffers[b].clone(),
+                ];
+                let mut shaded = [0u64; 3];
+                let mut depth = Vec::new();
+                with_frags(&mut |frags| {
+                    for (s, c) in shaded.iter_mut().zip(&candidates) {
+                        *s += frags.shade(c.iter().copied(), u64::MAX, &mut depth).unwrap_or(u64::MAX);
+                    }
+                });
+                let [occluding, distance, current] = candidates;
+                if shaded[0] <= shaded[1].min(shaded[2]) {
+                    occluding
+                } else if shaded[1] <= shaded[2] {
+                    distance
+                } else {
+                    current
+                }
             })
             .collect();
     }
@@ -381,8 +442,15 @@ mod tests {
 
     #[test]
     fn buffers_are_permutations_lookup_matches_and_overdraw_drops() {
+        for order in [PatchOrder::Occlusion, PatchOrder::Distance] {
+            check_clustering(order);
+        }
+    }
+
+    fn check_clustering(patch_order: PatchOrder) {
         let (keyframes, triangles) = walk(4);
-        let params = ClusterParams { k: 3, view_levels: 1, resolution: 48, ..ClusterParams::default() };
+        let params =
+            ClusterParams { k: 3, view_levels: 1, resolution: 48, order: patch_order, ..ClusterParams::default() };
         let c = cluster(&keyframes, &triangles, &params);
         assert_eq!(c, cluster(&keyframes, &triangles, &params), "deterministic");
         let uncached = ClusterParams { cache_bytes: 0, ..params };
@@ -411,7 +479,11 @@ mod tests {
                 after.add(r.render(pos, &c.buffers[c.assignment[f * c.views.len() + v] as usize], &vp));
             }
         }
-        eprintln!("overdraw over the nodes: cache order {:.3}, clustered {:.3}", before.ratio(), after.ratio());
+        eprintln!(
+            "{patch_order:?}: overdraw over the nodes: cache order {:.3}, clustered {:.3}",
+            before.ratio(),
+            after.ratio()
+        );
         assert!(after.ratio() < before.ratio(), "clustered {} vs cache order {}", after.ratio(), before.ratio());
     }
 }

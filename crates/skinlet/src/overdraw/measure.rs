@@ -209,6 +209,30 @@ impl Fragments {
     }
 }
 
+impl Fragments {
+    /// Calls `emit(front, back)` for every pair of fragments on one pixel whose triangles
+    /// (indices into the list given to [`Raster::fragments`]) are in different groups
+    /// (`group[t]`), the nearer one's group first: the pairs a draw order should keep in
+    /// that order to shade each pixel once. `scratch` is reused.
+    pub fn occlusions(&self, group: &[u32], scratch: &mut Vec<(u32, f64, u32)>, mut emit: impl FnMut(u32, u32)) {
+        scratch.clear();
+        for (w, &g) in self.start.windows(2).zip(group) {
+            let r = w[0] as usize..w[1] as usize;
+            scratch.extend(self.pixel[r.clone()].iter().zip(&self.depth[r]).map(|(&p, &z)| (p, z, g)));
+        }
+        scratch.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)));
+        for run in scratch.chunk_by(|a, b| a.0 == b.0) {
+            for (i, front) in run.iter().enumerate() {
+                for back in &run[i + 1..] {
+                    if back.2 != front.2 {
+                        emit(front.2, back.2);
+                    }
+                }
+            }
+        }
+    }
+}
+
 /// Rasterizes one triangle (screen coordinates in 1/256 pixel, y down), calling `emit`
 /// with the pixel index and depth of every covered pixel center.
 fn rasterize(
@@ -399,5 +423,24 @@ mod tests {
         let img = r.heatmap();
         assert_eq!(img.len(), 16 * 16 * 3);
         assert!(img.chunks(3).all(|c| c == [40, 170, 90]), "every pixel shaded twice: green");
+    }
+
+    #[test]
+    fn occlusions_pair_the_nearer_group_first() {
+        // A near quad over the left half, a far quad over everything: 128 pixels where the
+        // near group (0) occludes the far one (1), none the other way.
+        let mut r = Raster::new(16, 16);
+        let vp = Mat4::orthographic_rh(0.0, 16.0, 0.0, 16.0, -10.0, 10.0);
+        let quad = |x: f32, z: f32| {
+            [Vec3::new(0.0, 0.0, z), Vec3::new(x, 0.0, z), Vec3::new(x, 16.0, z), Vec3::new(0.0, 16.0, z)]
+        };
+        let mut pts = quad(8.0, 1.0).to_vec();
+        pts.extend(quad(16.0, -1.0));
+        let tris = [[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]];
+        let mut frags = Fragments::default();
+        r.fragments(&pts, &tris, &vp, &mut frags);
+        let mut pairs = std::collections::HashMap::new();
+        frags.occlusions(&[0, 0, 1, 1], &mut Vec::new(), |a, b| *pairs.entry((a, b)).or_insert(0) += 1);
+        assert_eq!(pairs, std::collections::HashMap::from([((0, 1), 128)]));
     }
 }
