@@ -1,0 +1,122 @@
+//! The device: a headless Vulkan adapter (a real GPU, or Mesa's lavapipe on CPU-only
+//! machines) with the optional features the adapter offers.
+
+use crate::{GpuError, Result};
+use wgpu::util::DeviceExt;
+
+/// How to pick the adapter.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct GpuOptions {
+    /// Only a software adapter (lavapipe), even where a GPU exists.
+    pub software: bool,
+    /// Do not ask for mesh shaders even where the adapter has them (tests the fallback).
+    pub no_mesh_shaders: bool,
+}
+
+/// A device and its queue, with what the adapter is and can do.
+pub struct Gpu {
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    pub info: wgpu::AdapterInfo,
+    /// Features enabled on the device (a subset of mesh shaders, timestamps, subgroups).
+    pub features: wgpu::Features,
+}
+
+impl Gpu {
+    /// The first Vulkan adapter, with mesh shaders, timestamp queries and subgroup operations
+    /// enabled where the adapter has them.
+    pub fn new(options: GpuOptions) -> Result<Gpu> {
+        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+            backends: wgpu::Backends::VULKAN,
+            ..wgpu::InstanceDescriptor::new_without_display_handle()
+        });
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            force_fallback_adapter: options.software,
+            ..Default::default()
+        }))
+        .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
+        let mut wanted = wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::SUBGROUP;
+        if !options.no_mesh_shaders {
+            wanted |= wgpu::Features::EXPERIMENTAL_MESH_SHADER;
+        }
+        let features = adapter.features() & wanted;
+        let mesh = features.contains(wgpu::Features::EXPERIMENTAL_MESH_SHADER);
+        let desc = wgpu::DeviceDescriptor {
+            label: Some("skinlet"),
+            required_features: features,
+            required_limits: if mesh {
+                wgpu::Limits::defaults().using_recommended_minimum_mesh_shader_values()
+            } else {
+                wgpu::Limits::defaults()
+            },
+            // SAFETY: mesh shaders are an experimental wgpu feature; we opt in only when the
+            // adapter reports them, and every mesh pipeline is checked against the CPU path.
+            experimental_features: if mesh {
+                unsafe { wgpu::ExperimentalFeatures::enabled() }
+            } else {
+                wgpu::ExperimentalFeatures::disabled()
+            },
+            memory_hints: wgpu::MemoryHints::Performance,
+            trace: wgpu::Trace::Off,
+        };
+        let (device, queue) =
+            pollster::block_on(adapter.request_device(&desc)).map_err(|e| GpuError::Device(e.to_string()))?;
+        Ok(Gpu { device, queue, info: adapter.get_info(), features })
+    }
+
+    /// Whether mesh (and task) shaders are enabled.
+    pub fn has_mesh_shaders(&self) -> bool {
+        self.features.contains(wgpu::Features::EXPERIMENTAL_MESH_SHADER)
+    }
+
+    /// A storage buffer holding `data` (at least 16 bytes: empty bindings are not allowed).
+    pub(crate) fn storage<T: bytemuck::Pod>(&self, label: &str, data: &[T], extra: wgpu::BufferUsages) -> wgpu::Buffer {
+        let mut bytes = bytemuck::cast_slice::<T, u8>(data).to_vec();
+        bytes.resize(bytes.len().max(16).next_multiple_of(4), 0);
+        self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: &bytes,
+            usage: wgpu::BufferUsages::STORAGE | extra,
+        })
+    }
+
+    /// Runs `work` inside a validation error scope and waits for the queue: a validation or
+    /// out-of-memory error becomes a [`GpuError`] named after `location`.
+    pub(crate) fn checked<T>(&self, location: &'static str, work: impl FnOnce() -> T) -> Result<T> {
+        let memory = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let out = work();
+        let errors = [pollster::block_on(validation.pop()), pollster::block_on(memory.pop())];
+        match errors.into_iter().flatten().next() {
+            Some(e) => Err(GpuError::Gpu { location, message: e.to_string() }),
+            None => Ok(out),
+        }
+    }
+
+    /// Copies `size` bytes of `buffer` (which needs COPY_SRC) back to the CPU.
+    pub(crate) fn read(&self, buffer: &wgpu::Buffer, size: u64) -> Result<Vec<u8>> {
+        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+        encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, size);
+        let index = self.queue.submit([encoder.finish()]);
+        let (tx, rx) = std::sync::mpsc::channel();
+        staging.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        let gpu_err = |message: String| GpuError::Gpu { location: "readback", message };
+        self.device
+            .poll(wgpu::PollType::Wait { submission_index: Some(index), timeout: None })
+            .map_err(|e| gpu_err(e.to_string()))?;
+        rx.recv().map_err(|e| gpu_err(e.to_string()))?.map_err(|e| gpu_err(e.to_string()))?;
+        let view = staging.slice(..).get_mapped_range().map_err(|e| gpu_err(e.to_string()))?;
+        let out = view.to_vec();
+        drop(view);
+        staging.unmap();
+        Ok(out)
+    }
+}

@@ -1,0 +1,98 @@
+//! Compute-shader skinning against skinlet's CPU reference skinning: every vertex and normal
+//! of every shared skinned asset and the demo character, at several times of each clip.
+//!
+//! Runs on any Vulkan adapter; on CPU-only machines that is Mesa's lavapipe. With
+//! SKINLET_REQUIRE_GPU=1 (CI) a missing adapter fails the test instead of skipping it.
+
+use glam::{Affine3A, Vec3};
+use skinlet::Asset;
+use skinlet::pose::Poser;
+use skinlet_gpu::skinning::ComputeSkinning;
+use skinlet_gpu::{Gpu, GpuOptions};
+use std::path::PathBuf;
+
+fn gpu() -> Option<Gpu> {
+    match Gpu::new(GpuOptions::default()) {
+        Ok(g) => Some(g),
+        Err(e) if std::env::var("SKINLET_REQUIRE_GPU").is_ok_and(|v| v == "1") => panic!("{e}"),
+        Err(e) => {
+            eprintln!("skipping: {e}");
+            None
+        }
+    }
+}
+
+fn assets() -> Vec<(String, Asset)> {
+    let dir = std::env::var_os("SKINLET_ASSETS")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/assets")));
+    let mut out = Vec::new();
+    match std::fs::read_dir(dir.join("skinned")) {
+        Ok(entries) => {
+            let mut paths: Vec<PathBuf> = entries.flatten().map(|e| e.path()).collect();
+            paths.sort();
+            for p in paths.into_iter().filter(|p| p.extension().is_some_and(|e| e == "glb" || e == "gltf")) {
+                let asset = skinlet::import::load(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+                out.push((p.file_name().unwrap().to_string_lossy().into_owned(), asset));
+            }
+        }
+        Err(e) if std::env::var("SKINLET_REQUIRE_ASSETS").is_ok_and(|v| v == "1") => {
+            panic!("{}: {e}", dir.display())
+        }
+        Err(e) => eprintln!("no shared assets ({}: {e}); the demo character only", dir.display()),
+    }
+    let demo = skinlet::demo::demo_character(&skinlet::demo::DemoParams::default());
+    out.push(("@demo".into(), demo));
+    out
+}
+
+#[test]
+fn compute_skinning_matches_the_cpu_reference() {
+    let Some(gpu) = gpu() else { return };
+    eprintln!("adapter: {} ({:?}), mesh shaders: {}", gpu.info.name, gpu.info.backend, gpu.has_mesh_shaders());
+    if std::env::var("SKINLET_REQUIRE_GPU").is_ok_and(|v| v == "1") {
+        // CI installs lavapipe from bookworm-backports precisely for its mesh shaders.
+        assert!(gpu.has_mesh_shaders(), "{} has no mesh shaders", gpu.info.name);
+    }
+    let pipeline = ComputeSkinning::new(&gpu).unwrap();
+    let mut worst = (0.0f32, 0.0f32);
+    for (name, asset) in assets() {
+        let Some(skin_index) = asset.instances.iter().find_map(|i| i.skin) else { continue };
+        let skin = &asset.skins[skin_index as usize];
+        let mesh = asset.combined_mesh(Some(skin_index));
+        let inf = mesh.influences.as_ref().unwrap();
+        let buffers = pipeline.upload(&gpu, inf, &mesh.positions, &mesh.normals).unwrap();
+        let mut poser = Poser::default();
+        let mut times: Vec<(Option<usize>, f32)> = vec![(None, 0.0)];
+        for (c, clip) in asset.clips.iter().enumerate().take(3) {
+            times.extend([0.1f32, 0.5, 0.9].map(|f| (Some(c), clip.start + f * clip.duration())));
+        }
+        for (clip, t) in times {
+            let mut matrices: Vec<Affine3A> = Vec::new();
+            poser.skinning_matrices(&asset.skeleton, skin, clip.map(|c| &asset.clips[c]), t, &mut matrices);
+            let mut cpu_p = vec![Vec3::ZERO; mesh.positions.len()];
+            let mut cpu_n = vec![Vec3::ZERO; mesh.normals.len()];
+            skinlet::skinning::skin(inf, &mesh.positions, &mesh.normals, &matrices, &mut cpu_p, &mut cpu_n).unwrap();
+            pipeline.skin(&gpu, &buffers, &matrices).unwrap();
+            let (gpu_p, gpu_n) = pipeline.read(&gpu, &buffers).unwrap();
+            assert_eq!((gpu_p.len(), gpu_n.len()), (cpu_p.len(), cpu_n.len()), "{name}");
+            // Errors relative to the posed model's size.
+            let (lo, hi) = cpu_p.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), &p| (l.min(p), h.max(p)));
+            let size = (hi - lo).length().max(1e-6);
+            let p_err = cpu_p.iter().zip(&gpu_p).map(|(a, b)| (*a - *b).length()).fold(0.0f32, f32::max) / size;
+            let n_err = cpu_n.iter().zip(&gpu_n).map(|(a, b)| (*a - *b).length()).fold(0.0f32, f32::max);
+            assert!(p_err <= 1e-5, "{name} clip {clip:?} t {t}: position error {p_err:e} of the model size");
+            assert!(n_err <= 1e-5, "{name} clip {clip:?} t {t}: normal error {n_err:e}");
+            worst = (worst.0.max(p_err), worst.1.max(n_err));
+        }
+    }
+    eprintln!("worst position error {:e} of the model size, worst normal error {:e}", worst.0, worst.1);
+}
+
+#[test]
+fn mesh_shaders_can_be_turned_off() {
+    let Some(gpu) = gpu() else { return };
+    drop(gpu);
+    let plain = Gpu::new(GpuOptions { no_mesh_shaders: true, ..GpuOptions::default() }).unwrap();
+    assert!(!plain.has_mesh_shaders());
+}
