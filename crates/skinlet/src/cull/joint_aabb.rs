@@ -188,7 +188,7 @@ impl JointBoxes {
 
     /// [`JointBoxes::update`] for many instances of the mesh at once: instance `i`'s matrices
     /// are `palette[i * stride..(i + 1) * stride]` (an engine's joint matrix palette), its box
-    /// goes to `out[i]`. Errors when `stride` is smaller than the skin's joint count or the
+    /// goes to `out[i]`. Errors when `stride` does not reach every joint with a box or the
     /// palette does not hold `out.len()` instances.
     ///
     /// Where the CPU has AVX2 and FMA (checked at run time) two boxes are moved per 256-bit
@@ -206,6 +206,10 @@ impl JointBoxes {
                 ),
             ));
         }
+        if self.joints.is_empty() {
+            out.fill(Box3::EMPTY);
+            return Ok(());
+        }
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
             // SAFETY: the features are present, and every joint in `pairs` is below `needs`,
@@ -213,7 +217,7 @@ impl JointBoxes {
             unsafe { wide::update_all(&self.pairs, palette, stride, out) };
             return Ok(());
         }
-        for (m, b) in palette.chunks_exact(stride.max(1)).zip(out) {
+        for (m, b) in palette.chunks_exact(stride).zip(out) {
             *b = self.update_narrow(m);
         }
         Ok(())

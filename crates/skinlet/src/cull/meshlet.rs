@@ -16,10 +16,12 @@
 //!   shear, non-uniform and negative scale; orthographic cameras use the direction `A⁻¹ d`.
 //!   Singular joints (a zero scale) are never backface-culled.
 //!
-//! Per joint and frame, [`MeshletCuller::prepare`] first tests the sphere around all of the
-//! joint's meshlets in world space: groups wholly inside skip the per-meshlet frustum test,
-//! groups wholly outside are culled at once, and only straddling groups get joint-space
-//! planes. The per-meshlet tests then run in f32 over meshlets grouped by joint (structure
+//! Per instance and frame, [`MeshletCuller::prepare`] first moves the box around every
+//! joint's meshlet group by the joint matrices ([`JointBoxes`]): an instance wholly outside
+//! one plane is culled at once, one wholly inside skips every frustum test. Otherwise it tests
+//! the sphere around each joint's meshlets in world space (four joints per SIMD lane): groups
+//! wholly inside skip the per-meshlet frustum test, groups wholly outside are culled at once,
+//! and only straddling groups get joint-space planes. The per-meshlet tests then run in f32 over meshlets grouped by joint (structure
 //! of arrays, branch-free, vectorized by the compiler). Every f32 step carries a margin of
 //! 1e-5 of the magnitudes involved (1e-6 × the condition number more for the eye moved by
 //! `A⁻¹`), far above f32 rounding, so a meshlet culled here is culled in exact arithmetic

@@ -11,7 +11,8 @@
 //!
 //! Beyond the paper ([`PatchOrder::Occlusion`], the default): step 2 also orders the patches
 //! by the occlusion measured between them on the cluster's nodes ([`super::occlusion`]) and
-//! keeps whichever order shades fewer fragments over those nodes.
+//! keeps that order, the distance order or the cluster's current buffer, whichever shades the
+//! fewest fragments over those nodes.
 //!
 //! Guarantees: every buffer is a permutation of the input triangles with windings kept
 //! (patches are moved whole); the output is deterministic for a seed (nodes are rendered in
@@ -50,7 +51,8 @@ pub enum PatchOrder {
     /// The paper's: by centroid distance to the eye, averaged over the nodes that see them.
     Distance,
     /// Ours: by measured occlusion between patches over the cluster's nodes
-    /// ([`super::occlusion`]), ties by distance.
+    /// ([`super::occlusion`]), ties by distance; the distance order or the current buffer is
+    /// kept instead where it shades fewer fragments on those nodes.
     #[default]
     Occlusion,
 }
@@ -318,7 +320,7 @@ pub fn cluster(keyframes: &[Vec<Vec3>], triangles: &[[u32; 3]], params: &Cluster
                 let mut depth = Vec::new();
                 with_frags(&mut |frags| {
                     for (s, c) in shaded.iter_mut().zip(&candidates) {
-                        *s += frags.shade(c.iter().copied(), u64::MAX, &mut depth).unwrap_or(u64::MAX);
+                        *s = s.saturating_add(frags.shade(c.iter().copied(), u64::MAX, &mut depth).unwrap_or(u64::MAX));
                     }
                 });
                 let [occluding, distance, current] = candidates;
