@@ -18,6 +18,7 @@ mod bench;
 mod contours;
 mod crowd;
 mod overdraw;
+mod render;
 
 #[derive(Parser)]
 #[command(
@@ -310,6 +311,34 @@ enum Command {
         #[command(flatten)]
         args: contours::Args,
     },
+    /// Render a posed character offscreen on the GPU (wgpu, Vulkan; Mesa's lavapipe where
+    /// there is no GPU) and write a PNG.
+    ///
+    /// --skinning picks the pipeline: vertex (skinned in the vertex shader) or compute
+    /// (skinned by a compute pass, then drawn); both give the same image. The view is framed
+    /// on the posed character; the shading is faceted (flat per triangle).
+    Render {
+        /// .glb or .gltf file, or @demo[:TRIANGLES].
+        file: String,
+        /// Clip name or index (default: the first clip; none: the rest pose).
+        #[arg(long)]
+        clip: Option<String>,
+        /// Time in seconds from the clip's start.
+        #[arg(long, default_value_t = 0.0)]
+        time: f32,
+        #[arg(long, default_value = "compute", value_parser = ["vertex", "compute"])]
+        skinning: String,
+        /// Image width and height in pixels.
+        #[arg(long, default_value_t = 512)]
+        size: u32,
+        /// Only a software adapter (lavapipe), even where a GPU exists.
+        #[arg(long)]
+        software: bool,
+        #[arg(short, long)]
+        out: PathBuf,
+        #[arg(long)]
+        json: bool,
+    },
     /// Measure skinlet's speed against a baseline, in the same run.
     Bench {
         #[command(subcommand)]
@@ -369,6 +398,9 @@ fn main() {
         }
         Command::Contours { file, args } => contours::command(&file, &args),
         Command::Bench { what } => bench::command(&what),
+        Command::Render { file, clip, time, skinning, size, software, out, json } => {
+            render::command(&file, clip.as_deref(), time, &skinning, size, software, &out, json)
+        }
         Command::Demo { triangles, seed, json } => demo(triangles, seed, json),
     };
     if let Err(e) = result {
@@ -494,6 +526,16 @@ fn inspect(file: &str, json: bool) -> Result<()> {
     for w in &r.warnings {
         println!("  warning: {w}");
     }
+    Ok(())
+}
+
+/// Writes an 8-bit PNG (`data`: rows top to bottom, `color`'s channels per pixel).
+fn write_png(path: &Path, width: u32, height: u32, color: png::ColorType, data: &[u8]) -> Result<()> {
+    let file = std::fs::File::create(path).with_context(|| format!("cannot write {}", path.display()))?;
+    let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), width, height);
+    encoder.set_color(color);
+    encoder.set_depth(png::BitDepth::Eight);
+    encoder.write_header()?.write_image_data(data)?;
     Ok(())
 }
 

@@ -1,7 +1,7 @@
 //! `skinlet overdraw`: Han & Sander's table 2 for one character.
 
 use crate::{select_clips, skinned};
-use anyhow::{Context, Result};
+use anyhow::Result;
 use serde_json::json;
 use skinlet::overdraw::cluster::{ClusterParams, Lookup, cluster};
 use skinlet::overdraw::evaluate::{EvalParams, evaluate, keyframes};
@@ -33,11 +33,7 @@ fn heatmap(
             image[at..at + pixels.len()].copy_from_slice(pixels);
         }
     }
-    let file = std::fs::File::create(path).with_context(|| format!("cannot write {}", path.display()))?;
-    let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), 2 * size, size);
-    encoder.set_color(png::ColorType::Rgb);
-    encoder.set_depth(png::BitDepth::Eight);
-    encoder.write_header()?.write_image_data(&image)?;
+    crate::write_png(path, 2 * size, size, png::ColorType::Rgb, &image)?;
     Ok((ratios[0], ratios[1]))
 }
 

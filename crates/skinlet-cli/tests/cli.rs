@@ -425,3 +425,25 @@ fn contours_compare_methods_exactly_draw_svg_and_bake() {
     assert!(j["contour_patches"].as_u64().is_some_and(|n| n > 10), "{j}");
     std::fs::remove_file(&out).unwrap();
 }
+
+#[test]
+fn render_writes_a_png_of_the_posed_character() {
+    let dir = std::env::temp_dir().join(format!("skinlet-render-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("demo.png");
+    let (code, stdout, err) =
+        skinlet(&["render", "@demo:2000", "--time", "0.3", "--size", "64", "-o", out.to_str().unwrap(), "--json"]);
+    if code != 0 && err.contains("no GPU adapter") && std::env::var("SKINLET_REQUIRE_GPU").map_or(true, |v| v != "1") {
+        eprintln!("skipping: {err}");
+        return;
+    }
+    assert_eq!(code, 0, "{err}");
+    let j: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(j["size"], 64);
+    let bytes = std::fs::read(&out).unwrap();
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+    let (code, _, err) = skinlet(&["render", "@demo:2000", "--size", "4", "-o", out.to_str().unwrap()]);
+    assert_eq!(code, 2);
+    assert!(err.contains("--size"), "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -69,14 +69,14 @@ impl Gpu {
         self.features.contains(wgpu::Features::EXPERIMENTAL_MESH_SHADER)
     }
 
-    /// A storage buffer holding `data` (at least 16 bytes: empty bindings are not allowed).
-    pub(crate) fn storage<T: bytemuck::Pod>(&self, label: &str, data: &[T], extra: wgpu::BufferUsages) -> wgpu::Buffer {
+    /// A buffer holding `data` (at least 16 bytes: empty bindings are not allowed).
+    pub(crate) fn buffer<T: bytemuck::Pod>(&self, label: &str, data: &[T], usage: wgpu::BufferUsages) -> wgpu::Buffer {
         let mut bytes = bytemuck::cast_slice::<T, u8>(data).to_vec();
         bytes.resize(bytes.len().max(16).next_multiple_of(4), 0);
         self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some(label),
             contents: &bytes,
-            usage: wgpu::BufferUsages::STORAGE | extra,
+            usage,
         })
     }
 

@@ -5,46 +5,12 @@
 //! SKINLET_REQUIRE_GPU=1 (CI) a missing adapter fails the test instead of skipping it.
 
 use glam::{Affine3A, Vec3};
-use skinlet::Asset;
+mod common;
+use common::{assets, gpu};
 use skinlet::pose::Poser;
+use skinlet_gpu::mesh::GpuMesh;
 use skinlet_gpu::skinning::ComputeSkinning;
 use skinlet_gpu::{Gpu, GpuOptions};
-use std::path::PathBuf;
-
-fn gpu() -> Option<Gpu> {
-    match Gpu::new(GpuOptions::default()) {
-        Ok(g) => Some(g),
-        Err(e) if std::env::var("SKINLET_REQUIRE_GPU").is_ok_and(|v| v == "1") => panic!("{e}"),
-        Err(e) => {
-            eprintln!("skipping: {e}");
-            None
-        }
-    }
-}
-
-fn assets() -> Vec<(String, Asset)> {
-    let dir = std::env::var_os("SKINLET_ASSETS")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/assets")));
-    let mut out = Vec::new();
-    match std::fs::read_dir(dir.join("skinned")) {
-        Ok(entries) => {
-            let mut paths: Vec<PathBuf> = entries.flatten().map(|e| e.path()).collect();
-            paths.sort();
-            for p in paths.into_iter().filter(|p| p.extension().is_some_and(|e| e == "glb" || e == "gltf")) {
-                let asset = skinlet::import::load(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
-                out.push((p.file_name().unwrap().to_string_lossy().into_owned(), asset));
-            }
-        }
-        Err(e) if std::env::var("SKINLET_REQUIRE_ASSETS").is_ok_and(|v| v == "1") => {
-            panic!("{}: {e}", dir.display())
-        }
-        Err(e) => eprintln!("no shared assets ({}: {e}); the demo character only", dir.display()),
-    }
-    let demo = skinlet::demo::demo_character(&skinlet::demo::DemoParams::default());
-    out.push(("@demo".into(), demo));
-    out
-}
 
 #[test]
 fn compute_skinning_matches_the_cpu_reference() {
@@ -61,7 +27,7 @@ fn compute_skinning_matches_the_cpu_reference() {
         let skin = &asset.skins[skin_index as usize];
         let mesh = asset.combined_mesh(Some(skin_index));
         let inf = mesh.influences.as_ref().unwrap();
-        let buffers = pipeline.upload(&gpu, inf, &mesh.positions, &mesh.normals).unwrap();
+        let buffers = GpuMesh::new(&gpu, &mesh).unwrap();
         let mut poser = Poser::default();
         let mut times: Vec<(Option<usize>, f32)> = vec![(None, 0.0)];
         for (c, clip) in asset.clips.iter().enumerate().take(3) {

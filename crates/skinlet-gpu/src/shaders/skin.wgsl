@@ -1,21 +1,5 @@
-// Compute-shader linear blend skinning, the same arithmetic as skinlet::skinning (the CPU
-// reference): blend the joint matrices by weight, move the position, move the normal by the
-// blended matrix's cofactor (sign-corrected), normalize.
+// Compute-shader skinning (after common.wgsl): one invocation per vertex, results to buffers.
 
-struct Params {
-    vertices: u32,
-    stride: u32,
-    normals: u32,
-    pad: u32,
-}
-
-@group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read> positions: array<f32>;
-@group(0) @binding(2) var<storage, read> normals: array<f32>;
-@group(0) @binding(3) var<storage, read> joints: array<u32>;
-@group(0) @binding(4) var<storage, read> weights: array<f32>;
-// Per joint four columns (x, y, z axes, translation), as glam's Affine3A lays them out.
-@group(0) @binding(5) var<storage, read> matrices: array<vec4<f32>>;
 @group(0) @binding(6) var<storage, read_write> out_positions: array<f32>;
 @group(0) @binding(7) var<storage, read_write> out_normals: array<f32>;
 
@@ -25,34 +9,13 @@ fn skin(@builtin(global_invocation_id) id: vec3<u32>) {
     if v >= params.vertices {
         return;
     }
-    var x = vec3<f32>(0.0);
-    var y = vec3<f32>(0.0);
-    var z = vec3<f32>(0.0);
-    var t = vec3<f32>(0.0);
-    for (var i = 0u; i < params.stride; i++) {
-        let w = weights[v * params.stride + i];
-        if w == 0.0 {
-            break;
-        }
-        let j = joints[v * params.stride + i] * 4u;
-        x += matrices[j].xyz * w;
-        y += matrices[j + 1u].xyz * w;
-        z += matrices[j + 2u].xyz * w;
-        t += matrices[j + 3u].xyz * w;
-    }
-    let p = vec3<f32>(positions[3u * v], positions[3u * v + 1u], positions[3u * v + 2u]);
-    let q = x * p.x + y * p.y + z * p.z + t;
-    out_positions[3u * v] = q.x;
-    out_positions[3u * v + 1u] = q.y;
-    out_positions[3u * v + 2u] = q.z;
+    let s = skin_vertex(v);
+    out_positions[3u * v] = s.position.x;
+    out_positions[3u * v + 1u] = s.position.y;
+    out_positions[3u * v + 2u] = s.position.z;
     if params.normals != 0u {
-        let n = vec3<f32>(normals[3u * v], normals[3u * v + 1u], normals[3u * v + 2u]);
-        let c = cross(y, z) * n.x + cross(z, x) * n.y + cross(x, y) * n.z;
-        let r = c * sign(dot(x, cross(y, z)));
-        let len = length(r);
-        let m = select(vec3<f32>(0.0), r * (1.0 / len), len > 0.0);
-        out_normals[3u * v] = m.x;
-        out_normals[3u * v + 1u] = m.y;
-        out_normals[3u * v + 2u] = m.z;
+        out_normals[3u * v] = s.normal.x;
+        out_normals[3u * v + 1u] = s.normal.y;
+        out_normals[3u * v + 2u] = s.normal.z;
     }
 }

@@ -1,0 +1,90 @@
+//! A skinned mesh on the GPU: bind-pose vertices, influences, triangles, and the buffers the
+//! compute path writes skinned vertices to.
+
+use crate::{Gpu, GpuError, Result};
+use glam::Vec3;
+use skinlet::model::SkinnedMesh;
+
+pub struct GpuMesh {
+    pub vertices: u32,
+    pub has_normals: bool,
+    /// One more than the largest joint index used: the skinning matrices a draw needs.
+    pub joint_count: usize,
+    /// Vertex count, influences per vertex, normals present (0/1), padding: `Params` in WGSL.
+    pub(crate) params: wgpu::Buffer,
+    pub(crate) positions: wgpu::Buffer,
+    pub(crate) normals: wgpu::Buffer,
+    pub(crate) joints: wgpu::Buffer,
+    pub(crate) weights: wgpu::Buffer,
+    pub(crate) indices: wgpu::Buffer,
+    pub index_count: u32,
+    /// Skinned positions and unit normals written by compute skinning (3 f32 per vertex).
+    pub out_positions: wgpu::Buffer,
+    pub out_normals: wgpu::Buffer,
+}
+
+impl GpuMesh {
+    /// Uploads `mesh`. Errors when it has no skin weights, its lengths disagree or an index
+    /// is out of range.
+    pub fn new(gpu: &Gpu, mesh: &SkinnedMesh) -> Result<GpuMesh> {
+        let invalid = |message: String| GpuError::Invalid { location: "GPU mesh", message };
+        let inf = mesh.influences.as_ref().ok_or_else(|| invalid("the mesh has no skin weights".into()))?;
+        let n = inf.vertex_count();
+        let (positions, normals) = (&mesh.positions, &mesh.normals);
+        if positions.len() != n || !(normals.is_empty() || normals.len() == n) || n > u32::MAX as usize / 3 {
+            return Err(invalid(format!(
+                "{n} influence sets but {} positions and {} normals",
+                positions.len(),
+                normals.len()
+            )));
+        }
+        if let Some((t, tri)) = mesh.triangles.iter().enumerate().find(|(_, t)| t.iter().any(|&i| i as usize >= n)) {
+            return Err(invalid(format!("triangle {t} {tri:?} indexes past {n} vertices")));
+        }
+        let flat = |v: &[Vec3]| v.iter().flat_map(|p| p.to_array()).collect::<Vec<f32>>();
+        let joints: Vec<u32> = inf.joints.iter().map(|&j| j as u32).collect();
+        let indices: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
+        let params: [u32; 4] = [n as u32, inf.stride as u32, !normals.is_empty() as u32, 0];
+        let out = wgpu::BufferUsages::COPY_SRC;
+        gpu.checked("GPU mesh upload", || GpuMesh {
+            vertices: n as u32,
+            has_normals: !normals.is_empty(),
+            joint_count: inf.joints.iter().map(|&j| j as usize + 1).max().unwrap_or(0),
+            params: gpu.buffer("mesh params", &params, wgpu::BufferUsages::UNIFORM),
+            positions: gpu.buffer("positions", &flat(positions), wgpu::BufferUsages::STORAGE),
+            normals: gpu.buffer("normals", &flat(normals), wgpu::BufferUsages::STORAGE),
+            joints: gpu.buffer("joints", &joints, wgpu::BufferUsages::STORAGE),
+            weights: gpu.buffer("weights", &inf.weights, wgpu::BufferUsages::STORAGE),
+            indices: gpu.buffer("indices", &indices, wgpu::BufferUsages::INDEX),
+            index_count: indices.len() as u32,
+            out_positions: gpu.buffer("skinned positions", &vec![0f32; 3 * n], wgpu::BufferUsages::STORAGE | out),
+            out_normals: gpu.buffer(
+                "skinned normals",
+                &vec![0f32; 3 * normals.len()],
+                wgpu::BufferUsages::STORAGE | out,
+            ),
+        })
+    }
+
+    /// The skinning matrices as the shaders read them: per joint the four columns of glam's
+    /// `Affine3A` (x, y, z axes, translation), each a vec4. Errors when a joint has no matrix.
+    pub(crate) fn matrix_buffer(&self, gpu: &Gpu, matrices: &[glam::Affine3A]) -> Result<wgpu::Buffer> {
+        if matrices.len() < self.joint_count {
+            return Err(GpuError::Invalid {
+                location: "skinning",
+                message: format!("joint {} used but only {} skinning matrices", self.joint_count - 1, matrices.len()),
+            });
+        }
+        let columns: Vec<[f32; 4]> = matrices
+            .iter()
+            .flat_map(|m| [m.matrix3.x_axis, m.matrix3.y_axis, m.matrix3.z_axis, m.translation])
+            .map(|c| c.extend(0.0).to_array())
+            .collect();
+        Ok(gpu.buffer("skinning matrices", &columns, wgpu::BufferUsages::STORAGE))
+    }
+}
+
+/// A bind group entry for a whole buffer.
+pub(crate) fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry { binding, resource: buffer.as_entire_binding() }
+}

@@ -1,0 +1,256 @@
+//! Offscreen rendering of a posed character, by each skinning pipeline (thesis fig. 3.2):
+//! vertex-shader skinning (the index buffer over bind-pose vertices, skinned as drawn) and
+//! compute-shader skinning (a compute pass writes skinned vertices, a plain vertex shader
+//! draws them). Both run the same skinning arithmetic and the same fragment shader, so they
+//! must give the same image; tests/render.rs checks that pixel for pixel.
+
+use crate::mesh::{GpuMesh, entry};
+use crate::skinning::{ComputeSkinning, buffer_entry, mesh_bindings, mesh_entries};
+use crate::{Gpu, GpuError, Result};
+use glam::{Affine3A, Mat4, Vec3};
+
+/// How skinned vertices reach the rasterizer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Skinning {
+    /// In the vertex shader, from bind-pose vertices.
+    Vertex,
+    /// In a compute pass first, into buffers the vertex shader reads.
+    Compute,
+}
+
+/// An RGBA8 image, rows top to bottom.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Image {
+    pub width: u32,
+    pub height: u32,
+    pub rgba: Vec<u8>,
+}
+
+/// Pipelines for one image size (create once per device and size).
+pub struct Renderer {
+    pub width: u32,
+    pub height: u32,
+    compute: ComputeSkinning,
+    mesh_layout: wgpu::BindGroupLayout,
+    skinned_layout: wgpu::BindGroupLayout,
+    camera_layout: wgpu::BindGroupLayout,
+    vertex_pipeline: wgpu::RenderPipeline,
+    skinned_pipeline: wgpu::RenderPipeline,
+}
+
+const COLOR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+impl Renderer {
+    pub fn new(gpu: &Gpu, width: u32, height: u32) -> Result<Renderer> {
+        if !(1..=8192).contains(&width) || !(1..=8192).contains(&height) {
+            return Err(GpuError::Invalid { location: "renderer", message: format!("image size {width}×{height}") });
+        }
+        let compute = ComputeSkinning::new(gpu)?;
+        gpu.checked("render pipelines", || {
+            let device = &gpu.device;
+            let vertex = wgpu::ShaderStages::VERTEX;
+            let layout = |label: &str, entries: &[wgpu::BindGroupLayoutEntry]| {
+                device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries })
+            };
+            let mesh_layout = layout("mesh", &mesh_entries(vertex));
+            let skinned_layout =
+                layout("skinned", &[buffer_entry(0, vertex, wgpu::BufferBindingType::Storage { read_only: true })]);
+            let camera_layout = layout(
+                "camera",
+                &[buffer_entry(0, vertex | wgpu::ShaderStages::FRAGMENT, wgpu::BufferBindingType::Uniform)],
+            );
+            let draw = include_str!("shaders/draw.wgsl");
+            let pipeline = |label: &str, sources: &[&str], group0: &wgpu::BindGroupLayout| {
+                let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some(label),
+                    source: wgpu::ShaderSource::Wgsl(sources.concat().into()),
+                });
+                let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                    label: Some(label),
+                    bind_group_layouts: &[Some(group0), Some(&camera_layout)],
+                    immediate_size: 0,
+                });
+                device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                    label: Some(label),
+                    layout: Some(&layout),
+                    vertex: wgpu::VertexState {
+                        module: &module,
+                        entry_point: Some("vertex"),
+                        compilation_options: Default::default(),
+                        buffers: &[],
+                    },
+                    primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
+                    depth_stencil: Some(wgpu::DepthStencilState {
+                        format: DEPTH,
+                        depth_write_enabled: Some(true),
+                        depth_compare: Some(wgpu::CompareFunction::Less),
+                        stencil: Default::default(),
+                        bias: Default::default(),
+                    }),
+                    multisample: Default::default(),
+                    fragment: Some(wgpu::FragmentState {
+                        module: &module,
+                        entry_point: Some("shade"),
+                        compilation_options: Default::default(),
+                        targets: &[Some(COLOR.into())],
+                    }),
+                    multiview_mask: None,
+                    cache: None,
+                })
+            };
+            let vertex_pipeline = pipeline(
+                "vertex skinning",
+                &[include_str!("shaders/common.wgsl"), draw, include_str!("shaders/vertex_skin.wgsl")],
+                &mesh_layout,
+            );
+            let skinned_pipeline =
+                pipeline("skinned draw", &[draw, include_str!("shaders/skinned.wgsl")], &skinned_layout);
+            Renderer {
+                width,
+                height,
+                compute,
+                mesh_layout,
+                skinned_layout,
+                camera_layout,
+                vertex_pipeline,
+                skinned_pipeline,
+            }
+        })
+    }
+
+    /// Renders `mesh` posed by `matrices` (skinning matrices) through `view_proj` (wgpu's
+    /// clip space: depth 0 to 1), lit from `light` (a direction), by the given pipeline.
+    pub fn render(
+        &self,
+        gpu: &Gpu,
+        mesh: &GpuMesh,
+        matrices: &[Affine3A],
+        view_proj: Mat4,
+        light: Vec3,
+        skinning: Skinning,
+    ) -> Result<Image> {
+        let matrices = mesh.matrix_buffer(gpu, matrices)?;
+        let (width, height) = (self.width, self.height);
+        let row = (4 * width).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        let readback = gpu.checked("render", || {
+            let device = &gpu.device;
+            let mut camera = view_proj.to_cols_array().to_vec();
+            camera.extend(light.normalize_or_zero().extend(0.0).to_array());
+            let camera = gpu.buffer("camera", &camera, wgpu::BufferUsages::UNIFORM);
+            let camera = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("camera"),
+                layout: &self.camera_layout,
+                entries: &[entry(0, &camera)],
+            });
+            let texture = |format, usage| {
+                device.create_texture(&wgpu::TextureDescriptor {
+                    label: None,
+                    size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D2,
+                    format,
+                    usage,
+                    view_formats: &[],
+                })
+            };
+            let color = texture(COLOR, wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC);
+            let depth = texture(DEPTH, wgpu::TextureUsages::RENDER_ATTACHMENT);
+            let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+            let (pipeline, group0) = match skinning {
+                Skinning::Vertex => {
+                    let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                        label: Some("mesh"),
+                        layout: &self.mesh_layout,
+                        entries: &mesh_bindings(mesh, &matrices),
+                    });
+                    (&self.vertex_pipeline, bind)
+                }
+                Skinning::Compute => {
+                    self.compute.encode(gpu, &mut encoder, mesh, &matrices);
+                    let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                        label: Some("skinned"),
+                        layout: &self.skinned_layout,
+                        entries: &[entry(0, &mesh.out_positions)],
+                    });
+                    (&self.skinned_pipeline, bind)
+                }
+            };
+            {
+                let color_view = color.create_view(&Default::default());
+                let depth_view = depth.create_view(&Default::default());
+                let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("draw"),
+                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                        view: &color_view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color { r: 0.08, g: 0.09, b: 0.11, a: 1.0 }),
+                            store: wgpu::StoreOp::Store,
+                        },
+                    })],
+                    depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                        view: &depth_view,
+                        depth_ops: Some(wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(1.0),
+                            store: wgpu::StoreOp::Store,
+                        }),
+                        stencil_ops: None,
+                    }),
+                    timestamp_writes: None,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, &group0, &[]);
+                pass.set_bind_group(1, &camera, &[]);
+                pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..mesh.index_count, 0, 0..1);
+            }
+            let readback = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("image"),
+                size: (row * height) as u64,
+                usage: wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            encoder.copy_texture_to_buffer(
+                wgpu::TexelCopyTextureInfo {
+                    texture: &color,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d::ZERO,
+                    aspect: wgpu::TextureAspect::All,
+                },
+                wgpu::TexelCopyBufferInfo {
+                    buffer: &readback,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(row),
+                        rows_per_image: Some(height),
+                    },
+                },
+                wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+            );
+            gpu.queue.submit([encoder.finish()]);
+            readback
+        })?;
+        let bytes = gpu.read(&readback, (row * height) as u64)?;
+        let rgba = bytes.chunks_exact(row as usize).flat_map(|r| &r[..4 * width as usize]).copied().collect();
+        Ok(Image { width, height, rgba })
+    }
+}
+
+/// A view-projection (wgpu's clip space) that frames points `p` from direction `dir` (toward
+/// the eye), with a 40° vertical field of view and a square image.
+pub fn framing(points: &[Vec3], dir: Vec3) -> Mat4 {
+    let (lo, hi) = points.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), &p| (l.min(p), h.max(p)));
+    let (center, radius) =
+        if lo.x <= hi.x { ((lo + hi) / 2.0, ((hi - lo).length() / 2.0).max(1e-6)) } else { (Vec3::ZERO, 1.0) };
+    let fov = 40f32.to_radians();
+    let distance = radius / (fov / 2.0).sin() * 1.05;
+    let dir = dir.try_normalize().unwrap_or(Vec3::Z);
+    let up = if dir.y.abs() > 0.99 { Vec3::Z } else { Vec3::Y };
+    Mat4::perspective_rh(fov, 1.0, (distance - radius) * 0.5, distance + radius * 2.0)
+        * Mat4::look_at_rh(center + dir * distance, center, up)
+}

@@ -1,0 +1,64 @@
+//! Every skinning pipeline renders the same image of a posed character (thesis fig. 3.2),
+//! pixel for pixel: vertex-shader skinning and compute-shader skinning, on every shared
+//! skinned asset and the demo character, mid-clip.
+
+mod common;
+use common::{assets, gpu};
+use glam::{Affine3A, Vec3};
+use skinlet::pose::Poser;
+use skinlet_gpu::mesh::GpuMesh;
+use skinlet_gpu::render::{Renderer, Skinning, framing};
+
+#[test]
+fn vertex_and_compute_skinning_draw_the_same_image() {
+    let Some(gpu) = gpu() else { return };
+    let renderer = Renderer::new(&gpu, 192, 192).unwrap();
+    for (name, asset) in assets() {
+        let Some(skin_index) = asset.instances.iter().find_map(|i| i.skin) else { continue };
+        let skin = &asset.skins[skin_index as usize];
+        let mesh = asset.combined_mesh(Some(skin_index));
+        let clip = asset.clips.first();
+        let t = clip.map_or(0.0, |c| c.start + 0.4 * c.duration());
+        let mut matrices: Vec<Affine3A> = Vec::new();
+        Poser::default().skinning_matrices(&asset.skeleton, skin, clip, t, &mut matrices);
+        let mut posed = vec![Vec3::ZERO; mesh.positions.len()];
+        let inf = mesh.influences.as_ref().unwrap();
+        skinlet::skinning::skin(inf, &mesh.positions, &[], &matrices, &mut posed, &mut []).unwrap();
+        let view_proj = framing(&posed, Vec3::new(0.3, 0.2, 1.0));
+        let gpu_mesh = GpuMesh::new(&gpu, &mesh).unwrap();
+        let light = Vec3::new(0.4, 0.8, 0.6);
+        let by_vertex = renderer.render(&gpu, &gpu_mesh, &matrices, view_proj, light, Skinning::Vertex).unwrap();
+        let by_compute = renderer.render(&gpu, &gpu_mesh, &matrices, view_proj, light, Skinning::Compute).unwrap();
+        // The character covers part of the image (the test would pass on two blank images).
+        let background = &by_vertex.rgba[..4];
+        let covered = by_vertex.rgba.chunks(4).filter(|p| *p != background).count();
+        assert!(covered > 200, "{name}: only {covered} pixels drawn");
+        let differing = by_vertex.rgba.chunks(4).zip(by_compute.rgba.chunks(4)).filter(|(a, b)| a != b).count();
+        assert_eq!(differing, 0, "{name}: {differing} of {covered} pixels differ between vertex and compute skinning");
+    }
+}
+
+#[test]
+fn a_pose_change_changes_the_image() {
+    // The comparison above must be able to fail: two different poses give different images.
+    let Some(gpu) = gpu() else { return };
+    let asset = skinlet::demo::demo_character(&skinlet::demo::DemoParams { triangles: 4000, ..Default::default() });
+    let (skin, mesh, clip) = (&asset.skins[0], asset.combined_mesh(Some(0)), &asset.clips[0]);
+    let renderer = Renderer::new(&gpu, 128, 128).unwrap();
+    let gpu_mesh = GpuMesh::new(&gpu, &mesh).unwrap();
+    let view_proj = framing(&mesh.positions, Vec3::Z);
+    let mut images = Vec::new();
+    for t in [0.2, 0.6] {
+        let mut matrices = Vec::new();
+        Poser::default().skinning_matrices(
+            &asset.skeleton,
+            skin,
+            Some(clip),
+            clip.start + t * clip.duration(),
+            &mut matrices,
+        );
+        images.push(renderer.render(&gpu, &gpu_mesh, &matrices, view_proj, Vec3::Y, Skinning::Vertex).unwrap());
+    }
+    assert_ne!(images[0], images[1]);
+    assert!(renderer.render(&gpu, &gpu_mesh, &[], view_proj, Vec3::Y, Skinning::Vertex).is_err(), "no matrices");
+}
