@@ -314,9 +314,10 @@ enum Command {
     /// Render a posed character offscreen on the GPU (wgpu, Vulkan; Mesa's lavapipe where
     /// there is no GPU) and write a PNG.
     ///
-    /// --skinning picks the pipeline: vertex (skinned in the vertex shader) or compute
-    /// (skinned by a compute pass, then drawn); both give the same image. The view is framed
-    /// on the posed character; the shading is faceted (flat per triangle).
+    /// --skinning picks the pipeline: vertex (skinned in the vertex shader), compute (skinned
+    /// by a compute pass, then drawn) or mesh (skin-aware meshlets, one mesh-shader workgroup
+    /// per meshlet; needs mesh shaders); all give the same image. The view is framed on the
+    /// posed character; the shading is faceted (flat per triangle).
     Render {
         /// .glb or .gltf file, or @demo[:TRIANGLES].
         file: String,
@@ -326,7 +327,7 @@ enum Command {
         /// Time in seconds from the clip's start.
         #[arg(long, default_value_t = 0.0)]
         time: f32,
-        #[arg(long, default_value = "compute", value_parser = ["vertex", "compute"])]
+        #[arg(long, default_value = "compute", value_parser = ["vertex", "compute", "mesh"])]
         skinning: String,
         /// Image width and height in pixels.
         #[arg(long, default_value_t = 512)]

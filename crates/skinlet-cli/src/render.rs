@@ -3,6 +3,7 @@
 use anyhow::{Context, Result};
 use glam::Vec3;
 use serde_json::json;
+use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::Poser;
 use skinlet_gpu::mesh::GpuMesh;
 use skinlet_gpu::render::{Renderer, Skinning, framing};
@@ -33,8 +34,16 @@ pub fn command(
     skinlet::skinning::skin(inf, &mesh.positions, &[], &matrices, &mut posed, &mut [])?;
     let gpu = Gpu::new(GpuOptions { software, ..GpuOptions::default() })?;
     let renderer = Renderer::new(&gpu, size, size)?;
-    let gpu_mesh = GpuMesh::new(&gpu, &mesh)?;
-    let path = if skinning == "vertex" { Skinning::Vertex } else { Skinning::Compute };
+    let (gpu_mesh, path) = match skinning {
+        "vertex" => (GpuMesh::new(&gpu, &mesh, None)?, Skinning::Vertex),
+        "compute" => (GpuMesh::new(&gpu, &mesh, None)?, Skinning::Compute),
+        _ => {
+            anyhow::ensure!(gpu.has_mesh_shaders(), "{} has no mesh shaders; use --skinning compute", gpu.info.name);
+            let prepared = skinlet::meshlet::prepare(&mesh);
+            let meshlets = skinlet::meshlet::build(&prepared, Builder::SkinAware, MeshletLimits::NVIDIA)?;
+            (GpuMesh::new(&gpu, &prepared.mesh, Some(&meshlets))?, Skinning::Mesh)
+        }
+    };
     let view_proj = framing(&posed, Vec3::new(0.3, 0.2, 1.0));
     let image = renderer.render(&gpu, &gpu_mesh, &matrices, view_proj, Vec3::new(0.4, 0.8, 0.6), path)?;
     crate::write_png(out, image.width, image.height, png::ColorType::Rgba, &image.rgba)?;

@@ -3,9 +3,10 @@
 //! In progress (issue 8). Done: the device ([`Gpu`]: Vulkan, headless, optional features
 //! picked from what the adapter offers: mesh shaders, timestamps, subgroups) and
 //! compute-shader skinning ([`skinning`]), checked against skinlet's reference skinning;
-//! offscreen rendering by vertex-shader and compute-shader skinning ([`render`]), checked to
-//! give the same image. Not yet: mesh-shader skinning, task-shader and compute culling, GPU
-//! contours, the meshlet/culled/contour views, `gpu-bench`.
+//! offscreen rendering by vertex-shader, compute-shader and mesh-shader skinning
+//! ([`render`]), checked to give the same image. Not yet: common-influences slim-vertex mesh
+//! shading, per-triangle culling, task-shader and compute culling, GPU contours, the
+//! meshlet/culled/contour views, `gpu-bench`.
 //!
 //! Errors (no adapter, a failed device request, a validation error, bad input) come back as
 //! [`GpuError`]; nothing here panics on user data.

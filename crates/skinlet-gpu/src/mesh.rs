@@ -3,7 +3,22 @@
 
 use crate::{Gpu, GpuError, Result};
 use glam::Vec3;
+use skinlet::meshlet::Meshlets;
 use skinlet::model::SkinnedMesh;
+
+/// Most vertices and triangles per meshlet the mesh shader emits (its output arrays).
+pub const MAX_MESHLET_VERTICES: usize = 128;
+pub const MAX_MESHLET_TRIANGLES: usize = 256;
+
+/// A mesh's meshlets on the GPU, for mesh-shader drawing.
+pub struct GpuMeshlets {
+    pub count: u32,
+    /// Per meshlet: vertex offset and count, triangle offset and count (`Meshlet` in WGSL).
+    pub(crate) meshlets: wgpu::Buffer,
+    pub(crate) vertices: wgpu::Buffer,
+    /// One u32 per triangle: its three local vertex indices in the low three bytes.
+    pub(crate) triangles: wgpu::Buffer,
+}
 
 pub struct GpuMesh {
     pub vertices: u32,
@@ -21,12 +36,16 @@ pub struct GpuMesh {
     /// Skinned positions and unit normals written by compute skinning (3 f32 per vertex).
     pub out_positions: wgpu::Buffer,
     pub out_normals: wgpu::Buffer,
+    /// Present when uploaded with meshlets; the index buffer then lists the meshlets'
+    /// triangles in meshlet order, so every pipeline draws the same triangles in the same order.
+    pub meshlets: Option<GpuMeshlets>,
 }
 
 impl GpuMesh {
-    /// Uploads `mesh`. Errors when it has no skin weights, its lengths disagree or an index
-    /// is out of range.
-    pub fn new(gpu: &Gpu, mesh: &SkinnedMesh) -> Result<GpuMesh> {
+    /// Uploads `mesh`, and `meshlets` of it if given (for mesh-shader drawing). Errors when it
+    /// has no skin weights, its lengths disagree, an index is out of range, or a meshlet is
+    /// larger than the mesh shader's outputs.
+    pub fn new(gpu: &Gpu, mesh: &SkinnedMesh, meshlets: Option<&Meshlets>) -> Result<GpuMesh> {
         let invalid = |message: String| GpuError::Invalid { location: "GPU mesh", message };
         let inf = mesh.influences.as_ref().ok_or_else(|| invalid("the mesh has no skin weights".into()))?;
         let n = inf.vertex_count();
@@ -43,7 +62,11 @@ impl GpuMesh {
         }
         let flat = |v: &[Vec3]| v.iter().flat_map(|p| p.to_array()).collect::<Vec<f32>>();
         let joints: Vec<u32> = inf.joints.iter().map(|&j| j as u32).collect();
-        let indices: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
+        let indices: Vec<u32> = match meshlets {
+            Some(m) => meshlet_triangles(m, n)?.into_iter().flatten().collect(),
+            None => mesh.triangles.iter().flatten().copied().collect(),
+        };
+        let meshlets = meshlets.map(|m| upload_meshlets(gpu, m)).transpose()?;
         let params: [u32; 4] = [n as u32, inf.stride as u32, !normals.is_empty() as u32, 0];
         let out = wgpu::BufferUsages::COPY_SRC;
         gpu.checked("GPU mesh upload", || GpuMesh {
@@ -63,6 +86,7 @@ impl GpuMesh {
                 &vec![0f32; 3 * normals.len()],
                 wgpu::BufferUsages::STORAGE | out,
             ),
+            meshlets,
         })
     }
 
@@ -87,4 +111,49 @@ impl GpuMesh {
 /// A bind group entry for a whole buffer.
 pub(crate) fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
     wgpu::BindGroupEntry { binding, resource: buffer.as_entire_binding() }
+}
+
+/// The meshlets' triangles in mesh vertex indices, meshlet by meshlet; errors when a meshlet
+/// exceeds the mesh shader's outputs or points past the mesh.
+fn meshlet_triangles(m: &Meshlets, vertices: usize) -> Result<Vec<[u32; 3]>> {
+    let invalid = |message: String| GpuError::Invalid { location: "GPU meshlets", message };
+    let mut out = Vec::new();
+    for (i, ml) in m.meshlets.iter().enumerate() {
+        let (vc, tc) = (ml.vertex_count as usize, ml.triangle_count as usize);
+        if vc > MAX_MESHLET_VERTICES || tc > MAX_MESHLET_TRIANGLES {
+            return Err(invalid(format!(
+                "meshlet {i} has {vc} vertices and {tc} triangles; the mesh shader emits at most {MAX_MESHLET_VERTICES} and {MAX_MESHLET_TRIANGLES}"
+            )));
+        }
+        let verts = m.vertices.get(ml.vertex_offset as usize..ml.vertex_offset as usize + vc);
+        let tris = m.triangles.get(ml.triangle_offset as usize..ml.triangle_offset as usize + 3 * tc);
+        let (Some(verts), Some(tris)) = (verts, tris) else {
+            return Err(invalid(format!("meshlet {i} points past the meshlet arrays")));
+        };
+        for t in tris.chunks_exact(3) {
+            let global = |l: u8| verts.get(l as usize).copied().filter(|&v| (v as usize) < vertices);
+            match (global(t[0]), global(t[1]), global(t[2])) {
+                (Some(a), Some(b), Some(c)) => out.push([a, b, c]),
+                _ => return Err(invalid(format!("meshlet {i}: triangle {t:?} points past its vertices or the mesh"))),
+            }
+        }
+    }
+    Ok(out)
+}
+
+fn upload_meshlets(gpu: &Gpu, m: &Meshlets) -> Result<GpuMeshlets> {
+    let records: Vec<[u32; 4]> = m
+        .meshlets
+        .iter()
+        .map(|ml| [ml.vertex_offset, ml.vertex_count as u32, ml.triangle_offset / 3, ml.triangle_count as u32])
+        .collect();
+    let packed: Vec<u32> =
+        m.triangles.chunks_exact(3).map(|t| t[0] as u32 | (t[1] as u32) << 8 | (t[2] as u32) << 16).collect();
+    let storage = wgpu::BufferUsages::STORAGE;
+    gpu.checked("GPU meshlets upload", || GpuMeshlets {
+        count: m.len() as u32,
+        meshlets: gpu.buffer("meshlets", &records, storage),
+        vertices: gpu.buffer("meshlet vertices", &m.vertices, storage),
+        triangles: gpu.buffer("meshlet triangles", &packed, storage),
+    })
 }

@@ -1,8 +1,10 @@
 //! Offscreen rendering of a posed character, by each skinning pipeline (thesis fig. 3.2):
-//! vertex-shader skinning (the index buffer over bind-pose vertices, skinned as drawn) and
+//! vertex-shader skinning (the index buffer over bind-pose vertices, skinned as drawn),
 //! compute-shader skinning (a compute pass writes skinned vertices, a plain vertex shader
-//! draws them). Both run the same skinning arithmetic and the same fragment shader, so they
-//! must give the same image; tests/render.rs checks that pixel for pixel.
+//! draws them) and mesh-shader skinning (one workgroup per meshlet skins its vertices and
+//! emits its triangles). All run the same skinning arithmetic on the same triangles in the
+//! same order (meshlet order when the mesh has meshlets) and the same fragment shader, so
+//! they must give the same image; tests/render.rs checks that pixel for pixel.
 
 use crate::mesh::{GpuMesh, entry};
 use crate::skinning::{ComputeSkinning, buffer_entry, mesh_bindings, mesh_entries};
@@ -16,6 +18,9 @@ pub enum Skinning {
     Vertex,
     /// In a compute pass first, into buffers the vertex shader reads.
     Compute,
+    /// In a mesh shader, one workgroup per meshlet (needs mesh shaders and a mesh uploaded
+    /// with meshlets).
+    Mesh,
 }
 
 /// An RGBA8 image, rows top to bottom.
@@ -36,6 +41,15 @@ pub struct Renderer {
     camera_layout: wgpu::BindGroupLayout,
     vertex_pipeline: wgpu::RenderPipeline,
     skinned_pipeline: wgpu::RenderPipeline,
+    /// With mesh shaders: the mesh-shader pipeline.
+    mesh_path: Option<MeshPath>,
+}
+
+/// The mesh-shader pipeline and its layouts (mesh data and meshlets seen by the mesh stage).
+struct MeshPath {
+    skin_layout: wgpu::BindGroupLayout,
+    meshlet_layout: wgpu::BindGroupLayout,
+    pipeline: wgpu::RenderPipeline,
 }
 
 const COLOR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
@@ -56,10 +70,23 @@ impl Renderer {
             let mesh_layout = layout("mesh", &mesh_entries(vertex));
             let skinned_layout =
                 layout("skinned", &[buffer_entry(0, vertex, wgpu::BufferBindingType::Storage { read_only: true })]);
+            let mesh_stage =
+                if gpu.has_mesh_shaders() { wgpu::ShaderStages::MESH } else { wgpu::ShaderStages::empty() };
             let camera_layout = layout(
                 "camera",
-                &[buffer_entry(0, vertex | wgpu::ShaderStages::FRAGMENT, wgpu::BufferBindingType::Uniform)],
+                &[buffer_entry(
+                    0,
+                    vertex | mesh_stage | wgpu::ShaderStages::FRAGMENT,
+                    wgpu::BufferBindingType::Uniform,
+                )],
             );
+            let depth_stencil = || wgpu::DepthStencilState {
+                format: DEPTH,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            };
             let draw = include_str!("shaders/draw.wgsl");
             let pipeline = |label: &str, sources: &[&str], group0: &wgpu::BindGroupLayout| {
                 let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -81,13 +108,7 @@ impl Renderer {
                         buffers: &[],
                     },
                     primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
-                    depth_stencil: Some(wgpu::DepthStencilState {
-                        format: DEPTH,
-                        depth_write_enabled: Some(true),
-                        depth_compare: Some(wgpu::CompareFunction::Less),
-                        stencil: Default::default(),
-                        bias: Default::default(),
-                    }),
+                    depth_stencil: Some(depth_stencil()),
                     multisample: Default::default(),
                     fragment: Some(wgpu::FragmentState {
                         module: &module,
@@ -99,6 +120,51 @@ impl Renderer {
                     cache: None,
                 })
             };
+            let mesh_path = gpu.has_mesh_shaders().then(|| {
+                let stage = wgpu::ShaderStages::MESH;
+                let read = wgpu::BufferBindingType::Storage { read_only: true };
+                let skin_layout = layout("mesh-shader mesh", &mesh_entries(stage));
+                let meshlet_layout =
+                    layout("meshlets", &(0..3).map(|b| buffer_entry(b, stage, read)).collect::<Vec<_>>());
+                let source = [
+                    "enable wgpu_mesh_shader;\n",
+                    include_str!("shaders/common.wgsl"),
+                    draw,
+                    include_str!("shaders/mesh_skin.wgsl"),
+                ]
+                .concat();
+                let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some("mesh skinning"),
+                    source: wgpu::ShaderSource::Wgsl(source.into()),
+                });
+                let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                    label: Some("mesh skinning"),
+                    bind_group_layouts: &[Some(&skin_layout), Some(&camera_layout), Some(&meshlet_layout)],
+                    immediate_size: 0,
+                });
+                let pipeline = device.create_mesh_pipeline(&wgpu::MeshPipelineDescriptor {
+                    label: Some("mesh skinning"),
+                    layout: Some(&layout),
+                    task: None,
+                    mesh: wgpu::MeshState {
+                        module: &module,
+                        entry_point: Some("mesh"),
+                        compilation_options: Default::default(),
+                    },
+                    primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
+                    depth_stencil: Some(depth_stencil()),
+                    multisample: Default::default(),
+                    fragment: Some(wgpu::FragmentState {
+                        module: &module,
+                        entry_point: Some("shade"),
+                        compilation_options: Default::default(),
+                        targets: &[Some(COLOR.into())],
+                    }),
+                    multiview: None,
+                    cache: None,
+                });
+                MeshPath { skin_layout, meshlet_layout, pipeline }
+            });
             let vertex_pipeline = pipeline(
                 "vertex skinning",
                 &[include_str!("shaders/common.wgsl"), draw, include_str!("shaders/vertex_skin.wgsl")],
@@ -115,6 +181,7 @@ impl Renderer {
                 camera_layout,
                 vertex_pipeline,
                 skinned_pipeline,
+                mesh_path,
             }
         })
     }
@@ -131,6 +198,19 @@ impl Renderer {
         skinning: Skinning,
     ) -> Result<Image> {
         let matrices = mesh.matrix_buffer(gpu, matrices)?;
+        let mesh_draw = match (skinning, &self.mesh_path, &mesh.meshlets) {
+            (Skinning::Mesh, Some(path), Some(meshlets)) => Some((path, meshlets)),
+            (Skinning::Mesh, None, _) => {
+                return Err(GpuError::Invalid { location: "render", message: "the device has no mesh shaders".into() });
+            }
+            (Skinning::Mesh, _, None) => {
+                return Err(GpuError::Invalid {
+                    location: "render",
+                    message: "mesh-shader skinning needs a mesh uploaded with meshlets".into(),
+                });
+            }
+            _ => None,
+        };
         let (width, height) = (self.width, self.height);
         let row = (4 * width).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
         let readback = gpu.checked("render", || {
@@ -158,8 +238,26 @@ impl Renderer {
             let color = texture(COLOR, wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC);
             let depth = texture(DEPTH, wgpu::TextureUsages::RENDER_ATTACHMENT);
             let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
-            let (pipeline, group0) = match skinning {
-                Skinning::Vertex => {
+            let mut meshlet_group = None;
+            let (pipeline, group0) = match (skinning, mesh_draw) {
+                (_, Some((path, meshlets))) => {
+                    let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                        label: Some("mesh-shader mesh"),
+                        layout: &path.skin_layout,
+                        entries: &mesh_bindings(mesh, &matrices),
+                    });
+                    meshlet_group = Some(device.create_bind_group(&wgpu::BindGroupDescriptor {
+                        label: Some("meshlets"),
+                        layout: &path.meshlet_layout,
+                        entries: &[
+                            entry(0, &meshlets.meshlets),
+                            entry(1, &meshlets.vertices),
+                            entry(2, &meshlets.triangles),
+                        ],
+                    }));
+                    (&path.pipeline, bind)
+                }
+                (Skinning::Vertex, None) => {
                     let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
                         label: Some("mesh"),
                         layout: &self.mesh_layout,
@@ -167,7 +265,8 @@ impl Renderer {
                     });
                     (&self.vertex_pipeline, bind)
                 }
-                Skinning::Compute => {
+                // (Mesh without a mesh path was refused above.)
+                (Skinning::Compute | Skinning::Mesh, None) => {
                     self.compute.encode(gpu, &mut encoder, mesh, &matrices);
                     let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
                         label: Some("skinned"),
@@ -206,8 +305,18 @@ impl Renderer {
                 pass.set_pipeline(pipeline);
                 pass.set_bind_group(0, &group0, &[]);
                 pass.set_bind_group(1, &camera, &[]);
-                pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
-                pass.draw_indexed(0..mesh.index_count, 0, 0..1);
+                match (&meshlet_group, mesh_draw) {
+                    (Some(group), Some((_, meshlets))) => {
+                        pass.set_bind_group(2, group, &[]);
+                        // Meshlet id = y × 1024 + x (mesh_skin.wgsl).
+                        let n = meshlets.count;
+                        pass.draw_mesh_tasks(n.min(1024), n.div_ceil(1024), 1);
+                    }
+                    _ => {
+                        pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
+                        pass.draw_indexed(0..mesh.index_count, 0, 0..1);
+                    }
+                }
             }
             let readback = device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("image"),

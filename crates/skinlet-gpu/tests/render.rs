@@ -1,22 +1,26 @@
 //! Every skinning pipeline renders the same image of a posed character (thesis fig. 3.2),
-//! pixel for pixel: vertex-shader skinning and compute-shader skinning, on every shared
-//! skinned asset and the demo character, mid-clip.
+//! pixel for pixel: vertex-shader, compute-shader and mesh-shader skinning (skin-aware
+//! meshlets), on every shared skinned asset and the demo character, mid-clip. With
+//! SKINLET_REQUIRE_GPU=1 (CI, lavapipe) the mesh-shader path must run.
 
 mod common;
 use common::{assets, gpu};
 use glam::{Affine3A, Vec3};
+use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::Poser;
 use skinlet_gpu::mesh::GpuMesh;
 use skinlet_gpu::render::{Renderer, Skinning, framing};
 
 #[test]
-fn vertex_and_compute_skinning_draw_the_same_image() {
+fn every_skinning_pipeline_draws_the_same_image() {
     let Some(gpu) = gpu() else { return };
     let renderer = Renderer::new(&gpu, 192, 192).unwrap();
     for (name, asset) in assets() {
         let Some(skin_index) = asset.instances.iter().find_map(|i| i.skin) else { continue };
         let skin = &asset.skins[skin_index as usize];
-        let mesh = asset.combined_mesh(Some(skin_index));
+        let prepared = skinlet::meshlet::prepare(&asset.combined_mesh(Some(skin_index)));
+        let meshlets = skinlet::meshlet::build(&prepared, Builder::SkinAware, MeshletLimits::NVIDIA).unwrap();
+        let mesh = prepared.mesh;
         let clip = asset.clips.first();
         let t = clip.map_or(0.0, |c| c.start + 0.4 * c.duration());
         let mut matrices: Vec<Affine3A> = Vec::new();
@@ -25,7 +29,7 @@ fn vertex_and_compute_skinning_draw_the_same_image() {
         let inf = mesh.influences.as_ref().unwrap();
         skinlet::skinning::skin(inf, &mesh.positions, &[], &matrices, &mut posed, &mut []).unwrap();
         let view_proj = framing(&posed, Vec3::new(0.3, 0.2, 1.0));
-        let gpu_mesh = GpuMesh::new(&gpu, &mesh).unwrap();
+        let gpu_mesh = GpuMesh::new(&gpu, &mesh, Some(&meshlets)).unwrap();
         let light = Vec3::new(0.4, 0.8, 0.6);
         let by_vertex = renderer.render(&gpu, &gpu_mesh, &matrices, view_proj, light, Skinning::Vertex).unwrap();
         let by_compute = renderer.render(&gpu, &gpu_mesh, &matrices, view_proj, light, Skinning::Compute).unwrap();
@@ -33,8 +37,18 @@ fn vertex_and_compute_skinning_draw_the_same_image() {
         let background = &by_vertex.rgba[..4];
         let covered = by_vertex.rgba.chunks(4).filter(|p| *p != background).count();
         assert!(covered > 200, "{name}: only {covered} pixels drawn");
-        let differing = by_vertex.rgba.chunks(4).zip(by_compute.rgba.chunks(4)).filter(|(a, b)| a != b).count();
-        assert_eq!(differing, 0, "{name}: {differing} of {covered} pixels differ between vertex and compute skinning");
+        let mut others = vec![("compute", by_compute)];
+        if gpu.has_mesh_shaders() {
+            let by_mesh = renderer.render(&gpu, &gpu_mesh, &matrices, view_proj, light, Skinning::Mesh).unwrap();
+            others.push(("mesh", by_mesh));
+        }
+        for (path, image) in others {
+            let differing = by_vertex.rgba.chunks(4).zip(image.rgba.chunks(4)).filter(|(a, b)| a != b).count();
+            assert_eq!(
+                differing, 0,
+                "{name}: {differing} of {covered} pixels differ between vertex and {path} skinning"
+            );
+        }
     }
 }
 
@@ -45,7 +59,7 @@ fn a_pose_change_changes_the_image() {
     let asset = skinlet::demo::demo_character(&skinlet::demo::DemoParams { triangles: 4000, ..Default::default() });
     let (skin, mesh, clip) = (&asset.skins[0], asset.combined_mesh(Some(0)), &asset.clips[0]);
     let renderer = Renderer::new(&gpu, 128, 128).unwrap();
-    let gpu_mesh = GpuMesh::new(&gpu, &mesh).unwrap();
+    let gpu_mesh = GpuMesh::new(&gpu, &mesh, None).unwrap();
     let view_proj = framing(&mesh.positions, Vec3::Z);
     let mut images = Vec::new();
     for t in [0.2, 0.6] {
@@ -61,4 +75,8 @@ fn a_pose_change_changes_the_image() {
     }
     assert_ne!(images[0], images[1]);
     assert!(renderer.render(&gpu, &gpu_mesh, &[], view_proj, Vec3::Y, Skinning::Vertex).is_err(), "no matrices");
+    let mut matrices = Vec::new();
+    Poser::default().skinning_matrices(&asset.skeleton, skin, Some(clip), clip.start, &mut matrices);
+    let no_meshlets = renderer.render(&gpu, &gpu_mesh, &matrices, view_proj, Vec3::Y, Skinning::Mesh);
+    assert!(no_meshlets.is_err(), "mesh shading without meshlets");
 }

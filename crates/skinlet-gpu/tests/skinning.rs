@@ -27,7 +27,7 @@ fn compute_skinning_matches_the_cpu_reference() {
         let skin = &asset.skins[skin_index as usize];
         let mesh = asset.combined_mesh(Some(skin_index));
         let inf = mesh.influences.as_ref().unwrap();
-        let buffers = GpuMesh::new(&gpu, &mesh).unwrap();
+        let buffers = GpuMesh::new(&gpu, &mesh, None).unwrap();
         let mut poser = Poser::default();
         let mut times: Vec<(Option<usize>, f32)> = vec![(None, 0.0)];
         for (c, clip) in asset.clips.iter().enumerate().take(3) {
