@@ -87,6 +87,7 @@ impl Renderer {
                 stencil: Default::default(),
                 bias: Default::default(),
             };
+            let targets = [Some(wgpu::ColorTargetState::from(COLOR))];
             let draw = include_str!("shaders/draw.wgsl");
             let pipeline = |label: &str, sources: &[&str], group0: &wgpu::BindGroupLayout| {
                 let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -110,12 +111,7 @@ impl Renderer {
                     primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
                     depth_stencil: Some(depth_stencil()),
                     multisample: Default::default(),
-                    fragment: Some(wgpu::FragmentState {
-                        module: &module,
-                        entry_point: Some("shade"),
-                        compilation_options: Default::default(),
-                        targets: &[Some(COLOR.into())],
-                    }),
+                    fragment: fragment(&module, &targets),
                     multiview_mask: None,
                     cache: None,
                 })
@@ -154,12 +150,7 @@ impl Renderer {
                     primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
                     depth_stencil: Some(depth_stencil()),
                     multisample: Default::default(),
-                    fragment: Some(wgpu::FragmentState {
-                        module: &module,
-                        entry_point: Some("shade"),
-                        compilation_options: Default::default(),
-                        targets: &[Some(COLOR.into())],
-                    }),
+                    fragment: fragment(&module, &targets),
                     multiview: None,
                     cache: None,
                 });
@@ -348,6 +339,14 @@ impl Renderer {
         let rgba = bytes.chunks_exact(row as usize).flat_map(|r| &r[..4 * width as usize]).copied().collect();
         Ok(Image { width, height, rgba })
     }
+}
+
+/// The shared fragment stage: `shade` in draw.wgsl, one RGBA8 target.
+fn fragment<'a>(
+    module: &'a wgpu::ShaderModule,
+    targets: &'a [Option<wgpu::ColorTargetState>],
+) -> Option<wgpu::FragmentState<'a>> {
+    Some(wgpu::FragmentState { module, entry_point: Some("shade"), compilation_options: Default::default(), targets })
 }
 
 /// A view-projection (wgpu's clip space) that frames points `p` from direction `dir` (toward
