@@ -4,14 +4,16 @@
 //! picked from what the adapter offers: mesh shaders, timestamps, subgroups) and
 //! compute-shader skinning ([`skinning`]), checked against skinlet's reference skinning;
 //! offscreen rendering by vertex-shader, compute-shader and mesh-shader skinning
-//! ([`render`]), checked to give the same image. Not yet: common-influences slim-vertex mesh
-//! shading, per-triangle culling, task-shader and compute culling, GPU contours, the
-//! meshlet/culled/contour views, `gpu-bench`.
+//! ([`render`]), checked to give the same image; per-meshlet culling of many instances in a
+//! compute pass ([`cull`]), checked to return the CPU's visible set. Not yet: common-influences
+//! slim-vertex mesh shading, per-triangle culling, task-shader culling and indirect draws,
+//! GPU contours, the meshlet/culled/contour views, `gpu-bench`.
 //!
 //! Errors (no adapter, a failed device request, a validation error, bad input) come back as
 //! [`GpuError`]; nothing here panics on user data.
 
 mod context;
+pub mod cull;
 pub mod mesh;
 pub mod render;
 pub mod skinning;

@@ -171,6 +171,69 @@ pub struct JointFrame {
     tests: Tests,
 }
 
+/// One meshlet as the culling loop reads it (for GPU culling passes): bounds in its joint's
+/// space, the cone's `sin α` (2: never backface-culled), whether the frustum test may cull
+/// it, its joint and its original index.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CullSlot {
+    pub center: Vec3,
+    pub radius: f32,
+    pub axis: Vec3,
+    pub sin: f32,
+    pub frustum_ok: bool,
+    pub joint: u32,
+    pub id: u32,
+}
+
+/// One joint's values for one instance and frame, as [`MeshletCuller::cull`] reads them (for
+/// GPU culling passes): joint-space planes with their normal lengths and margin (read only
+/// when `group` is [`GROUP_STRADDLES`]), the eye or view direction in joint space with
+/// `sign` = sign(det A) (0: no backface test) and its margin.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct JointRecord {
+    pub planes: [[f32; 4]; 6],
+    pub len: [f32; 6],
+    pub margin: f32,
+    pub view: Vec3,
+    pub sign: f32,
+    pub backface_margin: f32,
+    /// [`GROUP_INSIDE`], [`GROUP_OUTSIDE`] or [`GROUP_STRADDLES`].
+    pub group: u32,
+}
+
+pub const GROUP_INSIDE: u32 = 0;
+pub const GROUP_OUTSIDE: u32 = 1;
+pub const GROUP_STRADDLES: u32 = 2;
+
+impl JointFrame {
+    /// Per joint, the values the culling loop reads.
+    pub fn records(&self) -> Vec<JointRecord> {
+        (0..self.group.len())
+            .map(|j| JointRecord {
+                planes: self.planes[j],
+                len: self.len[j],
+                margin: self.margin[j],
+                view: self.view[j],
+                sign: self.sign[j],
+                backface_margin: self.backface_margin[j],
+                group: match self.group[j] {
+                    Group::Inside => GROUP_INSIDE,
+                    Group::Outside => GROUP_OUTSIDE,
+                    Group::Straddles => GROUP_STRADDLES,
+                },
+            })
+            .collect()
+    }
+
+    pub fn tests(&self) -> Tests {
+        self.tests
+    }
+
+    pub fn orthographic(&self) -> bool {
+        self.orthographic
+    }
+}
+
 /// Meshlets culled by one call.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct CullCounts {
@@ -411,6 +474,25 @@ impl MeshletCuller {
             inside &= d - e - margin > 0.0;
         }
         if inside { Group::Inside } else { Group::Straddles }
+    }
+
+    /// Every meshlet as [`MeshletCuller::cull`] reads it, in its slot order (grouped by joint).
+    pub fn slots(&self) -> Vec<CullSlot> {
+        let mut joint_of = vec![0u32; self.len()];
+        for j in 0..self.joints() {
+            joint_of[self.groups[j] as usize..self.groups[j + 1] as usize].fill(j as u32);
+        }
+        (0..self.len())
+            .map(|i| CullSlot {
+                center: Vec3::new(self.cx[i], self.cy[i], self.cz[i]),
+                radius: self.r[i],
+                axis: Vec3::new(self.ax[i], self.ay[i], self.az[i]),
+                sin: self.sin[i],
+                frustum_ok: self.frustum_ok[i] == 1,
+                joint: joint_of[i],
+                id: self.ids[i],
+            })
+            .collect()
     }
 
     /// Culls every meshlet of one instance: appends the original indices of the visible ones

@@ -1,0 +1,166 @@
+//! Per-meshlet culling on the GPU (conservative-bounds paper, section 6), as a compute pass:
+//! the path for adapters without mesh shaders, and the per-meshlet test a task shader runs.
+//!
+//! The per-joint values of each instance come from the CPU ([`MeshletCuller::prepare`]:
+//! joint-space planes, the eye in joint space, the group tests), and `shaders/cull.wgsl`
+//! runs [`MeshletCuller::cull`]'s per-meshlet loop operation for operation, one invocation
+//! per (instance, meshlet), so the visible set is the CPU's exactly (tests/cull.rs, on the
+//! crowd scene). Survivors are compacted per instance with an atomic counter (their order
+//! varies; the set does not).
+
+use crate::mesh::entry;
+use crate::skinning::buffer_entry;
+use crate::{Gpu, GpuError, Result};
+use skinlet::cull::meshlet::{CullCounts, JointFrame, MeshletCuller, Tests};
+
+/// Floats per joint record in `cull.wgsl`.
+const RECORD: usize = 40;
+
+pub struct ComputeCulling {
+    pipeline: wgpu::ComputePipeline,
+    layout: wgpu::BindGroupLayout,
+}
+
+impl ComputeCulling {
+    pub fn new(gpu: &Gpu) -> Result<ComputeCulling> {
+        gpu.checked("culling pipeline", || {
+            let module = gpu.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("cull.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(include_str!("shaders/cull.wgsl").into()),
+            });
+            let stage = wgpu::ShaderStages::COMPUTE;
+            let read = wgpu::BufferBindingType::Storage { read_only: true };
+            let write = wgpu::BufferBindingType::Storage { read_only: false };
+            let layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("culling"),
+                entries: &[
+                    buffer_entry(0, stage, wgpu::BufferBindingType::Uniform),
+                    buffer_entry(1, stage, read),
+                    buffer_entry(2, stage, read),
+                    buffer_entry(3, stage, write),
+                    buffer_entry(4, stage, write),
+                ],
+            });
+            let pipeline_layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("culling"),
+                bind_group_layouts: &[Some(&layout)],
+                immediate_size: 0,
+            });
+            let pipeline = gpu.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some("culling"),
+                layout: Some(&pipeline_layout),
+                module: &module,
+                entry_point: Some("cull"),
+                compilation_options: Default::default(),
+                cache: None,
+            });
+            ComputeCulling { pipeline, layout }
+        })
+    }
+
+    /// Culls every meshlet of `culler` for each instance's prepared `frames` (all with the
+    /// same tests and projection) and returns, per instance, the visible meshlets' original
+    /// indices (in no particular order) and the counts.
+    pub fn cull(
+        &self,
+        gpu: &Gpu,
+        culler: &MeshletCuller,
+        frames: &[JointFrame],
+    ) -> Result<Vec<(Vec<u32>, CullCounts)>> {
+        let invalid = |message: String| GpuError::Invalid { location: "GPU culling", message };
+        let Some(first) = frames.first() else { return Ok(Vec::new()) };
+        let joints = culler.joints();
+        if frames.iter().any(|f| {
+            f.records().len() != joints || f.tests() != first.tests() || f.orthographic() != first.orthographic()
+        }) {
+            return Err(invalid(format!(
+                "every frame must be prepared for the culler's {joints} joints with the same tests and projection"
+            )));
+        }
+        let slots = culler.slots();
+        let total = slots.len() * frames.len();
+        if total == 0 {
+            return Ok(frames.iter().map(|_| (Vec::new(), CullCounts::default())).collect());
+        }
+        if total > u32::MAX as usize / 2 {
+            return Err(invalid(format!("{total} (instance, meshlet) pairs in one call")));
+        }
+        let slot_words: Vec<u32> = slots
+            .iter()
+            .flat_map(|s| {
+                [
+                    s.center.x.to_bits(),
+                    s.center.y.to_bits(),
+                    s.center.z.to_bits(),
+                    s.radius.to_bits(),
+                    s.axis.x.to_bits(),
+                    s.axis.y.to_bits(),
+                    s.axis.z.to_bits(),
+                    s.sin.to_bits(),
+                    s.frustum_ok as u32,
+                    s.joint,
+                    s.id,
+                    0,
+                ]
+            })
+            .collect();
+        let mut records = Vec::with_capacity(frames.len() * joints * RECORD);
+        for f in frames {
+            for r in f.records() {
+                records.extend(r.planes.iter().flatten());
+                records.extend(r.len);
+                records.push(r.margin);
+                records.extend(r.view.to_array());
+                records.extend([r.sign, r.backface_margin, f32::from_bits(r.group), 0.0, 0.0, 0.0]);
+            }
+        }
+        let tests = first.tests();
+        let flags = (tests != Tests::Backface) as u32
+            | ((tests != Tests::Frustum) as u32) << 1
+            | (first.orthographic() as u32) << 2;
+        let params = [slots.len() as u32, joints as u32, frames.len() as u32, flags];
+        let counts_size = (12 * frames.len()) as u64;
+        let visible_size = (4 * total) as u64;
+        let (counts, visible) = gpu.checked("GPU culling", || {
+            let storage = wgpu::BufferUsages::STORAGE;
+            let out = storage | wgpu::BufferUsages::COPY_SRC;
+            let params = gpu.buffer("culling params", &params, wgpu::BufferUsages::UNIFORM);
+            let slot_buffer = gpu.buffer("cull slots", &slot_words, storage);
+            let record_buffer = gpu.buffer("joint records", &records, storage);
+            let counts = gpu.buffer("cull counts", &vec![0u32; 3 * frames.len()], out);
+            let visible = gpu.buffer("visible meshlets", &vec![0u32; total], out);
+            let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("culling"),
+                layout: &self.layout,
+                entries: &[
+                    entry(0, &params),
+                    entry(1, &slot_buffer),
+                    entry(2, &record_buffer),
+                    entry(3, &counts),
+                    entry(4, &visible),
+                ],
+            });
+            let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+            {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
+                pass.set_pipeline(&self.pipeline);
+                pass.set_bind_group(0, &bind, &[]);
+                // Invocation index = y × 65535 × 64 + x (cull.wgsl).
+                let groups = (total as u32).div_ceil(64);
+                pass.dispatch_workgroups(groups.min(65535), groups.div_ceil(65535), 1);
+            }
+            gpu.queue.submit([encoder.finish()]);
+            (counts, visible)
+        })?;
+        let counts = bytemuck::pod_collect_to_vec::<u8, u32>(&gpu.read(&counts, counts_size)?);
+        let visible = bytemuck::pod_collect_to_vec::<u8, u32>(&gpu.read(&visible, visible_size)?);
+        Ok((0..frames.len())
+            .map(|i| {
+                let (n, frustum, backface) =
+                    (counts[3 * i] as usize, counts[3 * i + 1] as usize, counts[3 * i + 2] as usize);
+                let ids = visible[i * slots.len()..i * slots.len() + n.min(slots.len())].to_vec();
+                (ids, CullCounts { meshlets: slots.len(), visible: n, frustum, backface })
+            })
+            .collect())
+    }
+}
