@@ -44,7 +44,7 @@ pub fn command(
             (GpuMesh::new(&gpu, &prepared.mesh, Some(&meshlets))?, Skinning::Mesh)
         }
     };
-    let view_proj = framing(&posed, Vec3::new(0.3, 0.2, 1.0));
+    let view_proj = framing(&posed, Vec3::new(0.3, 0.2, 1.0), 1.0).view_proj;
     let image = renderer.render(&gpu, &gpu_mesh, &matrices, view_proj, Vec3::new(0.4, 0.8, 0.6), path)?;
     crate::write_png(out, image.width, image.height, png::ColorType::Rgba, &image.rgba)?;
     if json {

@@ -26,7 +26,9 @@ impl ComputeCulling {
         gpu.checked("culling pipeline", || {
             let module = gpu.device.create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some("cull.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(include_str!("shaders/cull.wgsl").into()),
+                source: wgpu::ShaderSource::Wgsl(
+                    [include_str!("shaders/cull_common.wgsl"), include_str!("shaders/cull.wgsl")].concat().into(),
+                ),
             });
             let stage = wgpu::ShaderStages::COMPUTE;
             let read = wgpu::BufferBindingType::Storage { read_only: true };
@@ -85,40 +87,9 @@ impl ComputeCulling {
         if total > u32::MAX as usize / 2 {
             return Err(invalid(format!("{total} (instance, meshlet) pairs in one call")));
         }
-        let slot_words: Vec<u32> = slots
-            .iter()
-            .flat_map(|s| {
-                [
-                    s.center.x.to_bits(),
-                    s.center.y.to_bits(),
-                    s.center.z.to_bits(),
-                    s.radius.to_bits(),
-                    s.axis.x.to_bits(),
-                    s.axis.y.to_bits(),
-                    s.axis.z.to_bits(),
-                    s.sin.to_bits(),
-                    s.frustum_ok as u32,
-                    s.joint,
-                    s.id,
-                    0,
-                ]
-            })
-            .collect();
-        let mut records = Vec::with_capacity(frames.len() * joints * RECORD);
-        for f in frames {
-            for r in f.records() {
-                records.extend(r.planes.iter().flatten());
-                records.extend(r.len);
-                records.push(r.margin);
-                records.extend(r.view.to_array());
-                records.extend([r.sign, r.backface_margin, f32::from_bits(r.group), 0.0, 0.0, 0.0]);
-            }
-        }
-        let tests = first.tests();
-        let flags = (tests != Tests::Backface) as u32
-            | ((tests != Tests::Frustum) as u32) << 1
-            | (first.orthographic() as u32) << 2;
-        let params = [slots.len() as u32, joints as u32, frames.len() as u32, flags];
+        let slot_words = pack_slots(culler);
+        let records = pack_records(frames);
+        let params = [slots.len() as u32, joints as u32, frames.len() as u32, test_flags(first)];
         let counts_size = (12 * frames.len()) as u64;
         let visible_size = (4 * total) as u64;
         let (counts, visible) = gpu.checked("GPU culling", || {
@@ -163,4 +134,49 @@ impl ComputeCulling {
             })
             .collect())
     }
+}
+
+/// The culler's slots as `Slot` in cull_common.wgsl (12 words each).
+pub(crate) fn pack_slots(culler: &MeshletCuller) -> Vec<u32> {
+    culler
+        .slots()
+        .iter()
+        .flat_map(|s| {
+            [
+                s.center.x.to_bits(),
+                s.center.y.to_bits(),
+                s.center.z.to_bits(),
+                s.radius.to_bits(),
+                s.axis.x.to_bits(),
+                s.axis.y.to_bits(),
+                s.axis.z.to_bits(),
+                s.sin.to_bits(),
+                s.frustum_ok as u32,
+                s.joint,
+                s.id,
+                0,
+            ]
+        })
+        .collect()
+}
+
+/// Every frame's joint records, instance after instance (`RECORD` floats per joint).
+pub(crate) fn pack_records(frames: &[JointFrame]) -> Vec<f32> {
+    let mut out = Vec::with_capacity(frames.first().map_or(0, |f| frames.len() * f.records().len() * RECORD));
+    for f in frames {
+        for r in f.records() {
+            out.extend(r.planes.iter().flatten());
+            out.extend(r.len);
+            out.push(r.margin);
+            out.extend(r.view.to_array());
+            out.extend([r.sign, r.backface_margin, f32::from_bits(r.group), 0.0, 0.0, 0.0]);
+        }
+    }
+    out
+}
+
+/// `CullParams::flags` for a prepared frame: bit 0 frustum, bit 1 backface, bit 2 orthographic.
+pub(crate) fn test_flags(frame: &JointFrame) -> u32 {
+    let tests = frame.tests();
+    (tests != Tests::Backface) as u32 | ((tests != Tests::Frustum) as u32) << 1 | (frame.orthographic() as u32) << 2
 }

@@ -6,10 +6,13 @@
 //! same order (meshlet order when the mesh has meshlets) and the same fragment shader, so
 //! they must give the same image; tests/render.rs checks that pixel for pixel.
 
+use crate::cull::{pack_records, pack_slots, test_flags};
 use crate::mesh::{GpuMesh, entry};
 use crate::skinning::{ComputeSkinning, buffer_entry, mesh_bindings, mesh_entries};
 use crate::{Gpu, GpuError, Result};
 use glam::{Affine3A, Mat4, Vec3};
+use skinlet::cull::Camera;
+use skinlet::cull::meshlet::{JointFrame, MeshletCuller};
 
 /// How skinned vertices reach the rasterizer.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -50,6 +53,17 @@ struct MeshPath {
     skin_layout: wgpu::BindGroupLayout,
     meshlet_layout: wgpu::BindGroupLayout,
     pipeline: wgpu::RenderPipeline,
+    /// Task-shader culling then mesh-shader skinning of the survivors, and its culling data
+    /// layout (parameters, slots, joint records).
+    cull_layout: wgpu::BindGroupLayout,
+    culled_pipeline: wgpu::RenderPipeline,
+}
+
+/// What a draw runs.
+#[derive(Clone, Copy)]
+enum Draw<'a> {
+    Plain(Skinning),
+    Culled(&'a MeshletCuller, &'a JointFrame),
 }
 
 const COLOR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
@@ -108,7 +122,7 @@ impl Renderer {
                         compilation_options: Default::default(),
                         buffers: &[],
                     },
-                    primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
+                    primitive: primitive(),
                     depth_stencil: Some(depth_stencil()),
                     multisample: Default::default(),
                     fragment: fragment(&module, &targets),
@@ -122,39 +136,59 @@ impl Renderer {
                 let skin_layout = layout("mesh-shader mesh", &mesh_entries(stage));
                 let meshlet_layout =
                     layout("meshlets", &(0..3).map(|b| buffer_entry(b, stage, read)).collect::<Vec<_>>());
+                let cull_layout = layout(
+                    "task culling",
+                    &[
+                        buffer_entry(0, wgpu::ShaderStages::TASK, wgpu::BufferBindingType::Uniform),
+                        buffer_entry(1, wgpu::ShaderStages::TASK, read),
+                        buffer_entry(2, wgpu::ShaderStages::TASK, read),
+                    ],
+                );
                 let source = [
                     "enable wgpu_mesh_shader;\n",
                     include_str!("shaders/common.wgsl"),
                     draw,
                     include_str!("shaders/mesh_skin.wgsl"),
+                    include_str!("shaders/cull_common.wgsl"),
+                    include_str!("shaders/task_cull.wgsl"),
                 ]
                 .concat();
                 let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
                     label: Some("mesh skinning"),
                     source: wgpu::ShaderSource::Wgsl(source.into()),
                 });
-                let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                    label: Some("mesh skinning"),
-                    bind_group_layouts: &[Some(&skin_layout), Some(&camera_layout), Some(&meshlet_layout)],
-                    immediate_size: 0,
-                });
-                let pipeline = device.create_mesh_pipeline(&wgpu::MeshPipelineDescriptor {
-                    label: Some("mesh skinning"),
-                    layout: Some(&layout),
-                    task: None,
-                    mesh: wgpu::MeshState {
-                        module: &module,
-                        entry_point: Some("mesh"),
-                        compilation_options: Default::default(),
-                    },
-                    primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
-                    depth_stencil: Some(depth_stencil()),
-                    multisample: Default::default(),
-                    fragment: fragment(&module, &targets),
-                    multiview: None,
-                    cache: None,
-                });
-                MeshPath { skin_layout, meshlet_layout, pipeline }
+                let mesh_pipeline = |groups: &[Option<&wgpu::BindGroupLayout>], task: Option<&str>, mesh: &str| {
+                    let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                        label: Some(mesh),
+                        bind_group_layouts: groups,
+                        immediate_size: 0,
+                    });
+                    device.create_mesh_pipeline(&wgpu::MeshPipelineDescriptor {
+                        label: Some(mesh),
+                        layout: Some(&layout),
+                        task: task.map(|entry| wgpu::TaskState {
+                            module: &module,
+                            entry_point: Some(entry),
+                            compilation_options: Default::default(),
+                        }),
+                        mesh: wgpu::MeshState {
+                            module: &module,
+                            entry_point: Some(mesh),
+                            compilation_options: Default::default(),
+                        },
+                        primitive: primitive(),
+                        depth_stencil: Some(depth_stencil()),
+                        multisample: Default::default(),
+                        fragment: fragment(&module, &targets),
+                        multiview: None,
+                        cache: None,
+                    })
+                };
+                let three = [Some(&skin_layout), Some(&camera_layout), Some(&meshlet_layout)];
+                let pipeline = mesh_pipeline(&three, None, "mesh");
+                let four = [Some(&skin_layout), Some(&camera_layout), Some(&meshlet_layout), Some(&cull_layout)];
+                let culled_pipeline = mesh_pipeline(&four, Some("task"), "culled_mesh");
+                MeshPath { skin_layout, meshlet_layout, pipeline, cull_layout, culled_pipeline }
             });
             let vertex_pipeline = pipeline(
                 "vertex skinning",
@@ -188,19 +222,57 @@ impl Renderer {
         light: Vec3,
         skinning: Skinning,
     ) -> Result<Image> {
+        self.draw(gpu, mesh, matrices, view_proj, light, Draw::Plain(skinning))
+    }
+
+    /// Like [`Renderer::render`] with mesh-shader skinning, but a task shader first culls the
+    /// meshlets (paper section 6): `frame` is `culler`'s per-joint preparation for this
+    /// instance and the camera of `view_proj` (`MeshletCuller::prepare`, with joint matrices
+    /// in the same space as the skinned positions), and only surviving meshlets are skinned
+    /// and drawn. Culling is conservative, so the image is the unculled one.
+    #[allow(clippy::too_many_arguments)]
+    pub fn render_culled(
+        &self,
+        gpu: &Gpu,
+        mesh: &GpuMesh,
+        matrices: &[Affine3A],
+        view_proj: Mat4,
+        light: Vec3,
+        culler: &MeshletCuller,
+        frame: &JointFrame,
+    ) -> Result<Image> {
+        self.draw(gpu, mesh, matrices, view_proj, light, Draw::Culled(culler, frame))
+    }
+
+    fn draw(
+        &self,
+        gpu: &Gpu,
+        mesh: &GpuMesh,
+        matrices: &[Affine3A],
+        view_proj: Mat4,
+        light: Vec3,
+        draw: Draw,
+    ) -> Result<Image> {
+        let invalid = |message: &str| GpuError::Invalid { location: "render", message: message.into() };
         let matrices = mesh.matrix_buffer(gpu, matrices)?;
-        let mesh_draw = match (skinning, &self.mesh_path, &mesh.meshlets) {
-            (Skinning::Mesh, Some(path), Some(meshlets)) => Some((path, meshlets)),
-            (Skinning::Mesh, None, _) => {
-                return Err(GpuError::Invalid { location: "render", message: "the device has no mesh shaders".into() });
+        let mesh_draw = match (draw, &self.mesh_path, &mesh.meshlets) {
+            (Draw::Plain(Skinning::Vertex | Skinning::Compute), _, _) => None,
+            (_, None, _) => return Err(invalid("the device has no mesh shaders")),
+            (_, _, None) => return Err(invalid("mesh-shader skinning needs a mesh uploaded with meshlets")),
+            (_, Some(path), Some(meshlets)) => Some((path, meshlets)),
+        };
+        let culling = match draw {
+            Draw::Culled(culler, frame) => {
+                if frame.records().len() != culler.joints()
+                    || culler.len() != mesh.meshlets.as_ref().map_or(0, |m| m.count as usize)
+                {
+                    return Err(invalid("the culler and its frame must be the mesh's meshlets and joints"));
+                }
+                let slots = culler.len() as u32;
+                let params = [slots, culler.joints() as u32, 1, test_flags(frame)];
+                Some((slots, params, pack_slots(culler), pack_records(std::slice::from_ref(frame))))
             }
-            (Skinning::Mesh, _, None) => {
-                return Err(GpuError::Invalid {
-                    location: "render",
-                    message: "mesh-shader skinning needs a mesh uploaded with meshlets".into(),
-                });
-            }
-            _ => None,
+            Draw::Plain(_) => None,
         };
         let (width, height) = (self.width, self.height);
         let row = (4 * width).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
@@ -229,15 +301,16 @@ impl Renderer {
             let color = texture(COLOR, wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC);
             let depth = texture(DEPTH, wgpu::TextureUsages::RENDER_ATTACHMENT);
             let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
-            let mut meshlet_group = None;
-            let (pipeline, group0) = match (skinning, mesh_draw) {
-                (_, Some((path, meshlets))) => {
+            // Groups 2 and 3 of the mesh-shader pipelines: meshlets, and culling data.
+            let mut extra = Vec::new();
+            let (pipeline, group0) = match mesh_draw {
+                Some((path, meshlets)) => {
                     let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
                         label: Some("mesh-shader mesh"),
                         layout: &path.skin_layout,
                         entries: &mesh_bindings(mesh, &matrices),
                     });
-                    meshlet_group = Some(device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    extra.push(device.create_bind_group(&wgpu::BindGroupDescriptor {
                         label: Some("meshlets"),
                         layout: &path.meshlet_layout,
                         entries: &[
@@ -246,9 +319,23 @@ impl Renderer {
                             entry(2, &meshlets.triangles),
                         ],
                     }));
-                    (&path.pipeline, bind)
+                    match &culling {
+                        Some((_, params, slots, records)) => {
+                            let storage = wgpu::BufferUsages::STORAGE;
+                            let params = gpu.buffer("culling params", params, wgpu::BufferUsages::UNIFORM);
+                            let slots = gpu.buffer("cull slots", slots, storage);
+                            let records = gpu.buffer("joint records", records, storage);
+                            extra.push(device.create_bind_group(&wgpu::BindGroupDescriptor {
+                                label: Some("task culling"),
+                                layout: &path.cull_layout,
+                                entries: &[entry(0, &params), entry(1, &slots), entry(2, &records)],
+                            }));
+                            (&path.culled_pipeline, bind)
+                        }
+                        None => (&path.pipeline, bind),
+                    }
                 }
-                (Skinning::Vertex, None) => {
+                None if matches!(draw, Draw::Plain(Skinning::Vertex)) => {
                     let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
                         label: Some("mesh"),
                         layout: &self.mesh_layout,
@@ -256,8 +343,7 @@ impl Renderer {
                     });
                     (&self.vertex_pipeline, bind)
                 }
-                // (Mesh without a mesh path was refused above.)
-                (Skinning::Compute | Skinning::Mesh, None) => {
+                None => {
                     self.compute.encode(gpu, &mut encoder, mesh, &matrices);
                     let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
                         label: Some("skinned"),
@@ -296,14 +382,18 @@ impl Renderer {
                 pass.set_pipeline(pipeline);
                 pass.set_bind_group(0, &group0, &[]);
                 pass.set_bind_group(1, &camera, &[]);
-                match (&meshlet_group, mesh_draw) {
-                    (Some(group), Some((_, meshlets))) => {
-                        pass.set_bind_group(2, group, &[]);
+                for (i, group) in extra.iter().enumerate() {
+                    pass.set_bind_group(2 + i as u32, group, &[]);
+                }
+                match (mesh_draw, &culling) {
+                    // One task workgroup per 32 meshlet slots (task_cull.wgsl).
+                    (Some(_), Some((slots, ..))) => pass.draw_mesh_tasks(slots.div_ceil(32), 1, 1),
+                    (Some((_, meshlets)), None) => {
                         // Meshlet id = y × 1024 + x (mesh_skin.wgsl).
                         let n = meshlets.count;
                         pass.draw_mesh_tasks(n.min(1024), n.div_ceil(1024), 1);
                     }
-                    _ => {
+                    (None, _) => {
                         pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
                         pass.draw_indexed(0..mesh.index_count, 0, 0..1);
                     }
@@ -341,6 +431,12 @@ impl Renderer {
     }
 }
 
+/// The shared primitive state: triangle lists, counter-clockwise front faces (glTF's), back
+/// faces culled (so a meshlet culled as back-facing would have drawn nothing).
+fn primitive() -> wgpu::PrimitiveState {
+    wgpu::PrimitiveState { cull_mode: Some(wgpu::Face::Back), ..Default::default() }
+}
+
 /// The shared fragment stage: `shade` in draw.wgsl, one RGBA8 target.
 fn fragment<'a>(
     module: &'a wgpu::ShaderModule,
@@ -349,16 +445,17 @@ fn fragment<'a>(
     Some(wgpu::FragmentState { module, entry_point: Some("shade"), compilation_options: Default::default(), targets })
 }
 
-/// A view-projection (wgpu's clip space) that frames points `p` from direction `dir` (toward
-/// the eye), with a 40° vertical field of view and a square image.
-pub fn framing(points: &[Vec3], dir: Vec3) -> Mat4 {
+/// A perspective camera that frames points `p` from direction `dir` (toward the eye), with a
+/// 40° vertical field of view and a square image, `zoom` times closer than a fit (1: the
+/// whole of `p` in view). Its `view_proj` is in wgpu's clip space (depth 0 to 1).
+pub fn framing(points: &[Vec3], dir: Vec3, zoom: f32) -> Camera {
     let (lo, hi) = points.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), &p| (l.min(p), h.max(p)));
     let (center, radius) =
         if lo.x <= hi.x { ((lo + hi) / 2.0, ((hi - lo).length() / 2.0).max(1e-6)) } else { (Vec3::ZERO, 1.0) };
     let fov = 40f32.to_radians();
-    let distance = radius / (fov / 2.0).sin() * 1.05;
+    let distance = radius / (fov / 2.0).sin() * 1.05 / zoom.max(1e-3);
     let dir = dir.try_normalize().unwrap_or(Vec3::Z);
     let up = if dir.y.abs() > 0.99 { Vec3::Z } else { Vec3::Y };
-    Mat4::perspective_rh(fov, 1.0, (distance - radius) * 0.5, distance + radius * 2.0)
-        * Mat4::look_at_rh(center + dir * distance, center, up)
+    let near = (distance - radius).max(distance * 1e-3) * 0.5;
+    Camera::perspective(center + dir * distance, center, up, fov, 1.0, near, distance + radius * 2.0)
 }

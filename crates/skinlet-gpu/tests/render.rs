@@ -28,7 +28,7 @@ fn every_skinning_pipeline_draws_the_same_image() {
         let mut posed = vec![Vec3::ZERO; mesh.positions.len()];
         let inf = mesh.influences.as_ref().unwrap();
         skinlet::skinning::skin(inf, &mesh.positions, &[], &matrices, &mut posed, &mut []).unwrap();
-        let view_proj = framing(&posed, Vec3::new(0.3, 0.2, 1.0));
+        let view_proj = framing(&posed, Vec3::new(0.3, 0.2, 1.0), 1.0).view_proj;
         let gpu_mesh = GpuMesh::new(&gpu, &mesh, Some(&meshlets)).unwrap();
         let light = Vec3::new(0.4, 0.8, 0.6);
         let by_vertex = renderer.render(&gpu, &gpu_mesh, &matrices, view_proj, light, Skinning::Vertex).unwrap();
@@ -60,7 +60,7 @@ fn a_pose_change_changes_the_image() {
     let (skin, mesh, clip) = (&asset.skins[0], asset.combined_mesh(Some(0)), &asset.clips[0]);
     let renderer = Renderer::new(&gpu, 128, 128).unwrap();
     let gpu_mesh = GpuMesh::new(&gpu, &mesh, None).unwrap();
-    let view_proj = framing(&mesh.positions, Vec3::Z);
+    let view_proj = framing(&mesh.positions, Vec3::Z, 1.0).view_proj;
     let mut images = Vec::new();
     for t in [0.2, 0.6] {
         let mut matrices = Vec::new();
@@ -79,4 +79,66 @@ fn a_pose_change_changes_the_image() {
     Poser::default().skinning_matrices(&asset.skeleton, skin, Some(clip), clip.start, &mut matrices);
     let no_meshlets = renderer.render(&gpu, &gpu_mesh, &matrices, view_proj, Vec3::Y, Skinning::Mesh);
     assert!(no_meshlets.is_err(), "mesh shading without meshlets");
+}
+
+#[test]
+fn task_shader_culling_draws_the_unculled_image() {
+    // The paper's section 6 pipeline: a task shader culls meshlets with the baked bounds and
+    // launches mesh workgroups for the survivors only. Culling is conservative and back faces
+    // are culled by the rasterizer anyway, so the image must equal the unculled mesh-shader
+    // one; views close enough to cut the character make the frustum test work too.
+    let Some(gpu) = gpu() else { return };
+    if !gpu.has_mesh_shaders() {
+        eprintln!("skipping: {} has no mesh shaders", gpu.info.name);
+        return;
+    }
+    let renderer = Renderer::new(&gpu, 160, 160).unwrap();
+    let mut culled_total = 0;
+    for (name, asset) in assets() {
+        let Some(skin_index) = asset.instances.iter().find_map(|i| i.skin) else { continue };
+        let clips: Vec<&skinlet::clip::Clip> = asset.clips.iter().collect();
+        let how = skinlet::bounds::refine::Refinement::NONE;
+        let (baked, _) = skinlet::bake::bake(
+            &asset,
+            skin_index,
+            &clips,
+            Builder::SkinAware,
+            MeshletLimits::NVIDIA,
+            &how,
+            &mut |_| {},
+        )
+        .unwrap();
+        let skin = &asset.skins[skin_index as usize];
+        let culler = skinlet::cull::meshlet::MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len());
+        let gpu_mesh = GpuMesh::new(&gpu, &baked.mesh, Some(&baked.meshlets)).unwrap();
+        let clip = clips.first().copied();
+        let t = clip.map_or(0.0, |c| c.start + 0.6 * c.duration());
+        let mut poser = Poser::default();
+        let mut matrices = Vec::new();
+        poser.skinning_matrices(&asset.skeleton, skin, clip, t, &mut matrices);
+        let joints: Vec<Affine3A> = {
+            let g = poser.globals(&asset.skeleton, clip, t);
+            skin.joints.iter().map(|&j| Affine3A::from_mat4(g[j as usize].as_mat4())).collect()
+        };
+        let mut posed = vec![Vec3::ZERO; baked.mesh.positions.len()];
+        let inf = baked.mesh.influences.as_ref().unwrap();
+        skinlet::skinning::skin(inf, &baked.mesh.positions, &[], &matrices, &mut posed, &mut []).unwrap();
+        for (dir, zoom) in [(Vec3::new(0.3, 0.2, 1.0), 1.0), (Vec3::new(-1.0, 0.4, -0.5), 2.5)] {
+            let camera = framing(&posed, dir, zoom);
+            let mut frame = skinlet::cull::meshlet::JointFrame::default();
+            culler.prepare(&joints, &camera, skinlet::cull::meshlet::Tests::Both, &mut frame);
+            let counts = culler.cull(&frame, &mut Vec::new(), &mut Vec::new());
+            culled_total += counts.meshlets - counts.visible;
+            let light = Vec3::new(0.4, 0.8, 0.6);
+            let all = renderer.render(&gpu, &gpu_mesh, &matrices, camera.view_proj, light, Skinning::Mesh).unwrap();
+            let culled =
+                renderer.render_culled(&gpu, &gpu_mesh, &matrices, camera.view_proj, light, &culler, &frame).unwrap();
+            let differing = all.rgba.chunks(4).zip(culled.rgba.chunks(4)).filter(|(a, b)| a != b).count();
+            assert_eq!(
+                differing, 0,
+                "{name} zoom {zoom}: {differing} pixels differ with task-shader culling ({counts:?})"
+            );
+        }
+    }
+    assert!(culled_total > 0, "no meshlet was culled: the comparison would be vacuous");
 }

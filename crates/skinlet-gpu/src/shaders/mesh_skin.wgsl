@@ -31,10 +31,8 @@ var<workgroup> mesh_out: MeshOutput;
 // Meshlets are numbered across a 2D grid of mesh workgroups, 1024 per row.
 const ROW: u32 = 1024u;
 
-@mesh(mesh_out)
-@workgroup_size(32)
-fn mesh(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
-    let id = wg.y * ROW + wg.x;
+// Skins meshlet `id`'s vertices into the mesh outputs and emits its triangles.
+fn emit_meshlet(id: u32, lid: u32) {
     if id >= arrayLength(&meshlets) {
         mesh_out.vertex_count = 0u;
         mesh_out.primitive_count = 0u;
@@ -50,4 +48,10 @@ fn mesh(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
         let t = meshlet_triangles[m.triangle_offset + i];
         mesh_out.primitives[i].indices = vec3<u32>(t & 255u, (t >> 8u) & 255u, (t >> 16u) & 255u);
     }
+}
+
+@mesh(mesh_out)
+@workgroup_size(32)
+fn mesh(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
+    emit_meshlet(wg.y * ROW + wg.x, lid);
 }

@@ -1,0 +1,65 @@
+// The per-meshlet culling test of skinlet::cull::meshlet::MeshletCuller::cull, operation for
+// operation, shared by the compute pass (cull.wgsl) and the task shader (task_cull.wgsl).
+// Bindings in group CULL_GROUP (set by the including module's prefix).
+
+struct CullParams {
+    slots: u32,
+    joints: u32,
+    instances: u32,
+    // bit 0: frustum test, bit 1: backface test, bit 2: orthographic camera.
+    flags: u32,
+}
+
+struct Slot {
+    center: vec3<f32>,
+    radius: f32,
+    axis: vec3<f32>,
+    sin: f32,
+    frustum_ok: u32,
+    joint: u32,
+    id: u32,
+    pad: u32,
+}
+
+// Per instance and joint, 40 floats: 6 planes (24), their normal lengths (6), the frustum
+// margin, the view (3), sign, the backface margin, the group (as bits: 0 inside, 1 outside,
+// 2 straddles), padding.
+const RECORD: u32 = 40u;
+
+// 0: visible; bit 0: outside the frustum; 2: back-facing (and not outside).
+fn meshlet_flag(s: Slot, instance: u32) -> u32 {
+    let base = (instance * cull_params.joints + s.joint) * RECORD;
+    let do_frustum = (cull_params.flags & 1u) != 0u;
+    let do_back = (cull_params.flags & 2u) != 0u;
+    let group = bitcast<u32>(joint_records[base + 36u]);
+    let sign = joint_records[base + 34u];
+    var flag = 0u;
+    if do_frustum && group == 1u {
+        flag = s.frustum_ok;
+    } else if do_frustum && group == 2u {
+        var dmin = bitcast<f32>(0x7f800000u);
+        for (var k = 0u; k < 6u; k++) {
+            let p = base + 4u * k;
+            let d = joint_records[p] * s.center.x + joint_records[p + 1u] * s.center.y + joint_records[p + 2u] * s.center.z
+                + joint_records[p + 3u] + s.radius * joint_records[base + 24u + k];
+            dmin = min(dmin, d);
+        }
+        flag = select(0u, 1u, dmin + joint_records[base + 30u] < 0.0) & s.frustum_ok;
+    }
+    if do_back && sign != 0.0 {
+        let v = vec3<f32>(joint_records[base + 31u], joint_records[base + 32u], joint_records[base + 33u]);
+        let bm = joint_records[base + 35u];
+        var away: bool;
+        if (cull_params.flags & 4u) != 0u {
+            away = sign * (v.x * s.axis.x + v.y * s.axis.y + v.z * s.axis.z) >= s.sin + bm;
+        } else {
+            let dx = s.center.x - v.x;
+            let dy = s.center.y - v.y;
+            let dz = s.center.z - v.z;
+            let lhs = sign * (dx * s.axis.x + dy * s.axis.y + dz * s.axis.z) - s.radius * (1.0 + s.sin) - bm;
+            away = (lhs >= 0.0) && (lhs * lhs >= (dx * dx + dy * dy + dz * dz) * s.sin * s.sin);
+        }
+        flag |= select(0u, 2u, away);
+    }
+    return flag;
+}
