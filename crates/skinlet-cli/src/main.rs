@@ -314,31 +314,15 @@ enum Command {
     /// Render a posed character offscreen on the GPU (wgpu, Vulkan; Mesa's lavapipe where
     /// there is no GPU) and write a PNG.
     ///
-    /// --skinning picks the pipeline: vertex (skinned in the vertex shader), compute (skinned
-    /// by a compute pass, then drawn) or mesh (skin-aware meshlets, one mesh-shader workgroup
-    /// per meshlet; needs mesh shaders); all give the same image. The view is framed on the
-    /// posed character; the shading is faceted (flat per triangle).
+    /// --view shaded draws the posed character by the pipeline --skinning picks (all give the
+    /// same image); --view meshlets colors its skin-aware meshlets; --view culled shows what
+    /// the conservative bounds cull for a close camera, seen by an observer. Views are framed
+    /// on the posed character; the shading is faceted (flat per triangle).
     Render {
         /// .glb or .gltf file, or @demo[:TRIANGLES].
         file: String,
-        /// Clip name or index (default: the first clip; none: the rest pose).
-        #[arg(long)]
-        clip: Option<String>,
-        /// Time in seconds from the clip's start.
-        #[arg(long, default_value_t = 0.0)]
-        time: f32,
-        #[arg(long, default_value = "compute", value_parser = ["vertex", "compute", "mesh"])]
-        skinning: String,
-        /// Image width and height in pixels.
-        #[arg(long, default_value_t = 512)]
-        size: u32,
-        /// Only a software adapter (lavapipe), even where a GPU exists.
-        #[arg(long)]
-        software: bool,
-        #[arg(short, long)]
-        out: PathBuf,
-        #[arg(long)]
-        json: bool,
+        #[command(flatten)]
+        args: render::Args,
     },
     /// Measure skinlet's speed against a baseline, in the same run.
     Bench {
@@ -399,9 +383,7 @@ fn main() {
         }
         Command::Contours { file, args } => contours::command(&file, &args),
         Command::Bench { what } => bench::command(&what),
-        Command::Render { file, clip, time, skinning, size, software, out, json } => {
-            render::command(&file, clip.as_deref(), time, &skinning, size, software, &out, json)
-        }
+        Command::Render { file, args } => render::command(&file, &args),
         Command::Demo { triangles, seed, json } => demo(triangles, seed, json),
     };
     if let Err(e) = result {

@@ -1,58 +1,167 @@
 //! `skinlet render`: a posed character drawn offscreen on the GPU, written as a PNG.
 
 use anyhow::{Context, Result};
-use glam::Vec3;
+use glam::{Affine3A, Vec3};
 use serde_json::json;
+use skinlet::bounds::refine::Refinement;
+use skinlet::clip::Clip;
+use skinlet::cull::meshlet::{JointFrame, MeshletCuller, Tests};
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::Poser;
 use skinlet_gpu::mesh::GpuMesh;
 use skinlet_gpu::render::{Renderer, Skinning, framing};
 use skinlet_gpu::{Gpu, GpuOptions};
-use std::path::Path;
 
-#[allow(clippy::too_many_arguments)]
-pub fn command(
-    file: &str,
-    clip: Option<&str>,
+/// The default view direction (toward the eye) and the culled view's observer direction.
+const FRONT: Vec3 = Vec3::new(0.3, 0.2, 1.0);
+const OBSERVER: Vec3 = Vec3::new(-1.0, 0.6, -0.8);
+const LIGHT: Vec3 = Vec3::new(0.4, 0.8, 0.6);
+
+/// What `--view` asks for.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Clip name or index (default: the first clip; none: the rest pose).
+    #[arg(long)]
+    clip: Option<String>,
+    /// Time in seconds from the clip's start.
+    #[arg(long, default_value_t = 0.0)]
     time: f32,
-    skinning: &str,
+    /// shaded: the posed character. meshlets: skin-aware meshlets, each in its own color
+    /// (mesh shaders). culled: the meshlets the conservative bounds cull for a camera 1.6×
+    /// closer than a fit, seen by an observer behind and above it: kept ones light,
+    /// frustum-culled red, backface-culled blue (mesh shaders; bounds from key intervals).
+    #[arg(long, default_value = "shaded", value_parser = ["shaded", "meshlets", "culled"])]
+    view: String,
+    /// The pipeline of the shaded view: vertex (skinned in the vertex shader), compute (by a
+    /// compute pass, then drawn) or mesh (one mesh-shader workgroup per skin-aware meshlet).
+    #[arg(long, default_value = "compute", value_parser = ["vertex", "compute", "mesh"])]
+    skinning: String,
+    /// Image width and height in pixels.
+    #[arg(long, default_value_t = 512)]
     size: u32,
+    /// Only a software adapter (lavapipe), even where a GPU exists.
+    #[arg(long)]
     software: bool,
-    out: &Path,
+    #[arg(short, long)]
+    out: std::path::PathBuf,
+    #[arg(long)]
     json: bool,
-) -> Result<()> {
-    anyhow::ensure!((16..=8192).contains(&size), "--size must be between 16 and 8192");
+}
+
+/// A color per meshlet id: hues around the wheel by the golden ratio.
+fn id_color(i: usize) -> [u8; 4] {
+    let h = (i as f32 * 0.618_034).fract() * 6.0;
+    let x = 1.0 - ((h % 2.0) - 1.0).abs();
+    let (r, g, b) = match h as u32 {
+        0 => (1.0, x, 0.0),
+        1 => (x, 1.0, 0.0),
+        2 => (0.0, 1.0, x),
+        3 => (0.0, x, 1.0),
+        4 => (x, 0.0, 1.0),
+        _ => (1.0, 0.0, x),
+    };
+    let [r, g, b] = [r, g, b].map(|c| (60.0 + 195.0 * c) as u8);
+    [r, g, b, 255]
+}
+
+pub fn command(file: &str, a: &Args) -> Result<()> {
+    anyhow::ensure!((16..=8192).contains(&a.size), "--size must be between 16 and 8192");
     let (asset, skin_index) = crate::load_skinned(file)?;
-    let clip = crate::find_clip(&asset, clip)?;
+    let clip = crate::find_clip(&asset, a.clip.as_deref())?;
     let skin = &asset.skins[skin_index as usize];
     let mesh = asset.combined_mesh(Some(skin_index));
     let inf = mesh.influences.as_ref().context("the skinned mesh has no weights")?;
-    let t = clip.map_or(0.0, |c| c.start + time);
+    let t = clip.map_or(0.0, |c| c.start + a.time);
+    let mut poser = Poser::default();
     let mut matrices = Vec::new();
-    Poser::default().skinning_matrices(&asset.skeleton, skin, clip, t, &mut matrices);
+    poser.skinning_matrices(&asset.skeleton, skin, clip, t, &mut matrices);
     let mut posed = vec![Vec3::ZERO; mesh.positions.len()];
     skinlet::skinning::skin(inf, &mesh.positions, &[], &matrices, &mut posed, &mut [])?;
-    let gpu = Gpu::new(GpuOptions { software, ..GpuOptions::default() })?;
-    let renderer = Renderer::new(&gpu, size, size)?;
-    let (gpu_mesh, path) = match skinning {
-        "vertex" => (GpuMesh::new(&gpu, &mesh, None)?, Skinning::Vertex),
-        "compute" => (GpuMesh::new(&gpu, &mesh, None)?, Skinning::Compute),
-        _ => {
-            anyhow::ensure!(gpu.has_mesh_shaders(), "{} has no mesh shaders; use --skinning compute", gpu.info.name);
+    let gpu = Gpu::new(GpuOptions { software: a.software, ..GpuOptions::default() })?;
+    let renderer = Renderer::new(&gpu, a.size, a.size)?;
+    let need_mesh_shaders = a.view != "shaded" || a.skinning == "mesh";
+    anyhow::ensure!(
+        !need_mesh_shaders || gpu.has_mesh_shaders(),
+        "{} has no mesh shaders (needed by --view {} --skinning {})",
+        gpu.info.name,
+        a.view,
+        a.skinning
+    );
+    let mut summary = json!({});
+    let image = match a.view.as_str() {
+        "meshlets" => {
             let prepared = skinlet::meshlet::prepare(&mesh);
             let meshlets = skinlet::meshlet::build(&prepared, Builder::SkinAware, MeshletLimits::NVIDIA)?;
-            (GpuMesh::new(&gpu, &prepared.mesh, Some(&meshlets))?, Skinning::Mesh)
+            let gpu_mesh = GpuMesh::new(&gpu, &prepared.mesh, Some(&meshlets))?;
+            let colors: Vec<[u8; 4]> = (0..meshlets.len()).map(id_color).collect();
+            summary = json!({"meshlets": meshlets.len()});
+            renderer.render_colored(
+                &gpu,
+                &gpu_mesh,
+                &matrices,
+                framing(&posed, FRONT, 1.0).view_proj,
+                LIGHT,
+                &colors,
+            )?
+        }
+        "culled" => {
+            let clips: Vec<&Clip> = asset.clips.iter().collect();
+            let (baked, _) = skinlet::bake::bake(
+                &asset,
+                skin_index,
+                &clips,
+                Builder::SkinAware,
+                MeshletLimits::NVIDIA,
+                &Refinement::NONE,
+                &mut |_| {},
+            )?;
+            let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len());
+            let joints: Vec<Affine3A> = {
+                let g = poser.globals(&asset.skeleton, clip, t);
+                skin.joints.iter().map(|&j| Affine3A::from_mat4(g[j as usize].as_mat4())).collect()
+            };
+            let camera = framing(&posed, FRONT, 1.6);
+            let mut frame = JointFrame::default();
+            culler.prepare(&joints, &camera, Tests::Both, &mut frame);
+            let mut flags = Vec::new();
+            let counts = culler.cull(&frame, &mut flags, &mut Vec::new());
+            // Per meshlet: kept, or culled by the frustum test (flag bit 0), or by the backface
+            // test alone (flag 2); `flags` is per slot, `slots` names each slot's meshlet.
+            let mut colors = vec![[240, 240, 235, 255]; baked.meshlets.len()];
+            for (slot, &flag) in culler.slots().iter().zip(&flags) {
+                if flag & 1 != 0 {
+                    colors[slot.id as usize] = [235, 85, 70, 255];
+                } else if flag == 2 {
+                    colors[slot.id as usize] = [90, 130, 235, 255];
+                }
+            }
+            summary = json!({"meshlets": counts.meshlets, "kept": counts.visible, "frustum_culled": counts.frustum,
+                "backface_culled": counts.backface});
+            let gpu_mesh = GpuMesh::new(&gpu, &baked.mesh, Some(&baked.meshlets))?;
+            let observer = framing(&posed, OBSERVER, 0.95).view_proj;
+            renderer.render_colored(&gpu, &gpu_mesh, &matrices, observer, LIGHT, &colors)?
+        }
+        _ => {
+            let (gpu_mesh, path) = match a.skinning.as_str() {
+                "vertex" => (GpuMesh::new(&gpu, &mesh, None)?, Skinning::Vertex),
+                "compute" => (GpuMesh::new(&gpu, &mesh, None)?, Skinning::Compute),
+                _ => {
+                    let prepared = skinlet::meshlet::prepare(&mesh);
+                    let meshlets = skinlet::meshlet::build(&prepared, Builder::SkinAware, MeshletLimits::NVIDIA)?;
+                    (GpuMesh::new(&gpu, &prepared.mesh, Some(&meshlets))?, Skinning::Mesh)
+                }
+            };
+            renderer.render(&gpu, &gpu_mesh, &matrices, framing(&posed, FRONT, 1.0).view_proj, LIGHT, path)?
         }
     };
-    let view_proj = framing(&posed, Vec3::new(0.3, 0.2, 1.0), 1.0).view_proj;
-    let image = renderer.render(&gpu, &gpu_mesh, &matrices, view_proj, Vec3::new(0.4, 0.8, 0.6), path)?;
-    crate::write_png(out, image.width, image.height, png::ColorType::Rgba, &image.rgba)?;
-    if json {
-        let out = json!({"file": file, "out": out.display().to_string(), "adapter": gpu.info.name, "skinning": skinning,
-            "clip": clip.map(|c| c.name.clone()), "time": time, "size": size});
+    crate::write_png(&a.out, image.width, image.height, png::ColorType::Rgba, &image.rgba)?;
+    if a.json {
+        let out = json!({"file": file, "out": a.out.display().to_string(), "adapter": gpu.info.name, "view": a.view,
+            "skinning": a.skinning, "clip": clip.map(|c| c.name.clone()), "time": a.time, "size": a.size,
+            "summary": summary});
         println!("{}", serde_json::to_string_pretty(&out)?);
     } else {
-        println!("{}: {file} at {:.2} s, {skinning} skinning on {}", out.display(), time, gpu.info.name);
+        println!("{}: {file} at {:.2} s, {} view on {} {summary}", a.out.display(), a.time, a.view, gpu.info.name);
     }
     Ok(())
 }

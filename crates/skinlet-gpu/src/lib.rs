@@ -5,9 +5,9 @@
 //! compute-shader skinning ([`skinning`]), checked against skinlet's reference skinning;
 //! offscreen rendering by vertex-shader, compute-shader and mesh-shader skinning
 //! ([`render`]), checked to give the same image; per-meshlet culling of many instances in a
-//! compute pass ([`cull`]), checked to return the CPU's visible set. Not yet: common-influences
-//! slim-vertex mesh shading, per-triangle culling, task-shader culling and indirect draws,
-//! GPU contours, the meshlet/culled/contour views, `gpu-bench`.
+//! compute pass ([`cull`]) and in a task shader ([`render::Renderer::render_culled`]), checked
+//! against the CPU; per-meshlet colored views. Not yet: common-influences slim-vertex mesh
+//! shading, per-triangle culling, indirect draws, GPU contours, `gpu-bench`.
 //!
 //! Errors (no adapter, a failed device request, a validation error, bad input) come back as
 //! [`GpuError`]; nothing here panics on user data.

@@ -57,6 +57,9 @@ struct MeshPath {
     /// layout (parameters, slots, joint records).
     cull_layout: wgpu::BindGroupLayout,
     culled_pipeline: wgpu::RenderPipeline,
+    /// Every meshlet in its own color (group 3: one RGBA8 word per meshlet).
+    color_layout: wgpu::BindGroupLayout,
+    colored_pipeline: wgpu::RenderPipeline,
 }
 
 /// What a draw runs.
@@ -64,6 +67,7 @@ struct MeshPath {
 enum Draw<'a> {
     Plain(Skinning),
     Culled(&'a MeshletCuller, &'a JointFrame),
+    Colored(&'a [[u8; 4]]),
 }
 
 const COLOR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
@@ -125,7 +129,7 @@ impl Renderer {
                     primitive: primitive(),
                     depth_stencil: Some(depth_stencil()),
                     multisample: Default::default(),
-                    fragment: fragment(&module, &targets),
+                    fragment: fragment(&module, "shade", &targets),
                     multiview_mask: None,
                     cache: None,
                 })
@@ -179,7 +183,7 @@ impl Renderer {
                         primitive: primitive(),
                         depth_stencil: Some(depth_stencil()),
                         multisample: Default::default(),
-                        fragment: fragment(&module, &targets),
+                        fragment: fragment(&module, "shade_colored", &targets),
                         multiview: None,
                         cache: None,
                     })
@@ -188,7 +192,18 @@ impl Renderer {
                 let pipeline = mesh_pipeline(&three, None, "mesh");
                 let four = [Some(&skin_layout), Some(&camera_layout), Some(&meshlet_layout), Some(&cull_layout)];
                 let culled_pipeline = mesh_pipeline(&four, Some("task"), "culled_mesh");
-                MeshPath { skin_layout, meshlet_layout, pipeline, cull_layout, culled_pipeline }
+                let color_layout = layout("meshlet colors", &[buffer_entry(3, stage, read)]);
+                let colored = [Some(&skin_layout), Some(&camera_layout), Some(&meshlet_layout), Some(&color_layout)];
+                let colored_pipeline = mesh_pipeline(&colored, None, "colored_mesh");
+                MeshPath {
+                    skin_layout,
+                    meshlet_layout,
+                    pipeline,
+                    cull_layout,
+                    culled_pipeline,
+                    color_layout,
+                    colored_pipeline,
+                }
             });
             let vertex_pipeline = pipeline(
                 "vertex skinning",
@@ -244,6 +259,21 @@ impl Renderer {
         self.draw(gpu, mesh, matrices, view_proj, light, Draw::Culled(culler, frame))
     }
 
+    /// Like [`Renderer::render`] with mesh-shader skinning, every meshlet shaded in its own
+    /// color (`colors[i]`, RGBA8, for meshlet `i`): pictures of meshlets, classes or culling.
+    #[allow(clippy::too_many_arguments)]
+    pub fn render_colored(
+        &self,
+        gpu: &Gpu,
+        mesh: &GpuMesh,
+        matrices: &[Affine3A],
+        view_proj: Mat4,
+        light: Vec3,
+        colors: &[[u8; 4]],
+    ) -> Result<Image> {
+        self.draw(gpu, mesh, matrices, view_proj, light, Draw::Colored(colors))
+    }
+
     fn draw(
         &self,
         gpu: &Gpu,
@@ -271,6 +301,12 @@ impl Renderer {
                 let slots = culler.len() as u32;
                 let params = [slots, culler.joints() as u32, 1, test_flags(frame)];
                 Some((slots, params, pack_slots(culler), pack_records(std::slice::from_ref(frame))))
+            }
+            Draw::Colored(colors) => {
+                if colors.len() != mesh.meshlets.as_ref().map_or(0, |m| m.count as usize) {
+                    return Err(invalid("one color per meshlet"));
+                }
+                None
             }
             Draw::Plain(_) => None,
         };
@@ -319,8 +355,18 @@ impl Renderer {
                             entry(2, &meshlets.triangles),
                         ],
                     }));
-                    match &culling {
-                        Some((_, params, slots, records)) => {
+                    match (&culling, draw) {
+                        (_, Draw::Colored(colors)) => {
+                            let words: Vec<u32> = colors.iter().map(|c| u32::from_le_bytes(*c)).collect();
+                            let colors = gpu.buffer("meshlet colors", &words, wgpu::BufferUsages::STORAGE);
+                            extra.push(device.create_bind_group(&wgpu::BindGroupDescriptor {
+                                label: Some("meshlet colors"),
+                                layout: &path.color_layout,
+                                entries: &[entry(3, &colors)],
+                            }));
+                            (&path.colored_pipeline, bind)
+                        }
+                        (Some((_, params, slots, records)), _) => {
                             let storage = wgpu::BufferUsages::STORAGE;
                             let params = gpu.buffer("culling params", params, wgpu::BufferUsages::UNIFORM);
                             let slots = gpu.buffer("cull slots", slots, storage);
@@ -332,7 +378,7 @@ impl Renderer {
                             }));
                             (&path.culled_pipeline, bind)
                         }
-                        None => (&path.pipeline, bind),
+                        (None, _) => (&path.pipeline, bind),
                     }
                 }
                 None if matches!(draw, Draw::Plain(Skinning::Vertex)) => {
@@ -437,12 +483,14 @@ fn primitive() -> wgpu::PrimitiveState {
     wgpu::PrimitiveState { cull_mode: Some(wgpu::Face::Back), ..Default::default() }
 }
 
-/// The shared fragment stage: `shade` in draw.wgsl, one RGBA8 target.
+/// The fragment stage: `entry` (`shade` in draw.wgsl, or `shade_colored` in mesh_skin.wgsl),
+/// one RGBA8 target.
 fn fragment<'a>(
     module: &'a wgpu::ShaderModule,
+    entry: &'a str,
     targets: &'a [Option<wgpu::ColorTargetState>],
 ) -> Option<wgpu::FragmentState<'a>> {
-    Some(wgpu::FragmentState { module, entry_point: Some("shade"), compilation_options: Default::default(), targets })
+    Some(wgpu::FragmentState { module, entry_point: Some(entry), compilation_options: Default::default(), targets })
 }
 
 /// A perspective camera that frames points `p` from direction `dir` (toward the eye), with a

@@ -21,9 +21,13 @@ fn to_screen(p: vec3<f32>) -> VertexOut {
     return out;
 }
 
+fn lit(in: VertexOut) -> vec4<f32> {
+    let n = normalize(cross(dpdx(in.world), dpdy(in.world)));
+    let l = 0.25 + 0.75 * abs(dot(n, camera.light.xyz));
+    return vec4<f32>(vec3<f32>(l), 1.0);
+}
+
 @fragment
 fn shade(in: VertexOut) -> @location(0) vec4<f32> {
-    let n = normalize(cross(dpdx(in.world), dpdy(in.world)));
-    let lit = 0.25 + 0.75 * abs(dot(n, camera.light.xyz));
-    return vec4<f32>(vec3<f32>(lit), 1.0);
+    return lit(in);
 }

@@ -17,6 +17,17 @@ struct Meshlet {
 
 struct Primitive {
     @builtin(triangle_indices) indices: vec3<u32>,
+    // Multiplies the shading (white: plain drawing; a meshlet's color in the colored views).
+    @per_primitive @location(1) color: vec4<f32>,
+}
+
+struct PrimitiveIn {
+    @per_primitive @location(1) color: vec4<f32>,
+}
+
+@fragment
+fn shade_colored(in: VertexOut, primitive: PrimitiveIn) -> @location(0) vec4<f32> {
+    return lit(in) * primitive.color;
 }
 
 struct MeshOutput {
@@ -31,8 +42,8 @@ var<workgroup> mesh_out: MeshOutput;
 // Meshlets are numbered across a 2D grid of mesh workgroups, 1024 per row.
 const ROW: u32 = 1024u;
 
-// Skins meshlet `id`'s vertices into the mesh outputs and emits its triangles.
-fn emit_meshlet(id: u32, lid: u32) {
+// Skins meshlet `id`'s vertices into the mesh outputs and emits its triangles in `color`.
+fn emit_meshlet(id: u32, lid: u32, color: vec4<f32>) {
     if id >= arrayLength(&meshlets) {
         mesh_out.vertex_count = 0u;
         mesh_out.primitive_count = 0u;
@@ -47,11 +58,22 @@ fn emit_meshlet(id: u32, lid: u32) {
     for (var i = lid; i < m.triangle_count; i += 32u) {
         let t = meshlet_triangles[m.triangle_offset + i];
         mesh_out.primitives[i].indices = vec3<u32>(t & 255u, (t >> 8u) & 255u, (t >> 16u) & 255u);
+        mesh_out.primitives[i].color = color;
     }
 }
 
 @mesh(mesh_out)
 @workgroup_size(32)
 fn mesh(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
-    emit_meshlet(wg.y * ROW + wg.x, lid);
+    emit_meshlet(wg.y * ROW + wg.x, lid, vec4<f32>(1.0));
+}
+
+// Per meshlet an RGBA8 color (the colored views).
+@group(3) @binding(3) var<storage, read> meshlet_colors: array<u32>;
+
+@mesh(mesh_out)
+@workgroup_size(32)
+fn colored_mesh(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
+    let id = wg.y * ROW + wg.x;
+    emit_meshlet(id, lid, unpack4x8unorm(meshlet_colors[min(id, arrayLength(&meshlet_colors) - 1u)]));
 }

@@ -38,5 +38,5 @@ fn task(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
 @payload(payload)
 @workgroup_size(32)
 fn culled_mesh(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
-    emit_meshlet(payload.ids[wg.x], lid);
+    emit_meshlet(payload.ids[wg.x], lid, vec4<f32>(1.0));
 }
