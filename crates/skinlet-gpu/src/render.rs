@@ -11,8 +11,8 @@ use crate::mesh::{GpuMesh, entry};
 use crate::skinning::{ComputeSkinning, buffer_entry, mesh_bindings, mesh_entries};
 use crate::{Gpu, GpuError, Result};
 use glam::{Affine3A, Mat4, Vec3};
-use skinlet::cull::Camera;
 use skinlet::cull::meshlet::{JointFrame, MeshletCuller};
+use skinlet::cull::{Camera, Projection};
 
 /// How skinned vertices reach the rasterizer.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -66,7 +66,7 @@ struct MeshPath {
 #[derive(Clone, Copy)]
 enum Draw<'a> {
     Plain(Skinning),
-    Culled(&'a MeshletCuller, &'a JointFrame),
+    Culled(&'a MeshletCuller, &'a JointFrame, Option<Projection>),
     Colored(&'a [[u8; 4]]),
 }
 
@@ -146,6 +146,8 @@ impl Renderer {
                         buffer_entry(0, wgpu::ShaderStages::TASK, wgpu::BufferBindingType::Uniform),
                         buffer_entry(1, wgpu::ShaderStages::TASK, read),
                         buffer_entry(2, wgpu::ShaderStages::TASK, read),
+                        buffer_entry(4, stage, wgpu::BufferBindingType::Storage { read_only: false }),
+                        buffer_entry(5, stage, wgpu::BufferBindingType::Uniform),
                     ],
                 );
                 let source = [
@@ -237,14 +239,16 @@ impl Renderer {
         light: Vec3,
         skinning: Skinning,
     ) -> Result<Image> {
-        self.draw(gpu, mesh, matrices, view_proj, light, Draw::Plain(skinning))
+        self.draw(gpu, mesh, matrices, view_proj, light, Draw::Plain(skinning)).map(|(image, _)| image)
     }
 
     /// Like [`Renderer::render`] with mesh-shader skinning, but a task shader first culls the
     /// meshlets (paper section 6): `frame` is `culler`'s per-joint preparation for this
     /// instance and the camera of `view_proj` (`MeshletCuller::prepare`, with joint matrices
     /// in the same space as the skinned positions), and only surviving meshlets are skinned
-    /// and drawn. Culling is conservative, so the image is the unculled one.
+    /// and drawn. With `triangles` (the camera's projection), the mesh shader also culls
+    /// back-facing and edge-on triangles (thesis 5.1.3). Culling is conservative, so the image
+    /// is the unculled one. Also returns how many triangles the mesh shaders emitted and kept.
     #[allow(clippy::too_many_arguments)]
     pub fn render_culled(
         &self,
@@ -255,8 +259,10 @@ impl Renderer {
         light: Vec3,
         culler: &MeshletCuller,
         frame: &JointFrame,
-    ) -> Result<Image> {
-        self.draw(gpu, mesh, matrices, view_proj, light, Draw::Culled(culler, frame))
+        triangles: Option<Projection>,
+    ) -> Result<(Image, u32)> {
+        self.draw(gpu, mesh, matrices, view_proj, light, Draw::Culled(culler, frame, triangles))
+            .map(|(image, drawn)| (image, drawn.unwrap_or(0)))
     }
 
     /// Like [`Renderer::render`] with mesh-shader skinning, every meshlet shaded in its own
@@ -271,7 +277,7 @@ impl Renderer {
         light: Vec3,
         colors: &[[u8; 4]],
     ) -> Result<Image> {
-        self.draw(gpu, mesh, matrices, view_proj, light, Draw::Colored(colors))
+        self.draw(gpu, mesh, matrices, view_proj, light, Draw::Colored(colors)).map(|(image, _)| image)
     }
 
     fn draw(
@@ -282,7 +288,7 @@ impl Renderer {
         view_proj: Mat4,
         light: Vec3,
         draw: Draw,
-    ) -> Result<Image> {
+    ) -> Result<(Image, Option<u32>)> {
         let invalid = |message: &str| GpuError::Invalid { location: "render", message: message.into() };
         let matrices = mesh.matrix_buffer(gpu, matrices)?;
         let mesh_draw = match (draw, &self.mesh_path, &mesh.meshlets) {
@@ -292,7 +298,7 @@ impl Renderer {
             (_, Some(path), Some(meshlets)) => Some((path, meshlets)),
         };
         let culling = match draw {
-            Draw::Culled(culler, frame) => {
+            Draw::Culled(culler, frame, triangles) => {
                 if frame.records().len() != culler.joints()
                     || culler.len() != mesh.meshlets.as_ref().map_or(0, |m| m.count as usize)
                 {
@@ -300,7 +306,15 @@ impl Renderer {
                 }
                 let slots = culler.len() as u32;
                 let params = [slots, culler.joints() as u32, 1, test_flags(frame)];
-                Some((slots, params, pack_slots(culler), pack_records(std::slice::from_ref(frame))))
+                // TriangleCull in task_cull.wgsl: the eye or view direction, and the mode.
+                let (view, mode) = match triangles {
+                    None => (Vec3::ZERO, 0),
+                    Some(Projection::Perspective { eye }) => (eye, 1),
+                    Some(Projection::Orthographic { dir }) => (dir, 2),
+                };
+                let triangle_cull: Vec<u32> =
+                    view.extend(0.0).to_array().iter().map(|f| f.to_bits()).chain([mode, 0, 0, 0]).collect();
+                Some((slots, params, pack_slots(culler), pack_records(std::slice::from_ref(frame)), triangle_cull))
             }
             Draw::Colored(colors) => {
                 if colors.len() != mesh.meshlets.as_ref().map_or(0, |m| m.count as usize) {
@@ -312,7 +326,7 @@ impl Renderer {
         };
         let (width, height) = (self.width, self.height);
         let row = (4 * width).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
-        let readback = gpu.checked("render", || {
+        let (readback, drawn) = gpu.checked("render", || {
             let device = &gpu.device;
             let mut camera = view_proj.to_cols_array().to_vec();
             camera.extend(light.normalize_or_zero().extend(0.0).to_array());
@@ -339,6 +353,7 @@ impl Renderer {
             let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
             // Groups 2 and 3 of the mesh-shader pipelines: meshlets, and culling data.
             let mut extra = Vec::new();
+            let mut drawn = None;
             let (pipeline, group0) = match mesh_draw {
                 Some((path, meshlets)) => {
                     let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -366,16 +381,27 @@ impl Renderer {
                             }));
                             (&path.colored_pipeline, bind)
                         }
-                        (Some((_, params, slots, records)), _) => {
+                        (Some((_, params, slots, records, triangle_cull)), _) => {
                             let storage = wgpu::BufferUsages::STORAGE;
-                            let params = gpu.buffer("culling params", params, wgpu::BufferUsages::UNIFORM);
+                            let uniform = wgpu::BufferUsages::UNIFORM;
+                            let params = gpu.buffer("culling params", params, uniform);
                             let slots = gpu.buffer("cull slots", slots, storage);
                             let records = gpu.buffer("joint records", records, storage);
+                            let triangle_cull = gpu.buffer("triangle culling", triangle_cull, uniform);
+                            let counter =
+                                gpu.buffer("drawn triangles", &[0u32; 4], storage | wgpu::BufferUsages::COPY_SRC);
                             extra.push(device.create_bind_group(&wgpu::BindGroupDescriptor {
                                 label: Some("task culling"),
                                 layout: &path.cull_layout,
-                                entries: &[entry(0, &params), entry(1, &slots), entry(2, &records)],
+                                entries: &[
+                                    entry(0, &params),
+                                    entry(1, &slots),
+                                    entry(2, &records),
+                                    entry(4, &counter),
+                                    entry(5, &triangle_cull),
+                                ],
                             }));
+                            drawn = Some(counter);
                             (&path.culled_pipeline, bind)
                         }
                         (None, _) => (&path.pipeline, bind),
@@ -469,11 +495,15 @@ impl Renderer {
                 wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
             );
             gpu.queue.submit([encoder.finish()]);
-            readback
+            (readback, drawn)
         })?;
         let bytes = gpu.read(&readback, (row * height) as u64)?;
         let rgba = bytes.chunks_exact(row as usize).flat_map(|r| &r[..4 * width as usize]).copied().collect();
-        Ok(Image { width, height, rgba })
+        let drawn = match drawn {
+            Some(counter) => Some(bytemuck::pod_collect_to_vec::<u8, u32>(&gpu.read(&counter, 4)?)[0]),
+            None => None,
+        };
+        Ok((Image { width, height, rgba }, drawn))
     }
 }
 

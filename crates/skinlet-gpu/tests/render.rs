@@ -84,9 +84,11 @@ fn a_pose_change_changes_the_image() {
 #[test]
 fn task_shader_culling_draws_the_unculled_image() {
     // The paper's section 6 pipeline: a task shader culls meshlets with the baked bounds and
-    // launches mesh workgroups for the survivors only. Culling is conservative and back faces
-    // are culled by the rasterizer anyway, so the image must equal the unculled mesh-shader
-    // one; views close enough to cut the character make the frustum test work too.
+    // launches mesh workgroups for the survivors only, which may also cull triangles one by
+    // one (thesis 5.1.3). Culling is conservative and back faces are culled by the rasterizer
+    // anyway, so the image must equal the unculled mesh-shader one; views close enough to cut
+    // the character make the frustum test work too. The triangles the mesh shaders emit are
+    // those of the CPU's visible meshlets, and with per-triangle culling the CPU's kept ones.
     let Some(gpu) = gpu() else { return };
     if !gpu.has_mesh_shaders() {
         eprintln!("skipping: {} has no mesh shaders", gpu.info.name);
@@ -127,17 +129,27 @@ fn task_shader_culling_draws_the_unculled_image() {
             let camera = framing(&posed, dir, zoom);
             let mut frame = skinlet::cull::meshlet::JointFrame::default();
             culler.prepare(&joints, &camera, skinlet::cull::meshlet::Tests::Both, &mut frame);
-            let counts = culler.cull(&frame, &mut Vec::new(), &mut Vec::new());
+            let mut visible = Vec::new();
+            let counts = culler.cull(&frame, &mut Vec::new(), &mut visible);
             culled_total += counts.meshlets - counts.visible;
             let light = Vec3::new(0.4, 0.8, 0.6);
             let all = renderer.render(&gpu, &gpu_mesh, &matrices, camera.view_proj, light, Skinning::Mesh).unwrap();
-            let culled =
-                renderer.render_culled(&gpu, &gpu_mesh, &matrices, camera.view_proj, light, &culler, &frame).unwrap();
-            let differing = all.rgba.chunks(4).zip(culled.rgba.chunks(4)).filter(|(a, b)| a != b).count();
-            assert_eq!(
-                differing, 0,
-                "{name} zoom {zoom}: {differing} pixels differ with task-shader culling ({counts:?})"
-            );
+            // The CPU's per-triangle culling of the visible meshlets, on the same skinned positions.
+            let kept =
+                skinlet::cull::triangle::cull_triangles(&baked.meshlets, &visible, &posed, camera.projection, None);
+            let in_visible: u32 =
+                visible.iter().map(|&m| baked.meshlets.meshlets[m as usize].triangle_count as u32).sum();
+            for (triangles, expected) in [(None, in_visible), (Some(camera.projection), kept.kept as u32)] {
+                let (culled, drawn) = renderer
+                    .render_culled(&gpu, &gpu_mesh, &matrices, camera.view_proj, light, &culler, &frame, triangles)
+                    .unwrap();
+                let differing = all.rgba.chunks(4).zip(culled.rgba.chunks(4)).filter(|(a, b)| a != b).count();
+                assert_eq!(
+                    differing, 0,
+                    "{name} zoom {zoom} triangles {triangles:?}: {differing} pixels differ ({counts:?})"
+                );
+                assert_eq!(drawn, expected, "{name} zoom {zoom}: triangles drawn, per-triangle culling {triangles:?}");
+            }
         }
     }
     assert!(culled_total > 0, "no meshlet was culled: the comparison would be vacuous");

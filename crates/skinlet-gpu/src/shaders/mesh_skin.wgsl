@@ -17,6 +17,8 @@ struct Meshlet {
 
 struct Primitive {
     @builtin(triangle_indices) indices: vec3<u32>,
+    // Per-triangle culling (task_cull.wgsl); false elsewhere.
+    @builtin(cull_primitive) cull: bool,
     // Multiplies the shading (white: plain drawing; a meshlet's color in the colored views).
     @per_primitive @location(1) color: vec4<f32>,
 }
@@ -59,6 +61,7 @@ fn emit_meshlet(id: u32, lid: u32, color: vec4<f32>) {
         let t = meshlet_triangles[m.triangle_offset + i];
         mesh_out.primitives[i].indices = vec3<u32>(t & 255u, (t >> 8u) & 255u, (t >> 16u) & 255u);
         mesh_out.primitives[i].color = color;
+        mesh_out.primitives[i].cull = false;
     }
 }
 

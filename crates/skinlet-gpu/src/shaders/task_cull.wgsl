@@ -34,9 +34,44 @@ fn task(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
     return vec3<u32>(atomicLoad(&survivors), 1u, 1u);
 }
 
+// Per-triangle culling in the mesh shader (thesis 5.1.3): `mode` 0 none, 1 perspective
+// (`view` = the eye), 2 orthographic (`view` = the view direction).
+struct TriangleCull {
+    view: vec4<f32>,
+    mode: u32,
+}
+
+// Triangles the mesh shaders emitted and did not cull.
+@group(3) @binding(4) var<storage, read_write> drawn: array<atomic<u32>>;
+@group(3) @binding(5) var<uniform> triangle_cull: TriangleCull;
+
 @mesh(mesh_out)
 @payload(payload)
 @workgroup_size(32)
 fn culled_mesh(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
-    emit_meshlet(payload.ids[wg.x], lid, vec4<f32>(1.0));
+    let id = payload.ids[wg.x];
+    emit_meshlet(id, lid, vec4<f32>(1.0));
+    let count = select(0u, meshlets[min(id, arrayLength(&meshlets) - 1u)].triangle_count, id < arrayLength(&meshlets));
+    workgroupBarrier();
+    // skinlet::cull::triangle::facing on the skinned positions, operation for operation:
+    // culled when (p0 - eye)·((p1 - p0) × (p2 - p0)) is not negative.
+    var kept = 0u;
+    for (var i = lid; i < count; i += 32u) {
+        let t = mesh_out.primitives[i].indices;
+        let p0 = mesh_out.vertices[t.x].world;
+        let e1 = mesh_out.vertices[t.y].world - p0;
+        let e2 = mesh_out.vertices[t.z].world - p0;
+        let n = vec3<f32>(e1.y * e2.z - e2.y * e1.z, e1.z * e2.x - e2.z * e1.x, e1.x * e2.y - e2.x * e1.y);
+        var cull = false;
+        if triangle_cull.mode != 0u {
+            var d = triangle_cull.view.xyz;
+            if triangle_cull.mode == 1u {
+                d = p0 - triangle_cull.view.xyz;
+            }
+            cull = !(d.x * n.x + d.y * n.y + d.z * n.z < 0.0);
+        }
+        mesh_out.primitives[i].cull = cull;
+        kept += select(1u, 0u, cull);
+    }
+    atomicAdd(&drawn[0], kept);
 }
