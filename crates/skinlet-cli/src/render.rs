@@ -1,7 +1,7 @@
 //! `skinlet render`: a posed character drawn offscreen on the GPU, written as a PNG.
 
 use anyhow::{Context, Result};
-use glam::{Affine3A, Vec3};
+use glam::Vec3;
 use serde_json::json;
 use skinlet::bounds::refine::Refinement;
 use skinlet::clip::Clip;
@@ -116,10 +116,8 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 &mut |_| {},
             )?;
             let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len());
-            let joints: Vec<Affine3A> = {
-                let g = poser.globals(&asset.skeleton, clip, t);
-                skin.joints.iter().map(|&j| Affine3A::from_mat4(g[j as usize].as_mat4())).collect()
-            };
+            let mut joints = Vec::new();
+            skinlet::pose::joint_globals(skin, poser.globals(&asset.skeleton, clip, t), &mut joints);
             let camera = framing(&posed, FRONT, 1.6);
             let mut frame = JointFrame::default();
             culler.prepare(&joints, &camera, Tests::Both, &mut frame);

@@ -118,10 +118,8 @@ fn task_shader_culling_draws_the_unculled_image() {
         let mut poser = Poser::default();
         let mut matrices = Vec::new();
         poser.skinning_matrices(&asset.skeleton, skin, clip, t, &mut matrices);
-        let joints: Vec<Affine3A> = {
-            let g = poser.globals(&asset.skeleton, clip, t);
-            skin.joints.iter().map(|&j| Affine3A::from_mat4(g[j as usize].as_mat4())).collect()
-        };
+        let mut joints = Vec::new();
+        skinlet::pose::joint_globals(skin, poser.globals(&asset.skeleton, clip, t), &mut joints);
         let mut posed = vec![Vec3::ZERO; baked.mesh.positions.len()];
         let inf = baked.mesh.influences.as_ref().unwrap();
         skinlet::skinning::skin(inf, &baked.mesh.positions, &[], &matrices, &mut posed, &mut []).unwrap();

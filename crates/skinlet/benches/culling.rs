@@ -49,7 +49,9 @@ fn poses(asset: &Asset, skin: u32, n: usize) -> (Vec<Vec<Affine3A>>, Vec<Vec<Aff
         let clip = asset.clips.get(p.clip);
         let t = clip.map_or(0.0, |c| c.start + p.offset * c.duration());
         let g = poser.globals(&asset.skeleton, clip, t);
-        local.push(skin.joints.iter().map(|&j| Affine3A::from_mat4(g[j as usize].as_mat4())).collect());
+        let mut joints = Vec::new();
+        skinlet::pose::joint_globals(skin, g, &mut joints);
+        local.push(joints);
         world.push(skin.joints.iter().map(|&j| Affine3A::from_mat4((p.model * g[j as usize]).as_mat4())).collect());
         models.push(Affine3A::from_mat4(p.model.as_mat4()));
     }

@@ -24,6 +24,13 @@ pub fn global_transforms(skeleton: &Skeleton, locals: &[Trs], out: &mut Vec<DMat
     }
 }
 
+/// The global matrices of a skin's joints, in skin order (what joint-space bounds are moved
+/// by), in f32.
+pub fn joint_globals(skin: &Skin, globals: &[DMat4], out: &mut Vec<Affine3A>) {
+    out.clear();
+    out.extend(skin.joints.iter().map(|&j| Affine3A::from_mat4(globals[j as usize].as_mat4())));
+}
+
 /// Skinning matrices `global × inverse_bind` of a skin's joints.
 pub fn skinning_matrices(skin: &Skin, globals: &[DMat4], out: &mut Vec<Affine3A>) {
     out.clear();

@@ -7,7 +7,7 @@ mod common;
 mod rig;
 use common::assets_dir;
 
-use glam::{Affine3A, Vec3};
+use glam::Vec3;
 use skinlet::bake::{Baked, bake};
 use skinlet::bounds::refine::Refinement;
 use skinlet::clip::Clip;
@@ -97,8 +97,8 @@ fn check_boxes(
     for t in times {
         let globals = poser.globals(skeleton, clip, t).to_vec();
         skinlet::pose::skinning_matrices(skin, &globals, &mut skinning);
-        let joint_globals: Vec<Affine3A> =
-            skin.joints.iter().map(|&j| Affine3A::from_mat4(globals[j as usize].as_mat4())).collect();
+        let mut joint_globals = Vec::new();
+        skinlet::pose::joint_globals(skin, &globals, &mut joint_globals);
         skinlet::skinning::skin(inf, &mesh.positions, &[], &skinning, &mut skinned, &mut []).unwrap();
         let mut boxes: Vec<(&str, Box3)> =
             vec![("mesh space", in_mesh.update(&skinning)), ("joint space", in_joint.update(&joint_globals))];

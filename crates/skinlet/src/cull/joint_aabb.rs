@@ -442,8 +442,8 @@ mod tests {
         let globals = poser.globals(&asset.skeleton, Some(clip), clip.start + 0.37 * clip.duration()).to_vec();
         let mut skinning = Vec::new();
         skinning_matrices(skin, &globals, &mut skinning);
-        let joint_globals: Vec<Affine3A> =
-            skin.joints.iter().map(|&j| Affine3A::from_mat4(globals[j as usize].as_mat4())).collect();
+        let mut joint_globals = Vec::new();
+        crate::pose::joint_globals(skin, &globals, &mut joint_globals);
         let mut skinned = vec![Vec3::ZERO; mesh.positions.len()];
         crate::skinning::skin(
             mesh.influences.as_ref().unwrap(),
@@ -491,8 +491,8 @@ mod tests {
             );
             for k in 0..8 {
                 let g = poser.globals(&asset.skeleton, Some(clip), clip.start + k as f32 / 8.0 * clip.duration());
-                let m: Vec<Affine3A> =
-                    skin.joints.iter().map(|&j| Affine3A::from_mat4(g[j as usize].as_mat4())).collect();
+                let mut m = Vec::new();
+                crate::pose::joint_globals(skin, g, &mut m);
                 let (fast, slow) = (b.update(&m), b.update_narrow(&m));
                 let tol = 1e-5 * (slow.max - slow.min).abs().max_element().max(1.0);
                 assert!(
