@@ -89,8 +89,7 @@ fn joint_aabb(file: Option<&str>, instances: &str, seconds: f64, json: bool) -> 
     let mut rows = Vec::new();
     for n in counts {
         let w = Workload::new(&asset, n, 1)?;
-        let skin_index = asset.instances.iter().find_map(|i| i.skin).context("no skinned mesh")?;
-        let (skin, mesh) = (&asset.skins[skin_index as usize], asset.combined_mesh(Some(skin_index)));
+        let (skin, mesh) = (&asset.skins[w.skin as usize], asset.combined_mesh(Some(w.skin)));
         let clips: Vec<&Clip> = asset.clips.iter().collect();
         let folded = w.boxes.fold_leaves(&asset.skeleton, skin, &mesh, &clips, 2)?;
         let (mut bevy_out, mut ours_out, mut folded_out) =

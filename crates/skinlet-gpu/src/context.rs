@@ -80,6 +80,47 @@ impl Gpu {
         })
     }
 
+    /// A compute pipeline from WGSL `source` with entry point `entry` and one bind group of
+    /// `entries`; returns the pipeline and that group's layout.
+    pub(crate) fn compute_pipeline(
+        &self,
+        label: &str,
+        source: String,
+        entry: &str,
+        entries: &[wgpu::BindGroupLayoutEntry],
+    ) -> (wgpu::ComputePipeline, wgpu::BindGroupLayout) {
+        let device = &self.device;
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some(label),
+            source: wgpu::ShaderSource::Wgsl(source.into()),
+        });
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some(label),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(label),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some(entry),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        (pipeline, layout)
+    }
+
+    /// A bind group of `entries` for `layout`.
+    pub(crate) fn bind_group(
+        &self,
+        label: &str,
+        layout: &wgpu::BindGroupLayout,
+        entries: &[wgpu::BindGroupEntry],
+    ) -> wgpu::BindGroup {
+        self.device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some(label), layout, entries })
+    }
+
     /// Runs `work` inside a validation error scope and waits for the queue: a validation or
     /// out-of-memory error becomes a [`GpuError`] named after `location`.
     pub(crate) fn checked<T>(&self, location: &'static str, work: impl FnOnce() -> T) -> Result<T> {

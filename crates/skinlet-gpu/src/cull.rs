@@ -24,38 +24,21 @@ pub struct ComputeCulling {
 impl ComputeCulling {
     pub fn new(gpu: &Gpu) -> Result<ComputeCulling> {
         gpu.checked("culling pipeline", || {
-            let module = gpu.device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("cull.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(
-                    [include_str!("shaders/cull_common.wgsl"), include_str!("shaders/cull.wgsl")].concat().into(),
-                ),
-            });
             let stage = wgpu::ShaderStages::COMPUTE;
             let read = wgpu::BufferBindingType::Storage { read_only: true };
             let write = wgpu::BufferBindingType::Storage { read_only: false };
-            let layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("culling"),
-                entries: &[
+            let (pipeline, layout) = gpu.compute_pipeline(
+                "culling",
+                [include_str!("shaders/cull_common.wgsl"), include_str!("shaders/cull.wgsl")].concat(),
+                "cull",
+                &[
                     buffer_entry(0, stage, wgpu::BufferBindingType::Uniform),
                     buffer_entry(1, stage, read),
                     buffer_entry(2, stage, read),
                     buffer_entry(3, stage, write),
                     buffer_entry(4, stage, write),
                 ],
-            });
-            let pipeline_layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("culling"),
-                bind_group_layouts: &[Some(&layout)],
-                immediate_size: 0,
-            });
-            let pipeline = gpu.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some("culling"),
-                layout: Some(&pipeline_layout),
-                module: &module,
-                entry_point: Some("cull"),
-                compilation_options: Default::default(),
-                cache: None,
-            });
+            );
             ComputeCulling { pipeline, layout }
         })
     }
@@ -72,15 +55,16 @@ impl ComputeCulling {
         let invalid = |message: String| GpuError::Invalid { location: "GPU culling", message };
         let Some(first) = frames.first() else { return Ok(Vec::new()) };
         let joints = culler.joints();
-        if frames.iter().any(|f| {
-            f.records().len() != joints || f.tests() != first.tests() || f.orthographic() != first.orthographic()
-        }) {
+        if frames
+            .iter()
+            .any(|f| f.joints() != joints || f.tests() != first.tests() || f.orthographic() != first.orthographic())
+        {
             return Err(invalid(format!(
                 "every frame must be prepared for the culler's {joints} joints with the same tests and projection"
             )));
         }
-        let slots = culler.slots();
-        let total = slots.len() * frames.len();
+        let slots = culler.len();
+        let total = slots * frames.len();
         if total == 0 {
             return Ok(frames.iter().map(|_| (Vec::new(), CullCounts::default())).collect());
         }
@@ -89,7 +73,7 @@ impl ComputeCulling {
         }
         let slot_words = pack_slots(culler);
         let records = pack_records(frames);
-        let params = [slots.len() as u32, joints as u32, frames.len() as u32, test_flags(first)];
+        let params = [slots as u32, joints as u32, frames.len() as u32, test_flags(first)];
         let counts_size = (12 * frames.len()) as u64;
         let visible_size = (4 * total) as u64;
         let (counts, visible) = gpu.checked("GPU culling", || {
@@ -100,17 +84,17 @@ impl ComputeCulling {
             let record_buffer = gpu.buffer("joint records", &records, storage);
             let counts = gpu.buffer("cull counts", &vec![0u32; 3 * frames.len()], out);
             let visible = gpu.buffer("visible meshlets", &vec![0u32; total], out);
-            let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("culling"),
-                layout: &self.layout,
-                entries: &[
+            let bind = gpu.bind_group(
+                "culling",
+                &self.layout,
+                &[
                     entry(0, &params),
                     entry(1, &slot_buffer),
                     entry(2, &record_buffer),
                     entry(3, &counts),
                     entry(4, &visible),
                 ],
-            });
+            );
             let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
             {
                 let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
@@ -129,8 +113,8 @@ impl ComputeCulling {
             .map(|i| {
                 let (n, frustum, backface) =
                     (counts[3 * i] as usize, counts[3 * i + 1] as usize, counts[3 * i + 2] as usize);
-                let ids = visible[i * slots.len()..i * slots.len() + n.min(slots.len())].to_vec();
-                (ids, CullCounts { meshlets: slots.len(), visible: n, frustum, backface })
+                let ids = visible[i * slots..i * slots + n.min(slots)].to_vec();
+                (ids, CullCounts { meshlets: slots, visible: n, frustum, backface })
             })
             .collect())
     }
@@ -162,7 +146,7 @@ pub(crate) fn pack_slots(culler: &MeshletCuller) -> Vec<u32> {
 
 /// Every frame's joint records, instance after instance (`RECORD` floats per joint).
 pub(crate) fn pack_records(frames: &[JointFrame]) -> Vec<f32> {
-    let mut out = Vec::with_capacity(frames.first().map_or(0, |f| frames.len() * f.records().len() * RECORD));
+    let mut out = Vec::with_capacity(frames.first().map_or(0, |f| frames.len() * f.joints() * RECORD));
     for f in frames {
         for r in f.records() {
             out.extend(r.planes.iter().flatten());

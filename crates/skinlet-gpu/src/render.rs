@@ -299,7 +299,7 @@ impl Renderer {
         };
         let culling = match draw {
             Draw::Culled(culler, frame, triangles) => {
-                if frame.records().len() != culler.joints()
+                if frame.joints() != culler.joints()
                     || culler.len() != mesh.meshlets.as_ref().map_or(0, |m| m.count as usize)
                 {
                     return Err(invalid("the culler and its frame must be the mesh's meshlets and joints"));
@@ -331,11 +331,7 @@ impl Renderer {
             let mut camera = view_proj.to_cols_array().to_vec();
             camera.extend(light.normalize_or_zero().extend(0.0).to_array());
             let camera = gpu.buffer("camera", &camera, wgpu::BufferUsages::UNIFORM);
-            let camera = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("camera"),
-                layout: &self.camera_layout,
-                entries: &[entry(0, &camera)],
-            });
+            let camera = gpu.bind_group("camera", &self.camera_layout, &[entry(0, &camera)]);
             let texture = |format, usage| {
                 device.create_texture(&wgpu::TextureDescriptor {
                     label: None,
@@ -356,29 +352,17 @@ impl Renderer {
             let mut drawn = None;
             let (pipeline, group0) = match mesh_draw {
                 Some((path, meshlets)) => {
-                    let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                        label: Some("mesh-shader mesh"),
-                        layout: &path.skin_layout,
-                        entries: &mesh_bindings(mesh, &matrices),
-                    });
-                    extra.push(device.create_bind_group(&wgpu::BindGroupDescriptor {
-                        label: Some("meshlets"),
-                        layout: &path.meshlet_layout,
-                        entries: &[
-                            entry(0, &meshlets.meshlets),
-                            entry(1, &meshlets.vertices),
-                            entry(2, &meshlets.triangles),
-                        ],
-                    }));
+                    let bind = gpu.bind_group("mesh-shader mesh", &path.skin_layout, &mesh_bindings(mesh, &matrices));
+                    extra.push(gpu.bind_group(
+                        "meshlets",
+                        &path.meshlet_layout,
+                        &[entry(0, &meshlets.meshlets), entry(1, &meshlets.vertices), entry(2, &meshlets.triangles)],
+                    ));
                     match (&culling, draw) {
                         (_, Draw::Colored(colors)) => {
                             let words: Vec<u32> = colors.iter().map(|c| u32::from_le_bytes(*c)).collect();
                             let colors = gpu.buffer("meshlet colors", &words, wgpu::BufferUsages::STORAGE);
-                            extra.push(device.create_bind_group(&wgpu::BindGroupDescriptor {
-                                label: Some("meshlet colors"),
-                                layout: &path.color_layout,
-                                entries: &[entry(3, &colors)],
-                            }));
+                            extra.push(gpu.bind_group("meshlet colors", &path.color_layout, &[entry(3, &colors)]));
                             (&path.colored_pipeline, bind)
                         }
                         (Some((_, params, slots, records, triangle_cull)), _) => {
@@ -390,17 +374,17 @@ impl Renderer {
                             let triangle_cull = gpu.buffer("triangle culling", triangle_cull, uniform);
                             let counter =
                                 gpu.buffer("drawn triangles", &[0u32; 4], storage | wgpu::BufferUsages::COPY_SRC);
-                            extra.push(device.create_bind_group(&wgpu::BindGroupDescriptor {
-                                label: Some("task culling"),
-                                layout: &path.cull_layout,
-                                entries: &[
+                            extra.push(gpu.bind_group(
+                                "task culling",
+                                &path.cull_layout,
+                                &[
                                     entry(0, &params),
                                     entry(1, &slots),
                                     entry(2, &records),
                                     entry(4, &counter),
                                     entry(5, &triangle_cull),
                                 ],
-                            }));
+                            ));
                             drawn = Some(counter);
                             (&path.culled_pipeline, bind)
                         }
@@ -408,20 +392,12 @@ impl Renderer {
                     }
                 }
                 None if matches!(draw, Draw::Plain(Skinning::Vertex)) => {
-                    let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                        label: Some("mesh"),
-                        layout: &self.mesh_layout,
-                        entries: &mesh_bindings(mesh, &matrices),
-                    });
+                    let bind = gpu.bind_group("mesh", &self.mesh_layout, &mesh_bindings(mesh, &matrices));
                     (&self.vertex_pipeline, bind)
                 }
                 None => {
                     self.compute.encode(gpu, &mut encoder, mesh, &matrices);
-                    let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                        label: Some("skinned"),
-                        layout: &self.skinned_layout,
-                        entries: &[entry(0, &mesh.out_positions)],
-                    });
+                    let bind = gpu.bind_group("skinned", &self.skinned_layout, &[entry(0, &mesh.out_positions)]);
                     (&self.skinned_pipeline, bind)
                 }
             };

@@ -53,32 +53,12 @@ pub(crate) fn mesh_bindings<'a>(mesh: &'a GpuMesh, matrices: &'a wgpu::Buffer) -
 impl ComputeSkinning {
     pub fn new(gpu: &Gpu) -> Result<ComputeSkinning> {
         gpu.checked("compute skinning pipeline", || {
-            let source = [include_str!("shaders/common.wgsl"), include_str!("shaders/skin.wgsl")].concat();
-            let module = gpu.device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("skin.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(source.into()),
-            });
             let stage = wgpu::ShaderStages::COMPUTE;
             let mut entries = mesh_entries(stage);
             entries
                 .extend((6..=7).map(|b| buffer_entry(b, stage, wgpu::BufferBindingType::Storage { read_only: false })));
-            let layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("skinning"),
-                entries: &entries,
-            });
-            let pipeline_layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("skinning"),
-                bind_group_layouts: &[Some(&layout)],
-                immediate_size: 0,
-            });
-            let pipeline = gpu.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some("skinning"),
-                layout: Some(&pipeline_layout),
-                module: &module,
-                entry_point: Some("skin"),
-                compilation_options: Default::default(),
-                cache: None,
-            });
+            let source = [include_str!("shaders/common.wgsl"), include_str!("shaders/skin.wgsl")].concat();
+            let (pipeline, layout) = gpu.compute_pipeline("skinning", source, "skin", &entries);
             ComputeSkinning { pipeline, layout }
         })
     }
@@ -94,11 +74,7 @@ impl ComputeSkinning {
     ) {
         let mut entries = mesh_bindings(mesh, matrices);
         entries.extend([entry(6, &mesh.out_positions), entry(7, &mesh.out_normals)]);
-        let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("skinning"),
-            layout: &self.layout,
-            entries: &entries,
-        });
+        let bind = gpu.bind_group("skinning", &self.layout, &entries);
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &bind, &[]);

@@ -123,6 +123,8 @@ pub struct Workload {
     /// Entity-space joint matrices of every instance, `stride` per instance.
     pub palette: Vec<Affine3A>,
     pub stride: usize,
+    /// The skin posed (the asset's first skinned mesh).
+    pub skin: u32,
 }
 
 impl Workload {
@@ -189,7 +191,7 @@ impl Workload {
         for (e, meta) in bevy.metas.iter().enumerate() {
             bevy.transforms[meta.row as usize] = flat.transforms[e];
         }
-        Ok(Workload { bevy, bevy_flat: flat, boxes, palette, stride })
+        Ok(Workload { bevy, bevy_flat: flat, boxes, palette, stride, skin: skin_index })
     }
 }
 

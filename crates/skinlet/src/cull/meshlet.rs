@@ -225,6 +225,11 @@ impl JointFrame {
             .collect()
     }
 
+    /// Joints prepared.
+    pub fn joints(&self) -> usize {
+        self.group.len()
+    }
+
     pub fn tests(&self) -> Tests {
         self.tests
     }
