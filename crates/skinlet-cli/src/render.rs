@@ -1,13 +1,16 @@
 //! `skinlet render`: a posed character drawn offscreen on the GPU, written as a PNG.
 
 use anyhow::{Context, Result};
-use glam::Vec3;
+use glam::{DMat4, Vec3};
 use serde_json::json;
+use skinlet::bounds::meshlet::Class;
 use skinlet::bounds::refine::Refinement;
 use skinlet::clip::Clip;
+use skinlet::contour::skinned::{SkinnedMethod, SkinnedParams, refinement, skinned_edges};
 use skinlet::cull::meshlet::{JointFrame, MeshletCuller, Tests};
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::Poser;
+use skinlet_gpu::contours::{ContourExtraction, ContourView, GpuContours};
 use skinlet_gpu::mesh::GpuMesh;
 use skinlet_gpu::render::{Renderer, Skinning, framing};
 use skinlet_gpu::{Gpu, GpuOptions};
@@ -30,7 +33,10 @@ pub struct Args {
     /// (mesh shaders). culled: the meshlets the conservative bounds cull for a camera 1.6×
     /// closer than a fit, seen by an observer behind and above it: kept ones light,
     /// frustum-culled red, backface-culled blue (mesh shaders; bounds from key intervals).
-    #[arg(long, default_value = "shaded", value_parser = ["shaded", "meshlets", "culled"])]
+    /// classes: meshlets by culling class (paper table 2): both tests green, frustum test
+    /// only amber, never culled grey (mesh shaders). contours: the contour edges extracted
+    /// on the GPU from patches bounded over the clips, visible orange, hidden dim.
+    #[arg(long, default_value = "shaded", value_parser = ["shaded", "meshlets", "culled", "classes", "contours"])]
     view: String,
     /// The pipeline of the shaded view: vertex (skinned in the vertex shader), compute (by a
     /// compute pass, then drawn) or mesh (one mesh-shader workgroup per skin-aware meshlet).
@@ -79,7 +85,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     skinlet::skinning::skin(inf, &mesh.positions, &[], &matrices, &mut posed, &mut [])?;
     let gpu = Gpu::new(GpuOptions { software: a.software, ..GpuOptions::default() })?;
     let renderer = Renderer::new(&gpu, a.size, a.size)?;
-    let need_mesh_shaders = a.view != "shaded" || a.skinning == "mesh";
+    let need_mesh_shaders = !matches!(a.view.as_str(), "shaded" | "contours") || a.skinning == "mesh";
     anyhow::ensure!(
         !need_mesh_shaders || gpu.has_mesh_shaders(),
         "{} has no mesh shaders (needed by --view {} --skinning {})",
@@ -105,16 +111,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             )?
         }
         "culled" => {
-            let clips: Vec<&Clip> = asset.clips.iter().collect();
-            let (baked, _) = skinlet::bake::bake(
-                &asset,
-                skin_index,
-                &clips,
-                Builder::SkinAware,
-                MeshletLimits::NVIDIA,
-                &Refinement::NONE,
-                &mut |_| {},
-            )?;
+            let baked = bake(&asset, skin_index)?;
             let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len());
             let mut joints = Vec::new();
             skinlet::pose::joint_globals(skin, poser.globals(&asset.skeleton, clip, t), &mut joints);
@@ -139,6 +136,56 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             let observer = framing(&posed, OBSERVER, 0.95).view_proj;
             renderer.render_colored(&gpu, &gpu_mesh, &matrices, observer, LIGHT, &colors)?
         }
+        "classes" => {
+            let baked = bake(&asset, skin_index)?;
+            let colors: Vec<[u8; 4]> = (baked.classes.iter())
+                .map(|c| match c {
+                    Class::Both => [120, 210, 120, 255],
+                    Class::FrustumOnly => [240, 180, 70, 255],
+                    Class::None => [150, 150, 150, 255],
+                })
+                .collect();
+            let count = |k: Class| baked.classes.iter().filter(|&&c| c == k).count();
+            summary = json!({"meshlets": baked.meshlets.len(), "both": count(Class::Both),
+                "frustum_only": count(Class::FrustumOnly), "none": count(Class::None)});
+            let gpu_mesh = GpuMesh::new(&gpu, &baked.mesh, Some(&baked.meshlets))?;
+            renderer.render_colored(
+                &gpu,
+                &gpu_mesh,
+                &matrices,
+                framing(&posed, FRONT, 1.0).view_proj,
+                LIGHT,
+                &colors,
+            )?
+        }
+        "contours" => {
+            let mut baked = bake(&asset, skin_index)?;
+            let params = SkinnedParams::new(SkinnedMethod::Animated, refinement(None, 2));
+            skinlet::bake::add_contours(&mut baked, &asset, skin_index, &params, true)?;
+            let patches = &baked.contours.as_ref().context("contours were just added")?.patches;
+            let edges = skinned_edges(&baked.mesh, true)?;
+            let gpu_mesh = GpuMesh::new(&gpu, &baked.mesh, None)?;
+            let shape = GpuContours::skinned(&gpu, &edges, patches)?;
+            let extraction = ContourExtraction::new(&gpu)?;
+            let camera = framing(&posed, FRONT, 1.0);
+            let globals = poser.globals(&asset.skeleton, clip, t);
+            let inverses: Vec<DMat4> = skin.joints.iter().map(|&j| globals[j as usize].inverse()).collect();
+            let clip_index = clip.and_then(|c| baked.settings.clips.iter().position(|n| *n == c.name));
+            let view = ContourView::skinned(patches, &inverses, clip_index.map(|c| (c, t)), camera.projection);
+            let (image, found) = renderer.render_contours(
+                &gpu,
+                &gpu_mesh,
+                &matrices,
+                camera.view_proj,
+                LIGHT,
+                &extraction,
+                &shape,
+                &view,
+            )?;
+            summary = json!({"edges": edges.len(), "patches": patches.patches.len(), "contour_edges": found.edges.len(),
+                "tested_edges": found.tested, "accepted_groups": found.accepted_groups});
+            image
+        }
         _ => {
             let (gpu_mesh, path) = match a.skinning.as_str() {
                 "vertex" => (GpuMesh::new(&gpu, &mesh, None)?, Skinning::Vertex),
@@ -162,4 +209,20 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         println!("{}: {file} at {:.2} s, {} view on {} {summary}", a.out.display(), a.time, a.view, gpu.info.name);
     }
     Ok(())
+}
+
+/// A bake of the skin for the culling views: skin-aware meshlets, bounds over every clip
+/// from key intervals only (no refinement: quick, and still conservative).
+fn bake(asset: &skinlet::Asset, skin: u32) -> Result<skinlet::bake::Baked> {
+    let clips: Vec<&Clip> = asset.clips.iter().collect();
+    let (baked, _) = skinlet::bake::bake(
+        asset,
+        skin,
+        &clips,
+        Builder::SkinAware,
+        MeshletLimits::NVIDIA,
+        &Refinement::NONE,
+        &mut |_| {},
+    )?;
+    Ok(baked)
 }

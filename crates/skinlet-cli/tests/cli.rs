@@ -445,7 +445,7 @@ fn render_writes_a_png_of_the_posed_character() {
     // The colored views need mesh shaders (lavapipe from bookworm-backports has them; CI
     // requires them).
     let needs_mesh = std::env::var("SKINLET_REQUIRE_GPU").is_ok_and(|v| v == "1");
-    for view in ["meshlets", "culled"] {
+    for view in ["meshlets", "culled", "classes", "contours"] {
         let (code, stdout, err) =
             skinlet(&["render", "@demo:2000", "--view", view, "--size", "64", "-o", out.to_str().unwrap(), "--json"]);
         if code != 0 && err.contains("no mesh shaders") && !needs_mesh {
@@ -455,7 +455,17 @@ fn render_writes_a_png_of_the_posed_character() {
         assert_eq!(code, 0, "{view}: {err}");
         let j: serde_json::Value = serde_json::from_str(&stdout).unwrap();
         let s = &j["summary"];
+        if view == "contours" {
+            let (found, tested, edges) =
+                ["contour_edges", "tested_edges", "edges"].map(|k| s[k].as_u64().unwrap()).into();
+            assert!(0 < found && found <= tested && tested < edges, "{j}");
+            continue;
+        }
         assert!(s["meshlets"].as_u64().unwrap() > 0, "{j}");
+        if view == "classes" {
+            let parts: u64 = ["both", "frustum_only", "none"].iter().map(|k| s[k].as_u64().unwrap()).sum();
+            assert_eq!(parts, s["meshlets"].as_u64().unwrap(), "{j}");
+        }
         if view == "culled" {
             let parts: u64 = ["kept", "frustum_culled", "backface_culled"].iter().map(|k| s[k].as_u64().unwrap()).sum();
             assert_eq!(parts, s["meshlets"].as_u64().unwrap(), "{j}");

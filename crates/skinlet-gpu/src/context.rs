@@ -18,13 +18,13 @@ pub struct Gpu {
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
     pub info: wgpu::AdapterInfo,
-    /// Features enabled on the device (a subset of mesh shaders, timestamps, subgroups).
+    /// Features enabled on the device (a subset of mesh shaders, timestamps, subgroups, f64).
     pub features: wgpu::Features,
 }
 
 impl Gpu {
-    /// The first Vulkan adapter, with mesh shaders, timestamp queries and subgroup operations
-    /// enabled where the adapter has them.
+    /// The first Vulkan adapter, with mesh shaders, timestamp queries, subgroup operations and
+    /// 64-bit floats in shaders enabled where the adapter has them.
     pub fn new(options: GpuOptions) -> Result<Gpu> {
         let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
             backends: wgpu::Backends::VULKAN,
@@ -35,7 +35,7 @@ impl Gpu {
             ..Default::default()
         }))
         .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
-        let mut wanted = wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::SUBGROUP;
+        let mut wanted = wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::SUBGROUP | wgpu::Features::SHADER_F64;
         if !options.no_mesh_shaders {
             wanted |= wgpu::Features::EXPERIMENTAL_MESH_SHADER;
         }
@@ -89,26 +89,38 @@ impl Gpu {
         entry: &str,
         entries: &[wgpu::BindGroupLayoutEntry],
     ) -> (wgpu::ComputePipeline, wgpu::BindGroupLayout) {
+        let layout =
+            self.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries });
+        (self.compute_pipeline_with(label, source, entry, &layout), layout)
+    }
+
+    /// A compute pipeline from WGSL `source` with entry point `entry` and one bind group of
+    /// an existing `layout`.
+    pub(crate) fn compute_pipeline_with(
+        &self,
+        label: &str,
+        source: String,
+        entry: &str,
+        layout: &wgpu::BindGroupLayout,
+    ) -> wgpu::ComputePipeline {
         let device = &self.device;
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some(label),
             source: wgpu::ShaderSource::Wgsl(source.into()),
         });
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some(label),
-            bind_group_layouts: &[Some(&layout)],
+            bind_group_layouts: &[Some(layout)],
             immediate_size: 0,
         });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some(label),
             layout: Some(&pipeline_layout),
             module: &module,
             entry_point: Some(entry),
             compilation_options: Default::default(),
             cache: None,
-        });
-        (pipeline, layout)
+        })
     }
 
     /// A bind group of `entries` for `layout`.

@@ -13,6 +13,7 @@
 //! [`GpuError`]; nothing here panics on user data.
 
 mod context;
+pub mod contours;
 pub mod cull;
 pub mod mesh;
 pub mod render;

@@ -6,6 +6,7 @@
 //! same order (meshlet order when the mesh has meshlets) and the same fragment shader, so
 //! they must give the same image; tests/render.rs checks that pixel for pixel.
 
+use crate::contours::{ContourExtraction, ContourView, DRAW_ARGS_OFFSET, Extracted, GpuContours};
 use crate::cull::{pack_records, pack_slots, test_flags};
 use crate::mesh::{GpuMesh, entry};
 use crate::skinning::{ComputeSkinning, buffer_entry, mesh_bindings, mesh_entries};
@@ -44,6 +45,9 @@ pub struct Renderer {
     camera_layout: wgpu::BindGroupLayout,
     vertex_pipeline: wgpu::RenderPipeline,
     skinned_pipeline: wgpu::RenderPipeline,
+    /// Contour lines (positions, contour edge ids, edge endpoints), hidden then visible.
+    lines_layout: wgpu::BindGroupLayout,
+    line_pipelines: [wgpu::RenderPipeline; 2],
     /// With mesh shaders: the mesh-shader pipeline.
     mesh_path: Option<MeshPath>,
 }
@@ -68,6 +72,7 @@ enum Draw<'a> {
     Plain(Skinning),
     Culled(&'a MeshletCuller, &'a JointFrame, Option<Projection>),
     Colored(&'a [[u8; 4]]),
+    Contours(&'a ContourExtraction, &'a GpuContours, &'a ContourView),
 }
 
 const COLOR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
@@ -214,6 +219,47 @@ impl Renderer {
             );
             let skinned_pipeline =
                 pipeline("skinned draw", &[draw, include_str!("shaders/skinned.wgsl")], &skinned_layout);
+            let read = wgpu::BufferBindingType::Storage { read_only: true };
+            let lines_layout =
+                layout("contour lines", &(0..3).map(|b| buffer_entry(b, vertex, read)).collect::<Vec<_>>());
+            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("contour lines"),
+                source: wgpu::ShaderSource::Wgsl([draw, include_str!("shaders/contour_lines.wgsl")].concat().into()),
+            });
+            let lines_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("contour lines"),
+                bind_group_layouts: &[Some(&lines_layout), Some(&camera_layout)],
+                immediate_size: 0,
+            });
+            let line_pipeline = |fragment_entry: &str, compare| {
+                device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                    label: Some(fragment_entry),
+                    layout: Some(&lines_pipeline_layout),
+                    vertex: wgpu::VertexState {
+                        module: &module,
+                        entry_point: Some("line_vertex"),
+                        compilation_options: Default::default(),
+                        buffers: &[],
+                    },
+                    primitive: wgpu::PrimitiveState {
+                        topology: wgpu::PrimitiveTopology::LineList,
+                        ..Default::default()
+                    },
+                    depth_stencil: Some(wgpu::DepthStencilState {
+                        depth_write_enabled: Some(false),
+                        depth_compare: Some(compare),
+                        ..depth_stencil()
+                    }),
+                    multisample: Default::default(),
+                    fragment: fragment(&module, fragment_entry, &targets),
+                    multiview_mask: None,
+                    cache: None,
+                })
+            };
+            let line_pipelines = [
+                line_pipeline("hidden_line", wgpu::CompareFunction::Greater),
+                line_pipeline("visible_line", wgpu::CompareFunction::LessEqual),
+            ];
             Renderer {
                 width,
                 height,
@@ -223,6 +269,8 @@ impl Renderer {
                 camera_layout,
                 vertex_pipeline,
                 skinned_pipeline,
+                lines_layout,
+                line_pipelines,
                 mesh_path,
             }
         })
@@ -280,6 +328,33 @@ impl Renderer {
         self.draw(gpu, mesh, matrices, view_proj, light, Draw::Colored(colors)).map(|(image, _)| image)
     }
 
+    /// Like [`Renderer::render`] with compute skinning, then the contour edges of the
+    /// skinned positions seen by `view` extracted on the GPU ([`ContourExtraction`]) and drawn
+    /// as lines by an indirect draw: visible ones bright, hidden ones dim. `contours` must be
+    /// built over `mesh`'s vertices. Also returns what the extraction found.
+    #[allow(clippy::too_many_arguments)]
+    pub fn render_contours(
+        &self,
+        gpu: &Gpu,
+        mesh: &GpuMesh,
+        matrices: &[Affine3A],
+        view_proj: Mat4,
+        light: Vec3,
+        extraction: &ContourExtraction,
+        contours: &GpuContours,
+        view: &ContourView,
+    ) -> Result<(Image, Extracted)> {
+        if contours.vertices > mesh.vertices {
+            return Err(GpuError::Invalid {
+                location: "render",
+                message: format!("contours over {} vertices, the mesh has {}", contours.vertices, mesh.vertices),
+            });
+        }
+        let (image, _) =
+            self.draw(gpu, mesh, matrices, view_proj, light, Draw::Contours(extraction, contours, view))?;
+        Ok((image, contours.read(gpu)?))
+    }
+
     fn draw(
         &self,
         gpu: &Gpu,
@@ -292,7 +367,7 @@ impl Renderer {
         let invalid = |message: &str| GpuError::Invalid { location: "render", message: message.into() };
         let matrices = mesh.matrix_buffer(gpu, matrices)?;
         let mesh_draw = match (draw, &self.mesh_path, &mesh.meshlets) {
-            (Draw::Plain(Skinning::Vertex | Skinning::Compute), _, _) => None,
+            (Draw::Plain(Skinning::Vertex | Skinning::Compute) | Draw::Contours(..), _, _) => None,
             (_, None, _) => return Err(invalid("the device has no mesh shaders")),
             (_, _, None) => return Err(invalid("mesh-shader skinning needs a mesh uploaded with meshlets")),
             (_, Some(path), Some(meshlets)) => Some((path, meshlets)),
@@ -322,11 +397,11 @@ impl Renderer {
                 }
                 None
             }
-            Draw::Plain(_) => None,
+            Draw::Plain(_) | Draw::Contours(..) => None,
         };
         let (width, height) = (self.width, self.height);
         let row = (4 * width).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
-        let (readback, drawn) = gpu.checked("render", || {
+        let (readback, drawn) = gpu.checked("render", || -> Result<_> {
             let device = &gpu.device;
             let mut camera = view_proj.to_cols_array().to_vec();
             camera.extend(light.normalize_or_zero().extend(0.0).to_array());
@@ -350,6 +425,7 @@ impl Renderer {
             // Groups 2 and 3 of the mesh-shader pipelines: meshlets, and culling data.
             let mut extra = Vec::new();
             let mut drawn = None;
+            let mut lines = None;
             let (pipeline, group0) = match mesh_draw {
                 Some((path, meshlets)) => {
                     let bind = gpu.bind_group("mesh-shader mesh", &path.skin_layout, &mesh_bindings(mesh, &matrices));
@@ -397,6 +473,21 @@ impl Renderer {
                 }
                 None => {
                     self.compute.encode(gpu, &mut encoder, mesh, &matrices);
+                    if let Draw::Contours(extraction, contours, view) = draw {
+                        extraction.encode(gpu, &mut encoder, contours, &mesh.out_positions, view)?;
+                        lines = Some((
+                            contours,
+                            gpu.bind_group(
+                                "contour lines",
+                                &self.lines_layout,
+                                &[
+                                    entry(0, &mesh.out_positions),
+                                    entry(1, &contours.contours),
+                                    entry(2, &contours.endpoints),
+                                ],
+                            ),
+                        ));
+                    }
                     let bind = gpu.bind_group("skinned", &self.skinned_layout, &[entry(0, &mesh.out_positions)]);
                     (&self.skinned_pipeline, bind)
                 }
@@ -446,6 +537,13 @@ impl Renderer {
                         pass.draw_indexed(0..mesh.index_count, 0, 0..1);
                     }
                 }
+                if let Some((contours, group)) = &lines {
+                    pass.set_bind_group(0, group, &[]);
+                    for pipeline in &self.line_pipelines {
+                        pass.set_pipeline(pipeline);
+                        pass.draw_indirect(&contours.state, DRAW_ARGS_OFFSET);
+                    }
+                }
             }
             let readback = device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("image"),
@@ -471,8 +569,8 @@ impl Renderer {
                 wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
             );
             gpu.queue.submit([encoder.finish()]);
-            (readback, drawn)
-        })?;
+            Ok((readback, drawn))
+        })??;
         let bytes = gpu.read(&readback, (row * height) as u64)?;
         let rgba = bytes.chunks_exact(row as usize).flat_map(|r| &r[..4 * width as usize]).copied().collect();
         let drawn = match drawn {

@@ -392,6 +392,23 @@ fn model_extent(skeleton: &Skeleton, skin: &Skin, clips: &[&Clip], rest: &[Vec3]
     Ok(2.0 * extent)
 }
 
+/// The viewer in the space of a joint whose global matrix has inverse `inverse` (`G⁻¹·eye`,
+/// or `A⁻¹·dir` normalized), as patch tests read it; `None` when that matrix is singular or
+/// not finite (such a joint says nothing about facing: its patches are all tested).
+pub fn joint_view(inverse: &DMat4, projection: Projection) -> Option<ViewF> {
+    let view = match projection {
+        Projection::Perspective { eye } => ViewF::Eye(inverse.transform_point3(eye.as_dvec3()).as_vec3()),
+        Projection::Orthographic { dir } => {
+            ViewF::Dir(inverse.transform_vector3(dir.as_dvec3()).normalize_or_zero().as_vec3())
+        }
+    };
+    let finite = match view {
+        ViewF::Eye(e) => e.is_finite(),
+        ViewF::Dir(d) => d.is_finite() && d != Vec3::ZERO,
+    };
+    finite.then_some(view)
+}
+
 impl SkinnedPatches {
     /// The window of clip `clip` (index into the clips given to [`build`]) at time `t`.
     pub fn window(&self, clip: usize, t: f32) -> Option<usize> {
@@ -429,6 +446,30 @@ impl SkinnedPatches {
         self.extract_with(positions, edges, inverse, at, projection, out)
     }
 
+    /// Which bounds a frame uses: `w + 1` for window `w` of clip `at.0` at time `at.1` (when
+    /// given and built), else 0, the bounds over every clip. See [`Self::bound_set_bounds`].
+    pub fn bound_set(&self, at: Option<(usize, f32)>) -> usize {
+        let n = self.patches.len();
+        match at.and_then(|(c, t)| self.window(c, t)) {
+            Some(w) if self.window_bounds.len() >= (w + 1) * n => w + 1,
+            _ => 0,
+        }
+    }
+
+    /// The bounds of set `set` (one per patch; 0: over every clip, `w + 1`: window `w`).
+    pub fn bound_set_bounds(&self, set: usize) -> &[PatchBounds] {
+        let n = self.patches.len();
+        match set {
+            0 => &self.patches.bounds,
+            w => self.window_bounds.get((w - 1) * n..w * n).unwrap_or(&self.patches.bounds),
+        }
+    }
+
+    /// The number of bound sets: 1 + the windows built.
+    pub fn bound_sets(&self) -> usize {
+        1 + self.window_bounds.len().checked_div(self.patches.len()).unwrap_or(0)
+    }
+
     fn extract_with(
         &self,
         positions: &[Vec3],
@@ -438,11 +479,7 @@ impl SkinnedPatches {
         projection: Projection,
         out: &mut Vec<u32>,
     ) -> Tested {
-        let n = self.patches.len();
-        let all_bounds = match at.and_then(|(c, t)| self.window(c, t)) {
-            Some(w) if self.window_bounds.len() >= (w + 1) * n => &self.window_bounds[w * n..(w + 1) * n],
-            _ => &self.patches.bounds[..],
-        };
+        let all_bounds = self.bound_set_bounds(self.bound_set(at));
         let viewer = Viewer::new(projection);
         out.clear();
         let p = &self.patches;
@@ -451,20 +488,8 @@ impl SkinnedPatches {
         while start < self.joints.len() {
             let j = self.joints[start];
             let end = start + self.joints[start..].iter().take_while(|&&x| x == j).count();
-            let inv = inverse(j as usize);
-            let view = match projection {
-                Projection::Perspective { eye } => ViewF::Eye(inv.transform_point3(eye.as_dvec3()).as_vec3()),
-                Projection::Orthographic { dir } => {
-                    ViewF::Dir(inv.transform_vector3(dir.as_dvec3()).normalize_or_zero().as_vec3())
-                }
-            };
-            // A singular joint matrix says nothing about facing: test everything.
-            let finite = match view {
-                ViewF::Eye(e) => e.is_finite(),
-                ViewF::Dir(d) => d.is_finite() && d != Vec3::ZERO,
-            };
-            tested +=
-                p.test_patches(positions, start..end, &all_bounds[start..end], finite.then_some(view), &viewer, out);
+            let view = joint_view(&inverse(j as usize), projection);
+            tested += p.test_patches(positions, start..end, &all_bounds[start..end], view, &viewer, out);
             start = end;
         }
         tested += p.test_always(positions, edges, &viewer, out);
