@@ -19,6 +19,37 @@ const RECORD: usize = 40;
 pub struct ComputeCulling {
     pipeline: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
+    /// `cull_draws`: indexed indirect draws instead of compacted ids.
+    draws_pipeline: wgpu::ComputePipeline,
+    draws_layout: wgpu::BindGroupLayout,
+}
+
+/// What the culling passes read: parameters, slots, joint records (see cull_common.wgsl).
+pub(crate) struct CullInput {
+    pub params: [u32; 4],
+    pub slots: Vec<u32>,
+    pub records: Vec<f32>,
+}
+
+impl CullInput {
+    pub fn new(culler: &MeshletCuller, frames: &[JointFrame]) -> CullInput {
+        let flags = frames.first().map_or(0, test_flags);
+        CullInput {
+            params: [culler.len() as u32, culler.joints() as u32, frames.len() as u32, flags],
+            slots: pack_slots(culler),
+            records: pack_records(frames),
+        }
+    }
+
+    /// The parameters, slots and joint records as bind group entries 0, 1, 2.
+    pub fn buffers(&self, gpu: &Gpu) -> [wgpu::Buffer; 3] {
+        let storage = wgpu::BufferUsages::STORAGE;
+        [
+            gpu.buffer("culling params", &self.params, wgpu::BufferUsages::UNIFORM),
+            gpu.buffer("cull slots", &self.slots, storage),
+            gpu.buffer("joint records", &self.records, storage),
+        ]
+    }
 }
 
 impl ComputeCulling {
@@ -27,20 +58,57 @@ impl ComputeCulling {
             let stage = wgpu::ShaderStages::COMPUTE;
             let read = wgpu::BufferBindingType::Storage { read_only: true };
             let write = wgpu::BufferBindingType::Storage { read_only: false };
+            let source = || [include_str!("shaders/cull_common.wgsl"), include_str!("shaders/cull.wgsl")].concat();
+            let head = [
+                buffer_entry(0, stage, wgpu::BufferBindingType::Uniform),
+                buffer_entry(1, stage, read),
+                buffer_entry(2, stage, read),
+                buffer_entry(3, stage, write),
+            ];
             let (pipeline, layout) = gpu.compute_pipeline(
                 "culling",
-                [include_str!("shaders/cull_common.wgsl"), include_str!("shaders/cull.wgsl")].concat(),
+                source(),
                 "cull",
-                &[
-                    buffer_entry(0, stage, wgpu::BufferBindingType::Uniform),
-                    buffer_entry(1, stage, read),
-                    buffer_entry(2, stage, read),
-                    buffer_entry(3, stage, write),
-                    buffer_entry(4, stage, write),
-                ],
+                &[&head[..], &[buffer_entry(4, stage, write)]].concat(),
             );
-            ComputeCulling { pipeline, layout }
+            let (draws_pipeline, draws_layout) = gpu.compute_pipeline(
+                "culling to draws",
+                source(),
+                "cull_draws",
+                &[&head[..], &[buffer_entry(5, stage, read), buffer_entry(6, stage, write)]].concat(),
+            );
+            ComputeCulling { pipeline, layout, draws_pipeline, draws_layout }
         })
+    }
+
+    /// Records a pass writing, for one instance culled by `input`, an indexed indirect draw
+    /// per meshlet of `meshlets` into `commands` (culled ones with no instance) and the
+    /// counts (visible, frustum, backface) into `counts`.
+    pub(crate) fn encode_draws(
+        &self,
+        gpu: &Gpu,
+        encoder: &mut wgpu::CommandEncoder,
+        input: &[wgpu::Buffer; 3],
+        meshlets: &crate::mesh::GpuMeshlets,
+        counts: &wgpu::Buffer,
+        commands: &wgpu::Buffer,
+    ) {
+        let bind = gpu.bind_group(
+            "culling to draws",
+            &self.draws_layout,
+            &[
+                entry(0, &input[0]),
+                entry(1, &input[1]),
+                entry(2, &input[2]),
+                entry(3, counts),
+                entry(5, &meshlets.draws),
+                entry(6, commands),
+            ],
+        );
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
+        pass.set_pipeline(&self.draws_pipeline);
+        pass.set_bind_group(0, &bind, &[]);
+        dispatch(&mut pass, meshlets.count as usize);
     }
 
     /// Culls every meshlet of `culler` for each instance's prepared `frames` (all with the
@@ -71,17 +139,12 @@ impl ComputeCulling {
         if total > u32::MAX as usize / 2 {
             return Err(invalid(format!("{total} (instance, meshlet) pairs in one call")));
         }
-        let slot_words = pack_slots(culler);
-        let records = pack_records(frames);
-        let params = [slots as u32, joints as u32, frames.len() as u32, test_flags(first)];
+        let input = CullInput::new(culler, frames);
         let counts_size = (12 * frames.len()) as u64;
         let visible_size = (4 * total) as u64;
         let (counts, visible) = gpu.checked("GPU culling", || {
-            let storage = wgpu::BufferUsages::STORAGE;
-            let out = storage | wgpu::BufferUsages::COPY_SRC;
-            let params = gpu.buffer("culling params", &params, wgpu::BufferUsages::UNIFORM);
-            let slot_buffer = gpu.buffer("cull slots", &slot_words, storage);
-            let record_buffer = gpu.buffer("joint records", &records, storage);
+            let out = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
+            let [params, slot_buffer, record_buffer] = input.buffers(gpu);
             let counts = gpu.buffer("cull counts", &vec![0u32; 3 * frames.len()], out);
             let visible = gpu.buffer("visible meshlets", &vec![0u32; total], out);
             let bind = gpu.bind_group(
@@ -100,9 +163,7 @@ impl ComputeCulling {
                 let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
                 pass.set_pipeline(&self.pipeline);
                 pass.set_bind_group(0, &bind, &[]);
-                // Invocation index = y × 65535 × 64 + x (cull.wgsl).
-                let groups = (total as u32).div_ceil(64);
-                pass.dispatch_workgroups(groups.min(65535), groups.div_ceil(65535), 1);
+                dispatch(&mut pass, total);
             }
             gpu.queue.submit([encoder.finish()]);
             (counts, visible)
@@ -118,6 +179,12 @@ impl ComputeCulling {
             })
             .collect())
     }
+}
+
+/// One invocation per (instance, slot) of `total`: index = y × 65535 × 64 + x (cull.wgsl).
+fn dispatch(pass: &mut wgpu::ComputePass, total: usize) {
+    let groups = (total as u32).div_ceil(64);
+    pass.dispatch_workgroups(groups.min(65535), groups.div_ceil(65535), 1);
 }
 
 /// The culler's slots as `Slot` in cull_common.wgsl (12 words each).

@@ -18,6 +18,8 @@ pub struct GpuMeshlets {
     pub(crate) vertices: wgpu::Buffer,
     /// One u32 per triangle: its three local vertex indices in the low three bytes.
     pub(crate) triangles: wgpu::Buffer,
+    /// Per meshlet: index count and first index in the mesh's index buffer (for indirect draws).
+    pub(crate) draws: wgpu::Buffer,
 }
 
 pub struct GpuMesh {
@@ -149,11 +151,19 @@ fn upload_meshlets(gpu: &Gpu, m: &Meshlets) -> Result<GpuMeshlets> {
         .collect();
     let packed: Vec<u32> =
         m.triangles.chunks_exact(3).map(|t| t[0] as u32 | (t[1] as u32) << 8 | (t[2] as u32) << 16).collect();
+    let draws: Vec<[u32; 2]> = (m.meshlets.iter())
+        .scan(0, |first, ml| {
+            let count = 3 * ml.triangle_count as u32;
+            *first += count;
+            Some([count, *first - count])
+        })
+        .collect();
     let storage = wgpu::BufferUsages::STORAGE;
     gpu.checked("GPU meshlets upload", || GpuMeshlets {
         count: m.len() as u32,
         meshlets: gpu.buffer("meshlets", &records, storage),
         vertices: gpu.buffer("meshlet vertices", &m.vertices, storage),
         triangles: gpu.buffer("meshlet triangles", &packed, storage),
+        draws: gpu.buffer("meshlet draws", &draws, storage),
     })
 }

@@ -7,7 +7,7 @@
 //! they must give the same image; tests/render.rs checks that pixel for pixel.
 
 use crate::contours::{ContourExtraction, ContourView, DRAW_ARGS_OFFSET, Extracted, GpuContours};
-use crate::cull::{pack_records, pack_slots, test_flags};
+use crate::cull::{ComputeCulling, CullInput};
 use crate::mesh::{GpuMesh, entry};
 use crate::skinning::{ComputeSkinning, buffer_entry, mesh_bindings, mesh_entries};
 use crate::{Gpu, GpuError, Result};
@@ -40,6 +40,8 @@ pub struct Renderer {
     pub width: u32,
     pub height: u32,
     compute: ComputeSkinning,
+    /// Compute-pass culling to indirect draws (the culled path without mesh shaders).
+    culling: ComputeCulling,
     mesh_layout: wgpu::BindGroupLayout,
     skinned_layout: wgpu::BindGroupLayout,
     camera_layout: wgpu::BindGroupLayout,
@@ -84,6 +86,7 @@ impl Renderer {
             return Err(GpuError::Invalid { location: "renderer", message: format!("image size {width}×{height}") });
         }
         let compute = ComputeSkinning::new(gpu)?;
+        let culling = ComputeCulling::new(gpu)?;
         gpu.checked("render pipelines", || {
             let device = &gpu.device;
             let vertex = wgpu::ShaderStages::VERTEX;
@@ -264,6 +267,7 @@ impl Renderer {
                 width,
                 height,
                 compute,
+                culling,
                 mesh_layout,
                 skinned_layout,
                 camera_layout,
@@ -290,13 +294,19 @@ impl Renderer {
         self.draw(gpu, mesh, matrices, view_proj, light, Draw::Plain(skinning)).map(|(image, _)| image)
     }
 
-    /// Like [`Renderer::render`] with mesh-shader skinning, but a task shader first culls the
-    /// meshlets (paper section 6): `frame` is `culler`'s per-joint preparation for this
-    /// instance and the camera of `view_proj` (`MeshletCuller::prepare`, with joint matrices
-    /// in the same space as the skinned positions), and only surviving meshlets are skinned
-    /// and drawn. With `triangles` (the camera's projection), the mesh shader also culls
-    /// back-facing and edge-on triangles (thesis 5.1.3). Culling is conservative, so the image
-    /// is the unculled one. Also returns how many triangles the mesh shaders emitted and kept.
+    /// Draws `mesh` (uploaded with meshlets) with its meshlets culled first (paper section 6):
+    /// `frame` is `culler`'s per-joint preparation for this instance and the camera of
+    /// `view_proj` (`MeshletCuller::prepare`, with joint matrices in the same space as the
+    /// skinned positions). Culling is conservative, so the image is the unculled one. Picked
+    /// by the device's features:
+    /// - with mesh shaders, a task shader culls and launches mesh-shader skinning of the
+    ///   survivors only; with `triangles` (the camera's projection) the mesh shader also culls
+    ///   back-facing and edge-on triangles (thesis 5.1.3);
+    /// - without, a compute pass writes one indexed indirect draw per meshlet (culled ones
+    ///   with no instance), drawn by vertex-shader skinning in one multi-draw (`triangles` is
+    ///   not used).
+    ///
+    /// Also returns how many triangles were drawn (after per-triangle culling where it runs).
     #[allow(clippy::too_many_arguments)]
     pub fn render_culled(
         &self,
@@ -368,6 +378,8 @@ impl Renderer {
         let matrices = mesh.matrix_buffer(gpu, matrices)?;
         let mesh_draw = match (draw, &self.mesh_path, &mesh.meshlets) {
             (Draw::Plain(Skinning::Vertex | Skinning::Compute) | Draw::Contours(..), _, _) => None,
+            (Draw::Culled(..), _, None) => return Err(invalid("culled drawing needs a mesh uploaded with meshlets")),
+            (Draw::Culled(..), None, Some(_)) => None,
             (_, None, _) => return Err(invalid("the device has no mesh shaders")),
             (_, _, None) => return Err(invalid("mesh-shader skinning needs a mesh uploaded with meshlets")),
             (_, Some(path), Some(meshlets)) => Some((path, meshlets)),
@@ -380,7 +392,6 @@ impl Renderer {
                     return Err(invalid("the culler and its frame must be the mesh's meshlets and joints"));
                 }
                 let slots = culler.len() as u32;
-                let params = [slots, culler.joints() as u32, 1, test_flags(frame)];
                 // TriangleCull in task_cull.wgsl: the eye or view direction, and the mode.
                 let (view, mode) = match triangles {
                     None => (Vec3::ZERO, 0),
@@ -389,7 +400,7 @@ impl Renderer {
                 };
                 let triangle_cull: Vec<u32> =
                     view.extend(0.0).to_array().iter().map(|f| f.to_bits()).chain([mode, 0, 0, 0]).collect();
-                Some((slots, params, pack_slots(culler), pack_records(std::slice::from_ref(frame)), triangle_cull))
+                Some((slots, CullInput::new(culler, std::slice::from_ref(frame)), triangle_cull))
             }
             Draw::Colored(colors) => {
                 if colors.len() != mesh.meshlets.as_ref().map_or(0, |m| m.count as usize) {
@@ -401,7 +412,7 @@ impl Renderer {
         };
         let (width, height) = (self.width, self.height);
         let row = (4 * width).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
-        let (readback, drawn) = gpu.checked("render", || -> Result<_> {
+        let (readback, drawn, indirect) = gpu.checked("render", || -> Result<_> {
             let device = &gpu.device;
             let mut camera = view_proj.to_cols_array().to_vec();
             camera.extend(light.normalize_or_zero().extend(0.0).to_array());
@@ -426,6 +437,7 @@ impl Renderer {
             let mut extra = Vec::new();
             let mut drawn = None;
             let mut lines = None;
+            let mut indirect = None;
             let (pipeline, group0) = match mesh_draw {
                 Some((path, meshlets)) => {
                     let bind = gpu.bind_group("mesh-shader mesh", &path.skin_layout, &mesh_bindings(mesh, &matrices));
@@ -441,13 +453,11 @@ impl Renderer {
                             extra.push(gpu.bind_group("meshlet colors", &path.color_layout, &[entry(3, &colors)]));
                             (&path.colored_pipeline, bind)
                         }
-                        (Some((_, params, slots, records, triangle_cull)), _) => {
+                        (Some((_, input, triangle_cull)), _) => {
                             let storage = wgpu::BufferUsages::STORAGE;
-                            let uniform = wgpu::BufferUsages::UNIFORM;
-                            let params = gpu.buffer("culling params", params, uniform);
-                            let slots = gpu.buffer("cull slots", slots, storage);
-                            let records = gpu.buffer("joint records", records, storage);
-                            let triangle_cull = gpu.buffer("triangle culling", triangle_cull, uniform);
+                            let [params, slots, records] = input.buffers(gpu);
+                            let triangle_cull =
+                                gpu.buffer("triangle culling", triangle_cull, wgpu::BufferUsages::UNIFORM);
                             let counter =
                                 gpu.buffer("drawn triangles", &[0u32; 4], storage | wgpu::BufferUsages::COPY_SRC);
                             extra.push(gpu.bind_group(
@@ -467,7 +477,19 @@ impl Renderer {
                         (None, _) => (&path.pipeline, bind),
                     }
                 }
-                None if matches!(draw, Draw::Plain(Skinning::Vertex)) => {
+                None if matches!(draw, Draw::Plain(Skinning::Vertex) | Draw::Culled(..)) => {
+                    if let (Some((_, input, _)), Some(meshlets)) = (&culling, &mesh.meshlets) {
+                        let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
+                        let counts = gpu.buffer("cull counts", &[0u32; 3], storage);
+                        let commands = gpu.buffer(
+                            "meshlet draws",
+                            &vec![0u32; 5 * meshlets.count as usize],
+                            storage | wgpu::BufferUsages::INDIRECT,
+                        );
+                        let input = input.buffers(gpu);
+                        self.culling.encode_draws(gpu, &mut encoder, &input, meshlets, &counts, &commands);
+                        indirect = Some((commands, meshlets.count));
+                    }
                     let bind = gpu.bind_group("mesh", &self.mesh_layout, &mesh_bindings(mesh, &matrices));
                     (&self.vertex_pipeline, bind)
                 }
@@ -527,6 +549,12 @@ impl Renderer {
                 match (mesh_draw, &culling) {
                     // One task workgroup per 32 meshlet slots (task_cull.wgsl).
                     (Some(_), Some((slots, ..))) => pass.draw_mesh_tasks(slots.div_ceil(32), 1, 1),
+                    (None, Some(_)) => {
+                        if let Some((commands, count)) = &indirect {
+                            pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
+                            pass.multi_draw_indexed_indirect(commands, 0, *count);
+                        }
+                    }
                     (Some((_, meshlets)), None) => {
                         // Meshlet id = y × 1024 + x (mesh_skin.wgsl).
                         let n = meshlets.count;
@@ -569,13 +597,18 @@ impl Renderer {
                 wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
             );
             gpu.queue.submit([encoder.finish()]);
-            Ok((readback, drawn))
+            Ok((readback, drawn, indirect))
         })??;
         let bytes = gpu.read(&readback, (row * height) as u64)?;
         let rgba = bytes.chunks_exact(row as usize).flat_map(|r| &r[..4 * width as usize]).copied().collect();
-        let drawn = match drawn {
-            Some(counter) => Some(bytemuck::pod_collect_to_vec::<u8, u32>(&gpu.read(&counter, 4)?)[0]),
-            None => None,
+        let drawn = match (drawn, indirect) {
+            (Some(counter), _) => Some(bytemuck::pod_collect_to_vec::<u8, u32>(&gpu.read(&counter, 4)?)[0]),
+            // Triangles of the indirect draws that have an instance.
+            (None, Some((commands, count))) => {
+                let words = bytemuck::pod_collect_to_vec::<u8, u32>(&gpu.read(&commands, 20 * count as u64)?);
+                Some(words.chunks_exact(5).map(|c| c[0] / 3 * c[1]).sum())
+            }
+            (None, None) => None,
         };
         Ok((Image { width, height, rgba }, drawn))
     }

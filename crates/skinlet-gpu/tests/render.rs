@@ -10,6 +10,7 @@ use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::Poser;
 use skinlet_gpu::mesh::GpuMesh;
 use skinlet_gpu::render::{Renderer, Skinning, framing};
+use skinlet_gpu::{Gpu, GpuOptions};
 
 #[test]
 fn every_skinning_pipeline_draws_the_same_image() {
@@ -82,19 +83,24 @@ fn a_pose_change_changes_the_image() {
 }
 
 #[test]
-fn task_shader_culling_draws_the_unculled_image() {
+fn culled_drawing_gives_the_unculled_image() {
     // The paper's section 6 pipeline: a task shader culls meshlets with the baked bounds and
     // launches mesh workgroups for the survivors only, which may also cull triangles one by
-    // one (thesis 5.1.3). Culling is conservative and back faces are culled by the rasterizer
-    // anyway, so the image must equal the unculled mesh-shader one; views close enough to cut
-    // the character make the frustum test work too. The triangles the mesh shaders emit are
-    // those of the CPU's visible meshlets, and with per-triangle culling the CPU's kept ones.
+    // one (thesis 5.1.3); and, forced on a device opened without mesh shaders, the fallback: a
+    // compute pass writes one indirect draw per meshlet (culled ones empty), drawn by
+    // vertex-shader skinning. Culling is conservative and back faces are culled by the
+    // rasterizer anyway, so each image must equal the unculled one of the same device; views
+    // close enough to cut the character make the frustum test work too. The triangles drawn
+    // are those of the CPU's visible meshlets, and with per-triangle culling the CPU's kept ones.
     let Some(gpu) = gpu() else { return };
-    if !gpu.has_mesh_shaders() {
-        eprintln!("skipping: {} has no mesh shaders", gpu.info.name);
-        return;
+    let fallback = Gpu::new(GpuOptions { no_mesh_shaders: true, ..GpuOptions::default() }).unwrap();
+    assert!(!fallback.has_mesh_shaders());
+    let mut devices = vec![(&fallback, Renderer::new(&fallback, 160, 160).unwrap())];
+    if gpu.has_mesh_shaders() {
+        devices.push((&gpu, Renderer::new(&gpu, 160, 160).unwrap()));
+    } else {
+        eprintln!("{} has no mesh shaders: the fallback only", gpu.info.name);
     }
-    let renderer = Renderer::new(&gpu, 160, 160).unwrap();
     let mut culled_total = 0;
     for (name, asset) in assets() {
         let Some(skin_index) = asset.instances.iter().find_map(|i| i.skin) else { continue };
@@ -112,7 +118,6 @@ fn task_shader_culling_draws_the_unculled_image() {
         .unwrap();
         let skin = &asset.skins[skin_index as usize];
         let culler = skinlet::cull::meshlet::MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len());
-        let gpu_mesh = GpuMesh::new(&gpu, &baked.mesh, Some(&baked.meshlets)).unwrap();
         let clip = clips.first().copied();
         let t = clip.map_or(0.0, |c| c.start + 0.6 * c.duration());
         let mut poser = Poser::default();
@@ -123,30 +128,43 @@ fn task_shader_culling_draws_the_unculled_image() {
         let mut posed = vec![Vec3::ZERO; baked.mesh.positions.len()];
         let inf = baked.mesh.influences.as_ref().unwrap();
         skinlet::skinning::skin(inf, &baked.mesh.positions, &[], &matrices, &mut posed, &mut []).unwrap();
-        for (dir, zoom) in [(Vec3::new(0.3, 0.2, 1.0), 1.0), (Vec3::new(-1.0, 0.4, -0.5), 2.5)] {
-            let camera = framing(&posed, dir, zoom);
-            let mut frame = skinlet::cull::meshlet::JointFrame::default();
-            culler.prepare(&joints, &camera, skinlet::cull::meshlet::Tests::Both, &mut frame);
-            let mut visible = Vec::new();
-            let counts = culler.cull(&frame, &mut Vec::new(), &mut visible);
-            culled_total += counts.meshlets - counts.visible;
-            let light = Vec3::new(0.4, 0.8, 0.6);
-            let all = renderer.render(&gpu, &gpu_mesh, &matrices, camera.view_proj, light, Skinning::Mesh).unwrap();
-            // The CPU's per-triangle culling of the visible meshlets, on the same skinned positions.
-            let kept =
-                skinlet::cull::triangle::cull_triangles(&baked.meshlets, &visible, &posed, camera.projection, None);
-            let in_visible: u32 =
-                visible.iter().map(|&m| baked.meshlets.meshlets[m as usize].triangle_count as u32).sum();
-            for (triangles, expected) in [(None, in_visible), (Some(camera.projection), kept.kept as u32)] {
-                let (culled, drawn) = renderer
-                    .render_culled(&gpu, &gpu_mesh, &matrices, camera.view_proj, light, &culler, &frame, triangles)
-                    .unwrap();
-                let differing = all.rgba.chunks(4).zip(culled.rgba.chunks(4)).filter(|(a, b)| a != b).count();
-                assert_eq!(
-                    differing, 0,
-                    "{name} zoom {zoom} triangles {triangles:?}: {differing} pixels differ ({counts:?})"
-                );
-                assert_eq!(drawn, expected, "{name} zoom {zoom}: triangles drawn, per-triangle culling {triangles:?}");
+        for (device, renderer) in &devices {
+            let mesh_shaders = device.has_mesh_shaders();
+            let gpu_mesh = GpuMesh::new(device, &baked.mesh, Some(&baked.meshlets)).unwrap();
+            for (dir, zoom) in [(Vec3::new(0.3, 0.2, 1.0), 1.0), (Vec3::new(-1.0, 0.4, -0.5), 2.5)] {
+                let camera = framing(&posed, dir, zoom);
+                let mut frame = skinlet::cull::meshlet::JointFrame::default();
+                culler.prepare(&joints, &camera, skinlet::cull::meshlet::Tests::Both, &mut frame);
+                let mut visible = Vec::new();
+                let counts = culler.cull(&frame, &mut Vec::new(), &mut visible);
+                culled_total += counts.meshlets - counts.visible;
+                let light = Vec3::new(0.4, 0.8, 0.6);
+                let unculled = if mesh_shaders { Skinning::Mesh } else { Skinning::Vertex };
+                let all = renderer.render(device, &gpu_mesh, &matrices, camera.view_proj, light, unculled).unwrap();
+                // The CPU's per-triangle culling of the visible meshlets, on the same skinned positions.
+                let kept =
+                    skinlet::cull::triangle::cull_triangles(&baked.meshlets, &visible, &posed, camera.projection, None);
+                let in_visible: u32 =
+                    visible.iter().map(|&m| baked.meshlets.meshlets[m as usize].triangle_count as u32).sum();
+                let per_triangle = if mesh_shaders { kept.kept as u32 } else { in_visible };
+                for (triangles, expected) in [(None, in_visible), (Some(camera.projection), per_triangle)] {
+                    let (culled, drawn) = renderer
+                        .render_culled(
+                            device,
+                            &gpu_mesh,
+                            &matrices,
+                            camera.view_proj,
+                            light,
+                            &culler,
+                            &frame,
+                            triangles,
+                        )
+                        .unwrap();
+                    let differing = all.rgba.chunks(4).zip(culled.rgba.chunks(4)).filter(|(a, b)| a != b).count();
+                    let what = format!("{name} zoom {zoom} mesh shaders {mesh_shaders} triangles {triangles:?}");
+                    assert_eq!(differing, 0, "{what}: {differing} pixels differ ({counts:?})");
+                    assert_eq!(drawn, expected, "{what}: triangles drawn");
+                }
             }
         }
     }
