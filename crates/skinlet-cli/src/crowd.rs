@@ -53,17 +53,14 @@ pub fn print(s: &CrowdStats, verify: bool) {
     }
 }
 
-/// Runs the crowd for `file`: a bake (with `gltf`, the file it was baked from) or a glTF
-/// file, baked first.
-pub fn command(
+/// The asset, its skin and the bake for `file`: a bake (with `gltf`, the file it was baked
+/// from) or a glTF file, baked first.
+pub fn load(
     file: &str,
     gltf: Option<&str>,
-    params: &CrowdParams,
-    check: bool,
     args: RefineArgs,
     json: bool,
-) -> Result<()> {
-    anyhow::ensure!(params.instances >= 1 && params.frames >= 1, "--instances and --frames must be at least 1");
+) -> Result<(skinlet::Asset, u32, skinlet::bake::Baked)> {
     let is_bake = std::fs::File::open(file)
         .and_then(|mut f| {
             let mut magic = [0u8; 8];
@@ -83,8 +80,22 @@ pub fn command(
         let (baked, _) = bake_asset(&asset, skin, None, Builder::SkinAware, args, json)?;
         (asset, skin, baked)
     };
-    let source = gltf.unwrap_or(file);
-    let clips: Vec<&Clip> = crate::bake::clips_of(&baked, &asset, source)?;
+    Ok((asset, skin, baked))
+}
+
+/// Runs the crowd for `file`: a bake (with `gltf`, the file it was baked from) or a glTF
+/// file, baked first.
+pub fn command(
+    file: &str,
+    gltf: Option<&str>,
+    params: &CrowdParams,
+    check: bool,
+    args: RefineArgs,
+    json: bool,
+) -> Result<()> {
+    anyhow::ensure!(params.instances >= 1 && params.frames >= 1, "--instances and --frames must be at least 1");
+    let (asset, skin, baked) = load(file, gltf, args, json)?;
+    let clips: Vec<&Clip> = crate::bake::clips_of(&baked, &asset, gltf.unwrap_or(file))?;
     let scene = crowd(&baked.mesh.positions, clips.len(), params);
     let s = run(&baked, &asset.skeleton, &asset.skins[skin as usize], &clips, &scene, params, check)?;
     if json {

@@ -17,6 +17,7 @@ mod bake;
 mod bench;
 mod contours;
 mod crowd;
+mod gpu_bench;
 mod overdraw;
 mod render;
 
@@ -324,6 +325,20 @@ enum Command {
         #[command(flatten)]
         args: render::Args,
     },
+    /// Time the paper's crowd scene on the GPU through every pipeline.
+    ///
+    /// Skinning pipelines: VS (vertex shader), CS (compute pass, then drawn), MS (mesh shader,
+    /// one workgroup per skin-aware meshlet), MS-CI (mesh shader, common-influences meshlets
+    /// with their joints once per meshlet and weight-only vertices). Culling: none, frustum,
+    /// backface or both, per meshlet with the bake's conservative bounds, in a task shader
+    /// (MS) or a compute pass writing indirect draws (VS). Reports the median GPU time per
+    /// frame (timestamp queries), wall-clock time, meshlets culled and triangles drawn.
+    GpuBench {
+        /// A bake file, a .glb or .gltf file, or @demo[:TRIANGLES].
+        file: String,
+        #[command(flatten)]
+        args: gpu_bench::Args,
+    },
     /// Measure skinlet's speed against a baseline, in the same run.
     Bench {
         #[command(subcommand)]
@@ -384,6 +399,7 @@ fn main() {
         Command::Contours { file, args } => contours::command(&file, &args),
         Command::Bench { what } => bench::command(&what),
         Command::Render { file, args } => render::command(&file, &args),
+        Command::GpuBench { file, args } => gpu_bench::command(&file, &args),
         Command::Demo { triangles, seed, json } => demo(triangles, seed, json),
     };
     if let Err(e) = result {

@@ -39,8 +39,9 @@ pub struct Args {
     #[arg(long, default_value = "shaded", value_parser = ["shaded", "meshlets", "culled", "classes", "contours"])]
     view: String,
     /// The pipeline of the shaded view: vertex (skinned in the vertex shader), compute (by a
-    /// compute pass, then drawn) or mesh (one mesh-shader workgroup per skin-aware meshlet).
-    #[arg(long, default_value = "compute", value_parser = ["vertex", "compute", "mesh"])]
+    /// compute pass, then drawn), mesh (one mesh-shader workgroup per skin-aware meshlet) or
+    /// mesh-slim (common-influences meshlets: joints once per meshlet, weight-only vertices).
+    #[arg(long, default_value = "compute", value_parser = ["vertex", "compute", "mesh", "mesh-slim"])]
     skinning: String,
     /// Image width and height in pixels.
     #[arg(long, default_value_t = 512)]
@@ -85,7 +86,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     skinlet::skinning::skin(inf, &mesh.positions, &[], &matrices, &mut posed, &mut [])?;
     let gpu = Gpu::new(GpuOptions { software: a.software, ..GpuOptions::default() })?;
     let renderer = Renderer::new(&gpu, a.size, a.size)?;
-    let need_mesh_shaders = !matches!(a.view.as_str(), "shaded" | "contours") || a.skinning == "mesh";
+    let need_mesh_shaders = !matches!(a.view.as_str(), "shaded" | "contours") || a.skinning.starts_with("mesh");
     anyhow::ensure!(
         !need_mesh_shaders || gpu.has_mesh_shaders(),
         "{} has no mesh shaders (needed by --view {} --skinning {})",
@@ -191,9 +192,17 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 "vertex" => (GpuMesh::new(&gpu, &mesh, None)?, Skinning::Vertex),
                 "compute" => (GpuMesh::new(&gpu, &mesh, None)?, Skinning::Compute),
                 _ => {
+                    let (builder, path) = match a.skinning.as_str() {
+                        "mesh" => (Builder::SkinAware, Skinning::Mesh),
+                        _ => (Builder::CommonInfluences, Skinning::MeshSlim),
+                    };
                     let prepared = skinlet::meshlet::prepare(&mesh);
-                    let meshlets = skinlet::meshlet::build(&prepared, Builder::SkinAware, MeshletLimits::NVIDIA)?;
-                    (GpuMesh::new(&gpu, &prepared.mesh, Some(&meshlets))?, Skinning::Mesh)
+                    let meshlets = skinlet::meshlet::build(&prepared, builder, MeshletLimits::NVIDIA)?;
+                    let gpu_mesh = GpuMesh::new(&gpu, &prepared.mesh, Some(&meshlets))?;
+                    let m = gpu_mesh.meshlets.as_ref().context("uploaded with meshlets")?;
+                    summary = json!({"meshlets": m.count, "slim_meshlets": m.slim,
+                        "slim_vertices": m.slim_vertices, "fat_vertices": m.fat_vertices});
+                    (gpu_mesh, path)
                 }
             };
             renderer.render(&gpu, &gpu_mesh, &matrices, framing(&posed, FRONT, 1.0).view_proj, LIGHT, path)?

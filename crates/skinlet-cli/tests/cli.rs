@@ -471,6 +471,32 @@ fn render_writes_a_png_of_the_posed_character() {
             assert_eq!(parts, s["meshlets"].as_u64().unwrap(), "{j}");
         }
     }
+    // gpu-bench: every pipeline and culling row, GPU-timed where timestamps exist.
+    let (code, stdout, err) = skinlet(&[
+        "gpu-bench",
+        "@demo:2000",
+        "--instances",
+        "6",
+        "--frames",
+        "1",
+        "--width",
+        "160",
+        "--budget",
+        "0",
+        "--rounds",
+        "0",
+        "--json",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let j: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    let rows = j["rows"].as_array().unwrap();
+    assert!(rows.len() == 10 || (rows.len() == 5 && !needs_mesh), "{j}");
+    for r in rows {
+        assert!(r["wall_ms"].as_f64().unwrap() > 0.0, "{r}");
+        assert_eq!(r["gpu_ms"].is_number(), j["timestamps"] == true, "{r}");
+        let culled = r["culled_pct"].as_f64();
+        assert_eq!(culled.is_some(), r["culling"] != "none", "{r}");
+    }
     let (code, _, err) = skinlet(&["render", "@demo:2000", "--size", "4", "-o", out.to_str().unwrap()]);
     assert_eq!(code, 2);
     assert!(err.contains("--size"), "{err}");

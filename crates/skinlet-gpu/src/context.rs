@@ -45,7 +45,13 @@ impl Gpu {
             label: Some("skinlet"),
             required_features: features,
             required_limits: if mesh {
-                wgpu::Limits::defaults().using_recommended_minimum_mesh_shader_values()
+                // Slim mesh shading binds 9 storage buffers to the mesh stage.
+                let limits = wgpu::Limits::defaults().using_recommended_minimum_mesh_shader_values();
+                let storage = adapter.limits().max_storage_buffers_per_shader_stage.min(16);
+                wgpu::Limits {
+                    max_storage_buffers_per_shader_stage: limits.max_storage_buffers_per_shader_stage.max(storage),
+                    ..limits
+                }
             } else {
                 wgpu::Limits::defaults()
             },
@@ -62,6 +68,11 @@ impl Gpu {
         let (device, queue) =
             pollster::block_on(adapter.request_device(&desc)).map_err(|e| GpuError::Device(e.to_string()))?;
         Ok(Gpu { device, queue, info: adapter.get_info(), features })
+    }
+
+    /// Whether GPU timestamps can be written (frame times in `Drawn::gpu_ms`).
+    pub fn has_timestamps(&self) -> bool {
+        self.features.contains(wgpu::Features::TIMESTAMP_QUERY)
     }
 
     /// Whether mesh (and task) shaders are enabled.

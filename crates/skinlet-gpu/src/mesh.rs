@@ -4,17 +4,28 @@
 use crate::{Gpu, GpuError, Result};
 use glam::Vec3;
 use skinlet::meshlet::Meshlets;
-use skinlet::model::SkinnedMesh;
+use skinlet::model::{Influences, SkinnedMesh};
 
 /// Most vertices and triangles per meshlet the mesh shader emits (its output arrays).
 pub const MAX_MESHLET_VERTICES: usize = 128;
 pub const MAX_MESHLET_TRIANGLES: usize = 256;
+/// Most joints a slim meshlet's mesh shader holds in workgroup memory.
+pub const MAX_SLIM_JOINTS: usize = 16;
 
 /// A mesh's meshlets on the GPU, for mesh-shader drawing.
 pub struct GpuMeshlets {
     pub count: u32,
-    /// Per meshlet: vertex offset and count, triangle offset and count (`Meshlet` in WGSL).
+    /// Meshlets drawn with slim vertices by `Skinning::MeshSlim`: their vertices all have
+    /// the meshlet's joint set, in joint order, and it has at most [`MAX_SLIM_JOINTS`].
+    pub slim: u32,
+    /// Vertices of slim meshlets (counted once per meshlet) and of the others.
+    pub slim_vertices: u32,
+    pub fat_vertices: u32,
+    /// Per meshlet: vertex offset and count, triangle offset and count, joint offset and
+    /// count (0: not slim), padding (`Meshlet` in WGSL).
     pub(crate) meshlets: wgpu::Buffer,
+    /// The slim meshlets' joint lists.
+    pub(crate) joint_lists: wgpu::Buffer,
     pub(crate) vertices: wgpu::Buffer,
     /// One u32 per triangle: its three local vertex indices in the low three bytes.
     pub(crate) triangles: wgpu::Buffer,
@@ -68,7 +79,7 @@ impl GpuMesh {
             Some(m) => meshlet_triangles(m, n)?.into_iter().flatten().collect(),
             None => mesh.triangles.iter().flatten().copied().collect(),
         };
-        let meshlets = meshlets.map(|m| upload_meshlets(gpu, m)).transpose()?;
+        let meshlets = meshlets.map(|m| upload_meshlets(gpu, m, inf)).transpose()?;
         let params: [u32; 4] = [n as u32, inf.stride as u32, !normals.is_empty() as u32, 0];
         let out = wgpu::BufferUsages::COPY_SRC;
         gpu.checked("GPU mesh upload", || GpuMesh {
@@ -143,11 +154,31 @@ fn meshlet_triangles(m: &Meshlets, vertices: usize) -> Result<Vec<[u32; 3]>> {
     Ok(out)
 }
 
-fn upload_meshlets(gpu: &Gpu, m: &Meshlets) -> Result<GpuMeshlets> {
-    let records: Vec<[u32; 4]> = m
-        .meshlets
-        .iter()
-        .map(|ml| [ml.vertex_offset, ml.vertex_count as u32, ml.triangle_offset / 3, ml.triangle_count as u32])
+fn upload_meshlets(gpu: &Gpu, m: &Meshlets, inf: &Influences) -> Result<GpuMeshlets> {
+    let mut joint_lists: Vec<u32> = Vec::new();
+    let (mut slim, mut slim_vertices, mut fat_vertices) = (0, 0, 0);
+    let records: Vec<[u32; 8]> = (m.meshlets.iter())
+        .map(|ml| {
+            // Slim when every vertex has exactly the meshlet's joints, in that order (skinlet's
+            // `prepare` sorts influences by joint, so a shared joint set is a shared order).
+            let joints = m
+                .joints
+                .get(ml.joint_offset as usize..)
+                .map_or(&[][..], |j| &j[..(ml.joint_count as usize).min(j.len())]);
+            let shared = (1..=MAX_SLIM_JOINTS).contains(&joints.len())
+                && m.vertices_of(ml).iter().all(|&v| inf.of(v as usize).map(|(j, _)| j).eq(joints.iter().copied()));
+            let (offset, count) = if shared { (joint_lists.len() as u32, joints.len() as u32) } else { (0, 0) };
+            if shared {
+                joint_lists.extend(joints.iter().map(|&j| j as u32));
+                slim += 1;
+                slim_vertices += ml.vertex_count as u32;
+            } else {
+                fat_vertices += ml.vertex_count as u32;
+            }
+            let (vo, vc, to, tc) =
+                (ml.vertex_offset, ml.vertex_count as u32, ml.triangle_offset / 3, ml.triangle_count);
+            [vo, vc, to, tc as u32, offset, count, 0, 0]
+        })
         .collect();
     let packed: Vec<u32> =
         m.triangles.chunks_exact(3).map(|t| t[0] as u32 | (t[1] as u32) << 8 | (t[2] as u32) << 16).collect();
@@ -161,6 +192,10 @@ fn upload_meshlets(gpu: &Gpu, m: &Meshlets) -> Result<GpuMeshlets> {
     let storage = wgpu::BufferUsages::STORAGE;
     gpu.checked("GPU meshlets upload", || GpuMeshlets {
         count: m.len() as u32,
+        slim,
+        slim_vertices,
+        fat_vertices,
+        joint_lists: gpu.buffer("meshlet joints", &joint_lists, storage),
         meshlets: gpu.buffer("meshlets", &records, storage),
         vertices: gpu.buffer("meshlet vertices", &m.vertices, storage),
         triangles: gpu.buffer("meshlet triangles", &packed, storage),

@@ -25,6 +25,11 @@ pub enum Skinning {
     /// In a mesh shader, one workgroup per meshlet (needs mesh shaders and a mesh uploaded
     /// with meshlets).
     Mesh,
+    /// In a mesh shader, slim meshlets (one joint set, e.g. from the common-influences
+    /// builder) with their joints' matrices in workgroup memory and weight-only vertices
+    /// (thesis 3.1.1, "MS-CI"); the others as [`Skinning::Mesh`]. Needs 9 storage buffers
+    /// per shader stage.
+    MeshSlim,
 }
 
 /// An RGBA8 image, rows top to bottom.
@@ -66,15 +71,53 @@ struct MeshPath {
     /// Every meshlet in its own color (group 3: one RGBA8 word per meshlet).
     color_layout: wgpu::BindGroupLayout,
     colored_pipeline: wgpu::RenderPipeline,
+    /// Slim meshlets (group 2 with the joint lists), where the device has the bindings.
+    slim: Option<(wgpu::BindGroupLayout, wgpu::RenderPipeline)>,
 }
 
 /// What a draw runs.
 #[derive(Clone, Copy)]
 enum Draw<'a> {
     Plain(Skinning),
-    Culled(&'a MeshletCuller, &'a JointFrame, Option<Projection>),
+    /// Culled by `culler` with each instance's frame, by a task shader (`true`) or a compute
+    /// pass and indirect draws; per-triangle culling (task shader) from a projection.
+    Culled(&'a MeshletCuller, Option<Projection>, bool),
     Colored(&'a [[u8; 4]]),
     Contours(&'a ContourExtraction, &'a GpuContours, &'a ContourView),
+}
+
+/// One character of a crowd draw ([`Renderer::render_crowd`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Instance<'a> {
+    /// Skinning matrices, into the space of the camera's `view_proj` (world).
+    pub matrices: &'a [Affine3A],
+    /// For culled drawing: the culler's preparation of this instance for the camera.
+    pub frame: Option<&'a JointFrame>,
+}
+
+/// How a crowd is drawn.
+#[derive(Clone, Copy)]
+pub enum CrowdDraw<'a> {
+    Plain(Skinning),
+    /// Meshlets culled with the instances' frames (prepared by `culler`): with
+    /// [`Skinning::Mesh`] by a task shader (and per triangle from `triangles`), with
+    /// [`Skinning::Vertex`] by a compute pass writing indirect draws.
+    Culled {
+        culler: &'a MeshletCuller,
+        skinning: Skinning,
+        triangles: Option<Projection>,
+    },
+}
+
+/// What a draw produced and measured.
+#[derive(Clone, Debug)]
+pub struct Drawn {
+    pub image: Image,
+    /// Culled drawing: the triangles drawn, over all instances.
+    pub triangles: Option<u32>,
+    /// GPU time from the first pass's start to the render pass's end, where the device has
+    /// timestamp queries (milliseconds).
+    pub gpu_ms: Option<f64>,
 }
 
 const COLOR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
@@ -165,6 +208,7 @@ impl Renderer {
                     include_str!("shaders/mesh_skin.wgsl"),
                     include_str!("shaders/cull_common.wgsl"),
                     include_str!("shaders/task_cull.wgsl"),
+                    include_str!("shaders/slim_skin.wgsl"),
                 ]
                 .concat();
                 let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -205,6 +249,13 @@ impl Renderer {
                 let color_layout = layout("meshlet colors", &[buffer_entry(3, stage, read)]);
                 let colored = [Some(&skin_layout), Some(&camera_layout), Some(&meshlet_layout), Some(&color_layout)];
                 let colored_pipeline = mesh_pipeline(&colored, None, "colored_mesh");
+                let slim = (gpu.device.limits().max_storage_buffers_per_shader_stage >= 9).then(|| {
+                    let slim_layout =
+                        layout("slim meshlets", &(0..4).map(|b| buffer_entry(b, stage, read)).collect::<Vec<_>>());
+                    let groups = [Some(&skin_layout), Some(&camera_layout), Some(&slim_layout)];
+                    let pipeline = mesh_pipeline(&groups, None, "slim_mesh");
+                    (slim_layout, pipeline)
+                });
                 MeshPath {
                     skin_layout,
                     meshlet_layout,
@@ -213,6 +264,7 @@ impl Renderer {
                     culled_pipeline,
                     color_layout,
                     colored_pipeline,
+                    slim,
                 }
             });
             let vertex_pipeline = pipeline(
@@ -291,7 +343,8 @@ impl Renderer {
         light: Vec3,
         skinning: Skinning,
     ) -> Result<Image> {
-        self.draw(gpu, mesh, matrices, view_proj, light, Draw::Plain(skinning)).map(|(image, _)| image)
+        let one = [Instance { matrices, frame: None }];
+        self.draw(gpu, mesh, &one, view_proj, light, Draw::Plain(skinning)).map(|d| d.image)
     }
 
     /// Draws `mesh` (uploaded with meshlets) with its meshlets culled first (paper section 6):
@@ -319,8 +372,36 @@ impl Renderer {
         frame: &JointFrame,
         triangles: Option<Projection>,
     ) -> Result<(Image, u32)> {
-        self.draw(gpu, mesh, matrices, view_proj, light, Draw::Culled(culler, frame, triangles))
-            .map(|(image, drawn)| (image, drawn.unwrap_or(0)))
+        let one = [Instance { matrices, frame: Some(frame) }];
+        let task = self.mesh_path.is_some();
+        let d = self.draw(gpu, mesh, &one, view_proj, light, Draw::Culled(culler, triangles, task))?;
+        Ok((d.image, d.triangles.unwrap_or(0)))
+    }
+
+    /// Draws many instances of `mesh` in one render pass, each with its own skinning matrices
+    /// (and culling frame): the crowd scene of `skinlet gpu-bench`. Also returns the GPU time
+    /// where the device has timestamp queries.
+    pub fn render_crowd(
+        &self,
+        gpu: &Gpu,
+        mesh: &GpuMesh,
+        instances: &[Instance],
+        view_proj: Mat4,
+        light: Vec3,
+        how: CrowdDraw,
+    ) -> Result<Drawn> {
+        let draw = match how {
+            CrowdDraw::Plain(skinning) => Draw::Plain(skinning),
+            CrowdDraw::Culled { culler, skinning: Skinning::Mesh, triangles } => Draw::Culled(culler, triangles, true),
+            CrowdDraw::Culled { culler, skinning: Skinning::Vertex, .. } => Draw::Culled(culler, None, false),
+            CrowdDraw::Culled { skinning, .. } => {
+                return Err(GpuError::Invalid {
+                    location: "render",
+                    message: format!("culled drawing with {skinning:?} skinning: mesh (task shader) or vertex only"),
+                });
+            }
+        };
+        self.draw(gpu, mesh, instances, view_proj, light, draw)
     }
 
     /// Like [`Renderer::render`] with mesh-shader skinning, every meshlet shaded in its own
@@ -335,7 +416,8 @@ impl Renderer {
         light: Vec3,
         colors: &[[u8; 4]],
     ) -> Result<Image> {
-        self.draw(gpu, mesh, matrices, view_proj, light, Draw::Colored(colors)).map(|(image, _)| image)
+        let one = [Instance { matrices, frame: None }];
+        self.draw(gpu, mesh, &one, view_proj, light, Draw::Colored(colors)).map(|d| d.image)
     }
 
     /// Like [`Renderer::render`] with compute skinning, then the contour edges of the
@@ -360,60 +442,51 @@ impl Renderer {
                 message: format!("contours over {} vertices, the mesh has {}", contours.vertices, mesh.vertices),
             });
         }
-        let (image, _) =
-            self.draw(gpu, mesh, matrices, view_proj, light, Draw::Contours(extraction, contours, view))?;
-        Ok((image, contours.read(gpu)?))
+        let one = [Instance { matrices, frame: None }];
+        let d = self.draw(gpu, mesh, &one, view_proj, light, Draw::Contours(extraction, contours, view))?;
+        Ok((d.image, contours.read(gpu)?))
     }
 
     fn draw(
         &self,
         gpu: &Gpu,
         mesh: &GpuMesh,
-        matrices: &[Affine3A],
+        instances: &[Instance],
         view_proj: Mat4,
         light: Vec3,
         draw: Draw,
-    ) -> Result<(Image, Option<u32>)> {
+    ) -> Result<Drawn> {
         let invalid = |message: &str| GpuError::Invalid { location: "render", message: message.into() };
-        let matrices = mesh.matrix_buffer(gpu, matrices)?;
         let mesh_draw = match (draw, &self.mesh_path, &mesh.meshlets) {
             (Draw::Plain(Skinning::Vertex | Skinning::Compute) | Draw::Contours(..), _, _) => None,
             (Draw::Culled(..), _, None) => return Err(invalid("culled drawing needs a mesh uploaded with meshlets")),
-            (Draw::Culled(..), None, Some(_)) => None,
+            (Draw::Culled(_, _, false), _, Some(_)) => None,
             (_, None, _) => return Err(invalid("the device has no mesh shaders")),
             (_, _, None) => return Err(invalid("mesh-shader skinning needs a mesh uploaded with meshlets")),
             (_, Some(path), Some(meshlets)) => Some((path, meshlets)),
         };
-        let culling = match draw {
-            Draw::Culled(culler, frame, triangles) => {
-                if frame.joints() != culler.joints()
-                    || culler.len() != mesh.meshlets.as_ref().map_or(0, |m| m.count as usize)
-                {
-                    return Err(invalid("the culler and its frame must be the mesh's meshlets and joints"));
+        let meshlet_count = mesh.meshlets.as_ref().map_or(0, |m| m.count as usize);
+        match draw {
+            Draw::Culled(culler, ..) => {
+                let fits = |i: &Instance| i.frame.is_some_and(|f| f.joints() == culler.joints());
+                if culler.len() != meshlet_count || !instances.iter().all(fits) {
+                    return Err(invalid(
+                        "the culler and every instance's frame must be the mesh's meshlets and joints",
+                    ));
                 }
-                let slots = culler.len() as u32;
-                // TriangleCull in task_cull.wgsl: the eye or view direction, and the mode.
-                let (view, mode) = match triangles {
-                    None => (Vec3::ZERO, 0),
-                    Some(Projection::Perspective { eye }) => (eye, 1),
-                    Some(Projection::Orthographic { dir }) => (dir, 2),
-                };
-                let triangle_cull: Vec<u32> =
-                    view.extend(0.0).to_array().iter().map(|f| f.to_bits()).chain([mode, 0, 0, 0]).collect();
-                Some((slots, CullInput::new(culler, std::slice::from_ref(frame)), triangle_cull))
             }
-            Draw::Colored(colors) => {
-                if colors.len() != mesh.meshlets.as_ref().map_or(0, |m| m.count as usize) {
-                    return Err(invalid("one color per meshlet"));
-                }
-                None
-            }
-            Draw::Plain(_) | Draw::Contours(..) => None,
-        };
+            Draw::Colored(colors) if colors.len() != meshlet_count => return Err(invalid("one color per meshlet")),
+            Draw::Contours(..) if instances.len() != 1 => return Err(invalid("contours of one instance at a time")),
+            _ => {}
+        }
+        let matrices: Vec<wgpu::Buffer> =
+            instances.iter().map(|i| mesh.matrix_buffer(gpu, i.matrices)).collect::<Result<_>>()?;
         let (width, height) = (self.width, self.height);
         let row = (4 * width).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
-        let (readback, drawn, indirect) = gpu.checked("render", || -> Result<_> {
+        let timestamps = gpu.has_timestamps();
+        let (readback, counter, commands, times) = gpu.checked("render", || -> Result<_> {
             let device = &gpu.device;
+            let storage = wgpu::BufferUsages::STORAGE;
             let mut camera = view_proj.to_cols_array().to_vec();
             camera.extend(light.normalize_or_zero().extend(0.0).to_array());
             let camera = gpu.buffer("camera", &camera, wgpu::BufferUsages::UNIFORM);
@@ -433,85 +506,142 @@ impl Renderer {
             let color = texture(COLOR, wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC);
             let depth = texture(DEPTH, wgpu::TextureUsages::RENDER_ATTACHMENT);
             let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
-            // Groups 2 and 3 of the mesh-shader pipelines: meshlets, and culling data.
-            let mut extra = Vec::new();
-            let mut drawn = None;
+            // GPU time: from an empty pass opening the frame to the end of the render pass.
+            let queries = timestamps.then(|| {
+                let set = device.create_query_set(&wgpu::QuerySetDescriptor {
+                    label: Some("frame time"),
+                    ty: wgpu::QueryType::Timestamp,
+                    count: 2,
+                });
+                encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("frame start"),
+                    timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
+                        query_set: &set,
+                        beginning_of_pass_write_index: Some(0),
+                        end_of_pass_write_index: None,
+                    }),
+                });
+                set
+            });
+            // Per instance: bind groups 0 (and 3), and how it is drawn.
+            let mut per_instance: Vec<(wgpu::BindGroup, Option<wgpu::BindGroup>, Option<wgpu::Buffer>)> = Vec::new();
+            // Shared: group 2 (meshlets) and group 3 (colors) of the mesh-shader pipelines.
+            let mut shared = Vec::new();
+            let mut counter = None;
             let mut lines = None;
-            let mut indirect = None;
-            let (pipeline, group0) = match mesh_draw {
+            let mut skinned_out = Vec::new();
+            let pipeline = match mesh_draw {
                 Some((path, meshlets)) => {
-                    let bind = gpu.bind_group("mesh-shader mesh", &path.skin_layout, &mesh_bindings(mesh, &matrices));
-                    extra.push(gpu.bind_group(
-                        "meshlets",
-                        &path.meshlet_layout,
-                        &[entry(0, &meshlets.meshlets), entry(1, &meshlets.vertices), entry(2, &meshlets.triangles)],
-                    ));
-                    match (&culling, draw) {
-                        (_, Draw::Colored(colors)) => {
-                            let words: Vec<u32> = colors.iter().map(|c| u32::from_le_bytes(*c)).collect();
-                            let colors = gpu.buffer("meshlet colors", &words, wgpu::BufferUsages::STORAGE);
-                            extra.push(gpu.bind_group("meshlet colors", &path.color_layout, &[entry(3, &colors)]));
-                            (&path.colored_pipeline, bind)
-                        }
-                        (Some((_, input, triangle_cull)), _) => {
-                            let storage = wgpu::BufferUsages::STORAGE;
-                            let [params, slots, records] = input.buffers(gpu);
-                            let triangle_cull =
-                                gpu.buffer("triangle culling", triangle_cull, wgpu::BufferUsages::UNIFORM);
-                            let counter =
-                                gpu.buffer("drawn triangles", &[0u32; 4], storage | wgpu::BufferUsages::COPY_SRC);
-                            extra.push(gpu.bind_group(
-                                "task culling",
-                                &path.cull_layout,
-                                &[
-                                    entry(0, &params),
-                                    entry(1, &slots),
-                                    entry(2, &records),
-                                    entry(4, &counter),
-                                    entry(5, &triangle_cull),
-                                ],
-                            ));
-                            drawn = Some(counter);
-                            (&path.culled_pipeline, bind)
-                        }
-                        (None, _) => (&path.pipeline, bind),
+                    let slim = path.slim.as_ref().filter(|_| matches!(draw, Draw::Plain(Skinning::MeshSlim)));
+                    let mut meshlet_entries =
+                        vec![entry(0, &meshlets.meshlets), entry(1, &meshlets.vertices), entry(2, &meshlets.triangles)];
+                    if slim.is_some() {
+                        meshlet_entries.push(entry(3, &meshlets.joint_lists));
                     }
+                    let meshlet_layout = slim.map_or(&path.meshlet_layout, |(layout, _)| layout);
+                    shared.push(gpu.bind_group("meshlets", meshlet_layout, &meshlet_entries));
+                    let pipeline = match draw {
+                        Draw::Plain(Skinning::MeshSlim) => match slim {
+                            Some((_, pipeline)) => pipeline,
+                            None => return Err(invalid("slim mesh shading needs 9 storage buffers per shader stage")),
+                        },
+                        Draw::Colored(colors) => {
+                            let words: Vec<u32> = colors.iter().map(|c| u32::from_le_bytes(*c)).collect();
+                            let colors = gpu.buffer("meshlet colors", &words, storage);
+                            shared.push(gpu.bind_group("meshlet colors", &path.color_layout, &[entry(3, &colors)]));
+                            &path.colored_pipeline
+                        }
+                        Draw::Culled(..) => &path.culled_pipeline,
+                        _ => &path.pipeline,
+                    };
+                    let triangle_cull = match draw {
+                        Draw::Culled(_, triangles, _) => {
+                            counter =
+                                Some(gpu.buffer("drawn triangles", &[0u32; 4], storage | wgpu::BufferUsages::COPY_SRC));
+                            Some(gpu.buffer(
+                                "triangle culling",
+                                &triangle_cull_words(triangles),
+                                wgpu::BufferUsages::UNIFORM,
+                            ))
+                        }
+                        _ => None,
+                    };
+                    for (i, m) in instances.iter().zip(&matrices) {
+                        let group0 = gpu.bind_group("mesh-shader mesh", &path.skin_layout, &mesh_bindings(mesh, m));
+                        let group3 = match (draw, i.frame, &triangle_cull, &counter) {
+                            (Draw::Culled(culler, ..), Some(frame), Some(triangle_cull), Some(counter)) => {
+                                let [params, slots, records] =
+                                    CullInput::new(culler, std::slice::from_ref(frame)).buffers(gpu);
+                                Some(gpu.bind_group(
+                                    "task culling",
+                                    &path.cull_layout,
+                                    &[
+                                        entry(0, &params),
+                                        entry(1, &slots),
+                                        entry(2, &records),
+                                        entry(4, counter),
+                                        entry(5, triangle_cull),
+                                    ],
+                                ))
+                            }
+                            _ => None,
+                        };
+                        per_instance.push((group0, group3, None));
+                    }
+                    pipeline
                 }
                 None if matches!(draw, Draw::Plain(Skinning::Vertex) | Draw::Culled(..)) => {
-                    if let (Some((_, input, _)), Some(meshlets)) = (&culling, &mesh.meshlets) {
-                        let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
-                        let counts = gpu.buffer("cull counts", &[0u32; 3], storage);
-                        let commands = gpu.buffer(
-                            "meshlet draws",
-                            &vec![0u32; 5 * meshlets.count as usize],
-                            storage | wgpu::BufferUsages::INDIRECT,
-                        );
-                        let input = input.buffers(gpu);
-                        self.culling.encode_draws(gpu, &mut encoder, &input, meshlets, &counts, &commands);
-                        indirect = Some((commands, meshlets.count));
+                    for (i, m) in instances.iter().zip(&matrices) {
+                        let commands = match (draw, i.frame, &mesh.meshlets) {
+                            (Draw::Culled(culler, ..), Some(frame), Some(meshlets)) => {
+                                let counts = gpu.buffer("cull counts", &[0u32; 3], storage);
+                                let commands = gpu.buffer(
+                                    "meshlet draws",
+                                    &vec![0u32; 5 * meshlets.count as usize],
+                                    storage | wgpu::BufferUsages::INDIRECT | wgpu::BufferUsages::COPY_SRC,
+                                );
+                                let input = CullInput::new(culler, std::slice::from_ref(frame)).buffers(gpu);
+                                self.culling.encode_draws(gpu, &mut encoder, &input, meshlets, &counts, &commands);
+                                Some(commands)
+                            }
+                            _ => None,
+                        };
+                        let group0 = gpu.bind_group("mesh", &self.mesh_layout, &mesh_bindings(mesh, m));
+                        per_instance.push((group0, None, commands));
                     }
-                    let bind = gpu.bind_group("mesh", &self.mesh_layout, &mesh_bindings(mesh, &matrices));
-                    (&self.vertex_pipeline, bind)
+                    &self.vertex_pipeline
                 }
                 None => {
-                    self.compute.encode(gpu, &mut encoder, mesh, &matrices);
+                    for (k, m) in matrices.iter().enumerate() {
+                        // The first instance skins into the mesh's buffers, the others into their own.
+                        let out = (k > 0).then(|| {
+                            let bytes = |n: u32| vec![0f32; 3 * n as usize];
+                            let usage = storage | wgpu::BufferUsages::COPY_SRC;
+                            let normals = if mesh.has_normals { mesh.vertices } else { 0 };
+                            [
+                                gpu.buffer("skinned positions", &bytes(mesh.vertices), usage),
+                                gpu.buffer("skinned normals", &bytes(normals), usage),
+                            ]
+                        });
+                        let [positions, normals] = match &out {
+                            Some([p, n]) => [p, n],
+                            None => [&mesh.out_positions, &mesh.out_normals],
+                        };
+                        self.compute.encode_into(gpu, &mut encoder, mesh, m, positions, normals);
+                        let group0 = gpu.bind_group("skinned", &self.skinned_layout, &[entry(0, positions)]);
+                        per_instance.push((group0, None, None));
+                        skinned_out.push(out);
+                    }
                     if let Draw::Contours(extraction, contours, view) = draw {
                         extraction.encode(gpu, &mut encoder, contours, &mesh.out_positions, view)?;
-                        lines = Some((
-                            contours,
-                            gpu.bind_group(
-                                "contour lines",
-                                &self.lines_layout,
-                                &[
-                                    entry(0, &mesh.out_positions),
-                                    entry(1, &contours.contours),
-                                    entry(2, &contours.endpoints),
-                                ],
-                            ),
-                        ));
+                        let entries = [
+                            entry(0, &mesh.out_positions),
+                            entry(1, &contours.contours),
+                            entry(2, &contours.endpoints),
+                        ];
+                        lines = Some((contours, gpu.bind_group("contour lines", &self.lines_layout, &entries)));
                     }
-                    let bind = gpu.bind_group("skinned", &self.skinned_layout, &[entry(0, &mesh.out_positions)]);
-                    (&self.skinned_pipeline, bind)
+                    &self.skinned_pipeline
                 }
             };
             {
@@ -536,33 +666,42 @@ impl Renderer {
                         }),
                         stencil_ops: None,
                     }),
-                    timestamp_writes: None,
+                    timestamp_writes: queries.as_ref().map(|set| wgpu::RenderPassTimestampWrites {
+                        query_set: set,
+                        beginning_of_pass_write_index: None,
+                        end_of_pass_write_index: Some(1),
+                    }),
                     occlusion_query_set: None,
                     multiview_mask: None,
                 });
                 pass.set_pipeline(pipeline);
-                pass.set_bind_group(0, &group0, &[]);
                 pass.set_bind_group(1, &camera, &[]);
-                for (i, group) in extra.iter().enumerate() {
+                for (i, group) in shared.iter().enumerate() {
                     pass.set_bind_group(2 + i as u32, group, &[]);
                 }
-                match (mesh_draw, &culling) {
-                    // One task workgroup per 32 meshlet slots (task_cull.wgsl).
-                    (Some(_), Some((slots, ..))) => pass.draw_mesh_tasks(slots.div_ceil(32), 1, 1),
-                    (None, Some(_)) => {
-                        if let Some((commands, count)) = &indirect {
-                            pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
-                            pass.multi_draw_indexed_indirect(commands, 0, *count);
+                for (group0, group3, commands) in &per_instance {
+                    pass.set_bind_group(0, group0, &[]);
+                    if let Some(group3) = group3 {
+                        pass.set_bind_group(3, group3, &[]);
+                    }
+                    match (mesh_draw, &commands) {
+                        // One task workgroup per 32 meshlet slots (task_cull.wgsl).
+                        (Some(_), _) if group3.is_some() => {
+                            pass.draw_mesh_tasks((meshlet_count as u32).div_ceil(32), 1, 1)
                         }
-                    }
-                    (Some((_, meshlets)), None) => {
-                        // Meshlet id = y × 1024 + x (mesh_skin.wgsl).
-                        let n = meshlets.count;
-                        pass.draw_mesh_tasks(n.min(1024), n.div_ceil(1024), 1);
-                    }
-                    (None, _) => {
-                        pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
-                        pass.draw_indexed(0..mesh.index_count, 0, 0..1);
+                        (Some(_), _) => {
+                            // Meshlet id = y × 1024 + x (mesh_skin.wgsl).
+                            let n = meshlet_count as u32;
+                            pass.draw_mesh_tasks(n.min(1024), n.div_ceil(1024), 1);
+                        }
+                        (None, Some(commands)) => {
+                            pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
+                            pass.multi_draw_indexed_indirect(commands, 0, meshlet_count as u32);
+                        }
+                        (None, None) => {
+                            pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
+                            pass.draw_indexed(0..mesh.index_count, 0, 0..1);
+                        }
                     }
                 }
                 if let Some((contours, group)) = &lines {
@@ -596,22 +735,49 @@ impl Renderer {
                 },
                 wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
             );
+            let times = queries.map(|set| {
+                let times = gpu.buffer(
+                    "frame times",
+                    &[0u64; 2],
+                    wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                );
+                encoder.resolve_query_set(&set, 0..2, &times, 0);
+                times
+            });
             gpu.queue.submit([encoder.finish()]);
-            Ok((readback, drawn, indirect))
+            let commands: Vec<wgpu::Buffer> = per_instance.into_iter().filter_map(|(_, _, c)| c).collect();
+            Ok((readback, counter, commands, times))
         })??;
         let bytes = gpu.read(&readback, (row * height) as u64)?;
         let rgba = bytes.chunks_exact(row as usize).flat_map(|r| &r[..4 * width as usize]).copied().collect();
-        let drawn = match (drawn, indirect) {
-            (Some(counter), _) => Some(bytemuck::pod_collect_to_vec::<u8, u32>(&gpu.read(&counter, 4)?)[0]),
-            // Triangles of the indirect draws that have an instance.
-            (None, Some((commands, count))) => {
-                let words = bytemuck::pod_collect_to_vec::<u8, u32>(&gpu.read(&commands, 20 * count as u64)?);
-                Some(words.chunks_exact(5).map(|c| c[0] / 3 * c[1]).sum())
-            }
-            (None, None) => None,
+        let mut triangles = match counter {
+            Some(counter) => Some(bytemuck::pod_collect_to_vec::<u8, u32>(&gpu.read(&counter, 4)?)[0]),
+            None => None,
         };
-        Ok((Image { width, height, rgba }, drawn))
+        // Triangles of the indirect draws that have an instance.
+        for c in &commands {
+            let words = bytemuck::pod_collect_to_vec::<u8, u32>(&gpu.read(c, 20 * meshlet_count as u64)?);
+            *triangles.get_or_insert(0) += words.chunks_exact(5).map(|c| c[0] / 3 * c[1]).sum::<u32>();
+        }
+        let gpu_ms = match times {
+            Some(times) => {
+                let t = bytemuck::pod_collect_to_vec::<u8, u64>(&gpu.read(&times, 16)?);
+                Some(t[1].saturating_sub(t[0]) as f64 * gpu.queue.get_timestamp_period() as f64 / 1e6)
+            }
+            None => None,
+        };
+        Ok(Drawn { image: Image { width, height, rgba }, triangles, gpu_ms })
     }
+}
+
+/// `TriangleCull` in task_cull.wgsl: the eye or view direction, and the mode.
+fn triangle_cull_words(triangles: Option<Projection>) -> Vec<u32> {
+    let (view, mode) = match triangles {
+        None => (Vec3::ZERO, 0),
+        Some(Projection::Perspective { eye }) => (eye, 1),
+        Some(Projection::Orthographic { dir }) => (dir, 2),
+    };
+    view.extend(0.0).to_array().iter().map(|f| f.to_bits()).chain([mode, 0, 0, 0]).collect()
 }
 
 /// The shared primitive state: triangle lists, counter-clockwise front faces (glTF's), back

@@ -64,16 +64,18 @@ impl ComputeSkinning {
     }
 
     /// Records the skinning of `mesh` by the matrices in `matrices` (from
-    /// `GpuMesh::matrix_buffer`) into `encoder`.
-    pub(crate) fn encode(
+    /// `GpuMesh::matrix_buffer`) into `positions` and `normals` (3 f32 per vertex).
+    pub(crate) fn encode_into(
         &self,
         gpu: &Gpu,
         encoder: &mut wgpu::CommandEncoder,
         mesh: &GpuMesh,
         matrices: &wgpu::Buffer,
+        positions: &wgpu::Buffer,
+        normals: &wgpu::Buffer,
     ) {
         let mut entries = mesh_bindings(mesh, matrices);
-        entries.extend([entry(6, &mesh.out_positions), entry(7, &mesh.out_normals)]);
+        entries.extend([entry(6, positions), entry(7, normals)]);
         let bind = gpu.bind_group("skinning", &self.layout, &entries);
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
         pass.set_pipeline(&self.pipeline);
@@ -87,7 +89,7 @@ impl ComputeSkinning {
         let matrices = mesh.matrix_buffer(gpu, matrices)?;
         gpu.checked("compute skinning", || {
             let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
-            self.encode(gpu, &mut encoder, mesh, &matrices);
+            self.encode_into(gpu, &mut encoder, mesh, &matrices, &mesh.out_positions, &mesh.out_normals);
             gpu.queue.submit([encoder.finish()]);
         })
     }

@@ -1,7 +1,8 @@
 //! Every skinning pipeline renders the same image of a posed character (thesis fig. 3.2),
-//! pixel for pixel: vertex-shader, compute-shader and mesh-shader skinning (skin-aware
-//! meshlets), on every shared skinned asset and the demo character, mid-clip. With
-//! SKINLET_REQUIRE_GPU=1 (CI, lavapipe) the mesh-shader path must run.
+//! pixel for pixel: vertex-shader, compute-shader and mesh-shader skinning (skin-aware and
+//! common-influences meshlets, full and slim vertices), on every shared skinned asset and the
+//! demo character, mid-clip. With SKINLET_REQUIRE_GPU=1 (CI, lavapipe) the mesh-shader paths
+//! must run.
 
 mod common;
 use common::{assets, gpu};
@@ -9,18 +10,20 @@ use glam::{Affine3A, Vec3};
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::Poser;
 use skinlet_gpu::mesh::GpuMesh;
-use skinlet_gpu::render::{Renderer, Skinning, framing};
+use skinlet_gpu::render::{CrowdDraw, Instance, Renderer, Skinning, framing};
 use skinlet_gpu::{Gpu, GpuOptions};
 
 #[test]
 fn every_skinning_pipeline_draws_the_same_image() {
     let Some(gpu) = gpu() else { return };
     let renderer = Renderer::new(&gpu, 192, 192).unwrap();
+    let (mut slim, mut meshlet_total) = (0, 0);
     for (name, asset) in assets() {
         let Some(skin_index) = asset.instances.iter().find_map(|i| i.skin) else { continue };
         let skin = &asset.skins[skin_index as usize];
         let prepared = skinlet::meshlet::prepare(&asset.combined_mesh(Some(skin_index)));
         let meshlets = skinlet::meshlet::build(&prepared, Builder::SkinAware, MeshletLimits::NVIDIA).unwrap();
+        let common = skinlet::meshlet::build(&prepared, Builder::CommonInfluences, MeshletLimits::NVIDIA).unwrap();
         let mesh = prepared.mesh;
         let clip = asset.clips.first();
         let t = clip.map_or(0.0, |c| c.start + 0.4 * c.duration());
@@ -38,10 +41,17 @@ fn every_skinning_pipeline_draws_the_same_image() {
         let background = &by_vertex.rgba[..4];
         let covered = by_vertex.rgba.chunks(4).filter(|p| *p != background).count();
         assert!(covered > 200, "{name}: only {covered} pixels drawn");
-        let mut others = vec![("compute", by_compute)];
+        let mut others = vec![("compute".to_string(), by_compute)];
         if gpu.has_mesh_shaders() {
-            let by_mesh = renderer.render(&gpu, &gpu_mesh, &matrices, view_proj, light, Skinning::Mesh).unwrap();
-            others.push(("mesh", by_mesh));
+            for (builder, m) in [("skin-aware", &meshlets), ("common-influences", &common)] {
+                let gpu_mesh = GpuMesh::new(&gpu, &mesh, Some(m)).unwrap();
+                let ml = gpu_mesh.meshlets.as_ref().unwrap();
+                (slim, meshlet_total) = (slim + ml.slim, meshlet_total + ml.count);
+                for path in [Skinning::Mesh, Skinning::MeshSlim] {
+                    let image = renderer.render(&gpu, &gpu_mesh, &matrices, view_proj, light, path).unwrap();
+                    others.push((format!("{path:?} on {builder} meshlets ({} of {} slim)", ml.slim, ml.count), image));
+                }
+            }
         }
         for (path, image) in others {
             let differing = by_vertex.rgba.chunks(4).zip(image.rgba.chunks(4)).filter(|(a, b)| a != b).count();
@@ -51,6 +61,8 @@ fn every_skinning_pipeline_draws_the_same_image() {
             );
         }
     }
+    eprintln!("{slim} of {meshlet_total} meshlets slim");
+    assert!(!gpu.has_mesh_shaders() || slim > 0, "no slim meshlet: the slim path was not exercised");
 }
 
 #[test]
@@ -169,4 +181,85 @@ fn culled_drawing_gives_the_unculled_image() {
         }
     }
     assert!(culled_total > 0, "no meshlet was culled: the comparison would be vacuous");
+}
+
+#[test]
+fn crowd_draws_agree_and_are_timed() {
+    // The gpu-bench scene: a crowd of instances in one render pass. Every pipeline, culled
+    // or not, draws the same image; culled drawing draws exactly the triangles of the CPU's
+    // visible meshlets; devices with timestamp queries (lavapipe has them) time the frame.
+    let Some(gpu) = gpu() else { return };
+    let renderer = Renderer::new(&gpu, 320, 180).unwrap();
+    let demo = skinlet::demo::demo_character(&skinlet::demo::DemoParams { triangles: 4000, ..Default::default() });
+    let clips: Vec<&skinlet::clip::Clip> = demo.clips.iter().collect();
+    let how = skinlet::bounds::refine::Refinement::NONE;
+    let (baked, _) =
+        skinlet::bake::bake(&demo, 0, &clips, Builder::SkinAware, MeshletLimits::NVIDIA, &how, &mut |_| {}).unwrap();
+    let skin = &demo.skins[0];
+    let params = skinlet::cull::crowd::CrowdParams { instances: 12, ..Default::default() };
+    let scene = skinlet::cull::crowd::crowd(&baked.mesh.positions, clips.len(), &params);
+    let culler = skinlet::cull::meshlet::MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len());
+    let mut poser = Poser::default();
+    let (mut matrices, mut frames, mut expected) = (Vec::new(), Vec::new(), 0);
+    for pl in &scene.placements {
+        let clip = clips[pl.clip];
+        let globals = poser.globals(&demo.skeleton, Some(clip), clip.start + pl.offset * clip.duration());
+        let world = |m: glam::DMat4| Affine3A::from_mat4((pl.model * m).as_mat4());
+        let joints: Vec<Affine3A> = skin.joints.iter().map(|&j| world(globals[j as usize])).collect();
+        matrices.push(
+            (skin.joints.iter().zip(&skin.inverse_bind))
+                .map(|(&j, ibm)| world(globals[j as usize] * ibm.as_dmat4()))
+                .collect::<Vec<_>>(),
+        );
+        let mut frame = skinlet::cull::meshlet::JointFrame::default();
+        culler.prepare(&joints, &scene.camera, skinlet::cull::meshlet::Tests::Both, &mut frame);
+        let mut visible = Vec::new();
+        culler.cull(&frame, &mut Vec::new(), &mut visible);
+        expected += visible.iter().map(|&m| baked.meshlets.meshlets[m as usize].triangle_count as u32).sum::<u32>();
+        frames.push(frame);
+    }
+    let instances: Vec<Instance> =
+        matrices.iter().zip(&frames).map(|(m, f)| Instance { matrices: m, frame: Some(f) }).collect();
+    let mesh = GpuMesh::new(&gpu, &baked.mesh, Some(&baked.meshlets)).unwrap();
+    let (view_proj, light) = (scene.camera.view_proj, Vec3::new(0.4, 0.8, 0.6));
+    let draw = |how| renderer.render_crowd(&gpu, &mesh, &instances, view_proj, light, how).unwrap();
+    let reference = draw(CrowdDraw::Plain(Skinning::Vertex));
+    let background = &reference.image.rgba[..4];
+    let covered = reference.image.rgba.chunks(4).filter(|p| *p != background).count();
+    assert!(covered > 500, "only {covered} pixels drawn");
+    assert!(expected < 12 * baked.meshlets.meshlets.iter().map(|m| m.triangle_count as u32).sum::<u32>());
+    // Pixel for pixel within each front end (vertex-fed: VS, CS, VS culled by a compute pass;
+    // mesh-shader-fed: MS, MS slim, task-culled). Across the two, lavapipe clips triangles
+    // that cross the view's sides in different code, so a few pixels there may differ.
+    let mut drawn = vec![
+        (
+            "vertex culled",
+            draw(CrowdDraw::Culled { culler: &culler, skinning: Skinning::Vertex, triangles: None }),
+            Some(expected),
+        ),
+        ("compute", draw(CrowdDraw::Plain(Skinning::Compute)), None),
+    ];
+    let mut mesh_reference = None;
+    if gpu.has_mesh_shaders() {
+        let mesh = draw(CrowdDraw::Plain(Skinning::Mesh));
+        let across = differing(&mesh.image, &reference.image);
+        assert!(across * 200 <= covered, "mesh vs vertex skinning: {across} of {covered} pixels differ");
+        drawn.push(("slim", draw(CrowdDraw::Plain(Skinning::MeshSlim)), None));
+        let how = CrowdDraw::Culled { culler: &culler, skinning: Skinning::Mesh, triangles: None };
+        drawn.push(("task culled", draw(how), Some(expected)));
+        mesh_reference = Some(mesh);
+    }
+    for (what, d, triangles) in drawn {
+        let same = if matches!(what, "slim" | "task culled") { mesh_reference.as_ref().unwrap() } else { &reference };
+        let n = differing(&d.image, &same.image);
+        assert_eq!(n, 0, "{what}: {n} of {covered} pixels differ within its front end");
+        assert_eq!(d.triangles, triangles, "{what}: triangles drawn");
+        if gpu.has_timestamps() {
+            assert!(d.gpu_ms.is_some_and(|t| t > 0.0 && t < 60_000.0), "{what}: GPU time {:?}", d.gpu_ms);
+        }
+    }
+}
+
+fn differing(a: &skinlet_gpu::render::Image, b: &skinlet_gpu::render::Image) -> usize {
+    a.rgba.chunks(4).zip(b.rgba.chunks(4)).filter(|(x, y)| x != y).count()
 }

@@ -141,6 +141,24 @@ impl Influences {
         self.joints[r.clone()].iter().zip(&self.weights[r]).take_while(|(_, w)| **w != 0.0).map(|(j, w)| (*j, *w))
     }
 
+    /// Sorts each vertex's non-zero influences by joint (stable; the zero-weight slots that
+    /// end the list stay last). Skinning is unchanged in value; with every vertex in joint
+    /// order, a meshlet whose vertices share a joint set can hold the joints once and its
+    /// vertices only weights, summed in the same order as the full vertices are.
+    pub fn sort_by_joint(&mut self) {
+        let stride = self.stride;
+        let mut pairs: Vec<(u16, f32)> = Vec::with_capacity(stride);
+        for v in 0..self.vertex_count() {
+            pairs.clear();
+            pairs.extend(self.of(v));
+            pairs.sort_by_key(|&(j, _)| j);
+            for (k, &(j, w)) in pairs.iter().enumerate() {
+                self.joints[v * stride + k] = j;
+                self.weights[v * stride + k] = w;
+            }
+        }
+    }
+
     /// Number of non-zero weights of vertex `v`.
     pub fn count(&self, v: usize) -> usize {
         self.weights[v * self.stride..(v + 1) * self.stride].iter().take_while(|w| **w != 0.0).count()
@@ -262,5 +280,29 @@ impl Asset {
             .filter(|g| skin.is_none() || g.influences.is_some())
             .collect();
         concat(&parts)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sorting_influences_keeps_each_vertex_pairs() {
+        // Slots after the first zero weight are not influences and stay where they are.
+        let mut inf = Influences {
+            stride: 4,
+            joints: vec![7, 2, 5, 0, 3, 1, 9, 4, 6, 6, 1, 8],
+            weights: vec![0.5, 0.3, 0.2, 0.0, 0.6, 0.4, 0.0, 0.9, 0.25, 0.25, 0.5, 0.0],
+        };
+        let before: Vec<Vec<(u16, f32)>> = (0..3).map(|v| inf.of(v).collect()).collect();
+        inf.sort_by_joint();
+        assert_eq!(inf.joints, [2, 5, 7, 0, 1, 3, 9, 4, 1, 6, 6, 8]);
+        assert_eq!(inf.weights, [0.3, 0.2, 0.5, 0.0, 0.4, 0.6, 0.0, 0.9, 0.5, 0.25, 0.25, 0.0]);
+        for (v, pairs) in before.into_iter().enumerate() {
+            let mut sorted = pairs.clone();
+            sorted.sort_by_key(|p| p.0);
+            assert_eq!(inf.of(v).collect::<Vec<_>>(), sorted);
+        }
     }
 }

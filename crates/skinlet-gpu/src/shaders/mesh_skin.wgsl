@@ -8,6 +8,11 @@ struct Meshlet {
     vertex_count: u32,
     triangle_offset: u32,
     triangle_count: u32,
+    // Slim meshlets (slim_skin.wgsl): their joint list; count 0 otherwise.
+    joint_offset: u32,
+    joint_count: u32,
+    pad0: u32,
+    pad1: u32,
 }
 
 @group(2) @binding(0) var<storage, read> meshlets: array<Meshlet>;
@@ -52,11 +57,16 @@ fn emit_meshlet(id: u32, lid: u32, color: vec4<f32>) {
         return;
     }
     let m = meshlets[id];
-    mesh_out.vertex_count = m.vertex_count;
-    mesh_out.primitive_count = m.triangle_count;
     for (var i = lid; i < m.vertex_count; i += 32u) {
         mesh_out.vertices[i] = to_screen(skin_vertex(meshlet_vertices[m.vertex_offset + i]).position);
     }
+    emit_triangles(m, lid, color);
+}
+
+// Sets the output counts and emits meshlet `m`'s triangles in `color`.
+fn emit_triangles(m: Meshlet, lid: u32, color: vec4<f32>) {
+    mesh_out.vertex_count = m.vertex_count;
+    mesh_out.primitive_count = m.triangle_count;
     for (var i = lid; i < m.triangle_count; i += 32u) {
         let t = meshlet_triangles[m.triangle_offset + i];
         mesh_out.primitives[i].indices = vec3<u32>(t & 255u, (t >> 8u) & 255u, (t >> 16u) & 255u);

@@ -2,6 +2,9 @@
 //! position and skin data ([`crate::weld`]; the thesis' welding cut 854 meshlets to 563),
 //! drop triangles that repeat a vertex (they draw nothing), and order triangles for the
 //! post-transform vertex cache with meshoptimizer (Forsyth-style `optimizeVertexCache`).
+//! Each vertex's influences are first sorted by joint ([`crate::model::Influences::sort_by_joint`]):
+//! vertices that differ only in slot order then weld, and the slim vertices of
+//! common-influences meshlets (weights in the meshlet's joint order) sum like full ones.
 
 use crate::model::SkinnedMesh;
 use crate::weld::{WeldReport, weld};
@@ -17,7 +20,11 @@ pub struct PreparedMesh {
 }
 
 pub fn prepare(mesh: &SkinnedMesh) -> PreparedMesh {
-    let (mut welded, remap, weld) = weld(mesh);
+    let mut sorted = mesh.clone();
+    if let Some(inf) = &mut sorted.influences {
+        inf.sort_by_joint();
+    }
+    let (mut welded, remap, weld) = weld(&sorted);
     let before = welded.triangles.len();
     welded.triangles.retain(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]);
     let dropped_triangles = before - welded.triangles.len();

@@ -1,0 +1,211 @@
+//! `skinlet gpu-bench`: the paper's crowd scene (fig. 10) drawn on the GPU by each skinning
+//! pipeline (vertex, compute, mesh shader, mesh shader with common-influences slim meshlets)
+//! and each culling pipeline (none, frustum, backface, both), timed with GPU timestamps.
+
+use crate::RefineArgs;
+use anyhow::{Context, Result};
+use glam::{Affine3A, Vec3};
+use serde_json::json;
+use skinlet::cull::crowd::{CrowdParams, crowd};
+use skinlet::cull::meshlet::{JointFrame, MeshletCuller, Tests};
+use skinlet::meshlet::MeshletLimits;
+use skinlet::pose::Poser;
+use skinlet_gpu::mesh::GpuMesh;
+use skinlet_gpu::render::{CrowdDraw, Instance, Renderer, Skinning};
+use skinlet_gpu::{Gpu, GpuOptions};
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The glTF file a bake was made from (required with a bake file).
+    #[arg(long)]
+    gltf: Option<String>,
+    #[arg(long, default_value_t = 64)]
+    instances: usize,
+    /// Timed frames per configuration (after one untimed frame); the median is reported.
+    #[arg(long, default_value_t = 5)]
+    frames: usize,
+    /// Image width (the height follows the crowd camera's 16:9).
+    #[arg(long, default_value_t = 1280)]
+    width: u32,
+    /// Only a software adapter (lavapipe), even where a GPU exists.
+    #[arg(long)]
+    software: bool,
+    /// Also write the crowd, drawn with culling, as a PNG.
+    #[arg(short, long)]
+    out: Option<std::path::PathBuf>,
+    #[command(flatten)]
+    refine: RefineArgs,
+    #[arg(long)]
+    json: bool,
+}
+
+/// One measured configuration.
+struct Row {
+    pipeline: &'static str,
+    culling: &'static str,
+    gpu_ms: Option<f64>,
+    wall_ms: f64,
+    culled_pct: Option<f64>,
+    triangles: Option<u64>,
+}
+
+fn median(mut v: Vec<f64>) -> Option<f64> {
+    v.sort_by(f64::total_cmp);
+    (!v.is_empty()).then(|| v[v.len() / 2])
+}
+
+pub fn command(file: &str, a: &Args) -> Result<()> {
+    anyhow::ensure!(a.instances >= 1 && a.frames >= 1, "--instances and --frames must be at least 1");
+    anyhow::ensure!((64..=8192).contains(&a.width), "--width must be between 64 and 8192");
+    let (asset, skin_index, baked) = crate::crowd::load(file, a.gltf.as_deref(), a.refine, a.json)?;
+    let clips = crate::bake::clips_of(&baked, &asset, a.gltf.as_deref().unwrap_or(file))?;
+    let skin = &asset.skins[skin_index as usize];
+    let params = CrowdParams { instances: a.instances, frames: a.frames + 1, ..CrowdParams::default() };
+    let scene = crowd(&baked.mesh.positions, clips.len(), &params);
+    let gpu = Gpu::new(GpuOptions { software: a.software, ..GpuOptions::default() })?;
+    let height = (a.width * 9 / 16).max(1);
+    let renderer = Renderer::new(&gpu, a.width, height)?;
+    let mesh = GpuMesh::new(&gpu, &baked.mesh, Some(&baked.meshlets))?;
+    let mut ci = skinlet::meshlet::common_influences::build(&baked.mesh, MeshletLimits::NVIDIA);
+    let inf = baked.mesh.influences.as_ref().context("the bake has no skin weights")?;
+    skinlet::meshlet::annotate_joint_sets(&mut ci, inf);
+    let ci_mesh = GpuMesh::new(&gpu, &baked.mesh, Some(&ci))?;
+    let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len());
+    // Per frame and instance: world-space skinning matrices and joint matrices.
+    let mut poser = Poser::default();
+    let mut frames: Vec<Vec<(Vec<Affine3A>, Vec<Affine3A>)>> = Vec::new();
+    for f in 0..params.frames {
+        let mut instances = Vec::new();
+        for pl in &scene.placements {
+            let clip = clips.get(pl.clip).copied();
+            let t = clip.map_or(0.0, |c| {
+                let d = c.duration().max(1e-6);
+                c.start + (pl.offset * d + f as f32 / params.fps).rem_euclid(d)
+            });
+            let globals = poser.globals(&asset.skeleton, clip, t);
+            let world = |m: glam::DMat4| Affine3A::from_mat4((pl.model * m).as_mat4());
+            let joints: Vec<Affine3A> = skin.joints.iter().map(|&j| world(globals[j as usize])).collect();
+            let skinning: Vec<Affine3A> = (skin.joints.iter().zip(&skin.inverse_bind))
+                .map(|(&j, ibm)| world(globals[j as usize] * ibm.as_dmat4()))
+                .collect();
+            instances.push((skinning, joints));
+        }
+        frames.push(instances);
+    }
+    let mut pipelines = vec![("VS", Skinning::Vertex, &mesh), ("CS", Skinning::Compute, &mesh)];
+    if gpu.has_mesh_shaders() {
+        pipelines.extend([("MS", Skinning::Mesh, &mesh), ("MS-CI", Skinning::MeshSlim, &ci_mesh)]);
+    }
+    let total_triangles = baked.meshlets.meshlets.iter().map(|m| m.triangle_count as u64).sum::<u64>();
+    let cullings = [
+        ("none", None),
+        ("frustum", Some(Tests::Frustum)),
+        ("backface", Some(Tests::Backface)),
+        ("both", Some(Tests::Both)),
+    ];
+    let light = Vec3::new(0.4, 0.8, 0.6);
+    let mut rows = Vec::new();
+    let mut picture = None;
+    for &(name, skinning, gpu_mesh) in &pipelines {
+        for &(culling, tests) in &cullings {
+            // Culling runs in the task shader (MS) or a compute pass with indirect draws (VS).
+            if tests.is_some() && !matches!(skinning, Skinning::Mesh | Skinning::Vertex) {
+                continue;
+            }
+            let (mut gpu_ms, mut wall_ms, mut culled, mut triangles) = (Vec::new(), Vec::new(), 0usize, None);
+            for (f, instances) in frames.iter().enumerate() {
+                let prepared: Vec<JointFrame> = match tests {
+                    Some(tests) => instances
+                        .iter()
+                        .map(|(_, joints)| {
+                            let mut frame = JointFrame::default();
+                            culler.prepare(joints, &scene.camera, tests, &mut frame);
+                            frame
+                        })
+                        .collect(),
+                    None => Vec::new(),
+                };
+                if f > 0 {
+                    for frame in &prepared {
+                        let c = culler.cull(frame, &mut Vec::new(), &mut Vec::new());
+                        culled += c.meshlets - c.visible;
+                    }
+                }
+                let list: Vec<Instance> = (instances.iter().enumerate())
+                    .map(|(i, (m, _))| Instance { matrices: m, frame: prepared.get(i) })
+                    .collect();
+                let how = match tests {
+                    Some(_) => CrowdDraw::Culled { culler: &culler, skinning, triangles: None },
+                    None => CrowdDraw::Plain(skinning),
+                };
+                let started = std::time::Instant::now();
+                let drawn = renderer.render_crowd(&gpu, gpu_mesh, &list, scene.camera.view_proj, light, how)?;
+                if f > 0 {
+                    wall_ms.push(started.elapsed().as_secs_f64() * 1e3);
+                    gpu_ms.extend(drawn.gpu_ms);
+                    triangles = drawn.triangles.map(|t| t as u64 + triangles.unwrap_or(0));
+                }
+                // Culling is conservative: every configuration draws this same picture.
+                if f == 1 && picture.is_none() {
+                    picture = Some(drawn.image);
+                }
+            }
+            let tested = (a.frames * a.instances * culler.len()) as f64;
+            rows.push(Row {
+                pipeline: name,
+                culling,
+                gpu_ms: median(gpu_ms),
+                wall_ms: median(wall_ms).unwrap_or(0.0),
+                culled_pct: tests.map(|_| 100.0 * culled as f64 / tested),
+                triangles: Some(triangles.map_or(total_triangles * a.instances as u64, |t| t / a.frames as u64)),
+            });
+        }
+    }
+    if let (Some(out), Some(image)) = (&a.out, &picture) {
+        crate::write_png(out, image.width, image.height, png::ColorType::Rgba, &image.rgba)?;
+    }
+    if a.json {
+        let rows: Vec<_> = rows
+            .iter()
+            .map(|r| {
+                json!({"pipeline": r.pipeline, "culling": r.culling, "gpu_ms": r.gpu_ms, "wall_ms": r.wall_ms,
+                    "culled_pct": r.culled_pct, "triangles_per_frame": r.triangles})
+            })
+            .collect();
+        let m = ci_mesh.meshlets.as_ref().context("uploaded with meshlets")?;
+        let out = json!({"file": file, "adapter": gpu.info.name, "timestamps": gpu.has_timestamps(),
+            "instances": a.instances, "frames": a.frames, "width": a.width, "height": height,
+            "meshlets": baked.meshlets.len(), "triangles_per_instance": total_triangles,
+            "ci_meshlets": m.count, "ci_slim_meshlets": m.slim, "rows": rows});
+        println!("{}", serde_json::to_string_pretty(&out)?);
+        return Ok(());
+    }
+    println!(
+        "{file}: crowd of {} instances ({} meshlets, {total_triangles} triangles each), {}x{height}, on {}",
+        a.instances,
+        baked.meshlets.len(),
+        a.width,
+        gpu.info.name
+    );
+    println!("  pipeline  culling   GPU ms/frame  wall ms/frame  meshlets culled  triangles drawn");
+    let base: Option<f64> = rows.iter().find(|r| r.culling == "none" && r.pipeline == "MS").and_then(|r| r.gpu_ms);
+    for r in &rows {
+        let gpu_ms = r.gpu_ms.map_or("-".into(), |t| format!("{t:.3}"));
+        let culled = r.culled_pct.map_or("-".into(), |c| format!("{c:.1}%"));
+        let tris = r.triangles.map_or("-".into(), |t| t.to_string());
+        let saved = match (base, r.gpu_ms) {
+            (Some(b), Some(t)) if r.pipeline == "MS" && r.culling != "none" => {
+                format!("  ({:+.0}% vs MS none)", 100.0 * (t / b - 1.0))
+            }
+            _ => String::new(),
+        };
+        println!(
+            "  {:<9} {:<9} {gpu_ms:>12}  {:>13.2}  {culled:>15}  {tris:>15}{saved}",
+            r.pipeline, r.culling, r.wall_ms
+        );
+    }
+    if rows.iter().all(|r| r.gpu_ms.is_none()) {
+        println!("  (the adapter has no timestamp queries: wall-clock times only)");
+    }
+    Ok(())
+}
