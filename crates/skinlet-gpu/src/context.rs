@@ -11,6 +11,8 @@ pub struct GpuOptions {
     pub software: bool,
     /// Do not ask for mesh shaders even where the adapter has them (tests the fallback).
     pub no_mesh_shaders: bool,
+    /// Do not ask for subgroup operations (tests the atomics-only compaction).
+    pub no_subgroups: bool,
 }
 
 /// A device and its queue, with what the adapter is and can do.
@@ -35,7 +37,10 @@ impl Gpu {
             ..Default::default()
         }))
         .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
-        let mut wanted = wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::SUBGROUP | wgpu::Features::SHADER_F64;
+        let mut wanted = wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::SHADER_F64;
+        if !options.no_subgroups {
+            wanted |= wgpu::Features::SUBGROUP;
+        }
         if !options.no_mesh_shaders {
             wanted |= wgpu::Features::EXPERIMENTAL_MESH_SHADER;
         }
@@ -73,6 +78,11 @@ impl Gpu {
     /// Whether GPU timestamps can be written (frame times in `Drawn::gpu_ms`).
     pub fn has_timestamps(&self) -> bool {
         self.features.contains(wgpu::Features::TIMESTAMP_QUERY)
+    }
+
+    /// Whether subgroup operations are enabled (task-shader compaction uses them).
+    pub fn has_subgroups(&self) -> bool {
+        self.features.contains(wgpu::Features::SUBGROUP)
     }
 
     /// Whether mesh (and task) shaders are enabled.

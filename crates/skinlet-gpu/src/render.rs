@@ -201,6 +201,8 @@ impl Renderer {
                         buffer_entry(5, stage, wgpu::BufferBindingType::Uniform),
                     ],
                 );
+                // Survivors compacted by subgroup operations where the device has them.
+                let ballot = gpu.has_subgroups();
                 let source = [
                     "enable wgpu_mesh_shader;\n",
                     include_str!("shaders/common.wgsl"),
@@ -209,6 +211,7 @@ impl Renderer {
                     include_str!("shaders/cull_common.wgsl"),
                     include_str!("shaders/task_cull.wgsl"),
                     include_str!("shaders/slim_skin.wgsl"),
+                    if ballot { include_str!("shaders/task_ballot.wgsl") } else { "" },
                 ]
                 .concat();
                 let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -245,7 +248,8 @@ impl Renderer {
                 let three = [Some(&skin_layout), Some(&camera_layout), Some(&meshlet_layout)];
                 let pipeline = mesh_pipeline(&three, None, "mesh");
                 let four = [Some(&skin_layout), Some(&camera_layout), Some(&meshlet_layout), Some(&cull_layout)];
-                let culled_pipeline = mesh_pipeline(&four, Some("task"), "culled_mesh");
+                let task = if ballot { "task_ballot" } else { "task" };
+                let culled_pipeline = mesh_pipeline(&four, Some(task), "culled_mesh");
                 let color_layout = layout("meshlet colors", &[buffer_entry(3, stage, read)]);
                 let colored = [Some(&skin_layout), Some(&camera_layout), Some(&meshlet_layout), Some(&color_layout)];
                 let colored_pipeline = mesh_pipeline(&colored, None, "colored_mesh");

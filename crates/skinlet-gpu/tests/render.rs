@@ -97,8 +97,9 @@ fn a_pose_change_changes_the_image() {
 #[test]
 fn culled_drawing_gives_the_unculled_image() {
     // The paper's section 6 pipeline: a task shader culls meshlets with the baked bounds and
-    // launches mesh workgroups for the survivors only, which may also cull triangles one by
-    // one (thesis 5.1.3); and, forced on a device opened without mesh shaders, the fallback: a
+    // launches mesh workgroups for the survivors only (compacted by subgroup operations, and
+    // on a device opened without subgroups by atomics alone), which may also cull triangles one
+    // by one (thesis 5.1.3); and, forced on a device opened without mesh shaders, the fallback: a
     // compute pass writes one indirect draw per meshlet (culled ones empty), drawn by
     // vertex-shader skinning. Culling is conservative and back faces are culled by the
     // rasterizer anyway, so each image must equal the unculled one of the same device; views
@@ -108,8 +109,11 @@ fn culled_drawing_gives_the_unculled_image() {
     let fallback = Gpu::new(GpuOptions { no_mesh_shaders: true, ..GpuOptions::default() }).unwrap();
     assert!(!fallback.has_mesh_shaders());
     let mut devices = vec![(&fallback, Renderer::new(&fallback, 160, 160).unwrap())];
+    let no_subgroups = Gpu::new(GpuOptions { no_subgroups: true, ..GpuOptions::default() }).unwrap();
+    assert!(!no_subgroups.has_subgroups());
     if gpu.has_mesh_shaders() {
         devices.push((&gpu, Renderer::new(&gpu, 160, 160).unwrap()));
+        devices.push((&no_subgroups, Renderer::new(&no_subgroups, 160, 160).unwrap()));
     } else {
         eprintln!("{} has no mesh shaders: the fallback only", gpu.info.name);
     }
@@ -173,7 +177,10 @@ fn culled_drawing_gives_the_unculled_image() {
                         )
                         .unwrap();
                     let differing = all.rgba.chunks(4).zip(culled.rgba.chunks(4)).filter(|(a, b)| a != b).count();
-                    let what = format!("{name} zoom {zoom} mesh shaders {mesh_shaders} triangles {triangles:?}");
+                    let subgroups = device.has_subgroups();
+                    let what = format!(
+                        "{name} zoom {zoom} mesh shaders {mesh_shaders} subgroups {subgroups} triangles {triangles:?}"
+                    );
                     assert_eq!(differing, 0, "{what}: {differing} pixels differ ({counts:?})");
                     assert_eq!(drawn, expected, "{what}: triangles drawn");
                 }
