@@ -11,7 +11,7 @@ use skinlet::cull::meshlet::{JointFrame, MeshletCuller, Tests};
 use skinlet::meshlet::MeshletLimits;
 use skinlet::pose::Poser;
 use skinlet_gpu::mesh::GpuMesh;
-use skinlet_gpu::render::{CrowdDraw, Instance, Renderer, Skinning};
+use skinlet_gpu::render::{CrowdDraw, Culling, Instance, Renderer, Skinning};
 use skinlet_gpu::{Gpu, GpuOptions};
 
 #[derive(clap::Args)]
@@ -102,16 +102,23 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         ("frustum", Some(Tests::Frustum)),
         ("backface", Some(Tests::Backface)),
         ("both", Some(Tests::Both)),
+        ("both-by-class", Some(Tests::Both)),
     ];
     let light = Vec3::new(0.4, 0.8, 0.6);
     let mut rows = Vec::new();
     let mut picture = None;
     for &(name, skinning, gpu_mesh) in &pipelines {
         for &(culling, tests) in &cullings {
-            // Culling runs in the task shader (MS) or a compute pass with indirect draws (VS).
-            if tests.is_some() && !matches!(skinning, Skinning::Mesh | Skinning::Vertex) {
-                continue;
-            }
+            // Culling runs in task shaders (MS: one pipeline reading per-meshlet class flags, or
+            // three by class) or a compute pass writing indirect draws (VS).
+            let culling_path = match (skinning, culling) {
+                (_, "none") => None,
+                (Skinning::Mesh, "both-by-class") => Some(Culling::TaskByClass),
+                (Skinning::Mesh, _) => Some(Culling::Task),
+                (Skinning::Vertex, "both-by-class") => continue,
+                (Skinning::Vertex, _) => Some(Culling::ComputeIndirect),
+                _ => continue,
+            };
             let (mut gpu_ms, mut wall_ms, mut culled, mut triangles) = (Vec::new(), Vec::new(), 0usize, None);
             for (f, instances) in frames.iter().enumerate() {
                 let prepared: Vec<JointFrame> = match tests {
@@ -134,8 +141,8 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 let list: Vec<Instance> = (instances.iter().enumerate())
                     .map(|(i, (m, _))| Instance { matrices: m, frame: prepared.get(i) })
                     .collect();
-                let how = match tests {
-                    Some(_) => CrowdDraw::Culled { culler: &culler, skinning, triangles: None },
+                let how = match culling_path {
+                    Some(culling) => CrowdDraw::Culled { culler: &culler, culling, triangles: None },
                     None => CrowdDraw::Plain(skinning),
                 };
                 let started = std::time::Instant::now();

@@ -11,7 +11,7 @@
 use crate::mesh::entry;
 use crate::skinning::buffer_entry;
 use crate::{Gpu, GpuError, Result};
-use skinlet::cull::meshlet::{CullCounts, JointFrame, MeshletCuller, Tests};
+use skinlet::cull::meshlet::{CullCounts, CullSlot, JointFrame, MeshletCuller, Tests};
 
 /// Floats per joint record in `cull.wgsl`.
 const RECORD: usize = 40;
@@ -26,22 +26,54 @@ pub struct ComputeCulling {
 
 /// What the culling passes read: parameters, slots, joint records (see cull_common.wgsl).
 pub(crate) struct CullInput {
-    pub params: [u32; 4],
+    /// `CullParams`: slots, joints, instances, test flags, first slot, padding.
+    pub params: [u32; 8],
     pub slots: Vec<u32>,
     pub records: Vec<f32>,
+    /// Slot ranges (first, count) of the task pipelines compiled with both tests, the
+    /// frustum test only and none (paper section 6's classes); all slots in the first
+    /// unless packed by class.
+    pub ranges: [(u32, u32); 3],
 }
 
 impl CullInput {
+    /// The culler's slots in its order, every one in the first range.
     pub fn new(culler: &MeshletCuller, frames: &[JointFrame]) -> CullInput {
+        CullInput::packed(culler, frames, false)
+    }
+
+    /// The slots sorted by culling class: both tests (usable cone), frustum only, none.
+    pub fn by_class(culler: &MeshletCuller, frames: &[JointFrame]) -> CullInput {
+        CullInput::packed(culler, frames, true)
+    }
+
+    fn packed(culler: &MeshletCuller, frames: &[JointFrame], by_class: bool) -> CullInput {
         let flags = frames.first().map_or(0, test_flags);
+        let class = |s: &CullSlot| {
+            if !by_class {
+                0
+            } else if !s.frustum_ok {
+                2
+            } else {
+                (s.sin > 1.0) as usize
+            }
+        };
+        let mut slots: Vec<CullSlot> = culler.slots();
+        slots.sort_by_key(class);
+        let mut ranges = [(0u32, 0u32); 3];
+        for (k, range) in ranges.iter_mut().enumerate() {
+            let first = slots.iter().take_while(|s| class(s) < k).count() as u32;
+            *range = (first, slots.iter().filter(|s| class(s) == k).count() as u32);
+        }
         CullInput {
-            params: [culler.len() as u32, culler.joints() as u32, frames.len() as u32, flags],
-            slots: pack_slots(culler),
+            params: [culler.len() as u32, culler.joints() as u32, frames.len() as u32, flags, 0, 0, 0, 0],
+            slots: pack_slots(&slots),
             records: pack_records(frames),
+            ranges,
         }
     }
 
-    /// The parameters, slots and joint records as bind group entries 0, 1, 2.
+    /// The parameters (all slots), slots and joint records as bind group entries 0, 1, 2.
     pub fn buffers(&self, gpu: &Gpu) -> [wgpu::Buffer; 3] {
         let storage = wgpu::BufferUsages::STORAGE;
         [
@@ -49,6 +81,14 @@ impl CullInput {
             gpu.buffer("cull slots", &self.slots, storage),
             gpu.buffer("joint records", &self.records, storage),
         ]
+    }
+
+    /// The parameters of range `k` (one instance).
+    pub fn range_params(&self, gpu: &Gpu, k: usize) -> wgpu::Buffer {
+        let (first, count) = self.ranges[k];
+        let mut params = self.params;
+        (params[0], params[4]) = (count, first);
+        gpu.buffer("culling params", &params, wgpu::BufferUsages::UNIFORM)
     }
 }
 
@@ -187,10 +227,9 @@ fn dispatch(pass: &mut wgpu::ComputePass, total: usize) {
     pass.dispatch_workgroups(groups.min(65535), groups.div_ceil(65535), 1);
 }
 
-/// The culler's slots as `Slot` in cull_common.wgsl (12 words each).
-pub(crate) fn pack_slots(culler: &MeshletCuller) -> Vec<u32> {
-    culler
-        .slots()
+/// Slots as `Slot` in cull_common.wgsl (12 words each).
+fn pack_slots(slots: &[CullSlot]) -> Vec<u32> {
+    slots
         .iter()
         .flat_map(|s| {
             [

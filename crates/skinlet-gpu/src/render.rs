@@ -67,7 +67,8 @@ struct MeshPath {
     /// Task-shader culling then mesh-shader skinning of the survivors, and its culling data
     /// layout (parameters, slots, joint records).
     cull_layout: wgpu::BindGroupLayout,
-    culled_pipeline: wgpu::RenderPipeline,
+    /// Compiled with both tests, the frustum test only, none (`CLASS_TESTS` 3, 1, 0).
+    culled_pipelines: [wgpu::RenderPipeline; 3],
     /// Every meshlet in its own color (group 3: one RGBA8 word per meshlet).
     color_layout: wgpu::BindGroupLayout,
     colored_pipeline: wgpu::RenderPipeline,
@@ -79,9 +80,9 @@ struct MeshPath {
 #[derive(Clone, Copy)]
 enum Draw<'a> {
     Plain(Skinning),
-    /// Culled by `culler` with each instance's frame, by a task shader (`true`) or a compute
-    /// pass and indirect draws; per-triangle culling (task shader) from a projection.
-    Culled(&'a MeshletCuller, Option<Projection>, bool),
+    /// Culled by `culler` with each instance's frame; per-triangle culling (task shader) from
+    /// a projection.
+    Culled(&'a MeshletCuller, Option<Projection>, Culling),
     Colored(&'a [[u8; 4]]),
     Contours(&'a ContourExtraction, &'a GpuContours, &'a ContourView),
 }
@@ -95,16 +96,29 @@ pub struct Instance<'a> {
     pub frame: Option<&'a JointFrame>,
 }
 
+/// Where meshlets are culled.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Culling {
+    /// In a task shader before mesh-shader skinning, one pipeline reading each meshlet's
+    /// class from its flags.
+    Task,
+    /// In task shaders, three pipelines by culling class (paper section 6): compiled with
+    /// both tests, the frustum test only, and none, each over its class's meshlets.
+    TaskByClass,
+    /// In a compute pass writing one indirect draw per meshlet, drawn by vertex-shader
+    /// skinning (devices without mesh shaders).
+    ComputeIndirect,
+}
+
 /// How a crowd is drawn.
 #[derive(Clone, Copy)]
 pub enum CrowdDraw<'a> {
     Plain(Skinning),
-    /// Meshlets culled with the instances' frames (prepared by `culler`): with
-    /// [`Skinning::Mesh`] by a task shader (and per triangle from `triangles`), with
-    /// [`Skinning::Vertex`] by a compute pass writing indirect draws.
+    /// Meshlets culled with the instances' frames (prepared by `culler`); in task shaders,
+    /// optionally also per triangle from `triangles`.
     Culled {
         culler: &'a MeshletCuller,
-        skinning: Skinning,
+        culling: Culling,
         triangles: Option<Projection>,
     },
 }
@@ -218,7 +232,9 @@ impl Renderer {
                     label: Some("mesh skinning"),
                     source: wgpu::ShaderSource::Wgsl(source.into()),
                 });
-                let mesh_pipeline = |groups: &[Option<&wgpu::BindGroupLayout>], task: Option<&str>, mesh: &str| {
+                let mesh_pipeline = |groups: &[Option<&wgpu::BindGroupLayout>],
+                                     task: Option<(&str, &[(&str, f64)])>,
+                                     mesh: &str| {
                     let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                         label: Some(mesh),
                         bind_group_layouts: groups,
@@ -227,10 +243,10 @@ impl Renderer {
                     device.create_mesh_pipeline(&wgpu::MeshPipelineDescriptor {
                         label: Some(mesh),
                         layout: Some(&layout),
-                        task: task.map(|entry| wgpu::TaskState {
+                        task: task.map(|(entry, constants)| wgpu::TaskState {
                             module: &module,
                             entry_point: Some(entry),
-                            compilation_options: Default::default(),
+                            compilation_options: wgpu::PipelineCompilationOptions { constants, ..Default::default() },
                         }),
                         mesh: wgpu::MeshState {
                             module: &module,
@@ -249,7 +265,8 @@ impl Renderer {
                 let pipeline = mesh_pipeline(&three, None, "mesh");
                 let four = [Some(&skin_layout), Some(&camera_layout), Some(&meshlet_layout), Some(&cull_layout)];
                 let task = if ballot { "task_ballot" } else { "task" };
-                let culled_pipeline = mesh_pipeline(&four, Some(task), "culled_mesh");
+                let culled_pipelines = [3.0, 1.0, 0.0]
+                    .map(|tests| mesh_pipeline(&four, Some((task, &[("CLASS_TESTS", tests)])), "culled_mesh"));
                 let color_layout = layout("meshlet colors", &[buffer_entry(3, stage, read)]);
                 let colored = [Some(&skin_layout), Some(&camera_layout), Some(&meshlet_layout), Some(&color_layout)];
                 let colored_pipeline = mesh_pipeline(&colored, None, "colored_mesh");
@@ -265,7 +282,7 @@ impl Renderer {
                     meshlet_layout,
                     pipeline,
                     cull_layout,
-                    culled_pipeline,
+                    culled_pipelines,
                     color_layout,
                     colored_pipeline,
                     slim,
@@ -377,8 +394,8 @@ impl Renderer {
         triangles: Option<Projection>,
     ) -> Result<(Image, u32)> {
         let one = [Instance { matrices, frame: Some(frame) }];
-        let task = self.mesh_path.is_some();
-        let d = self.draw(gpu, mesh, &one, view_proj, light, Draw::Culled(culler, triangles, task))?;
+        let culling = if self.mesh_path.is_some() { Culling::Task } else { Culling::ComputeIndirect };
+        let d = self.draw(gpu, mesh, &one, view_proj, light, Draw::Culled(culler, triangles, culling))?;
         Ok((d.image, d.triangles.unwrap_or(0)))
     }
 
@@ -396,14 +413,7 @@ impl Renderer {
     ) -> Result<Drawn> {
         let draw = match how {
             CrowdDraw::Plain(skinning) => Draw::Plain(skinning),
-            CrowdDraw::Culled { culler, skinning: Skinning::Mesh, triangles } => Draw::Culled(culler, triangles, true),
-            CrowdDraw::Culled { culler, skinning: Skinning::Vertex, .. } => Draw::Culled(culler, None, false),
-            CrowdDraw::Culled { skinning, .. } => {
-                return Err(GpuError::Invalid {
-                    location: "render",
-                    message: format!("culled drawing with {skinning:?} skinning: mesh (task shader) or vertex only"),
-                });
-            }
+            CrowdDraw::Culled { culler, culling, triangles } => Draw::Culled(culler, triangles, culling),
         };
         self.draw(gpu, mesh, instances, view_proj, light, draw)
     }
@@ -464,7 +474,7 @@ impl Renderer {
         let mesh_draw = match (draw, &self.mesh_path, &mesh.meshlets) {
             (Draw::Plain(Skinning::Vertex | Skinning::Compute) | Draw::Contours(..), _, _) => None,
             (Draw::Culled(..), _, None) => return Err(invalid("culled drawing needs a mesh uploaded with meshlets")),
-            (Draw::Culled(_, _, false), _, Some(_)) => None,
+            (Draw::Culled(_, _, Culling::ComputeIndirect), _, Some(_)) => None,
             (_, None, _) => return Err(invalid("the device has no mesh shaders")),
             (_, _, None) => return Err(invalid("mesh-shader skinning needs a mesh uploaded with meshlets")),
             (_, Some(path), Some(meshlets)) => Some((path, meshlets)),
@@ -528,7 +538,12 @@ impl Renderer {
                 set
             });
             // Per instance: bind groups 0 (and 3), and how it is drawn.
-            let mut per_instance: Vec<(wgpu::BindGroup, Option<wgpu::BindGroup>, Option<wgpu::Buffer>)> = Vec::new();
+            #[allow(clippy::type_complexity)]
+            let mut per_instance: Vec<(
+                wgpu::BindGroup,
+                Vec<(&wgpu::RenderPipeline, wgpu::BindGroup, u32)>,
+                Option<wgpu::Buffer>,
+            )> = Vec::new();
             // Shared: group 2 (meshlets) and group 3 (colors) of the mesh-shader pipelines.
             let mut shared = Vec::new();
             let mut counter = None;
@@ -555,7 +570,7 @@ impl Renderer {
                             shared.push(gpu.bind_group("meshlet colors", &path.color_layout, &[entry(3, &colors)]));
                             &path.colored_pipeline
                         }
-                        Draw::Culled(..) => &path.culled_pipeline,
+                        Draw::Culled(..) => &path.culled_pipelines[0],
                         _ => &path.pipeline,
                     };
                     let triangle_cull = match draw {
@@ -572,25 +587,32 @@ impl Renderer {
                     };
                     for (i, m) in instances.iter().zip(&matrices) {
                         let group0 = gpu.bind_group("mesh-shader mesh", &path.skin_layout, &mesh_bindings(mesh, m));
-                        let group3 = match (draw, i.frame, &triangle_cull, &counter) {
-                            (Draw::Culled(culler, ..), Some(frame), Some(triangle_cull), Some(counter)) => {
-                                let [params, slots, records] =
-                                    CullInput::new(culler, std::slice::from_ref(frame)).buffers(gpu);
-                                Some(gpu.bind_group(
-                                    "task culling",
-                                    &path.cull_layout,
-                                    &[
-                                        entry(0, &params),
-                                        entry(1, &slots),
-                                        entry(2, &records),
-                                        entry(4, counter),
-                                        entry(5, triangle_cull),
-                                    ],
-                                ))
+                        // Task draws: (pipeline, group 3, task workgroups) per slot range.
+                        let mut tasks = Vec::new();
+                        if let (Draw::Culled(culler, _, how), Some(frame), Some(triangle_cull), Some(counter)) =
+                            (draw, i.frame, &triangle_cull, &counter)
+                        {
+                            let frames = std::slice::from_ref(frame);
+                            let input = match how {
+                                Culling::TaskByClass => CullInput::by_class(culler, frames),
+                                _ => CullInput::new(culler, frames),
+                            };
+                            let [_, slots, records] = input.buffers(gpu);
+                            for (k, &(_, count)) in input.ranges.iter().enumerate().filter(|(_, r)| r.1 > 0) {
+                                let params = input.range_params(gpu, k);
+                                let entries = [
+                                    entry(0, &params),
+                                    entry(1, &slots),
+                                    entry(2, &records),
+                                    entry(4, counter),
+                                    entry(5, triangle_cull),
+                                ];
+                                let group3 = gpu.bind_group("task culling", &path.cull_layout, &entries);
+                                // One task workgroup per 32 slots (task_cull.wgsl).
+                                tasks.push((&path.culled_pipelines[k], group3, count.div_ceil(32)));
                             }
-                            _ => None,
-                        };
-                        per_instance.push((group0, group3, None));
+                        }
+                        per_instance.push((group0, tasks, None));
                     }
                     pipeline
                 }
@@ -611,7 +633,7 @@ impl Renderer {
                             _ => None,
                         };
                         let group0 = gpu.bind_group("mesh", &self.mesh_layout, &mesh_bindings(mesh, m));
-                        per_instance.push((group0, None, commands));
+                        per_instance.push((group0, Vec::new(), commands));
                     }
                     &self.vertex_pipeline
                 }
@@ -633,7 +655,7 @@ impl Renderer {
                         };
                         self.compute.encode_into(gpu, &mut encoder, mesh, m, positions, normals);
                         let group0 = gpu.bind_group("skinned", &self.skinned_layout, &[entry(0, positions)]);
-                        per_instance.push((group0, None, None));
+                        per_instance.push((group0, Vec::new(), None));
                         skinned_out.push(out);
                     }
                     if let Draw::Contours(extraction, contours, view) = draw {
@@ -683,16 +705,15 @@ impl Renderer {
                 for (i, group) in shared.iter().enumerate() {
                     pass.set_bind_group(2 + i as u32, group, &[]);
                 }
-                for (group0, group3, commands) in &per_instance {
+                for (group0, tasks, commands) in &per_instance {
                     pass.set_bind_group(0, group0, &[]);
-                    if let Some(group3) = group3 {
+                    for (pipeline, group3, workgroups) in tasks {
+                        pass.set_pipeline(pipeline);
                         pass.set_bind_group(3, group3, &[]);
+                        pass.draw_mesh_tasks(*workgroups, 1, 1);
                     }
                     match (mesh_draw, &commands) {
-                        // One task workgroup per 32 meshlet slots (task_cull.wgsl).
-                        (Some(_), _) if group3.is_some() => {
-                            pass.draw_mesh_tasks((meshlet_count as u32).div_ceil(32), 1, 1)
-                        }
+                        (Some(_), _) if matches!(draw, Draw::Culled(..)) => {}
                         (Some(_), _) => {
                             // Meshlet id = y × 1024 + x (mesh_skin.wgsl).
                             let n = meshlet_count as u32;

@@ -10,7 +10,7 @@ use glam::{Affine3A, Vec3};
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::Poser;
 use skinlet_gpu::mesh::GpuMesh;
-use skinlet_gpu::render::{CrowdDraw, Instance, Renderer, Skinning, framing};
+use skinlet_gpu::render::{CrowdDraw, Culling, Instance, Renderer, Skinning, framing};
 use skinlet_gpu::{Gpu, GpuOptions};
 
 #[test]
@@ -184,6 +184,15 @@ fn culled_drawing_gives_the_unculled_image() {
                     assert_eq!(differing, 0, "{what}: {differing} pixels differ ({counts:?})");
                     assert_eq!(drawn, expected, "{what}: triangles drawn");
                 }
+                if mesh_shaders {
+                    // The paper's three task pipelines, one per culling class.
+                    let one = [Instance { matrices: &matrices, frame: Some(&frame) }];
+                    let how = CrowdDraw::Culled { culler: &culler, culling: Culling::TaskByClass, triangles: None };
+                    let d = renderer.render_crowd(device, &gpu_mesh, &one, camera.view_proj, light, how).unwrap();
+                    let differing = differing_pixels(&all, &d.image);
+                    assert_eq!(differing, 0, "{name} zoom {zoom} by class: {differing} pixels differ");
+                    assert_eq!(d.triangles, Some(in_visible), "{name} zoom {zoom} by class: triangles drawn");
+                }
             }
         }
     }
@@ -241,7 +250,7 @@ fn crowd_draws_agree_and_are_timed() {
     let mut drawn = vec![
         (
             "vertex culled",
-            draw(CrowdDraw::Culled { culler: &culler, skinning: Skinning::Vertex, triangles: None }),
+            draw(CrowdDraw::Culled { culler: &culler, culling: Culling::ComputeIndirect, triangles: None }),
             Some(expected),
         ),
         ("compute", draw(CrowdDraw::Plain(Skinning::Compute)), None),
@@ -249,16 +258,19 @@ fn crowd_draws_agree_and_are_timed() {
     let mut mesh_reference = None;
     if gpu.has_mesh_shaders() {
         let mesh = draw(CrowdDraw::Plain(Skinning::Mesh));
-        let across = differing(&mesh.image, &reference.image);
+        let across = differing_pixels(&mesh.image, &reference.image);
         assert!(across * 200 <= covered, "mesh vs vertex skinning: {across} of {covered} pixels differ");
         drawn.push(("slim", draw(CrowdDraw::Plain(Skinning::MeshSlim)), None));
-        let how = CrowdDraw::Culled { culler: &culler, skinning: Skinning::Mesh, triangles: None };
-        drawn.push(("task culled", draw(how), Some(expected)));
+        for (what, culling) in [("task culled", Culling::Task), ("task culled by class", Culling::TaskByClass)] {
+            let how = CrowdDraw::Culled { culler: &culler, culling, triangles: None };
+            drawn.push((what, draw(how), Some(expected)));
+        }
         mesh_reference = Some(mesh);
     }
     for (what, d, triangles) in drawn {
-        let same = if matches!(what, "slim" | "task culled") { mesh_reference.as_ref().unwrap() } else { &reference };
-        let n = differing(&d.image, &same.image);
+        let same =
+            if what == "slim" || what.starts_with("task") { mesh_reference.as_ref().unwrap() } else { &reference };
+        let n = differing_pixels(&d.image, &same.image);
         assert_eq!(n, 0, "{what}: {n} of {covered} pixels differ within its front end");
         assert_eq!(d.triangles, triangles, "{what}: triangles drawn");
         if gpu.has_timestamps() {
@@ -267,6 +279,6 @@ fn crowd_draws_agree_and_are_timed() {
     }
 }
 
-fn differing(a: &skinlet_gpu::render::Image, b: &skinlet_gpu::render::Image) -> usize {
+fn differing_pixels(a: &skinlet_gpu::render::Image, b: &skinlet_gpu::render::Image) -> usize {
     a.rgba.chunks(4).zip(b.rgba.chunks(4)).filter(|(x, y)| x != y).count()
 }

@@ -8,7 +8,16 @@ struct CullParams {
     instances: u32,
     // bit 0: frustum test, bit 1: backface test, bit 2: orthographic camera.
     flags: u32,
+    // Task shaders: the first slot of the range they test.
+    first: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
+
+// The tests a pipeline is compiled with (bits as in `flags`): 3 for all, or per culling
+// class (paper section 6: frustum and backface, frustum only, none); `flags` picks among them.
+override CLASS_TESTS: u32 = 3u;
 
 struct Slot {
     center: vec3<f32>,
@@ -29,8 +38,8 @@ const RECORD: u32 = 40u;
 // 0: visible; bit 0: outside the frustum; 2: back-facing (and not outside).
 fn meshlet_flag(s: Slot, instance: u32) -> u32 {
     let base = (instance * cull_params.joints + s.joint) * RECORD;
-    let do_frustum = (cull_params.flags & 1u) != 0u;
-    let do_back = (cull_params.flags & 2u) != 0u;
+    let do_frustum = (cull_params.flags & CLASS_TESTS & 1u) != 0u;
+    let do_back = (cull_params.flags & CLASS_TESTS & 2u) != 0u;
     let group = bitcast<u32>(joint_records[base + 36u]);
     let sign = joint_records[base + 34u];
     var flag = 0u;

@@ -15,10 +15,10 @@ fn task_ballot(
         atomicStore(&survivors, 0u);
     }
     workgroupBarrier();
-    let slot = wg.x * 32u + lid;
+    let slot = cull_params.first + wg.x * 32u + lid;
     var visible = 0u;
     var id = 0u;
-    if slot < cull_params.slots {
+    if slot < cull_params.first + cull_params.slots {
         let s = slots[slot];
         visible = select(0u, 1u, meshlet_flag(s, 0u) == 0u);
         id = s.id;

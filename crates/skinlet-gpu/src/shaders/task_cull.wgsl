@@ -23,8 +23,8 @@ fn task(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
         atomicStore(&survivors, 0u);
     }
     workgroupBarrier();
-    let slot = wg.x * 32u + lid;
-    if slot < cull_params.slots {
+    let slot = cull_params.first + wg.x * 32u + lid;
+    if slot < cull_params.first + cull_params.slots {
         let s = slots[slot];
         if meshlet_flag(s, 0u) == 0u {
             payload.ids[atomicAdd(&survivors, 1u)] = s.id;
