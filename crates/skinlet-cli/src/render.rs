@@ -9,10 +9,12 @@ use skinlet::clip::Clip;
 use skinlet::contour::skinned::{SkinnedMethod, SkinnedParams, refinement, skinned_edges};
 use skinlet::cull::meshlet::{JointFrame, MeshletCuller, Tests};
 use skinlet::meshlet::{Builder, MeshletLimits};
+use skinlet::model::SkinnedMesh;
+use skinlet::overdraw::cluster::ClusterParams;
 use skinlet::pose::Poser;
 use skinlet_gpu::contours::{ContourExtraction, ContourView, GpuContours};
 use skinlet_gpu::mesh::GpuMesh;
-use skinlet_gpu::render::{Renderer, Skinning, framing};
+use skinlet_gpu::render::{Image, Renderer, Skinning, framing};
 use skinlet_gpu::{Gpu, GpuOptions};
 
 /// The default view direction (toward the eye) and the culled view's observer direction.
@@ -35,8 +37,11 @@ pub struct Args {
     /// frustum-culled red, backface-culled blue (mesh shaders; bounds from key intervals).
     /// classes: meshlets by culling class (paper table 2): both tests green, frustum test
     /// only amber, never culled grey (mesh shaders). contours: the contour edges extracted
-    /// on the GPU from patches bounded over the clips, visible orange, hidden dim.
-    #[arg(long, default_value = "shaded", value_parser = ["shaded", "meshlets", "culled", "classes", "contours"])]
+    /// on the GPU from patches bounded over the clips, visible orange, hidden dim. overdraw:
+    /// heat maps of the fragments shaded per pixel, measured on the GPU, with the prepared
+    /// triangle order (left) and the overdraw-reducing order the bake picks for this time and
+    /// view (right; Han & Sander 2016): blue 1, green 2, yellow 3, orange 4, red 5+.
+    #[arg(long, default_value = "shaded", value_parser = ["shaded", "meshlets", "culled", "classes", "contours", "overdraw"])]
     view: String,
     /// The pipeline of the shaded view: vertex (skinned in the vertex shader), compute (by a
     /// compute pass, then drawn), mesh (one mesh-shader workgroup per skin-aware meshlet) or
@@ -86,7 +91,8 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     skinlet::skinning::skin(inf, &mesh.positions, &[], &matrices, &mut posed, &mut [])?;
     let gpu = Gpu::new(GpuOptions { software: a.software, ..GpuOptions::default() })?;
     let renderer = Renderer::new(&gpu, a.size, a.size)?;
-    let need_mesh_shaders = !matches!(a.view.as_str(), "shaded" | "contours") || a.skinning.starts_with("mesh");
+    let need_mesh_shaders =
+        !matches!(a.view.as_str(), "shaded" | "contours" | "overdraw") || a.skinning.starts_with("mesh");
     anyhow::ensure!(
         !need_mesh_shaders || gpu.has_mesh_shaders(),
         "{} has no mesh shaders (needed by --view {} --skinning {})",
@@ -112,7 +118,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             )?
         }
         "culled" => {
-            let baked = bake(&asset, skin_index)?;
+            let baked = bake(&asset, skin_index, None)?;
             let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len());
             let mut joints = Vec::new();
             skinlet::pose::joint_globals(skin, poser.globals(&asset.skeleton, clip, t), &mut joints);
@@ -138,7 +144,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             renderer.render_colored(&gpu, &gpu_mesh, &matrices, observer, LIGHT, &colors)?
         }
         "classes" => {
-            let baked = bake(&asset, skin_index)?;
+            let baked = bake(&asset, skin_index, None)?;
             let colors: Vec<[u8; 4]> = (baked.classes.iter())
                 .map(|c| match c {
                     Class::Both => [120, 210, 120, 255],
@@ -160,7 +166,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             )?
         }
         "contours" => {
-            let mut baked = bake(&asset, skin_index)?;
+            let mut baked = bake(&asset, skin_index, None)?;
             let params = SkinnedParams::new(SkinnedMethod::Animated, refinement(None, 2));
             skinlet::bake::add_contours(&mut baked, &asset, skin_index, &params, true)?;
             let patches = &baked.contours.as_ref().context("contours were just added")?.patches;
@@ -186,6 +192,38 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             summary = json!({"edges": edges.len(), "patches": patches.patches.len(), "contour_edges": found.edges.len(),
                 "tested_edges": found.tested, "accepted_groups": found.accepted_groups});
             image
+        }
+        "overdraw" => {
+            // Orders for the shown clip only: clustering every clip takes minutes.
+            let mut baked = bake(&asset, skin_index, clip)?;
+            skinlet::bake::add_overdraw(&mut baked, &asset, skin_index, &ClusterParams::default(), 8)?;
+            let orders = baked.overdraw.as_ref().context("orders were just added")?;
+            let mut on_bake = vec![Vec3::ZERO; baked.mesh.positions.len()];
+            let inf = baked.mesh.influences.as_ref().context("the bake has no skin weights")?;
+            skinlet::skinning::skin(inf, &baked.mesh.positions, &[], &matrices, &mut on_bake, &mut [])?;
+            let framing = skinlet::overdraw::cluster::Framing::of(std::slice::from_ref(&on_bake));
+            let eye = framing.eye(FRONT.normalize(), 3.0);
+            let clip_index = clip.and_then(|c| baked.settings.clips.iter().position(|n| *n == c.name)).unwrap_or(0);
+            let chosen = orders.select(clip_index as u32, t, eye);
+            let mut halves = Vec::new();
+            let mut ratios = Vec::new();
+            for order in [&baked.mesh.triangles, &orders.buffers[chosen]] {
+                let ordered = SkinnedMesh { triangles: order.clone(), ..baked.mesh.clone() };
+                let gpu_mesh = GpuMesh::new(&gpu, &ordered, None)?;
+                let (counts, overdraw) =
+                    renderer.render_overdraw(&gpu, &gpu_mesh, &matrices, framing.view_proj(eye))?;
+                halves.push(skinlet::overdraw::measure::heatmap(&counts));
+                ratios.push(overdraw.ratio());
+            }
+            summary = json!({"ovr_prepared_order": ratios[0], "ovr_skinlet_order": ratios[1], "buffer": chosen,
+                "buffers": orders.buffers.len()});
+            // Side by side: the two heat maps, RGBA.
+            let n = a.size as usize;
+            let rgba = (0..n)
+                .flat_map(|row| halves.iter().flat_map(move |h| h[row * n * 3..(row + 1) * n * 3].chunks(3)))
+                .flat_map(|p| [p[0], p[1], p[2], 255])
+                .collect();
+            Image { width: 2 * a.size, height: a.size, rgba }
         }
         _ => {
             let (gpu_mesh, path) = match a.skinning.as_str() {
@@ -220,10 +258,13 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     Ok(())
 }
 
-/// A bake of the skin for the culling views: skin-aware meshlets, bounds over every clip
-/// from key intervals only (no refinement: quick, and still conservative).
-fn bake(asset: &skinlet::Asset, skin: u32) -> Result<skinlet::bake::Baked> {
-    let clips: Vec<&Clip> = asset.clips.iter().collect();
+/// A bake of the skin for the culling views: skin-aware meshlets, bounds over `clips` (all
+/// when `None`) from key intervals only (no refinement: quick, and still conservative).
+fn bake(asset: &skinlet::Asset, skin: u32, clips: Option<&Clip>) -> Result<skinlet::bake::Baked> {
+    let clips: Vec<&Clip> = match clips {
+        Some(c) => vec![c],
+        None => asset.clips.iter().collect(),
+    };
     let (baked, _) = skinlet::bake::bake(
         asset,
         skin,

@@ -445,7 +445,7 @@ fn render_writes_a_png_of_the_posed_character() {
     // The colored views need mesh shaders (lavapipe from bookworm-backports has them; CI
     // requires them).
     let needs_mesh = std::env::var("SKINLET_REQUIRE_GPU").is_ok_and(|v| v == "1");
-    for view in ["meshlets", "culled", "classes", "contours"] {
+    for view in ["meshlets", "culled", "classes", "contours", "overdraw"] {
         let (code, stdout, err) =
             skinlet(&["render", "@demo:2000", "--view", view, "--size", "64", "-o", out.to_str().unwrap(), "--json"]);
         if code != 0 && err.contains("no mesh shaders") && !needs_mesh {
@@ -455,6 +455,11 @@ fn render_writes_a_png_of_the_posed_character() {
         assert_eq!(code, 0, "{view}: {err}");
         let j: serde_json::Value = serde_json::from_str(&stdout).unwrap();
         let s = &j["summary"];
+        if view == "overdraw" {
+            let ratios = ["ovr_prepared_order", "ovr_skinlet_order"].map(|k| s[k].as_f64().unwrap());
+            assert!(ratios.iter().all(|&r| r >= 1.0), "{j}");
+            continue;
+        }
         if view == "contours" {
             let (found, tested, edges) =
                 ["contour_edges", "tested_edges", "edges"].map(|k| s[k].as_u64().unwrap()).into();

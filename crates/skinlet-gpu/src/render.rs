@@ -14,6 +14,7 @@ use crate::{Gpu, GpuError, Result};
 use glam::{Affine3A, Mat4, Vec3};
 use skinlet::cull::meshlet::{JointFrame, MeshletCuller};
 use skinlet::cull::{Camera, Projection};
+use skinlet::overdraw::measure::Overdraw;
 
 /// How skinned vertices reach the rasterizer.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -51,6 +52,8 @@ pub struct Renderer {
     skinned_layout: wgpu::BindGroupLayout,
     camera_layout: wgpu::BindGroupLayout,
     vertex_pipeline: wgpu::RenderPipeline,
+    /// Vertex skinning, counting the fragments that pass the depth test (additive red).
+    overdraw_pipeline: wgpu::RenderPipeline,
     skinned_pipeline: wgpu::RenderPipeline,
     /// Contour lines (positions, contour edge ids, edge endpoints), hidden then visible.
     lines_layout: wgpu::BindGroupLayout,
@@ -85,6 +88,7 @@ enum Draw<'a> {
     Culled(&'a MeshletCuller, Option<Projection>, Culling),
     Colored(&'a [[u8; 4]]),
     Contours(&'a ContourExtraction, &'a GpuContours, &'a ContourView),
+    Overdraw,
 }
 
 /// One character of a crowd draw ([`Renderer::render_crowd`]).
@@ -172,7 +176,10 @@ impl Renderer {
             };
             let targets = [Some(wgpu::ColorTargetState::from(COLOR))];
             let draw = include_str!("shaders/draw.wgsl");
-            let pipeline = |label: &str, sources: &[&str], group0: &wgpu::BindGroupLayout| {
+            let pipeline = |label: &str,
+                            sources: &[&str],
+                            group0: &wgpu::BindGroupLayout,
+                            (entry, targets): (&str, &[Option<wgpu::ColorTargetState>])| {
                 let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
                     label: Some(label),
                     source: wgpu::ShaderSource::Wgsl(sources.concat().into()),
@@ -194,11 +201,12 @@ impl Renderer {
                     primitive: primitive(),
                     depth_stencil: Some(depth_stencil()),
                     multisample: Default::default(),
-                    fragment: fragment(&module, "shade", &targets),
+                    fragment: fragment(&module, entry, targets),
                     multiview_mask: None,
                     cache: None,
                 })
             };
+            let shade = ("shade", &targets[..]);
             let mesh_path = gpu.has_mesh_shaders().then(|| {
                 let stage = wgpu::ShaderStages::MESH;
                 let read = wgpu::BufferBindingType::Storage { read_only: true };
@@ -288,13 +296,21 @@ impl Renderer {
                     slim,
                 }
             });
-            let vertex_pipeline = pipeline(
-                "vertex skinning",
-                &[include_str!("shaders/common.wgsl"), draw, include_str!("shaders/vertex_skin.wgsl")],
-                &mesh_layout,
-            );
+            let vertex_source = [include_str!("shaders/common.wgsl"), draw, include_str!("shaders/vertex_skin.wgsl")];
+            let vertex_pipeline = pipeline("vertex skinning", &vertex_source, &mesh_layout, shade);
+            let add = wgpu::BlendComponent {
+                src_factor: wgpu::BlendFactor::One,
+                dst_factor: wgpu::BlendFactor::One,
+                operation: wgpu::BlendOperation::Add,
+            };
+            let counting = [Some(wgpu::ColorTargetState {
+                blend: Some(wgpu::BlendState { color: add, alpha: add }),
+                ..wgpu::ColorTargetState::from(COLOR)
+            })];
+            let overdraw_pipeline =
+                pipeline("overdraw", &vertex_source, &mesh_layout, ("count_fragment", &counting[..]));
             let skinned_pipeline =
-                pipeline("skinned draw", &[draw, include_str!("shaders/skinned.wgsl")], &skinned_layout);
+                pipeline("skinned draw", &[draw, include_str!("shaders/skinned.wgsl")], &skinned_layout, shade);
             let read = wgpu::BufferBindingType::Storage { read_only: true };
             let lines_layout =
                 layout("contour lines", &(0..3).map(|b| buffer_entry(b, vertex, read)).collect::<Vec<_>>());
@@ -345,6 +361,7 @@ impl Renderer {
                 skinned_layout,
                 camera_layout,
                 vertex_pipeline,
+                overdraw_pipeline,
                 skinned_pipeline,
                 lines_layout,
                 line_pipelines,
@@ -461,6 +478,25 @@ impl Renderer {
         Ok((d.image, contours.read(gpu)?))
     }
 
+    /// Overdraw of `mesh` posed by `matrices`, its triangles in the order of its index buffer
+    /// (upload the mesh with the triangles in the order to measure): per pixel (rows top to
+    /// bottom) the fragments that passed the depth test ("less", back faces culled; at most
+    /// 255), and their total over the pixels covered — the OVR of skinlet's CPU rasterizer
+    /// ([`skinlet::overdraw::measure::Raster`]), measured by the GPU's.
+    pub fn render_overdraw(
+        &self,
+        gpu: &Gpu,
+        mesh: &GpuMesh,
+        matrices: &[Affine3A],
+        view_proj: Mat4,
+    ) -> Result<(Vec<u32>, Overdraw)> {
+        let one = [Instance { matrices, frame: None }];
+        let d = self.draw(gpu, mesh, &one, view_proj, Vec3::ZERO, Draw::Overdraw)?;
+        let counts: Vec<u32> = d.image.rgba.chunks_exact(4).map(|p| p[0] as u32).collect();
+        let covered = counts.iter().filter(|&&n| n > 0).count() as u64;
+        Ok((counts.clone(), Overdraw { shaded: counts.iter().map(|&n| n as u64).sum(), covered }))
+    }
+
     fn draw(
         &self,
         gpu: &Gpu,
@@ -472,7 +508,7 @@ impl Renderer {
     ) -> Result<Drawn> {
         let invalid = |message: &str| GpuError::Invalid { location: "render", message: message.into() };
         let mesh_draw = match (draw, &self.mesh_path, &mesh.meshlets) {
-            (Draw::Plain(Skinning::Vertex | Skinning::Compute) | Draw::Contours(..), _, _) => None,
+            (Draw::Plain(Skinning::Vertex | Skinning::Compute) | Draw::Contours(..) | Draw::Overdraw, _, _) => None,
             (Draw::Culled(..), _, None) => return Err(invalid("culled drawing needs a mesh uploaded with meshlets")),
             (Draw::Culled(_, _, Culling::ComputeIndirect), _, Some(_)) => None,
             (_, None, _) => return Err(invalid("the device has no mesh shaders")),
@@ -616,7 +652,7 @@ impl Renderer {
                     }
                     pipeline
                 }
-                None if matches!(draw, Draw::Plain(Skinning::Vertex) | Draw::Culled(..)) => {
+                None if matches!(draw, Draw::Plain(Skinning::Vertex) | Draw::Culled(..) | Draw::Overdraw) => {
                     for (i, m) in instances.iter().zip(&matrices) {
                         let commands = match (draw, i.frame, &mesh.meshlets) {
                             (Draw::Culled(culler, ..), Some(frame), Some(meshlets)) => {
@@ -635,7 +671,7 @@ impl Renderer {
                         let group0 = gpu.bind_group("mesh", &self.mesh_layout, &mesh_bindings(mesh, m));
                         per_instance.push((group0, Vec::new(), commands));
                     }
-                    &self.vertex_pipeline
+                    if matches!(draw, Draw::Overdraw) { &self.overdraw_pipeline } else { &self.vertex_pipeline }
                 }
                 None => {
                     for (k, m) in matrices.iter().enumerate() {
@@ -680,7 +716,10 @@ impl Renderer {
                         depth_slice: None,
                         resolve_target: None,
                         ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(wgpu::Color { r: 0.08, g: 0.09, b: 0.11, a: 1.0 }),
+                            load: wgpu::LoadOp::Clear(match draw {
+                                Draw::Overdraw => wgpu::Color::TRANSPARENT,
+                                _ => wgpu::Color { r: 0.08, g: 0.09, b: 0.11, a: 1.0 },
+                            }),
                             store: wgpu::StoreOp::Store,
                         },
                     })],

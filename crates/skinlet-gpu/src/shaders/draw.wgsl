@@ -31,3 +31,10 @@ fn lit(in: VertexOut) -> vec4<f32> {
 fn shade(in: VertexOut) -> @location(0) vec4<f32> {
     return lit(in);
 }
+
+// Overdraw: each fragment that passes the depth test adds 1 to the red channel (additive
+// blending into RGBA8: exact counts up to 255).
+@fragment
+fn count_fragment() -> @location(0) vec4<f32> {
+    return vec4<f32>(1.0 / 255.0, 0.0, 0.0, 0.0);
+}

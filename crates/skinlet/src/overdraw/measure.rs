@@ -160,13 +160,18 @@ impl Raster {
 }
 
 impl Raster {
-    /// The last render's overdraw as an RGB8 image (row-major, top row first): background
-    /// dark, then blue, green, yellow, orange, red for 1, 2, 3, 4, 5+ shaded fragments.
+    /// The last render's overdraw as an RGB8 image (row-major, top row first): see [`heatmap`].
     pub fn heatmap(&self) -> Vec<u8> {
-        const COLORS: [[u8; 3]; 6] =
-            [[24, 24, 28], [40, 90, 200], [40, 170, 90], [230, 200, 40], [235, 120, 30], [215, 35, 35]];
-        self.shaded.iter().flat_map(|&n| COLORS[(n as usize).min(5)]).collect()
+        heatmap(&self.shaded)
     }
+}
+
+/// Shaded fragments per pixel as RGB8: background dark, then blue, green, yellow, orange,
+/// red for 1, 2, 3, 4, 5+ fragments.
+pub fn heatmap(shaded: &[u32]) -> Vec<u8> {
+    const COLORS: [[u8; 3]; 6] =
+        [[24, 24, 28], [40, 90, 200], [40, 170, 90], [230, 200, 40], [235, 120, 30], [215, 35, 35]];
+    shaded.iter().flat_map(|&n| COLORS[(n as usize).min(5)]).collect()
 }
 
 /// The fragments of one view's triangles (see [`Raster::fragments`]).
