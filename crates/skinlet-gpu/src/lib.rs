@@ -1,13 +1,16 @@
-//! skinlet's GPU runtime on wgpu (exact version pinned) with WGSL shaders.
+//! skinlet's GPU runtime on wgpu (exact version pinned) with WGSL shaders (issue 8).
 //!
-//! In progress (issue 8). Done: the device ([`Gpu`]: Vulkan, headless, optional features
-//! picked from what the adapter offers: mesh shaders, timestamps, subgroups) and
-//! compute-shader skinning ([`skinning`]), checked against skinlet's reference skinning;
-//! offscreen rendering by vertex-shader, compute-shader and mesh-shader skinning
-//! ([`render`]), checked to give the same image; per-meshlet culling of many instances in a
-//! compute pass ([`cull`]) and in a task shader ([`render::Renderer::render_culled`]), checked
-//! against the CPU; per-meshlet colored views. Not yet: common-influences slim-vertex mesh
-//! shading, per-triangle culling, indirect draws, GPU contours, `gpu-bench`.
+//! - [`Gpu`]: a headless Vulkan device with the optional features the adapter offers (mesh
+//!   shaders, timestamps, subgroups, f64).
+//! - [`mesh`]: a skinned mesh and its meshlets on the GPU.
+//! - [`skinning`]: compute-shader skinning, checked against skinlet's reference skinning.
+//! - [`render`]: offscreen drawing by vertex-, compute-, mesh-shader and slim mesh-shader
+//!   skinning (the same image), culled drawing (task shaders, or a compute pass and indirect
+//!   draws without mesh shaders), crowds timed by timestamp queries, colored, contour and
+//!   overdraw views.
+//! - [`cull`]: per-meshlet culling of many instances in a compute pass, equal to the CPU's.
+//! - [`contours`]: contour extraction (patch culling and edge test passes), equal to brute
+//!   force.
 //!
 //! Errors (no adapter, a failed device request, a validation error, bad input) come back as
 //! [`GpuError`]; nothing here panics on user data.
