@@ -316,9 +316,11 @@ enum Command {
     /// there is no GPU) and write a PNG.
     ///
     /// --view shaded draws the posed character by the pipeline --skinning picks (all give the
-    /// same image); --view meshlets colors its skin-aware meshlets; --view culled shows what
-    /// the conservative bounds cull for a close camera, seen by an observer. Views are framed
-    /// on the posed character; the shading is faceted (flat per triangle).
+    /// same image); --view meshlets colors its skin-aware meshlets, --view classes their
+    /// culling classes; --view culled shows what the conservative bounds cull for a close
+    /// camera, seen by an observer; --view contours draws the contour edges extracted on the
+    /// GPU; --view overdraw compares heat maps of two triangle orders. Views are framed on the
+    /// posed character; the shading is faceted (flat per triangle).
     Render {
         /// .glb or .gltf file, or @demo[:TRIANGLES].
         file: String,
