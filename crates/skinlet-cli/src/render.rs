@@ -101,6 +101,9 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         a.skinning
     );
     let mut summary = json!({});
+    let colored = |gpu_mesh: &GpuMesh, colors: &[[u8; 4]]| {
+        renderer.render_colored(&gpu, gpu_mesh, &matrices, framing(&posed, FRONT, 1.0).view_proj, LIGHT, colors)
+    };
     let image = match a.view.as_str() {
         "meshlets" => {
             let prepared = skinlet::meshlet::prepare(&mesh);
@@ -108,14 +111,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             let gpu_mesh = GpuMesh::new(&gpu, &prepared.mesh, Some(&meshlets))?;
             let colors: Vec<[u8; 4]> = (0..meshlets.len()).map(id_color).collect();
             summary = json!({"meshlets": meshlets.len()});
-            renderer.render_colored(
-                &gpu,
-                &gpu_mesh,
-                &matrices,
-                framing(&posed, FRONT, 1.0).view_proj,
-                LIGHT,
-                &colors,
-            )?
+            colored(&gpu_mesh, &colors)?
         }
         "culled" => {
             let baked = bake(&asset, skin_index, None)?;
@@ -156,14 +152,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             summary = json!({"meshlets": baked.meshlets.len(), "both": count(Class::Both),
                 "frustum_only": count(Class::FrustumOnly), "none": count(Class::None)});
             let gpu_mesh = GpuMesh::new(&gpu, &baked.mesh, Some(&baked.meshlets))?;
-            renderer.render_colored(
-                &gpu,
-                &gpu_mesh,
-                &matrices,
-                framing(&posed, FRONT, 1.0).view_proj,
-                LIGHT,
-                &colors,
-            )?
+            colored(&gpu_mesh, &colors)?
         }
         "contours" => {
             let mut baked = bake(&asset, skin_index, None)?;

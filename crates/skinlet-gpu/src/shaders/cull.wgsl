@@ -16,46 +16,57 @@
 // index, base vertex, first instance.
 @group(0) @binding(6) var<storage, read_write> commands: array<u32>;
 
+// What testing one (instance, slot) gave: the meshlet, its category (0 visible, 1 culled by
+// the frustum, 2 culled as back-facing only) and how many of that category the instance had
+// before it (the visible one's place in the compacted list).
+struct Tested {
+    instance: u32,
+    id: u32,
+    category: u32,
+    before: u32,
+}
+
+// Tests and counts (instance, slot) number `index` (instance × slots + slot).
+fn test_slot(index: u32) -> Tested {
+    var t: Tested;
+    t.instance = index / cull_params.slots;
+    let s = slots[index % cull_params.slots];
+    let flag = meshlet_flag(s, t.instance);
+    t.id = s.id;
+    t.category = select(select(2u, 1u, (flag & 1u) != 0u), 0u, flag == 0u);
+    t.before = atomicAdd(&counts[3u * t.instance + t.category], 1u);
+    return t;
+}
+
+// Invocation index = y × 65535 × 64 + x (cull.rs dispatches a 2D grid past 65535 groups).
+fn invocation(gid: vec3<u32>) -> u32 {
+    return gid.y * 65535u * 64u + gid.x;
+}
+
 @compute @workgroup_size(64)
 fn cull(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let index = gid.y * 65535u * 64u + gid.x;
+    let index = invocation(gid);
     if index >= cull_params.slots * cull_params.instances {
         return;
     }
-    let instance = index / cull_params.slots;
-    let s = slots[index % cull_params.slots];
-    let flag = meshlet_flag(s, instance);
-    if flag == 0u {
-        let k = atomicAdd(&counts[3u * instance], 1u);
-        visible[instance * cull_params.slots + k] = s.id;
-    } else if (flag & 1u) != 0u {
-        atomicAdd(&counts[3u * instance + 1u], 1u);
-    } else {
-        atomicAdd(&counts[3u * instance + 2u], 1u);
+    let t = test_slot(index);
+    if t.category == 0u {
+        visible[t.instance * cull_params.slots + t.before] = t.id;
     }
 }
 
 @compute @workgroup_size(64)
 fn cull_draws(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let index = gid.y * 65535u * 64u + gid.x;
+    let index = invocation(gid);
     if index >= cull_params.slots * cull_params.instances {
         return;
     }
-    let instance = index / cull_params.slots;
-    let s = slots[index % cull_params.slots];
-    let flag = meshlet_flag(s, instance);
-    let draw = meshlet_draws[s.id];
-    let c = 5u * (instance * cull_params.slots + s.id);
+    let t = test_slot(index);
+    let draw = meshlet_draws[t.id];
+    let c = 5u * (t.instance * cull_params.slots + t.id);
     commands[c] = draw.x;
-    commands[c + 1u] = select(0u, 1u, flag == 0u);
+    commands[c + 1u] = select(0u, 1u, t.category == 0u);
     commands[c + 2u] = draw.y;
     commands[c + 3u] = 0u;
-    commands[c + 4u] = instance;
-    if flag == 0u {
-        atomicAdd(&counts[3u * instance], 1u);
-    } else if (flag & 1u) != 0u {
-        atomicAdd(&counts[3u * instance + 1u], 1u);
-    } else {
-        atomicAdd(&counts[3u * instance + 2u], 1u);
-    }
+    commands[c + 4u] = t.instance;
 }
