@@ -573,18 +573,11 @@ impl Renderer {
                 });
                 set
             });
-            // Per instance: bind groups 0 (and 3), and how it is drawn.
-            #[allow(clippy::type_complexity)]
-            let mut per_instance: Vec<(
-                wgpu::BindGroup,
-                Vec<(&wgpu::RenderPipeline, wgpu::BindGroup, u32)>,
-                Option<wgpu::Buffer>,
-            )> = Vec::new();
+            let mut per_instance: Vec<InstanceDraw> = Vec::new();
             // Shared: group 2 (meshlets) and group 3 (colors) of the mesh-shader pipelines.
             let mut shared = Vec::new();
             let mut counter = None;
             let mut lines = None;
-            let mut skinned_out = Vec::new();
             let pipeline = match mesh_draw {
                 Some((path, meshlets)) => {
                     let slim = path.slim.as_ref().filter(|_| matches!(draw, Draw::Plain(Skinning::MeshSlim)));
@@ -648,7 +641,7 @@ impl Renderer {
                                 tasks.push((&path.culled_pipelines[k], group3, count.div_ceil(32)));
                             }
                         }
-                        per_instance.push((group0, tasks, None));
+                        per_instance.push(InstanceDraw { group0, tasks, commands: None });
                     }
                     pipeline
                 }
@@ -669,7 +662,7 @@ impl Renderer {
                             _ => None,
                         };
                         let group0 = gpu.bind_group("mesh", &self.mesh_layout, &mesh_bindings(mesh, m));
-                        per_instance.push((group0, Vec::new(), commands));
+                        per_instance.push(InstanceDraw { group0, tasks: Vec::new(), commands });
                     }
                     if matches!(draw, Draw::Overdraw) { &self.overdraw_pipeline } else { &self.vertex_pipeline }
                 }
@@ -691,8 +684,7 @@ impl Renderer {
                         };
                         self.compute.encode_into(gpu, &mut encoder, mesh, m, positions, normals);
                         let group0 = gpu.bind_group("skinned", &self.skinned_layout, &[entry(0, positions)]);
-                        per_instance.push((group0, Vec::new(), None));
-                        skinned_out.push(out);
+                        per_instance.push(InstanceDraw { group0, tasks: Vec::new(), commands: None });
                     }
                     if let Draw::Contours(extraction, contours, view) = draw {
                         extraction.encode(gpu, &mut encoder, contours, &mesh.out_positions, view)?;
@@ -744,7 +736,7 @@ impl Renderer {
                 for (i, group) in shared.iter().enumerate() {
                     pass.set_bind_group(2 + i as u32, group, &[]);
                 }
-                for (group0, tasks, commands) in &per_instance {
+                for InstanceDraw { group0, tasks, commands } in &per_instance {
                     pass.set_bind_group(0, group0, &[]);
                     for (pipeline, group3, workgroups) in tasks {
                         pass.set_pipeline(pipeline);
@@ -809,7 +801,7 @@ impl Renderer {
                 times
             });
             gpu.queue.submit([encoder.finish()]);
-            let commands: Vec<wgpu::Buffer> = per_instance.into_iter().filter_map(|(_, _, c)| c).collect();
+            let commands: Vec<wgpu::Buffer> = per_instance.into_iter().filter_map(|d| d.commands).collect();
             Ok((readback, counter, commands, times))
         })??;
         let bytes = gpu.read(&readback, (row * height) as u64)?;
@@ -832,6 +824,14 @@ impl Renderer {
         };
         Ok(Drawn { image: Image { width, height, rgba }, triangles, gpu_ms })
     }
+}
+
+/// One instance's part of a draw: its bind group 0, its task-shader draws (pipeline, group 3,
+/// task workgroups) and its indirect draw commands.
+struct InstanceDraw<'p> {
+    group0: wgpu::BindGroup,
+    tasks: Vec<(&'p wgpu::RenderPipeline, wgpu::BindGroup, u32)>,
+    commands: Option<wgpu::Buffer>,
 }
 
 /// `TriangleCull` in task_cull.wgsl: the eye or view direction, and the mode.
