@@ -8,7 +8,7 @@ use glam::{Affine3A, Vec3};
 use serde_json::json;
 use skinlet::cull::crowd::{CrowdParams, crowd};
 use skinlet::cull::meshlet::{JointFrame, MeshletCuller, Tests};
-use skinlet::meshlet::MeshletLimits;
+use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::Poser;
 use skinlet_gpu::mesh::GpuMesh;
 use skinlet_gpu::render::{CrowdDraw, Culling, Instance, Renderer, Skinning};
@@ -66,11 +66,20 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let height = (a.width * 9 / 16).max(1);
     let renderer = Renderer::new(&gpu, a.width, height)?;
     let mesh = GpuMesh::new(&gpu, &baked.mesh, Some(&baked.meshlets))?;
-    let mut ci = skinlet::meshlet::common_influences::build(&baked.mesh, MeshletLimits::NVIDIA);
-    let inf = baked.mesh.influences.as_ref().context("the bake has no skin weights")?;
-    skinlet::meshlet::annotate_joint_sets(&mut ci, inf);
-    let ci_mesh = GpuMesh::new(&gpu, &baked.mesh, Some(&ci))?;
     let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len());
+    // MS-CI draws common-influences meshlets: baked too, over the same clips, for their bounds.
+    let how = a.refine.refinement()?;
+    let (ci, _) = skinlet::bake::bake(
+        &asset,
+        skin_index,
+        &clips,
+        Builder::CommonInfluences,
+        MeshletLimits::NVIDIA,
+        &how,
+        &mut |_| {},
+    )?;
+    let ci_mesh = GpuMesh::new(&gpu, &ci.mesh, Some(&ci.meshlets))?;
+    let ci_culler = MeshletCuller::new(&ci.bounds, &ci.classes, skin.joints.len());
     // Per frame and instance: world-space skinning matrices and joint matrices.
     let mut poser = Poser::default();
     let mut frames: Vec<Vec<(Vec<Affine3A>, Vec<Affine3A>)>> = Vec::new();
@@ -92,11 +101,13 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         }
         frames.push(instances);
     }
-    let mut pipelines = vec![("VS", Skinning::Vertex, &mesh), ("CS", Skinning::Compute, &mesh)];
+    let mut pipelines =
+        vec![("VS", Skinning::Vertex, &mesh, &culler, &baked), ("CS", Skinning::Compute, &mesh, &culler, &baked)];
     if gpu.has_mesh_shaders() {
-        pipelines.extend([("MS", Skinning::Mesh, &mesh), ("MS-CI", Skinning::MeshSlim, &ci_mesh)]);
+        pipelines.push(("MS", Skinning::Mesh, &mesh, &culler, &baked));
+        pipelines.push(("MS-CI", Skinning::MeshSlim, &ci_mesh, &ci_culler, &ci));
     }
-    let total_triangles = baked.meshlets.meshlets.iter().map(|m| m.triangle_count as u64).sum::<u64>();
+    let total_triangles = baked.mesh.triangles.len() as u64;
     let cullings = [
         ("none", None),
         ("frustum", Some(Tests::Frustum)),
@@ -107,17 +118,17 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let light = Vec3::new(0.4, 0.8, 0.6);
     let mut rows = Vec::new();
     let mut picture = None;
-    for &(name, skinning, gpu_mesh) in &pipelines {
+    for &(name, skinning, gpu_mesh, culler, bake) in &pipelines {
         for &(culling, tests) in &cullings {
-            // Culling runs in task shaders (MS: one pipeline reading per-meshlet class flags, or
-            // three by class) or a compute pass writing indirect draws (VS).
-            let culling_path = match (skinning, culling) {
+            // Culling runs in task shaders (MS, MS-CI: one pipeline reading per-meshlet class
+            // flags, or three by class) or a compute pass writing indirect draws (VS, CS).
+            let task = matches!(skinning, Skinning::Mesh | Skinning::MeshSlim);
+            let culling_path = match (task, culling) {
                 (_, "none") => None,
-                (Skinning::Mesh, "both-by-class") => Some(Culling::TaskByClass),
-                (Skinning::Mesh, _) => Some(Culling::Task),
-                (Skinning::Vertex, "both-by-class") => continue,
-                (Skinning::Vertex, _) => Some(Culling::ComputeIndirect),
-                _ => continue,
+                (true, "both-by-class") => Some(Culling::TaskByClass),
+                (true, _) => Some(Culling::Task),
+                (false, "both-by-class") => continue,
+                (false, _) => Some(Culling::ComputeIndirect),
             };
             let (mut gpu_ms, mut wall_ms, mut culled, mut triangles) = (Vec::new(), Vec::new(), 0usize, None);
             for (f, instances) in frames.iter().enumerate() {
@@ -142,7 +153,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                     .map(|(i, (m, _))| Instance { matrices: m, frame: prepared.get(i) })
                     .collect();
                 let how = match culling_path {
-                    Some(culling) => CrowdDraw::Culled { culler: &culler, culling, triangles: None },
+                    Some(culling) => CrowdDraw::Culled { culler, culling, skinning, triangles: None },
                     None => CrowdDraw::Plain(skinning),
                 };
                 let started = std::time::Instant::now();
@@ -157,7 +168,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                     picture = Some(drawn.image);
                 }
             }
-            let tested = (a.frames * a.instances * culler.len()) as f64;
+            let tested = (a.frames * a.instances * bake.meshlets.len()) as f64;
             rows.push(Row {
                 pipeline: name,
                 culling,
@@ -187,10 +198,14 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         println!("{}", serde_json::to_string_pretty(&out)?);
         return Ok(());
     }
+    let m = ci_mesh.meshlets.as_ref().context("uploaded with meshlets")?;
     println!(
-        "{file}: crowd of {} instances ({} meshlets, {total_triangles} triangles each), {}x{height}, on {}",
+        "{file}: crowd of {} instances ({} skin-aware meshlets, {} common-influences meshlets of which {} slim, \
+         {total_triangles} triangles each), {}x{height}, on {}",
         a.instances,
         baked.meshlets.len(),
+        m.count,
+        m.slim,
         a.width,
         gpu.info.name
     );

@@ -59,7 +59,7 @@ struct RefineArgs {
 }
 
 impl RefineArgs {
-    fn refinement(&self) -> Result<skinlet::bounds::refine::Refinement> {
+    pub(crate) fn refinement(&self) -> Result<skinlet::bounds::refine::Refinement> {
         anyhow::ensure!(self.budget.is_finite() && self.budget >= 0.0, "--budget must be a number of seconds >= 0");
         anyhow::ensure!(self.sr.is_finite() && self.sr >= 1.0, "--sr must be >= 1");
         anyhow::ensure!((0.0..90.0).contains(&self.alpha), "--alpha must be in [0, 90) degrees");

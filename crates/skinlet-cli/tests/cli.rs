@@ -495,7 +495,7 @@ fn render_writes_a_png_of_the_posed_character() {
     assert_eq!(code, 0, "{err}");
     let j: serde_json::Value = serde_json::from_str(&stdout).unwrap();
     let rows = j["rows"].as_array().unwrap();
-    assert!(rows.len() == 11 || (rows.len() == 5 && !needs_mesh), "{j}");
+    assert!(rows.len() == 18 || (rows.len() == 8 && !needs_mesh), "{j}");
     for r in rows {
         assert!(r["wall_ms"].as_f64().unwrap() > 0.0, "{r}");
         assert_eq!(r["gpu_ms"].is_number(), j["timestamps"] == true, "{r}");

@@ -50,7 +50,7 @@ impl Gpu {
             label: Some("skinlet"),
             required_features: features,
             required_limits: if mesh {
-                // Slim mesh shading binds 9 storage buffers to the mesh stage.
+                // Task-culled slim mesh shading binds 10 storage buffers to the mesh stage.
                 let limits = wgpu::Limits::defaults().using_recommended_minimum_mesh_shader_values();
                 let storage = adapter.limits().max_storage_buffers_per_shader_stage.min(16);
                 wgpu::Limits {

@@ -28,7 +28,7 @@ pub enum Skinning {
     Mesh,
     /// In a mesh shader, slim meshlets (one joint set, e.g. from the common-influences
     /// builder) with their joints' matrices in workgroup memory and weight-only vertices
-    /// (thesis 3.1.1, "MS-CI"); the others as [`Skinning::Mesh`]. Needs 9 storage buffers
+    /// (thesis 3.1.1, "MS-CI"); the others as [`Skinning::Mesh`]. Needs 10 storage buffers
     /// per shader stage.
     MeshSlim,
 }
@@ -75,17 +75,25 @@ struct MeshPath {
     /// Every meshlet in its own color (group 3: one RGBA8 word per meshlet).
     color_layout: wgpu::BindGroupLayout,
     colored_pipeline: wgpu::RenderPipeline,
-    /// Slim meshlets (group 2 with the joint lists), where the device has the bindings.
-    slim: Option<(wgpu::BindGroupLayout, wgpu::RenderPipeline)>,
+    /// Slim meshlets, where the device has the bindings.
+    slim: Option<SlimPath>,
+}
+
+/// Slim mesh shading: group 2 with the joint lists, the plain pipeline and the task-culled
+/// ones (as `MeshPath::culled_pipelines`).
+struct SlimPath {
+    layout: wgpu::BindGroupLayout,
+    pipeline: wgpu::RenderPipeline,
+    culled: [wgpu::RenderPipeline; 3],
 }
 
 /// What a draw runs.
 #[derive(Clone, Copy)]
 enum Draw<'a> {
     Plain(Skinning),
-    /// Culled by `culler` with each instance's frame; per-triangle culling (task shader) from
-    /// a projection.
-    Culled(&'a MeshletCuller, Option<Projection>, Culling),
+    /// Culled by `culler` with each instance's frame, then skinned and drawn; per-triangle
+    /// culling (task shaders) from a projection.
+    Culled(&'a MeshletCuller, Option<Projection>, Culling, Skinning),
     Colored(&'a [[u8; 4]]),
     Contours(&'a ContourExtraction, &'a GpuContours, &'a ContourView),
     Overdraw,
@@ -109,8 +117,8 @@ pub enum Culling {
     /// In task shaders, three pipelines by culling class (paper section 6): compiled with
     /// both tests, the frustum test only, and none, each over its class's meshlets.
     TaskByClass,
-    /// In a compute pass writing one indirect draw per meshlet, drawn by vertex-shader
-    /// skinning (devices without mesh shaders).
+    /// In a compute pass writing one indirect draw per meshlet, drawn by one multi-draw
+    /// (devices without mesh shaders).
     ComputeIndirect,
 }
 
@@ -118,11 +126,13 @@ pub enum Culling {
 #[derive(Clone, Copy)]
 pub enum CrowdDraw<'a> {
     Plain(Skinning),
-    /// Meshlets culled with the instances' frames (prepared by `culler`); in task shaders,
-    /// optionally also per triangle from `triangles`.
+    /// Meshlets culled with the instances' frames (prepared by `culler`), then skinned:
+    /// task culling with `Mesh` or `MeshSlim` skinning (and optionally per triangle from
+    /// `triangles`), compute culling with `Vertex` or `Compute` skinning.
     Culled {
         culler: &'a MeshletCuller,
         culling: Culling,
+        skinning: Skinning,
         triangles: Option<Projection>,
     },
 }
@@ -278,12 +288,16 @@ impl Renderer {
                 let color_layout = layout("meshlet colors", &[buffer_entry(3, stage, read)]);
                 let colored = [Some(&skin_layout), Some(&camera_layout), Some(&meshlet_layout), Some(&color_layout)];
                 let colored_pipeline = mesh_pipeline(&colored, None, "colored_mesh");
-                let slim = (gpu.device.limits().max_storage_buffers_per_shader_stage >= 9).then(|| {
-                    let slim_layout =
+                // The task-culled slim pipelines bind 10 storage buffers to the mesh stage.
+                let slim = (gpu.device.limits().max_storage_buffers_per_shader_stage >= 10).then(|| {
+                    let layout =
                         layout("slim meshlets", &(0..4).map(|b| buffer_entry(b, stage, read)).collect::<Vec<_>>());
-                    let groups = [Some(&skin_layout), Some(&camera_layout), Some(&slim_layout)];
+                    let groups = [Some(&skin_layout), Some(&camera_layout), Some(&layout)];
                     let pipeline = mesh_pipeline(&groups, None, "slim_mesh");
-                    (slim_layout, pipeline)
+                    let four = [Some(&skin_layout), Some(&camera_layout), Some(&layout), Some(&cull_layout)];
+                    let culled = [3.0, 1.0, 0.0]
+                        .map(|tests| mesh_pipeline(&four, Some((task, &[("CLASS_TESTS", tests)])), "culled_slim_mesh"));
+                    SlimPath { layout, pipeline, culled }
                 });
                 MeshPath {
                     skin_layout,
@@ -411,8 +425,11 @@ impl Renderer {
         triangles: Option<Projection>,
     ) -> Result<(Image, u32)> {
         let one = [Instance { matrices, frame: Some(frame) }];
-        let culling = if self.mesh_path.is_some() { Culling::Task } else { Culling::ComputeIndirect };
-        let d = self.draw(gpu, mesh, &one, view_proj, light, Draw::Culled(culler, triangles, culling))?;
+        let (culling, skinning) = match self.mesh_path {
+            Some(_) => (Culling::Task, Skinning::Mesh),
+            None => (Culling::ComputeIndirect, Skinning::Vertex),
+        };
+        let d = self.draw(gpu, mesh, &one, view_proj, light, Draw::Culled(culler, triangles, culling, skinning))?;
         Ok((d.image, d.triangles.unwrap_or(0)))
     }
 
@@ -430,7 +447,9 @@ impl Renderer {
     ) -> Result<Drawn> {
         let draw = match how {
             CrowdDraw::Plain(skinning) => Draw::Plain(skinning),
-            CrowdDraw::Culled { culler, culling, triangles } => Draw::Culled(culler, triangles, culling),
+            CrowdDraw::Culled { culler, culling, skinning, triangles } => {
+                Draw::Culled(culler, triangles, culling, skinning)
+            }
         };
         self.draw(gpu, mesh, instances, view_proj, light, draw)
     }
@@ -510,7 +529,13 @@ impl Renderer {
         let mesh_draw = match (draw, &self.mesh_path, &mesh.meshlets) {
             (Draw::Plain(Skinning::Vertex | Skinning::Compute) | Draw::Contours(..) | Draw::Overdraw, _, _) => None,
             (Draw::Culled(..), _, None) => return Err(invalid("culled drawing needs a mesh uploaded with meshlets")),
-            (Draw::Culled(_, _, Culling::ComputeIndirect), _, Some(_)) => None,
+            (Draw::Culled(_, _, Culling::ComputeIndirect, Skinning::Vertex | Skinning::Compute), _, Some(_)) => None,
+            (Draw::Culled(_, _, Culling::ComputeIndirect, _), ..)
+            | (Draw::Culled(.., Skinning::Vertex | Skinning::Compute), ..) => {
+                return Err(invalid(
+                    "task culling goes with mesh-shader skinning, compute culling with vertex or compute skinning",
+                ));
+            }
             (_, None, _) => return Err(invalid("the device has no mesh shaders")),
             (_, _, None) => return Err(invalid("mesh-shader skinning needs a mesh uploaded with meshlets")),
             (_, Some(path), Some(meshlets)) => Some((path, meshlets)),
@@ -580,30 +605,35 @@ impl Renderer {
             let mut lines = None;
             let pipeline = match mesh_draw {
                 Some((path, meshlets)) => {
-                    let slim = path.slim.as_ref().filter(|_| matches!(draw, Draw::Plain(Skinning::MeshSlim)));
+                    let slim = match draw {
+                        Draw::Plain(Skinning::MeshSlim) | Draw::Culled(.., Skinning::MeshSlim) => match &path.slim {
+                            Some(slim) => Some(slim),
+                            None => return Err(invalid("slim mesh shading needs 10 storage buffers per shader stage")),
+                        },
+                        _ => None,
+                    };
                     let mut meshlet_entries =
                         vec![entry(0, &meshlets.meshlets), entry(1, &meshlets.vertices), entry(2, &meshlets.triangles)];
                     if slim.is_some() {
                         meshlet_entries.push(entry(3, &meshlets.joint_lists));
                     }
-                    let meshlet_layout = slim.map_or(&path.meshlet_layout, |(layout, _)| layout);
+                    let meshlet_layout = slim.map_or(&path.meshlet_layout, |slim| &slim.layout);
                     shared.push(gpu.bind_group("meshlets", meshlet_layout, &meshlet_entries));
+                    // Task-culled draws set their own pipelines (by class).
+                    let culled_pipelines = slim.map_or(&path.culled_pipelines, |slim| &slim.culled);
                     let pipeline = match draw {
-                        Draw::Plain(Skinning::MeshSlim) => match slim {
-                            Some((_, pipeline)) => pipeline,
-                            None => return Err(invalid("slim mesh shading needs 9 storage buffers per shader stage")),
-                        },
+                        Draw::Plain(Skinning::MeshSlim) => &slim.expect("slim is set for slim draws").pipeline,
                         Draw::Colored(colors) => {
                             let words: Vec<u32> = colors.iter().map(|c| u32::from_le_bytes(*c)).collect();
                             let colors = gpu.buffer("meshlet colors", &words, storage);
                             shared.push(gpu.bind_group("meshlet colors", &path.color_layout, &[entry(3, &colors)]));
                             &path.colored_pipeline
                         }
-                        Draw::Culled(..) => &path.culled_pipelines[0],
+                        Draw::Culled(..) => &culled_pipelines[0],
                         _ => &path.pipeline,
                     };
                     let triangle_cull = match draw {
-                        Draw::Culled(_, triangles, _) => {
+                        Draw::Culled(_, triangles, ..) => {
                             counter =
                                 Some(gpu.buffer("drawn triangles", &[0u32; 4], storage | wgpu::BufferUsages::COPY_SRC));
                             Some(gpu.buffer(
@@ -618,7 +648,7 @@ impl Renderer {
                         let group0 = gpu.bind_group("mesh-shader mesh", &path.skin_layout, &mesh_bindings(mesh, m));
                         // Task draws: (pipeline, group 3, task workgroups) per slot range.
                         let mut tasks = Vec::new();
-                        if let (Draw::Culled(culler, _, how), Some(frame), Some(triangle_cull), Some(counter)) =
+                        if let (Draw::Culled(culler, _, how, _), Some(frame), Some(triangle_cull), Some(counter)) =
                             (draw, i.frame, &triangle_cull, &counter)
                         {
                             let frames = std::slice::from_ref(frame);
@@ -638,36 +668,27 @@ impl Renderer {
                                 ];
                                 let group3 = gpu.bind_group("task culling", &path.cull_layout, &entries);
                                 // One task workgroup per 32 slots (task_cull.wgsl).
-                                tasks.push((&path.culled_pipelines[k], group3, count.div_ceil(32)));
+                                tasks.push((&culled_pipelines[k], group3, count.div_ceil(32)));
                             }
                         }
                         per_instance.push(InstanceDraw { group0, tasks, commands: None });
                     }
                     pipeline
                 }
-                None if matches!(draw, Draw::Plain(Skinning::Vertex) | Draw::Culled(..) | Draw::Overdraw) => {
+                None if matches!(
+                    draw,
+                    Draw::Plain(Skinning::Vertex) | Draw::Culled(.., Skinning::Vertex) | Draw::Overdraw
+                ) =>
+                {
                     for (i, m) in instances.iter().zip(&matrices) {
-                        let commands = match (draw, i.frame, &mesh.meshlets) {
-                            (Draw::Culled(culler, ..), Some(frame), Some(meshlets)) => {
-                                let counts = gpu.buffer("cull counts", &[0u32; 3], storage);
-                                let commands = gpu.buffer(
-                                    "meshlet draws",
-                                    &vec![0u32; 5 * meshlets.count as usize],
-                                    storage | wgpu::BufferUsages::INDIRECT | wgpu::BufferUsages::COPY_SRC,
-                                );
-                                let input = CullInput::new(culler, std::slice::from_ref(frame)).buffers(gpu);
-                                self.culling.encode_draws(gpu, &mut encoder, &input, meshlets, &counts, &commands);
-                                Some(commands)
-                            }
-                            _ => None,
-                        };
+                        let commands = self.indirect_draws(gpu, &mut encoder, mesh, draw, i.frame);
                         let group0 = gpu.bind_group("mesh", &self.mesh_layout, &mesh_bindings(mesh, m));
                         per_instance.push(InstanceDraw { group0, tasks: Vec::new(), commands });
                     }
                     if matches!(draw, Draw::Overdraw) { &self.overdraw_pipeline } else { &self.vertex_pipeline }
                 }
                 None => {
-                    for (k, m) in matrices.iter().enumerate() {
+                    for (k, (i, m)) in instances.iter().zip(&matrices).enumerate() {
                         // The first instance skins into the mesh's buffers, the others into their own.
                         let out = (k > 0).then(|| {
                             let bytes = |n: u32| vec![0f32; 3 * n as usize];
@@ -683,8 +704,9 @@ impl Renderer {
                             None => [&mesh.out_positions, &mesh.out_normals],
                         };
                         self.compute.encode_into(gpu, &mut encoder, mesh, m, positions, normals);
+                        let commands = self.indirect_draws(gpu, &mut encoder, mesh, draw, i.frame);
                         let group0 = gpu.bind_group("skinned", &self.skinned_layout, &[entry(0, positions)]);
-                        per_instance.push(InstanceDraw { group0, tasks: Vec::new(), commands: None });
+                        per_instance.push(InstanceDraw { group0, tasks: Vec::new(), commands });
                     }
                     if let Draw::Contours(extraction, contours, view) = draw {
                         extraction.encode(gpu, &mut encoder, contours, &mesh.out_positions, view)?;
@@ -823,6 +845,35 @@ impl Renderer {
             None => None,
         };
         Ok(Drawn { image: Image { width, height, rgba }, triangles, gpu_ms })
+    }
+}
+
+impl Renderer {
+    /// For compute-culled draws: records the pass writing one instance's indirect draws (one
+    /// per meshlet, culled ones with no instance) and returns the commands.
+    fn indirect_draws(
+        &self,
+        gpu: &Gpu,
+        encoder: &mut wgpu::CommandEncoder,
+        mesh: &GpuMesh,
+        draw: Draw,
+        frame: Option<&JointFrame>,
+    ) -> Option<wgpu::Buffer> {
+        let (Draw::Culled(culler, _, Culling::ComputeIndirect, _), Some(frame), Some(meshlets)) =
+            (draw, frame, &mesh.meshlets)
+        else {
+            return None;
+        };
+        let storage = wgpu::BufferUsages::STORAGE;
+        let counts = gpu.buffer("cull counts", &[0u32; 3], storage);
+        let commands = gpu.buffer(
+            "meshlet draws",
+            &vec![0u32; 5 * meshlets.count as usize],
+            storage | wgpu::BufferUsages::INDIRECT | wgpu::BufferUsages::COPY_SRC,
+        );
+        let input = CullInput::new(culler, std::slice::from_ref(frame)).buffers(gpu);
+        self.culling.encode_draws(gpu, encoder, &input, meshlets, &counts, &commands);
+        Some(commands)
     }
 }
 

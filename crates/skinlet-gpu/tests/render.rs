@@ -187,7 +187,12 @@ fn culled_drawing_gives_the_unculled_image() {
                 if mesh_shaders {
                     // The paper's three task pipelines, one per culling class.
                     let one = [Instance { matrices: &matrices, frame: Some(&frame) }];
-                    let how = CrowdDraw::Culled { culler: &culler, culling: Culling::TaskByClass, triangles: None };
+                    let how = CrowdDraw::Culled {
+                        culler: &culler,
+                        culling: Culling::TaskByClass,
+                        skinning: Skinning::Mesh,
+                        triangles: None,
+                    };
                     let d = renderer.render_crowd(device, &gpu_mesh, &one, camera.view_proj, light, how).unwrap();
                     let differing = differing_pixels(&all, &d.image);
                     assert_eq!(differing, 0, "{name} zoom {zoom} by class: {differing} pixels differ");
@@ -236,40 +241,48 @@ fn crowd_draws_agree_and_are_timed() {
     }
     let instances: Vec<Instance> =
         matrices.iter().zip(&frames).map(|(m, f)| Instance { matrices: m, frame: Some(f) }).collect();
-    let mesh = GpuMesh::new(&gpu, &baked.mesh, Some(&baked.meshlets)).unwrap();
+    let mesh_gpu = GpuMesh::new(&gpu, &baked.mesh, Some(&baked.meshlets)).unwrap();
     let (view_proj, light) = (scene.camera.view_proj, Vec3::new(0.4, 0.8, 0.6));
-    let draw = |how| renderer.render_crowd(&gpu, &mesh, &instances, view_proj, light, how).unwrap();
+    let draw = |how| renderer.render_crowd(&gpu, &mesh_gpu, &instances, view_proj, light, how).unwrap();
     let reference = draw(CrowdDraw::Plain(Skinning::Vertex));
     let background = &reference.image.rgba[..4];
     let covered = reference.image.rgba.chunks(4).filter(|p| *p != background).count();
     assert!(covered > 500, "only {covered} pixels drawn");
     assert!(expected < 12 * baked.meshlets.meshlets.iter().map(|m| m.triangle_count as u32).sum::<u32>());
-    // Pixel for pixel within each front end (vertex-fed: VS, CS, VS culled by a compute pass;
-    // mesh-shader-fed: MS, MS slim, task-culled). Across the two, lavapipe clips triangles
-    // that cross the view's sides in different code, so a few pixels there may differ.
+    // Pixel for pixel within each front end (vertex-fed: VS, CS, both culled by a compute
+    // pass; mesh-shader-fed: MS, MS slim, both task-culled by flags and by class). Across the
+    // two, lavapipe clips triangles that cross the view's sides in different code, so a few
+    // pixels there may differ.
+    let culled = |culling, skinning| CrowdDraw::Culled { culler: &culler, culling, skinning, triangles: None };
     let mut drawn = vec![
-        (
-            "vertex culled",
-            draw(CrowdDraw::Culled { culler: &culler, culling: Culling::ComputeIndirect, triangles: None }),
-            Some(expected),
-        ),
+        ("vertex culled", draw(culled(Culling::ComputeIndirect, Skinning::Vertex)), Some(expected)),
         ("compute", draw(CrowdDraw::Plain(Skinning::Compute)), None),
+        ("compute culled", draw(culled(Culling::ComputeIndirect, Skinning::Compute)), Some(expected)),
     ];
     let mut mesh_reference = None;
     if gpu.has_mesh_shaders() {
         let mesh = draw(CrowdDraw::Plain(Skinning::Mesh));
         let across = differing_pixels(&mesh.image, &reference.image);
         assert!(across * 200 <= covered, "mesh vs vertex skinning: {across} of {covered} pixels differ");
-        drawn.push(("slim", draw(CrowdDraw::Plain(Skinning::MeshSlim)), None));
-        for (what, culling) in [("task culled", Culling::Task), ("task culled by class", Culling::TaskByClass)] {
-            let how = CrowdDraw::Culled { culler: &culler, culling, triangles: None };
-            drawn.push((what, draw(how), Some(expected)));
+        drawn.push(("mesh slim", draw(CrowdDraw::Plain(Skinning::MeshSlim)), None));
+        for skinning in [Skinning::Mesh, Skinning::MeshSlim] {
+            for culling in [Culling::Task, Culling::TaskByClass] {
+                drawn.push(("mesh task culled", draw(culled(culling, skinning)), Some(expected)));
+            }
         }
         mesh_reference = Some(mesh);
+        let mismatched = renderer.render_crowd(
+            &gpu,
+            &mesh_gpu,
+            &instances,
+            view_proj,
+            light,
+            culled(Culling::Task, Skinning::Vertex),
+        );
+        assert!(mismatched.is_err(), "task culling with vertex skinning is an error");
     }
     for (what, d, triangles) in drawn {
-        let same =
-            if what == "slim" || what.starts_with("task") { mesh_reference.as_ref().unwrap() } else { &reference };
+        let same = if what.starts_with("mesh") { mesh_reference.as_ref().unwrap() } else { &reference };
         let n = differing_pixels(&d.image, &same.image);
         assert_eq!(n, 0, "{what}: {n} of {covered} pixels differ within its front end");
         assert_eq!(d.triangles, triangles, "{what}: triangles drawn");

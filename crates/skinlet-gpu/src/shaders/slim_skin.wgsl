@@ -29,7 +29,21 @@ fn skin_slim(v: u32, count: u32) -> vec3<f32> {
 @mesh(mesh_out)
 @workgroup_size(32)
 fn slim_mesh(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
-    let id = wg.y * ROW + wg.x;
+    emit_slim_meshlet(wg.y * ROW + wg.x, lid);
+}
+
+// Task-shader culling (task_cull.wgsl), then slim skinning of the survivors.
+@mesh(mesh_out)
+@payload(payload)
+@workgroup_size(32)
+fn culled_slim_mesh(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
+    let id = payload.ids[wg.x];
+    emit_slim_meshlet(id, lid);
+    cull_triangles(id, lid);
+}
+
+// emit_meshlet for slim meshlets (and full ones among them).
+fn emit_slim_meshlet(id: u32, lid: u32) {
     if id >= arrayLength(&meshlets) {
         mesh_out.vertex_count = 0u;
         mesh_out.primitive_count = 0u;

@@ -51,6 +51,12 @@ struct TriangleCull {
 fn culled_mesh(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
     let id = payload.ids[wg.x];
     emit_meshlet(id, lid, vec4<f32>(1.0));
+    cull_triangles(id, lid);
+}
+
+// After meshlet `id` is emitted: marks its back-facing triangles culled (when asked) and counts
+// the ones kept.
+fn cull_triangles(id: u32, lid: u32) {
     let count = select(0u, meshlets[min(id, arrayLength(&meshlets) - 1u)].triangle_count, id < arrayLength(&meshlets));
     workgroupBarrier();
     // skinlet::cull::triangle::facing on the skinned positions, operation for operation:
