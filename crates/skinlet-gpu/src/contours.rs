@@ -327,8 +327,11 @@ impl GpuContours {
             .enumerate()
             .map(|(i, r)| [r[0], r[1], joints.map_or(0, |j| j[i] as u32), i as u32])
             .collect();
-        if let Some((i, r)) = p.ranges.iter().enumerate().find(|(_, r)| (r[0] + r[1]) as usize > p.always_from) {
+        if let Some((i, r)) = p.ranges.iter().enumerate().find(|(_, r)| r[0] as usize + r[1] as usize > p.always_from) {
             return Err(invalid(format!("patch {i} covers quads {r:?} past the patched ones")));
+        }
+        if let Some(&id) = p.order.iter().find(|&&id| id as usize >= edges.quads.len()) {
+            return Err(invalid(format!("quad {id} is past the {} quads of the edges", edges.quads.len())));
         }
         for start in (p.always_from..p.order.len()).step_by(ALWAYS_GROUP) {
             let count = ALWAYS_GROUP.min(p.order.len() - start);
@@ -356,7 +359,6 @@ impl GpuContours {
             faces.extend(e.faces.iter().flatten());
         }
         let endpoints: Vec<[u32; 2]> = (0..edges.len() as u32).map(|id| edges.endpoints(id)).collect();
-        let quads: Vec<[u32; 4]> = p.quads.clone();
         let storage = wgpu::BufferUsages::STORAGE;
         let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
         let mut reset = STATE_RESET.to_vec();
@@ -373,7 +375,7 @@ impl GpuContours {
             joints: joints.map_or(1, |j| j.iter().map(|&j| j as usize + 1).max().unwrap_or(0)),
             groups: gpu.buffer("patch groups", &groups, storage),
             bounds: gpu.buffer("patch bounds", &bounds, storage),
-            quads: gpu.buffer("quads", &quads, storage),
+            quads: gpu.buffer("quads", &p.quads, storage),
             ids: gpu.buffer("quad ids", &p.order, storage),
             irregular: gpu.buffer("irregular edges", &irregular, storage),
             faces: gpu.buffer("irregular faces", &faces, storage),

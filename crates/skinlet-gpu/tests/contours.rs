@@ -198,3 +198,19 @@ fn check_drawing(
     }
     assert!(changed > 0, "no contour line drawn");
 }
+
+#[test]
+fn patches_of_other_edges_are_an_error() {
+    let Some(gpu) = gpu() else { return };
+    let (p, t) = skinlet::contour::evaluate::uv_sphere(8, 16);
+    let edges = Edges::build(&p, &t).unwrap();
+    let patches = patches::build(&p, &edges, &PatchParams::default());
+    let (p2, t2) = skinlet::contour::evaluate::uv_sphere(9, 16);
+    let other = Edges::build(&p2, &t2).unwrap();
+    assert!(GpuContours::new(&gpu, &other, &patches).is_err());
+    // Positions too few for the edges' vertices.
+    let shape = GpuContours::new(&gpu, &edges, &patches).unwrap();
+    let short = positions_buffer(&gpu, &p[..p.len() / 2]);
+    let view = ContourView::fixed(Projection::Perspective { eye: Vec3::splat(5.0) });
+    assert!(extraction(&gpu).extract(&gpu, &shape, &short, &view).is_err());
+}
