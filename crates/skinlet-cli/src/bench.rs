@@ -65,13 +65,14 @@ fn time_alternating(methods: &mut [&mut dyn FnMut()], seconds: f64) -> Vec<f64> 
             samples[i].push(d.as_secs_f64());
         }
     }
-    samples
-        .into_iter()
-        .map(|mut s| {
-            s.sort_by(f64::total_cmp);
-            s[s.len() / 2]
-        })
-        .collect()
+    // At least 10 samples each: every median exists.
+    samples.into_iter().map(|s| median(s).unwrap_or(f64::NAN)).collect()
+}
+
+/// The middle sample (the upper one of an even count); `None` without samples.
+pub fn median(mut v: Vec<f64>) -> Option<f64> {
+    v.sort_by(f64::total_cmp);
+    (!v.is_empty()).then(|| v[v.len() / 2])
 }
 
 fn joint_aabb(file: Option<&str>, instances: &str, seconds: f64, json: bool) -> Result<()> {

@@ -49,11 +49,6 @@ struct Row {
     triangles: Option<u64>,
 }
 
-fn median(mut v: Vec<f64>) -> Option<f64> {
-    v.sort_by(f64::total_cmp);
-    (!v.is_empty()).then(|| v[v.len() / 2])
-}
-
 pub fn command(file: &str, a: &Args) -> Result<()> {
     anyhow::ensure!(a.instances >= 1 && a.frames >= 1, "--instances and --frames must be at least 1");
     anyhow::ensure!((64..=8192).contains(&a.width), "--width must be between 64 and 8192");
@@ -87,10 +82,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         let mut instances = Vec::new();
         for pl in &scene.placements {
             let clip = clips.get(pl.clip).copied();
-            let t = clip.map_or(0.0, |c| {
-                let d = c.duration().max(1e-6);
-                c.start + (pl.offset * d + f as f32 / params.fps).rem_euclid(d)
-            });
+            let t = pl.time(clip, f, params.fps);
             let globals = poser.globals(&asset.skeleton, clip, t);
             let world = |m: glam::DMat4| Affine3A::from_mat4((pl.model * m).as_mat4());
             let joints: Vec<Affine3A> = skin.joints.iter().map(|&j| world(globals[j as usize])).collect();
@@ -172,8 +164,8 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             rows.push(Row {
                 pipeline: name,
                 culling,
-                gpu_ms: median(gpu_ms),
-                wall_ms: median(wall_ms).unwrap_or(0.0),
+                gpu_ms: crate::bench::median(gpu_ms),
+                wall_ms: crate::bench::median(wall_ms).unwrap_or(0.0),
                 culled_pct: tests.map(|_| 100.0 * culled as f64 / tested),
                 triangles: Some(triangles.map_or(total_triangles * a.instances as u64, |t| t / a.frames as u64)),
             });

@@ -407,6 +407,5 @@ impl GpuContours {
 
 /// Uploads static positions (3 f32 per vertex) for [`ContourExtraction::extract`].
 pub fn positions_buffer(gpu: &Gpu, positions: &[Vec3]) -> wgpu::Buffer {
-    let flat: Vec<f32> = positions.iter().flat_map(|p| p.to_array()).collect();
-    gpu.buffer("positions", &flat, wgpu::BufferUsages::STORAGE)
+    crate::mesh::vec3_buffer(gpu, "positions", positions)
 }

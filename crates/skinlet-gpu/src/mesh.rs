@@ -73,7 +73,6 @@ impl GpuMesh {
         if let Some((t, tri)) = mesh.triangles.iter().enumerate().find(|(_, t)| t.iter().any(|&i| i as usize >= n)) {
             return Err(invalid(format!("triangle {t} {tri:?} indexes past {n} vertices")));
         }
-        let flat = |v: &[Vec3]| v.iter().flat_map(|p| p.to_array()).collect::<Vec<f32>>();
         let joints: Vec<u32> = inf.joints.iter().map(|&j| j as u32).collect();
         let indices: Vec<u32> = match meshlets {
             Some(m) => meshlet_triangles(m, n)?.into_iter().flatten().collect(),
@@ -87,8 +86,8 @@ impl GpuMesh {
             has_normals: !normals.is_empty(),
             joint_count: inf.joints.iter().map(|&j| j as usize + 1).max().unwrap_or(0),
             params: gpu.buffer("mesh params", &params, wgpu::BufferUsages::UNIFORM),
-            positions: gpu.buffer("positions", &flat(positions), wgpu::BufferUsages::STORAGE),
-            normals: gpu.buffer("normals", &flat(normals), wgpu::BufferUsages::STORAGE),
+            positions: vec3_buffer(gpu, "positions", positions),
+            normals: vec3_buffer(gpu, "normals", normals),
             joints: gpu.buffer("joints", &joints, wgpu::BufferUsages::STORAGE),
             weights: gpu.buffer("weights", &inf.weights, wgpu::BufferUsages::STORAGE),
             indices: gpu.buffer("indices", &indices, wgpu::BufferUsages::INDEX),
@@ -119,6 +118,12 @@ impl GpuMesh {
             .collect();
         Ok(gpu.buffer("skinning matrices", &columns, wgpu::BufferUsages::STORAGE))
     }
+}
+
+/// A storage buffer of vectors, 3 f32 each (as the shaders read positions and normals).
+pub(crate) fn vec3_buffer(gpu: &Gpu, label: &str, v: &[Vec3]) -> wgpu::Buffer {
+    let flat: Vec<f32> = v.iter().flat_map(|p| p.to_array()).collect();
+    gpu.buffer(label, &flat, wgpu::BufferUsages::STORAGE)
 }
 
 /// A bind group entry for a whole buffer.

@@ -513,7 +513,8 @@ impl Renderer {
         let d = self.draw(gpu, mesh, &one, view_proj, Vec3::ZERO, Draw::Overdraw)?;
         let counts: Vec<u32> = d.image.rgba.chunks_exact(4).map(|p| p[0] as u32).collect();
         let covered = counts.iter().filter(|&&n| n > 0).count() as u64;
-        Ok((counts.clone(), Overdraw { shaded: counts.iter().map(|&n| n as u64).sum(), covered }))
+        let shaded = counts.iter().map(|&n| n as u64).sum();
+        Ok((counts, Overdraw { shaded, covered }))
     }
 
     fn draw(

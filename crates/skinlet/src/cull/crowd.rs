@@ -44,6 +44,17 @@ pub struct Placement {
     pub offset: f32,
 }
 
+impl Placement {
+    /// The time of `clip` (the instance's clip) at frame `frame` of a `fps` animation: the
+    /// instance's offset into the clip plus the frame's time, wrapping around the clip.
+    pub fn time(&self, clip: Option<&Clip>, frame: usize, fps: f32) -> f32 {
+        clip.map_or(0.0, |c| {
+            let d = c.duration().max(1e-6);
+            c.start + (self.offset * d + frame as f32 / fps).rem_euclid(d)
+        })
+    }
+}
+
 #[derive(Clone, Debug, PartialEq)]
 pub struct Crowd {
     pub camera: Camera,
@@ -258,10 +269,7 @@ pub fn run(
             .par_iter()
             .map_init(Scratch::default, |s, pl| -> Result<CrowdStats> {
                 let clip = clips.get(pl.clip).copied();
-                let t = clip.map_or(0.0, |c| {
-                    let d = c.duration().max(1e-6);
-                    c.start + (pl.offset * d + f as f32 / params.fps).rem_euclid(d)
-                });
+                let t = pl.time(clip, f, params.fps);
                 let globals = s.poser.globals(skeleton, clip, t);
                 s.joint_to_model.clear();
                 s.joint_to_world.clear();
