@@ -46,7 +46,8 @@ struct Row {
     gpu_ms: Option<f64>,
     wall_ms: f64,
     culled_pct: Option<f64>,
-    triangles: Option<u64>,
+    /// Triangles drawn per frame.
+    triangles: u64,
 }
 
 pub fn command(file: &str, a: &Args) -> Result<()> {
@@ -83,12 +84,8 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         for pl in &scene.placements {
             let clip = clips.get(pl.clip).copied();
             let t = pl.time(clip, f, params.fps);
-            let globals = poser.globals(&asset.skeleton, clip, t);
-            let world = |m: glam::DMat4| Affine3A::from_mat4((pl.model * m).as_mat4());
-            let joints: Vec<Affine3A> = skin.joints.iter().map(|&j| world(globals[j as usize])).collect();
-            let skinning: Vec<Affine3A> = (skin.joints.iter().zip(&skin.inverse_bind))
-                .map(|(&j, ibm)| world(globals[j as usize] * ibm.as_dmat4()))
-                .collect();
+            let (mut joints, mut skinning) = (Vec::new(), Vec::new());
+            pl.world_matrices(skin, poser.globals(&asset.skeleton, clip, t), &mut joints, &mut skinning);
             instances.push((skinning, joints));
         }
         frames.push(instances);
@@ -167,13 +164,14 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 gpu_ms: crate::bench::median(gpu_ms),
                 wall_ms: crate::bench::median(wall_ms).unwrap_or(0.0),
                 culled_pct: tests.map(|_| 100.0 * culled as f64 / tested),
-                triangles: Some(triangles.map_or(total_triangles * a.instances as u64, |t| t / a.frames as u64)),
+                triangles: triangles.map_or(total_triangles * a.instances as u64, |t| t / a.frames as u64),
             });
         }
     }
     if let (Some(out), Some(image)) = (&a.out, &picture) {
         crate::write_png(out, image.width, image.height, png::ColorType::Rgba, &image.rgba)?;
     }
+    let m = ci_mesh.meshlets.as_ref().context("uploaded with meshlets")?;
     if a.json {
         let rows: Vec<_> = rows
             .iter()
@@ -182,7 +180,6 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                     "culled_pct": r.culled_pct, "triangles_per_frame": r.triangles})
             })
             .collect();
-        let m = ci_mesh.meshlets.as_ref().context("uploaded with meshlets")?;
         let out = json!({"file": file, "adapter": gpu.info.name, "timestamps": gpu.has_timestamps(),
             "instances": a.instances, "frames": a.frames, "width": a.width, "height": height,
             "meshlets": baked.meshlets.len(), "triangles_per_instance": total_triangles,
@@ -190,7 +187,6 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         println!("{}", serde_json::to_string_pretty(&out)?);
         return Ok(());
     }
-    let m = ci_mesh.meshlets.as_ref().context("uploaded with meshlets")?;
     println!(
         "{file}: crowd of {} instances ({} skin-aware meshlets, {} common-influences meshlets of which {} slim, \
          {total_triangles} triangles each), {}x{height}, on {}",
@@ -207,14 +203,13 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         let base = rows.iter().find(|b| b.culling == "none" && b.pipeline == r.pipeline).and_then(|b| b.gpu_ms);
         let gpu_ms = r.gpu_ms.map_or("-".into(), |t| format!("{t:.3}"));
         let culled = r.culled_pct.map_or("-".into(), |c| format!("{c:.1}%"));
-        let tris = r.triangles.map_or("-".into(), |t| t.to_string());
         let saved = match (base, r.gpu_ms) {
             (Some(b), Some(t)) if r.culling != "none" => format!("  ({:+.0}% vs none)", 100.0 * (t / b - 1.0)),
             _ => String::new(),
         };
         println!(
-            "  {:<9} {:<13} {gpu_ms:>12}  {:>13.2}  {culled:>15}  {tris:>15}{saved}",
-            r.pipeline, r.culling, r.wall_ms
+            "  {:<9} {:<13} {gpu_ms:>12}  {:>13.2}  {culled:>15}  {:>15}{saved}",
+            r.pipeline, r.culling, r.wall_ms, r.triangles
         );
     }
     if rows.iter().all(|r| r.gpu_ms.is_none()) {

@@ -166,8 +166,8 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             let camera = framing(&posed, FRONT, 1.0);
             let globals = poser.globals(&asset.skeleton, clip, t);
             let inverses: Vec<DMat4> = skin.joints.iter().map(|&j| globals[j as usize].inverse()).collect();
-            let clip_index = clip.and_then(|c| baked.settings.clips.iter().position(|n| *n == c.name));
-            let view = ContourView::skinned(patches, &inverses, clip_index.map(|c| (c, t)), camera.projection);
+            let at = baked_clip(&baked, clip).map(|c| (c, t));
+            let view = ContourView::skinned(patches, &inverses, at, camera.projection);
             let (image, found) = renderer.render_contours(
                 &gpu,
                 &gpu_mesh,
@@ -192,8 +192,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             skinlet::skinning::skin(inf, &baked.mesh.positions, &[], &matrices, &mut on_bake, &mut [])?;
             let framing = skinlet::overdraw::cluster::Framing::of(std::slice::from_ref(&on_bake));
             let eye = framing.eye(FRONT.normalize(), 3.0);
-            let clip_index = clip.and_then(|c| baked.settings.clips.iter().position(|n| *n == c.name)).unwrap_or(0);
-            let chosen = orders.select(clip_index as u32, t, eye);
+            let chosen = orders.select(baked_clip(&baked, clip).unwrap_or(0) as u32, t, eye);
             let mut halves = Vec::new();
             let mut ratios = Vec::new();
             for order in [&baked.mesh.triangles, &orders.buffers[chosen]] {
@@ -264,4 +263,9 @@ fn bake(asset: &skinlet::Asset, skin: u32, clips: Option<&Clip>) -> Result<skinl
         &mut |_| {},
     )?;
     Ok(baked)
+}
+
+/// The index of `clip` among the clips `baked` was made for.
+fn baked_clip(baked: &skinlet::bake::Baked, clip: Option<&Clip>) -> Option<usize> {
+    clip.and_then(|c| baked.settings.clips.iter().position(|n| *n == c.name))
 }

@@ -3,14 +3,11 @@
 //! pipeline (both tests, frustum only, backface only), several frames.
 
 mod common;
-use common::{assets, gpu};
+use common::{assets, bake, gpu};
 use glam::Affine3A;
-use skinlet::bake::bake;
-use skinlet::bounds::refine::Refinement;
 use skinlet::clip::Clip;
 use skinlet::cull::crowd::{CrowdParams, crowd};
 use skinlet::cull::meshlet::{JointFrame, MeshletCuller, Tests};
-use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::Poser;
 use skinlet_gpu::cull::ComputeCulling;
 
@@ -22,9 +19,7 @@ fn gpu_culling_matches_the_cpu_on_the_crowd_scene() {
     for (name, asset) in assets() {
         let Some(skin_index) = asset.instances.iter().find_map(|i| i.skin) else { continue };
         let clips: Vec<&Clip> = asset.clips.iter().collect();
-        let (baked, _) =
-            bake(&asset, skin_index, &clips, Builder::SkinAware, MeshletLimits::NVIDIA, &Refinement::NONE, &mut |_| {})
-                .unwrap();
+        let baked = bake(&asset, skin_index);
         let skin = &asset.skins[skin_index as usize];
         let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len());
         for orthographic in [false, true] {

@@ -121,17 +121,7 @@ fn culled_drawing_gives_the_unculled_image() {
     for (name, asset) in assets() {
         let Some(skin_index) = asset.instances.iter().find_map(|i| i.skin) else { continue };
         let clips: Vec<&skinlet::clip::Clip> = asset.clips.iter().collect();
-        let how = skinlet::bounds::refine::Refinement::NONE;
-        let (baked, _) = skinlet::bake::bake(
-            &asset,
-            skin_index,
-            &clips,
-            Builder::SkinAware,
-            MeshletLimits::NVIDIA,
-            &how,
-            &mut |_| {},
-        )
-        .unwrap();
+        let baked = common::bake(&asset, skin_index);
         let skin = &asset.skins[skin_index as usize];
         let culler = skinlet::cull::meshlet::MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len());
         let clip = clips.first().copied();
@@ -213,9 +203,7 @@ fn crowd_draws_agree_and_are_timed() {
     let renderer = Renderer::new(&gpu, 320, 180).unwrap();
     let demo = skinlet::demo::demo_character(&skinlet::demo::DemoParams { triangles: 4000, ..Default::default() });
     let clips: Vec<&skinlet::clip::Clip> = demo.clips.iter().collect();
-    let how = skinlet::bounds::refine::Refinement::NONE;
-    let (baked, _) =
-        skinlet::bake::bake(&demo, 0, &clips, Builder::SkinAware, MeshletLimits::NVIDIA, &how, &mut |_| {}).unwrap();
+    let baked = common::bake(&demo, 0);
     let skin = &demo.skins[0];
     let params = skinlet::cull::crowd::CrowdParams { instances: 12, ..Default::default() };
     let scene = skinlet::cull::crowd::crowd(&baked.mesh.positions, clips.len(), &params);
@@ -224,14 +212,10 @@ fn crowd_draws_agree_and_are_timed() {
     let (mut matrices, mut frames, mut expected) = (Vec::new(), Vec::new(), 0);
     for pl in &scene.placements {
         let clip = clips[pl.clip];
-        let globals = poser.globals(&demo.skeleton, Some(clip), clip.start + pl.offset * clip.duration());
-        let world = |m: glam::DMat4| Affine3A::from_mat4((pl.model * m).as_mat4());
-        let joints: Vec<Affine3A> = skin.joints.iter().map(|&j| world(globals[j as usize])).collect();
-        matrices.push(
-            (skin.joints.iter().zip(&skin.inverse_bind))
-                .map(|(&j, ibm)| world(globals[j as usize] * ibm.as_dmat4()))
-                .collect::<Vec<_>>(),
-        );
+        let globals = poser.globals(&demo.skeleton, Some(clip), pl.time(Some(clip), 0, params.fps));
+        let (mut joints, mut skinning) = (Vec::new(), Vec::new());
+        pl.world_matrices(skin, globals, &mut joints, &mut skinning);
+        matrices.push(skinning);
         let mut frame = skinlet::cull::meshlet::JointFrame::default();
         culler.prepare(&joints, &scene.camera, skinlet::cull::meshlet::Tests::Both, &mut frame);
         let mut visible = Vec::new();

@@ -40,3 +40,12 @@ pub fn assets() -> Vec<(String, Asset)> {
     out.push(("@demo".into(), demo));
     out
 }
+
+/// A bake of skin `skin` over every clip: skin-aware meshlets with NVIDIA's limits, bounds from
+/// key intervals only.
+pub fn bake(asset: &Asset, skin: u32) -> skinlet::bake::Baked {
+    let clips: Vec<&skinlet::clip::Clip> = asset.clips.iter().collect();
+    let limits = skinlet::meshlet::MeshletLimits::NVIDIA;
+    let how = skinlet::bounds::refine::Refinement::NONE;
+    skinlet::bake::bake(asset, skin, &clips, skinlet::meshlet::Builder::SkinAware, limits, &how, &mut |_| {}).unwrap().0
+}

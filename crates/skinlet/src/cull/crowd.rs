@@ -53,6 +53,25 @@ impl Placement {
             c.start + (self.offset * d + frame as f32 / fps).rem_euclid(d)
         })
     }
+
+    /// The instance's world-space joint matrices (`model × global`, what culling prepares
+    /// from) and skinning matrices (`model × global × inverse bind`, what a renderer skins
+    /// with), one per joint of `skin`, from the skeleton's global transforms.
+    pub fn world_matrices(
+        &self,
+        skin: &Skin,
+        globals: &[DMat4],
+        joints: &mut Vec<Affine3A>,
+        skinning: &mut Vec<Affine3A>,
+    ) {
+        let world = |m: DMat4| Affine3A::from_mat4((self.model * m).as_mat4());
+        joints.clear();
+        joints.extend(skin.joints.iter().map(|&j| world(globals[j as usize])));
+        skinning.clear();
+        skinning.extend(
+            skin.joints.iter().zip(&skin.inverse_bind).map(|(&j, b)| world(globals[j as usize] * b.as_dmat4())),
+        );
+    }
 }
 
 #[derive(Clone, Debug, PartialEq)]
