@@ -4,12 +4,12 @@ use crate::{RefineArgs, select_clips, stop_name};
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
-use skinlet::Asset;
 use skinlet::bake::{BakeStats, Baked, bake};
 use skinlet::bounds::meshlet::Class;
 use skinlet::bounds::refine::Progress;
 use skinlet::clip::Clip;
 use skinlet::meshlet::{Builder, MeshletLimits};
+use skinlet::{Asset, Character};
 use std::path::Path;
 
 /// Share of meshlets in each class, in percent: (both, frustum only, none).
@@ -28,23 +28,32 @@ pub fn clips_of<'a>(baked: &Baked, asset: &'a Asset, file: &str) -> Result<Vec<&
         .collect()
 }
 
-/// Errors unless the bake at `path` was made from skin `skin` of `asset` (loaded from `file`):
-/// same welded vertices and inverse bind matrices.
-pub fn check_source(baked: &Baked, asset: &Asset, skin: u32, file: &str, path: &Path) -> Result<()> {
-    let prepared = skinlet::meshlet::prepare(&asset.combined_mesh(Some(skin)));
+/// Errors unless the bake at `path` was made from `character` (loaded from `file`): same
+/// welded vertices, drivers (nodes and inverse bind matrices) and parts.
+pub fn check_source(baked: &Baked, character: &Character, file: &str, path: &Path) -> Result<()> {
+    let prepared = skinlet::bake::prepare_character(character)?;
+    let same_parts = baked.parts.len() == character.parts.len()
+        && baked
+            .parts
+            .iter()
+            .zip(&character.parts)
+            .all(|(b, c)| (b.node, b.mesh, b.primitive) == (c.node, c.mesh, c.primitive));
     anyhow::ensure!(
-        prepared.mesh == baked.mesh && asset.skins[skin as usize].inverse_bind == baked.inverse_bind,
-        "{} was not baked from {file} (its vertices or inverse bind matrices differ)",
+        prepared.mesh == baked.mesh
+            && character.palette.joints == baked.joint_nodes
+            && character.palette.inverse_bind == baked.inverse_bind
+            && same_parts,
+        "{} was not baked from {file} (its vertices, drivers or parts differ)",
         path.display()
     );
     Ok(())
 }
 
-/// Bakes skin `skin` of `asset` with a progress bar on stderr (hidden when stderr is not a
-/// terminal or `quiet`).
+/// Bakes the whole `character` of `asset` with a progress bar on stderr (hidden when stderr
+/// is not a terminal or `quiet`).
 pub fn bake_asset(
     asset: &Asset,
-    skin: u32,
+    character: &Character,
     clips: Option<&str>,
     builder: Builder,
     args: RefineArgs,
@@ -66,7 +75,7 @@ pub fn bake_asset(
         bar.set_position(p.elapsed.as_millis() as u64);
         bar.set_message(format!("refining: round {}, {} meshlets still improving", p.rounds, p.active));
     };
-    let out = bake(asset, skin, &clips, builder, MeshletLimits::NVIDIA, &how, &mut progress)?;
+    let out = bake(asset, character, &clips, builder, MeshletLimits::NVIDIA, &how, &mut progress)?;
     bar.finish_and_clear();
     Ok(out)
 }
@@ -83,17 +92,11 @@ pub fn run(
     json: bool,
 ) -> Result<()> {
     let builder = Builder::from_name(builder).context("unknown builder")?;
-    let (asset, skin) = crate::load_skinned(file)?;
-    let (mut baked, stats) = bake_asset(&asset, skin, clips, builder, args, json)?;
+    let (asset, character) = crate::load_character(file)?;
+    let (mut baked, stats) = bake_asset(&asset, &character, clips, builder, args, json)?;
     let overdraw_s = if overdraw {
         let started = std::time::Instant::now();
-        skinlet::bake::add_overdraw(
-            &mut baked,
-            &asset,
-            skin,
-            &skinlet::overdraw::cluster::ClusterParams::default(),
-            16,
-        )?;
+        skinlet::bake::add_overdraw(&mut baked, &asset, &skinlet::overdraw::cluster::ClusterParams::default(), 16)?;
         Some(started.elapsed().as_secs_f64())
     } else {
         None
@@ -104,7 +107,7 @@ pub fn run(
         let how = skinlet::contour::skinned::refinement(r.budget, r.max_rounds);
         let params =
             skinlet::contour::skinned::SkinnedParams::new(skinlet::contour::skinned::SkinnedMethod::Animated, how);
-        skinlet::bake::add_contours(&mut baked, &asset, skin, &params, which == "visible")?;
+        skinlet::bake::add_contours(&mut baked, &asset, &params, which == "visible")?;
         Some(started.elapsed().as_secs_f64())
     } else {
         None
@@ -117,7 +120,10 @@ pub fn run(
     if json {
         let summary = json!({
             "output": out.display().to_string(), "bytes": bytes, "builder": builder.name(),
-            "meshlets": baked.meshlets.len(), "vertices": baked.mesh.positions.len(), "triangles": baked.mesh.triangles.len(),
+            "meshlets": baked.meshlets.len(), "vertices": baked.mesh.positions.len(),
+            "triangles": character.triangle_count(), "baked_triangles": baked.mesh.triangles.len(),
+            "parts": baked.parts.len(), "skinned_parts": baked.parts.iter().filter(|p| p.skin.is_some()).count(),
+            "drivers": baked.joint_nodes.len(),
             "clips": s.clips, "sr": s.s_r, "alpha_deg": s.alpha_t.to_degrees(),
             "both_pct": both, "frustum_only_pct": frustum, "none_pct": none,
             "precompute_s": precompute_s, "rounds": s.rounds, "stop": stop_name(s.stop),
@@ -129,6 +135,14 @@ pub fn run(
         return Ok(());
     }
     println!("{} -> {} ({bytes} bytes)", file, out.display());
+    let skinned = baked.parts.iter().filter(|p| p.skin.is_some()).count();
+    println!(
+        "  {} parts ({skinned} skinned, {} rigid) over {} drivers; {} triangles drawn",
+        baked.parts.len(),
+        baked.parts.len() - skinned,
+        baked.joint_nodes.len(),
+        character.triangle_count()
+    );
     println!(
         "  {} {} meshlets over {} vertices, {} triangles; bounds over {} clips",
         baked.meshlets.len(),
@@ -137,6 +151,10 @@ pub fn run(
         baked.mesh.triangles.len(),
         s.clips.len()
     );
+    let dropped = character.triangle_count() - baked.mesh.triangles.len();
+    if dropped > 0 {
+        println!("  {dropped} triangles repeat a vertex after welding and draw nothing: not stored");
+    }
     println!(
         "  classes at s_r {} and {:.0}°: {both:.1}% both, {frustum:.1}% frustum only, {none:.1}% none",
         s.s_r,

@@ -1,7 +1,6 @@
 //! `skinlet contours`: Tsiapkolis & Bénard's evaluation (42 directions × 6 distances) for
 //! one mesh, and an SVG of the contours from one view.
 
-use crate::load;
 use anyhow::{Context, Result};
 use serde_json::json;
 use skinlet::contour::evaluate::{Method, MethodResult, evaluate, frame, views};
@@ -100,10 +99,10 @@ impl Args {
 
 pub fn command(file: &str, o: &Args) -> Result<()> {
     let params = o.patch_params()?;
-    let asset = load(file)?;
-    let skin = asset.instances.iter().find_map(|i| i.skin);
-    if let (Some(skin), false, false) = (skin, o.as_static, asset.clips.is_empty()) {
-        return skinned(file, &asset, skin, o, params);
+    let (asset, character) = crate::load_character(file)?;
+    let skinned_parts = character.parts.iter().any(|p| matches!(p.kind, skinlet::PartKind::Skinned { .. }));
+    if skinned_parts && !o.as_static && !asset.clips.is_empty() {
+        return skinned(file, &asset, &character, o, params);
     }
     let mut methods: Vec<Method> = match o.method.as_str() {
         "all" => Method::ALL.to_vec(),
@@ -115,8 +114,11 @@ pub fn command(file: &str, o: &Args) -> Result<()> {
         ],
     };
     methods.dedup();
-    // Static geometry: every primitive as drawn without skinning, seams welded.
-    let (mesh, _, _) = skinlet::weld::weld(&asset.combined_mesh(skin));
+    // Static geometry: every part as drawn in the rest pose, seams welded.
+    let rest = skinlet::skinning::posed_positions(&asset.skeleton, &character.palette, &character.mesh, None, None)?;
+    let drawn =
+        skinlet::SkinnedMesh { positions: rest, triangles: character.mesh.triangles.clone(), ..Default::default() };
+    let (mesh, _, _) = skinlet::weld::weld(&drawn);
     let mut edges = Edges::build(&mesh.positions, &mesh.triangles)?;
     if o.visible_only {
         edges.drop_concave(&mesh.positions, |_| true);
@@ -149,7 +151,13 @@ pub fn command(file: &str, o: &Args) -> Result<()> {
 }
 
 /// Skinned files: brute force, rigid parts (the paper) and animated bounds (ours) over frames.
-fn skinned(file: &str, asset: &skinlet::Asset, skin: u32, o: &Args, params: PatchParams) -> Result<()> {
+fn skinned(
+    file: &str,
+    asset: &skinlet::Asset,
+    character: &skinlet::Character,
+    o: &Args,
+    params: PatchParams,
+) -> Result<()> {
     use skinlet::contour::evaluate::{SkinnedInput, evaluate_skinned};
     use skinlet::contour::skinned::SkinnedMethod;
     let methods = match o.method.as_str() {
@@ -164,11 +172,11 @@ fn skinned(file: &str, asset: &skinlet::Asset, skin: u32, o: &Args, params: Patc
     anyhow::ensure!(!o.calibrate, "--calibrate runs on static geometry: add --static");
     anyhow::ensure!(o.budget.is_finite() && o.budget >= 0.0, "--budget must be a number of seconds >= 0");
     let clips = crate::select_clips(asset, o.clips.as_deref())?;
-    let (mesh, _, _) = skinlet::weld::weld(&asset.combined_mesh(Some(skin)));
+    let (mesh, _, _) = skinlet::weld::weld(&character.mesh);
     let edges = skinlet::contour::skinned::skinned_edges(&mesh, o.visible_only)?;
     let input = SkinnedInput {
         skeleton: &asset.skeleton,
-        skin: &asset.skins[skin as usize],
+        skin: &character.palette,
         clips: &clips,
         mesh: &mesh,
         frames_per_clip: o.frames,

@@ -53,34 +53,33 @@ pub fn print(s: &CrowdStats, verify: bool) {
     }
 }
 
-/// The asset, its skin and the bake for `file`: a bake (with `gltf`, the file it was baked
-/// from) or a glTF file, baked first.
+/// The asset and the bake of its character for `file`: a bake (with `gltf`, the file it was
+/// baked from) or a glTF file, baked first.
 pub fn load(
     file: &str,
     gltf: Option<&str>,
     args: RefineArgs,
     json: bool,
-) -> Result<(skinlet::Asset, u32, skinlet::bake::Baked)> {
+) -> Result<(skinlet::Asset, skinlet::bake::Baked)> {
     let is_bake = std::fs::File::open(file)
         .and_then(|mut f| {
             let mut magic = [0u8; 8];
             std::io::Read::read_exact(&mut f, &mut magic).map(|_| &magic == b"SKINLET\0")
         })
         .unwrap_or(false);
-    let (asset, skin, baked) = if is_bake {
+    if is_bake {
         let gltf =
             gltf.with_context(|| format!("{file} is a bake: name the glTF file it was baked from with --gltf"))?;
-        let (asset, skin) = crate::load_skinned(gltf)?;
+        let (asset, character) = crate::load_character(gltf)?;
         let baked = skinlet::bake::read(std::path::Path::new(file))?;
-        crate::bake::check_source(&baked, &asset, skin, gltf, std::path::Path::new(file))?;
-        (asset, skin, baked)
+        crate::bake::check_source(&baked, &character, gltf, std::path::Path::new(file))?;
+        Ok((asset, baked))
     } else {
         anyhow::ensure!(gltf.is_none(), "--gltf goes with a bake file; {file} is not one");
-        let (asset, skin) = crate::load_skinned(file)?;
-        let (baked, _) = bake_asset(&asset, skin, None, Builder::SkinAware, args, json)?;
-        (asset, skin, baked)
-    };
-    Ok((asset, skin, baked))
+        let (asset, character) = crate::load_character(file)?;
+        let (baked, _) = bake_asset(&asset, &character, None, Builder::SkinAware, args, json)?;
+        Ok((asset, baked))
+    }
 }
 
 /// Runs the crowd for `file`: a bake (with `gltf`, the file it was baked from) or a glTF
@@ -94,10 +93,13 @@ pub fn command(
     json: bool,
 ) -> Result<()> {
     anyhow::ensure!(params.instances >= 1 && params.frames >= 1, "--instances and --frames must be at least 1");
-    let (asset, skin, baked) = load(file, gltf, args, json)?;
+    let (asset, baked) = load(file, gltf, args, json)?;
     let clips: Vec<&Clip> = crate::bake::clips_of(&baked, &asset, gltf.unwrap_or(file))?;
-    let scene = crowd(&baked.mesh.positions, clips.len(), params);
-    let s = run(&baked, &asset.skeleton, &asset.skins[skin as usize], &clips, &scene, params, check)?;
+    let palette = baked.palette();
+    let posed =
+        skinlet::skinning::posed_positions(&asset.skeleton, &palette, &baked.mesh, clips.first().copied(), None)?;
+    let scene = crowd(&posed, clips.len(), params);
+    let s = run(&baked, &asset.skeleton, &palette, &clips, &scene, params, check)?;
     if json {
         println!("{}", serde_json::to_string_pretty(&to_json(&s, check))?);
     } else {

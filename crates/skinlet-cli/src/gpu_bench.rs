@@ -53,11 +53,13 @@ struct Row {
 pub fn command(file: &str, a: &Args) -> Result<()> {
     anyhow::ensure!(a.instances >= 1 && a.frames >= 1, "--instances and --frames must be at least 1");
     anyhow::ensure!((64..=8192).contains(&a.width), "--width must be between 64 and 8192");
-    let (asset, skin_index, baked) = crate::crowd::load(file, a.gltf.as_deref(), a.refine, a.json)?;
+    let (asset, baked) = crate::crowd::load(file, a.gltf.as_deref(), a.refine, a.json)?;
     let clips = crate::bake::clips_of(&baked, &asset, a.gltf.as_deref().unwrap_or(file))?;
-    let skin = &asset.skins[skin_index as usize];
+    let palette = baked.palette();
+    let skin = &palette;
     let params = CrowdParams { instances: a.instances, frames: a.frames + 1, ..CrowdParams::default() };
-    let scene = crowd(&baked.mesh.positions, clips.len(), &params);
+    let posed = skinlet::skinning::posed_positions(&asset.skeleton, skin, &baked.mesh, clips.first().copied(), None)?;
+    let scene = crowd(&posed, clips.len(), &params);
     let gpu = Gpu::new(GpuOptions { software: a.software, ..GpuOptions::default() })?;
     let height = (a.width * 9 / 16).max(1);
     let renderer = Renderer::new(&gpu, a.width, height)?;
@@ -65,9 +67,10 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len());
     // MS-CI draws common-influences meshlets: baked too, over the same clips, for their bounds.
     let how = a.refine.refinement()?;
+    let character = asset.character()?;
     let (ci, _) = skinlet::bake::bake(
         &asset,
-        skin_index,
+        &character,
         &clips,
         Builder::CommonInfluences,
         MeshletLimits::NVIDIA,

@@ -4,13 +4,13 @@
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use serde_json::{Value, json};
-use skinlet::Asset;
 use skinlet::clip::Clip;
 use skinlet::demo::{DemoParams, demo_character};
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::overdraw::cluster::PatchOrder;
 use skinlet::pose::Poser;
 use skinlet::summary::summarize;
+use skinlet::{Asset, Character};
 use std::path::{Path, PathBuf};
 
 mod bake;
@@ -560,22 +560,21 @@ fn pose(file: &str, clip: Option<&str>, time: f32, json: bool) -> Result<()> {
     if !time.is_finite() {
         bail!("--time must be a finite number of seconds");
     }
-    let asset = load(file)?;
+    let (asset, character) = load_character(file)?;
     let clip = find_clip(&asset, clip)?;
-    let mut poser = Poser::default();
     let mut mats = Vec::new();
+    Poser::default().skinning_matrices(&asset.skeleton, &character.palette, clip, time, &mut mats);
     let mut entries = Vec::new();
-    for inst in &asset.instances {
-        let Some(skin) = inst.skin else { continue };
-        poser.skinning_matrices(&asset.skeleton, &asset.skins[skin as usize], clip, time, &mut mats);
-        for prim in &asset.meshes[inst.mesh as usize].primitives {
-            let g = &prim.geometry;
-            let Some(inf) = &g.influences else { continue };
-            let mut p = vec![glam::Vec3::ZERO; g.positions.len()];
-            let mut n = vec![glam::Vec3::ZERO; g.normals.len()];
-            skinlet::skinning::skin(inf, &g.positions, &g.normals, &mats, &mut p, &mut n)?;
-            entries.push((inst.node, inst.mesh, prim.index, p, n));
-        }
+    for part in &character.parts {
+        // The source primitive's normals (the merged mesh drops them all if one part has none).
+        let g = &asset.meshes[part.mesh as usize].primitives.iter().find(|p| p.index == part.primitive as usize);
+        let normals = g.map_or(&[][..], |g| &g.geometry.normals[..]);
+        let part_mesh = character.part_mesh(part);
+        let inf = part_mesh.influences.as_ref().context("a character's parts are all skinned")?;
+        let mut p = vec![glam::Vec3::ZERO; part_mesh.positions.len()];
+        let mut n = vec![glam::Vec3::ZERO; normals.len()];
+        skinlet::skinning::skin(inf, &part_mesh.positions, normals, &mats, &mut p, &mut n)?;
+        entries.push((part.node, part.mesh, part.primitive, p, n));
     }
     if json {
         let prims: Vec<Value> = entries
@@ -600,9 +599,6 @@ fn pose(file: &str, clip: Option<&str>, time: f32, json: bool) -> Result<()> {
         let (lo, hi) = bbox(p);
         println!("  node {node} mesh {mesh} primitive {prim}: {} vertices, bounds {lo:.4} .. {hi:.4}", p.len());
     }
-    if entries.is_empty() {
-        println!("  no skinned mesh instances");
-    }
     Ok(())
 }
 
@@ -618,22 +614,17 @@ fn demo(triangles: usize, seed: u64, json: bool) -> Result<()> {
     let asset = demo_character(&DemoParams { seed, triangles });
     let build_s = started.elapsed().as_secs_f64();
     let s = summarize(&asset);
-    let skin = &asset.skins[0];
-    let prim = &asset.meshes[0].primitives[0].geometry;
-    let inf = prim.influences.as_ref().context("demo character has no skin weights")?;
-    let mut poser = Poser::default();
-    let mut mats = Vec::new();
-    let mut p = vec![glam::Vec3::ZERO; prim.positions.len()];
-    let (rest_lo, rest_hi) = bbox(&prim.positions);
+    let character = asset.character()?;
+    let skin = &character.palette;
+    let posed = |clip, t| skinlet::skinning::posed_positions(&asset.skeleton, skin, &character.mesh, clip, t);
+    let (rest_lo, rest_hi) = bbox(&posed(None, None)?);
     let mut clips = Vec::new();
     for clip in &asset.clips {
         // Pose at 33 evenly spaced times and report the swept bounding box.
         let (mut lo, mut hi) = (glam::Vec3::INFINITY, glam::Vec3::NEG_INFINITY);
         for k in 0..=32 {
             let t = clip.start + clip.duration() * k as f32 / 32.0;
-            poser.skinning_matrices(&asset.skeleton, skin, Some(clip), t, &mut mats);
-            skinlet::skinning::skin(inf, &prim.positions, &[], &mats, &mut p, &mut [])?;
-            let (a, b) = bbox(&p);
+            let (a, b) = bbox(&posed(Some(clip), Some(t))?);
             lo = lo.min(a);
             hi = hi.max(b);
         }
@@ -648,7 +639,7 @@ fn demo(triangles: usize, seed: u64, json: bool) -> Result<()> {
         ..skinlet::bounds::refine::Refinement::NONE
     };
     let (baked, stats) =
-        skinlet::bake::bake(&asset, 0, &all, Builder::SkinAware, MeshletLimits::NVIDIA, &how, &mut |_| {})?;
+        skinlet::bake::bake(&asset, &character, &all, Builder::SkinAware, MeshletLimits::NVIDIA, &how, &mut |_| {})?;
     let (meshlets, bounds) = (&baked.meshlets, &baked.bounds);
     let precompute_s = stats.precompute.as_secs_f64();
     let (both, frustum, none) = bake::class_shares(&baked);
@@ -656,7 +647,7 @@ fn demo(triangles: usize, seed: u64, json: bool) -> Result<()> {
     let bake_bytes = skinlet::bake::to_bytes(&baked).len();
     // A small crowd scene: 16 instances, 10 frames, every culled triangle checked.
     let crowd_params = skinlet::cull::crowd::CrowdParams { instances: 16, frames: 10, ..Default::default() };
-    let scene = skinlet::cull::crowd::crowd(&baked.mesh.positions, all.len(), &crowd_params);
+    let scene = skinlet::cull::crowd::crowd(&posed(all.first().copied(), None)?, all.len(), &crowd_params);
     let crowd_stats = skinlet::cull::crowd::run(&baked, &asset.skeleton, skin, &all, &scene, &crowd_params, true)?;
     if json {
         let out = json!({
@@ -723,14 +714,11 @@ fn demo(triangles: usize, seed: u64, json: bool) -> Result<()> {
 }
 
 fn meshlets(file: &str, builder: &str, limits: MeshletLimits, json: bool) -> Result<()> {
-    let asset = load(file)?;
-    let skin = asset.instances.iter().find_map(|i| i.skin);
-    let mesh = asset.combined_mesh(skin);
-    if mesh.triangles.is_empty() {
+    let (asset, character, prepared) = prepared_character(file)?;
+    if prepared.mesh.triangles.is_empty() {
         bail!("{file} has no triangles to split");
     }
-    let prepared = skinlet::meshlet::prepare(&mesh);
-    let poses = clip_poses(&asset, skin, 32);
+    let poses = clip_poses(&asset, &character.palette, 32);
     let builders: Vec<Builder> = match Builder::from_name(builder) {
         Some(b) => vec![b],
         None => Builder::ALL.to_vec(),
@@ -803,15 +791,14 @@ fn meshlets(file: &str, builder: &str, limits: MeshletLimits, json: bool) -> Res
 }
 
 /// Skinning matrices of `skin` at `per_clip` evenly spaced times of every clip.
-fn clip_poses(asset: &Asset, skin: Option<u32>, per_clip: usize) -> Vec<Vec<glam::Affine3A>> {
-    let Some(skin) = skin else { return Vec::new() };
+fn clip_poses(asset: &Asset, skin: &skinlet::Skin, per_clip: usize) -> Vec<Vec<glam::Affine3A>> {
     let mut poser = Poser::default();
     let mut poses = Vec::new();
     for clip in &asset.clips {
         for k in 0..per_clip {
             let t = clip.start + clip.duration() * k as f32 / (per_clip - 1).max(1) as f32;
             let mut mats = Vec::new();
-            poser.skinning_matrices(&asset.skeleton, &asset.skins[skin as usize], Some(clip), t, &mut mats);
+            poser.skinning_matrices(&asset.skeleton, skin, Some(clip), t, &mut mats);
             poses.push(mats);
         }
     }
@@ -826,24 +813,28 @@ fn select_clips<'a>(asset: &'a Asset, list: Option<&str>) -> Result<Vec<&'a Clip
     }
 }
 
-/// Loads a skinned character and prepares its first skin's combined mesh.
-fn skinned(file: &str) -> Result<(Asset, u32, skinlet::meshlet::PreparedMesh)> {
-    let (asset, skin) = load_skinned(file)?;
-    let prepared = skinlet::meshlet::prepare(&asset.combined_mesh(Some(skin)));
-    Ok((asset, skin, prepared))
+/// Loads a file and builds its whole character: every node of the default scene that draws
+/// a triangle mesh. What the import changed or left out is printed to stderr.
+fn load_character(file: &str) -> Result<(Asset, Character)> {
+    let asset = load(file)?;
+    for w in &asset.report.warnings {
+        eprintln!("warning: {file}: {w}");
+    }
+    let character = asset.character().with_context(|| format!("{file}: cannot build the character"))?;
+    Ok((asset, character))
 }
 
-/// Loads a file and finds its first skin (the one every command works on).
-fn load_skinned(file: &str) -> Result<(Asset, u32)> {
-    let asset = load(file)?;
-    let skin = asset.instances.iter().find_map(|i| i.skin).with_context(|| format!("{file} has no skinned mesh"))?;
-    Ok((asset, skin))
+/// [`load_character`], and the character prepared for meshlets (parts kept apart).
+fn prepared_character(file: &str) -> Result<(Asset, Character, skinlet::meshlet::PreparedMesh)> {
+    let (asset, character) = load_character(file)?;
+    let prepared = skinlet::bake::prepare_character(&character)?;
+    Ok((asset, character, prepared))
 }
 
 fn bounds(file: &str, builder: &str, clips: Option<&str>, args: RefineArgs, json: bool) -> Result<()> {
     use skinlet::bounds::meshlet::{Class, classify};
     let how = args.refinement()?;
-    let (asset, skin, prepared) = skinned(file)?;
+    let (asset, character, prepared) = prepared_character(file)?;
     let clips = select_clips(&asset, clips)?;
     let builders: Vec<Builder> = Builder::from_name(builder).map_or(Builder::ALL.to_vec(), |b| vec![b]);
     let sr = args.sr;
@@ -853,7 +844,7 @@ fn bounds(file: &str, builder: &str, clips: Option<&str>, args: RefineArgs, json
         let started = std::time::Instant::now();
         let refined = skinlet::bounds::refine::refine(
             &asset.skeleton,
-            &asset.skins[skin as usize],
+            &character.palette,
             &clips,
             &prepared.mesh,
             &meshlets,
@@ -928,18 +919,18 @@ fn verify(
     json: bool,
 ) -> Result<()> {
     let builder = Builder::from_name(builder).context("unknown builder")?;
-    let (asset, skin_index) = load_skinned(file)?;
+    let (asset, character) = load_character(file)?;
     let b = match baked {
         Some(path) => {
             anyhow::ensure!(clips.is_none(), "--clips cannot be combined with --baked (the bake names its clips)");
             skinlet::bake::read(path)?
         }
-        None => bake::bake_asset(&asset, skin_index, clips, builder, args, json)?.0,
+        None => bake::bake_asset(&asset, &character, clips, builder, args, json)?.0,
     };
-    let skin = &asset.skins[skin_index as usize];
+    let skin = &character.palette;
     let clips = bake::clips_of(&b, &asset, file)?;
     if let Some(path) = baked {
-        bake::check_source(&b, &asset, skin_index, file, path)?;
+        bake::check_source(&b, &character, file, path)?;
     }
     let builder = b.settings.builder;
     let (meshlets, bounds) = (&b.meshlets, &b.bounds);

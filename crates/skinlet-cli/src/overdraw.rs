@@ -1,6 +1,6 @@
 //! `skinlet overdraw`: Han & Sander's table 2 for one character.
 
-use crate::{select_clips, skinned};
+use crate::{prepared_character, select_clips};
 use anyhow::Result;
 use serde_json::json;
 use skinlet::overdraw::cluster::{ClusterParams, Lookup, cluster};
@@ -52,12 +52,12 @@ pub fn command(
 ) -> Result<()> {
     anyhow::ensure!((1..=255).contains(&base.k), "--k must be between 1 and 255");
     anyhow::ensure!(max_keyframes >= 1 && views >= 1, "--max-keyframes and --views must be at least 1");
-    let (asset, skin, prepared) = skinned(file)?;
+    let (asset, character, prepared) = prepared_character(file)?;
     let clips = select_clips(&asset, clips)?;
     anyhow::ensure!(!clips.is_empty(), "{file} has no animation clips");
     let frames = clips
         .iter()
-        .map(|c| Ok(keyframes(&asset, skin, &prepared.mesh, c, max_keyframes)?.1))
+        .map(|c| Ok(keyframes(&asset.skeleton, &character.palette, &prepared.mesh, c, max_keyframes)?.1))
         .collect::<Result<Vec<Vec<Vec<glam::Vec3>>>>>()?;
     let lambdas = lambda.map_or(vec![0.85, 3.0], |l| vec![l]);
     if let Some(path) = heatmap_path {

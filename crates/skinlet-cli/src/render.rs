@@ -78,10 +78,10 @@ fn id_color(i: usize) -> [u8; 4] {
 
 pub fn command(file: &str, a: &Args) -> Result<()> {
     anyhow::ensure!((16..=8192).contains(&a.size), "--size must be between 16 and 8192");
-    let (asset, skin_index) = crate::load_skinned(file)?;
+    let (asset, character, prepared) = crate::prepared_character(file)?;
     let clip = crate::find_clip(&asset, a.clip.as_deref())?;
-    let skin = &asset.skins[skin_index as usize];
-    let mesh = asset.combined_mesh(Some(skin_index));
+    let skin = &character.palette;
+    let mesh = &character.mesh;
     let inf = mesh.influences.as_ref().context("the skinned mesh has no weights")?;
     let t = clip.map_or(0.0, |c| c.start + a.time);
     let mut poser = Poser::default();
@@ -106,7 +106,6 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     };
     let image = match a.view.as_str() {
         "meshlets" => {
-            let prepared = skinlet::meshlet::prepare(&mesh);
             let meshlets = skinlet::meshlet::build(&prepared, Builder::SkinAware, MeshletLimits::NVIDIA)?;
             let gpu_mesh = GpuMesh::new(&gpu, &prepared.mesh, Some(&meshlets))?;
             let colors: Vec<[u8; 4]> = (0..meshlets.len()).map(id_color).collect();
@@ -114,7 +113,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             colored(&gpu_mesh, &colors)?
         }
         "culled" => {
-            let baked = bake(&asset, skin_index, None)?;
+            let baked = bake(&asset, &character, None)?;
             let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len());
             let mut joints = Vec::new();
             skinlet::pose::joint_globals(skin, poser.globals(&asset.skeleton, clip, t), &mut joints);
@@ -140,7 +139,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             renderer.render_colored(&gpu, &gpu_mesh, &matrices, observer, LIGHT, &colors)?
         }
         "classes" => {
-            let baked = bake(&asset, skin_index, None)?;
+            let baked = bake(&asset, &character, None)?;
             let colors: Vec<[u8; 4]> = (baked.classes.iter())
                 .map(|c| match c {
                     Class::Both => [120, 210, 120, 255],
@@ -155,9 +154,9 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             colored(&gpu_mesh, &colors)?
         }
         "contours" => {
-            let mut baked = bake(&asset, skin_index, None)?;
+            let mut baked = bake(&asset, &character, None)?;
             let params = SkinnedParams::new(SkinnedMethod::Animated, refinement(None, 2));
-            skinlet::bake::add_contours(&mut baked, &asset, skin_index, &params, true)?;
+            skinlet::bake::add_contours(&mut baked, &asset, &params, true)?;
             let patches = &baked.contours.as_ref().context("contours were just added")?.patches;
             let edges = skinned_edges(&baked.mesh, true)?;
             let gpu_mesh = GpuMesh::new(&gpu, &baked.mesh, None)?;
@@ -184,8 +183,8 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         }
         "overdraw" => {
             // Orders for the shown clip only: clustering every clip takes minutes.
-            let mut baked = bake(&asset, skin_index, clip)?;
-            skinlet::bake::add_overdraw(&mut baked, &asset, skin_index, &ClusterParams::default(), 8)?;
+            let mut baked = bake(&asset, &character, clip)?;
+            skinlet::bake::add_overdraw(&mut baked, &asset, &ClusterParams::default(), 8)?;
             let orders = baked.overdraw.as_ref().context("orders were just added")?;
             let mut on_bake = vec![Vec3::ZERO; baked.mesh.positions.len()];
             let inf = baked.mesh.influences.as_ref().context("the bake has no skin weights")?;
@@ -215,14 +214,13 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         }
         _ => {
             let (gpu_mesh, path) = match a.skinning.as_str() {
-                "vertex" => (GpuMesh::new(&gpu, &mesh, None)?, Skinning::Vertex),
-                "compute" => (GpuMesh::new(&gpu, &mesh, None)?, Skinning::Compute),
+                "vertex" => (GpuMesh::new(&gpu, mesh, None)?, Skinning::Vertex),
+                "compute" => (GpuMesh::new(&gpu, mesh, None)?, Skinning::Compute),
                 _ => {
                     let (builder, path) = match a.skinning.as_str() {
                         "mesh" => (Builder::SkinAware, Skinning::Mesh),
                         _ => (Builder::CommonInfluences, Skinning::MeshSlim),
                     };
-                    let prepared = skinlet::meshlet::prepare(&mesh);
                     let meshlets = skinlet::meshlet::build(&prepared, builder, MeshletLimits::NVIDIA)?;
                     let gpu_mesh = GpuMesh::new(&gpu, &prepared.mesh, Some(&meshlets))?;
                     let m = gpu_mesh.meshlets.as_ref().context("uploaded with meshlets")?;
@@ -246,16 +244,16 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     Ok(())
 }
 
-/// A bake of the skin for the culling views: skin-aware meshlets, bounds over `clips` (all
-/// when `None`) from key intervals only (no refinement: quick, and still conservative).
-fn bake(asset: &skinlet::Asset, skin: u32, clips: Option<&Clip>) -> Result<skinlet::bake::Baked> {
+/// A bake of the character for the culling views: skin-aware meshlets, bounds over `clips`
+/// (all when `None`) from key intervals only (no refinement: quick, and still conservative).
+fn bake(asset: &skinlet::Asset, character: &skinlet::Character, clips: Option<&Clip>) -> Result<skinlet::bake::Baked> {
     let clips: Vec<&Clip> = match clips {
         Some(c) => vec![c],
         None => asset.clips.iter().collect(),
     };
     let (baked, _) = skinlet::bake::bake(
         asset,
-        skin,
+        character,
         &clips,
         Builder::SkinAware,
         MeshletLimits::NVIDIA,

@@ -78,7 +78,7 @@ fn static_scans_match_brute_force() {
             continue;
         }
         let asset = skinlet::import::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-        let (mesh, _, _) = skinlet::weld::weld(&asset.combined_mesh(None));
+        let (mesh, _, _) = skinlet::weld::weld(&asset.character().unwrap().mesh);
         meshes.push((file.into(), mesh.positions, mesh.triangles));
     }
     for (name, positions, triangles) in meshes {
@@ -118,9 +118,9 @@ fn skinned_assets_match_brute_force() {
     let how = Refinement { max_rounds: 2, ..Refinement::NONE };
     let renderer = Renderer::new(&gpu, 160, 160).unwrap();
     for (name, asset) in assets() {
-        let Some(skin_index) = asset.instances.iter().find_map(|i| i.skin) else { continue };
-        let skin = &asset.skins[skin_index as usize];
-        let (mesh, _, _) = skinlet::weld::weld(&asset.combined_mesh(Some(skin_index)));
+        let character = asset.character().unwrap();
+        let skin = &character.palette;
+        let (mesh, _, _) = skinlet::weld::weld(&character.mesh);
         let edges = skinned_edges(&mesh, true).unwrap();
         let clips: Vec<&skinlet::clip::Clip> = asset.clips.iter().take(2).collect();
         let sp = build(&asset.skeleton, skin, &clips, &mesh, &edges, &SkinnedParams::new(SkinnedMethod::Animated, how))

@@ -17,10 +17,10 @@ fn gpu_culling_matches_the_cpu_on_the_crowd_scene() {
     let culling = ComputeCulling::new(&gpu).unwrap();
     let mut checked = (0usize, 0usize);
     for (name, asset) in assets() {
-        let Some(skin_index) = asset.instances.iter().find_map(|i| i.skin) else { continue };
+        let character = asset.character().unwrap();
         let clips: Vec<&Clip> = asset.clips.iter().collect();
-        let baked = bake(&asset, skin_index);
-        let skin = &asset.skins[skin_index as usize];
+        let baked = bake(&asset, &character);
+        let skin = &character.palette;
         let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len());
         for orthographic in [false, true] {
             let params = CrowdParams { instances: 24, frames: 3, orthographic, ..CrowdParams::default() };

@@ -19,9 +19,9 @@ fn every_skinning_pipeline_draws_the_same_image() {
     let renderer = Renderer::new(&gpu, 192, 192).unwrap();
     let (mut slim, mut meshlet_total) = (0, 0);
     for (name, asset) in assets() {
-        let Some(skin_index) = asset.instances.iter().find_map(|i| i.skin) else { continue };
-        let skin = &asset.skins[skin_index as usize];
-        let prepared = skinlet::meshlet::prepare(&asset.combined_mesh(Some(skin_index)));
+        let character = asset.character().unwrap();
+        let skin = &character.palette;
+        let prepared = skinlet::bake::prepare_character(&character).unwrap();
         let meshlets = skinlet::meshlet::build(&prepared, Builder::SkinAware, MeshletLimits::NVIDIA).unwrap();
         let common = skinlet::meshlet::build(&prepared, Builder::CommonInfluences, MeshletLimits::NVIDIA).unwrap();
         let mesh = prepared.mesh;
@@ -70,9 +70,10 @@ fn a_pose_change_changes_the_image() {
     // The comparison above must be able to fail: two different poses give different images.
     let Some(gpu) = gpu() else { return };
     let asset = skinlet::demo::demo_character(&skinlet::demo::DemoParams { triangles: 4000, ..Default::default() });
-    let (skin, mesh, clip) = (&asset.skins[0], asset.combined_mesh(Some(0)), &asset.clips[0]);
+    let character = asset.character().unwrap();
+    let (skin, mesh, clip) = (&character.palette, &character.mesh, &asset.clips[0]);
     let renderer = Renderer::new(&gpu, 128, 128).unwrap();
-    let gpu_mesh = GpuMesh::new(&gpu, &mesh, None).unwrap();
+    let gpu_mesh = GpuMesh::new(&gpu, mesh, None).unwrap();
     let view_proj = framing(&mesh.positions, Vec3::Z, 1.0).view_proj;
     let mut images = Vec::new();
     for t in [0.2, 0.6] {
@@ -119,10 +120,10 @@ fn culled_drawing_gives_the_unculled_image() {
     }
     let mut culled_total = 0;
     for (name, asset) in assets() {
-        let Some(skin_index) = asset.instances.iter().find_map(|i| i.skin) else { continue };
+        let character = asset.character().unwrap();
         let clips: Vec<&skinlet::clip::Clip> = asset.clips.iter().collect();
-        let baked = common::bake(&asset, skin_index);
-        let skin = &asset.skins[skin_index as usize];
+        let baked = common::bake(&asset, &character);
+        let skin = &character.palette;
         let culler = skinlet::cull::meshlet::MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len());
         let clip = clips.first().copied();
         let t = clip.map_or(0.0, |c| c.start + 0.6 * c.duration());
@@ -203,8 +204,8 @@ fn crowd_draws_agree_and_are_timed() {
     let renderer = Renderer::new(&gpu, 320, 180).unwrap();
     let demo = skinlet::demo::demo_character(&skinlet::demo::DemoParams { triangles: 4000, ..Default::default() });
     let clips: Vec<&skinlet::clip::Clip> = demo.clips.iter().collect();
-    let baked = common::bake(&demo, 0);
-    let skin = &demo.skins[0];
+    let baked = common::bake(&demo, &demo.character().unwrap());
+    let skin = &baked.palette();
     let params = skinlet::cull::crowd::CrowdParams { instances: 12, ..Default::default() };
     let scene = skinlet::cull::crowd::crowd(&baked.mesh.positions, clips.len(), &params);
     let culler = skinlet::cull::meshlet::MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len());
@@ -293,9 +294,9 @@ fn gpu_overdraw_matches_the_cpu_rasterizer() {
     let mut raster = skinlet::overdraw::measure::Raster::new(size, size);
     let mut checked = 0;
     for (name, asset) in assets() {
-        let Some(skin_index) = asset.instances.iter().find_map(|i| i.skin) else { continue };
-        let skin = &asset.skins[skin_index as usize];
-        let mesh = skinlet::meshlet::prepare(&asset.combined_mesh(Some(skin_index))).mesh;
+        let character = asset.character().unwrap();
+        let skin = &character.palette;
+        let mesh = skinlet::bake::prepare_character(&character).unwrap().mesh;
         let clip = asset.clips.first();
         let t = clip.map_or(0.0, |c| c.start + 0.3 * c.duration());
         let mut matrices: Vec<Affine3A> = Vec::new();

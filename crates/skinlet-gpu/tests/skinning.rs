@@ -23,9 +23,9 @@ fn compute_skinning_matches_the_cpu_reference() {
     let pipeline = ComputeSkinning::new(&gpu).unwrap();
     let mut worst = (0.0f32, 0.0f32);
     for (name, asset) in assets() {
-        let Some(skin_index) = asset.instances.iter().find_map(|i| i.skin) else { continue };
-        let skin = &asset.skins[skin_index as usize];
-        let mesh = asset.combined_mesh(Some(skin_index));
+        let character = asset.character().unwrap();
+        let skin = &character.palette;
+        let mesh = character.mesh.clone();
         let inf = mesh.influences.as_ref().unwrap();
         let buffers = GpuMesh::new(&gpu, &mesh, None).unwrap();
         let mut poser = Poser::default();

@@ -10,12 +10,13 @@ use skinlet::bounds::meshlet::{key_intervals, meshlet_bounds};
 use skinlet::bounds::refine::{Refinement, refine};
 use skinlet::clip::Clip;
 use skinlet::demo::{DemoParams, demo_character};
-use skinlet::meshlet::{Builder, MeshletLimits, build, prepare};
+use skinlet::meshlet::{Builder, MeshletLimits, build};
 use std::path::PathBuf;
 
 fn bench_asset(c: &mut Criterion, label: &str, asset: &Asset, clips: &[&Clip]) {
-    let skin = &asset.skins[0];
-    let prepared = prepare(&asset.combined_mesh(Some(0)));
+    let character = asset.character().unwrap();
+    let skin = &character.palette;
+    let prepared = skinlet::bake::prepare_character(&character).unwrap();
     let meshlets = build(&prepared, Builder::SkinAware, MeshletLimits::NVIDIA).unwrap();
     let inf = prepared.mesh.influences.as_ref().unwrap();
     let intervals: usize = clips.iter().map(|c| key_intervals(c).len()).sum();

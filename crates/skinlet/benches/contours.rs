@@ -31,7 +31,7 @@ fn views(p: &[Vec3]) -> Vec<Projection> {
 
 fn static_mesh(c: &mut Criterion) {
     let (name, mesh) = match skinlet::import::load(&assets().join("static/stanford-bunny.obj")) {
-        Ok(a) => ("bunny", skinlet::weld::weld(&a.combined_mesh(None)).0),
+        Ok(a) => ("bunny", skinlet::weld::weld(&a.character().unwrap().mesh).0),
         Err(_) => {
             let (mut p, t) = uv_sphere(120, 240);
             p.iter_mut().enumerate().for_each(|(i, v)| *v *= 1.0 + 0.05 * ((i * 7919 % 101) as f32 / 101.0));
@@ -59,9 +59,9 @@ fn static_mesh(c: &mut Criterion) {
 
 fn skinned_mesh(c: &mut Criterion) {
     let Ok(asset) = skinlet::import::load(&assets().join("skinned/CesiumMan.glb")) else { return };
-    let skin_id = asset.instances.iter().find_map(|i| i.skin).unwrap();
-    let skin = &asset.skins[skin_id as usize];
-    let mesh = skinlet::weld::weld(&asset.combined_mesh(Some(skin_id))).0;
+    let character = asset.character().unwrap();
+    let skin = &character.palette;
+    let mesh = skinlet::weld::weld(&character.mesh).0;
     let edges = skinned_edges(&mesh, false).unwrap();
     let clips: Vec<_> = asset.clips.iter().collect();
     let how = refinement(None, 8);

@@ -14,7 +14,6 @@
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::Affine3A;
-use skinlet::Asset;
 use skinlet::bake::bake;
 use skinlet::bounds::refine::Refinement;
 use skinlet::clip::Clip;
@@ -24,6 +23,7 @@ use skinlet::cull::joint_aabb::Box3;
 use skinlet::cull::meshlet::{JointFrame, MeshletCuller, Tests};
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::Poser;
+use skinlet::{Asset, Character};
 use std::hint::black_box;
 use std::path::PathBuf;
 
@@ -39,10 +39,10 @@ fn assets() -> Vec<(String, Asset)> {
 
 /// Joint matrices of `n` instances at random times: (entity-space joint globals, world-space
 /// joint globals, model matrices).
-fn poses(asset: &Asset, skin: u32, n: usize) -> (Vec<Vec<Affine3A>>, Vec<Vec<Affine3A>>, Vec<Affine3A>) {
-    let skin = &asset.skins[skin as usize];
-    let mesh = asset.combined_mesh(asset.instances.iter().find_map(|i| i.skin));
-    let scene = crowd(&mesh.positions, asset.clips.len(), &CrowdParams { instances: n, ..CrowdParams::default() });
+fn poses(asset: &Asset, character: &Character, n: usize) -> (Vec<Vec<Affine3A>>, Vec<Vec<Affine3A>>, Vec<Affine3A>) {
+    let skin = &character.palette;
+    let scene =
+        crowd(&character.mesh.positions, asset.clips.len(), &CrowdParams { instances: n, ..CrowdParams::default() });
     let mut poser = Poser::default();
     let (mut local, mut world, mut models) = (Vec::new(), Vec::new(), Vec::new());
     for p in &scene.placements {
@@ -59,14 +59,14 @@ fn poses(asset: &Asset, skin: u32, n: usize) -> (Vec<Vec<Affine3A>>, Vec<Vec<Aff
 }
 
 fn meshlet_culling(c: &mut Criterion, name: &str, asset: &Asset, instances: usize) {
-    let skin_index = asset.instances.iter().find_map(|i| i.skin).unwrap();
+    let character = asset.character().unwrap();
     let clips: Vec<&Clip> = asset.clips.iter().collect();
     let (baked, _) =
-        bake(asset, skin_index, &clips, Builder::SkinAware, MeshletLimits::NVIDIA, &Refinement::NONE, &mut |_| {})
+        bake(asset, &character, &clips, Builder::SkinAware, MeshletLimits::NVIDIA, &Refinement::NONE, &mut |_| {})
             .unwrap();
-    let skin = &asset.skins[skin_index as usize];
+    let skin = &character.palette;
     let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len());
-    let (_, world, _) = poses(asset, skin_index, instances);
+    let (_, world, _) = poses(asset, &character, instances);
     // One palette of world-space joint matrices for the whole crowd, as an engine keeps it.
     let joints = skin.joints.len();
     let world: Vec<Affine3A> = world.concat();
@@ -115,10 +115,9 @@ fn joint_aabbs(c: &mut Criterion, name: &str, asset: &Asset, instances: usize) {
         })
     });
     // Leaf joints folded twice into their ancestors (conservative for the asset's clips).
-    let skin_index = asset.instances.iter().find_map(|i| i.skin).unwrap();
-    let (skin, mesh) = (&asset.skins[skin_index as usize], asset.combined_mesh(Some(skin_index)));
+    let (skin, mesh) = (&w.character.palette, &w.character.mesh);
     let clips: Vec<&Clip> = asset.clips.iter().collect();
-    let folded = w.boxes.fold_leaves(&asset.skeleton, skin, &mesh, &clips, 2).unwrap();
+    let folded = w.boxes.fold_leaves(&asset.skeleton, skin, mesh, &clips, 2).unwrap();
     group.bench_function(format!("{name}-{instances}/skinlet-folded"), |b| {
         b.iter(|| {
             folded.update_all(&w.palette, w.stride, &mut boxes).unwrap();

@@ -48,12 +48,12 @@ fn benches(c: &mut Criterion) {
     let brainstem = dir.join("skinned/BrainStem.glb");
     if brainstem.is_file() {
         let asset = skinlet::import::load(&brainstem).expect("BrainStem.glb loads");
-        bench_mesh(c, "BrainStem", &prepare(&asset.combined_mesh(Some(0))));
+        bench_mesh(c, "BrainStem", &skinlet::bake::prepare_character(&asset.character().unwrap()).unwrap());
     } else {
         eprintln!("note: {} not found; skipping", brainstem.display());
     }
     let demo = demo_character(&DemoParams { triangles: 1_000_000, ..DemoParams::default() });
-    let prepared = prepare(&demo.combined_mesh(Some(0)));
+    let prepared = skinlet::bake::prepare_character(&demo.character().unwrap()).unwrap();
     c.bench_function("meshlets/demo-1M/prepare", |b| {
         b.iter(|| prepare(black_box(&demo.meshes[0].primitives[0].geometry)))
     });

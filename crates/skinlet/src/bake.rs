@@ -14,21 +14,25 @@
 
 use crate::bounds::meshlet::{Class, MeshletBounds, classify};
 use crate::bounds::refine::{Progress, Refinement, Stop, refine_with_progress};
+use crate::character::{Character, PartKind};
 use crate::clip::Clip;
 use crate::contour::bound::PatchBounds;
 use crate::contour::patches::Patches;
 use crate::contour::skinned::{ClipWindows, SkinnedParams, SkinnedPatches, skinned_edges};
-use crate::meshlet::{Builder, MeshletLimits, Meshlets, build, canonical, flat, prepare};
-use crate::model::{Asset, Influences, SkinnedMesh};
+use crate::meshlet::{
+    Builder, MeshletLimits, Meshlets, PartRange, PreparedMesh, build, canonical, flat, prepare_parts,
+};
+use crate::model::{Asset, Influences, Skin, SkinnedMesh};
 use crate::overdraw::cluster::{ClusterParams, Framing, Lookup, Orders, cluster};
 use crate::overdraw::evaluate::keyframes;
 use crate::{Error, Result};
 use glam::{Mat4, Vec3};
 use std::io::Write;
+use std::ops::Range;
 use std::path::Path;
 
 pub const MAGIC: [u8; 8] = *b"SKINLET\0";
-pub const VERSION: u32 = 1;
+pub const VERSION: u32 = 2;
 
 /// How a bake was made (enough to reproduce it from the same source file).
 #[derive(Clone, Debug, PartialEq)]
@@ -45,13 +49,31 @@ pub struct BakeSettings {
     pub clips: Vec<String>,
 }
 
+/// One part of a baked character (see [`crate::character`]): which node draws which
+/// primitive, and where its vertices, triangles and meshlets lie in the bake.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BakedPart {
+    pub node: u32,
+    pub mesh: u32,
+    pub primitive: u32,
+    /// The glTF skin deforming it; `None` for a rigid part.
+    pub skin: Option<u32>,
+    pub vertices: Range<u32>,
+    pub triangles: Range<u32>,
+    pub meshlets: Range<u32>,
+}
+
 /// A baked character.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Baked {
     pub settings: BakeSettings,
-    /// Names of the skin's joints (empty strings for unnamed nodes).
+    /// The character's drivers (its palette): node index, name (empty for unnamed nodes) and
+    /// inverse bind matrix of each; skinning matrix `d` is `global(joint_nodes[d]) × inverse_bind[d]`.
+    pub joint_nodes: Vec<u32>,
     pub joint_names: Vec<String>,
     pub inverse_bind: Vec<Mat4>,
+    /// The parts, in mesh order; their ranges cover the vertices, triangles and meshlets.
+    pub parts: Vec<BakedPart>,
     /// Welded, cache-ordered vertices with influences; its triangles are the meshlets'.
     pub mesh: SkinnedMesh,
     pub meshlets: Meshlets,
@@ -80,20 +102,49 @@ pub struct BakeStats {
     pub work: u64,
 }
 
-/// Bakes skin `skin` of `asset`: prepares its combined mesh, builds meshlets, computes
-/// bounds over the union of `clips` refined as `how` allows, and classifies them.
+/// The character prepared for meshlets, its parts kept apart.
+pub fn prepare_character(character: &Character) -> Result<PreparedMesh> {
+    let ranges: Vec<PartRange> = (character.parts.iter())
+        .map(|p| PartRange { vertices: p.vertices.clone(), triangles: p.triangles.clone() })
+        .collect();
+    prepare_parts(&character.mesh, &ranges)
+}
+
+/// Bakes the whole character of `asset` (every part, see [`crate::character`]): prepares
+/// its mesh part by part, builds meshlets (none mixes two parts), computes bounds over the
+/// union of `clips` refined as `how` allows, and classifies them.
 pub fn bake(
     asset: &Asset,
-    skin: u32,
+    character: &Character,
     clips: &[&Clip],
     builder: Builder,
     limits: MeshletLimits,
     how: &Refinement,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<(Baked, BakeStats)> {
-    let s = asset.skins.get(skin as usize).ok_or_else(|| Error::invalid("bake", format!("no skin {skin}")))?;
-    let prepared = prepare(&asset.combined_mesh(Some(skin)));
+    let s = &character.palette;
+    let prepared = prepare_character(character)?;
     let meshlets = build(&prepared, builder, limits)?;
+    let mut parts = Vec::with_capacity(character.parts.len());
+    let mut first_meshlet = 0u32;
+    for (p, r) in character.parts.iter().zip(&prepared.parts) {
+        let end = (first_meshlet as usize..meshlets.len())
+            .find(|&m| meshlets.vertices_of(&meshlets.meshlets[m])[0] >= r.vertices.end)
+            .unwrap_or(meshlets.len()) as u32;
+        parts.push(BakedPart {
+            node: p.node,
+            mesh: p.mesh,
+            primitive: p.primitive,
+            skin: match p.kind {
+                PartKind::Skinned { skin } => Some(skin),
+                PartKind::Rigid => None,
+            },
+            vertices: r.vertices.clone(),
+            triangles: r.triangles.clone(),
+            meshlets: first_meshlet..end,
+        });
+        first_meshlet = end;
+    }
     let started = std::time::Instant::now();
     let refined = refine_with_progress(&asset.skeleton, s, clips, &prepared.mesh, &meshlets, how, progress)?;
     let stats = BakeStats { precompute: started.elapsed(), work: refined.work };
@@ -107,8 +158,10 @@ pub fn bake(
             stop: refined.stop,
             clips: clips.iter().map(|c| c.name.clone()).collect(),
         },
+        joint_nodes: s.joints.clone(),
         joint_names: s.joints.iter().map(|&j| asset.skeleton.nodes[j as usize].name.clone()).collect(),
         inverse_bind: s.inverse_bind.clone(),
+        parts,
         classes: refined.bounds.iter().map(|b| classify(b, how.s_r, how.alpha_t)).collect(),
         mesh: prepared.mesh,
         meshlets,
@@ -121,17 +174,12 @@ pub fn bake(
 
 /// Adds overdraw-reducing index buffers to a bake: the "joint" clustering of Han & Sander
 /// over up to `max_keyframes` key times of every clip the bounds were baked for.
-pub fn add_overdraw(
-    baked: &mut Baked,
-    asset: &Asset,
-    skin: u32,
-    params: &ClusterParams,
-    max_keyframes: usize,
-) -> Result<()> {
+pub fn add_overdraw(baked: &mut Baked, asset: &Asset, params: &ClusterParams, max_keyframes: usize) -> Result<()> {
     let mut keys = Vec::new();
     let mut positions = Vec::new();
+    let palette = baked.palette();
     for (i, clip) in baked_clips(baked, asset)?.into_iter().enumerate() {
-        let (times, pos) = keyframes(asset, skin, &baked.mesh, clip, max_keyframes)?;
+        let (times, pos) = keyframes(&asset.skeleton, &palette, &baked.mesh, clip, max_keyframes)?;
         keys.extend(times.into_iter().map(|t| (i as u32, t)));
         positions.extend(pos);
     }
@@ -145,19 +193,20 @@ pub fn add_overdraw(
 
 /// Adds contour patches (see [`crate::contour::skinned`]) with bounds over the clips the
 /// bake was made for.
-pub fn add_contours(
-    baked: &mut Baked,
-    asset: &Asset,
-    skin: u32,
-    params: &SkinnedParams,
-    visible_only: bool,
-) -> Result<()> {
-    let s = asset.skins.get(skin as usize).ok_or_else(|| Error::invalid("bake", format!("no skin {skin}")))?;
+pub fn add_contours(baked: &mut Baked, asset: &Asset, params: &SkinnedParams, visible_only: bool) -> Result<()> {
     let clips = baked_clips(baked, asset)?;
     let edges = skinned_edges(&baked.mesh, visible_only)?;
-    let patches = crate::contour::skinned::build(&asset.skeleton, s, &clips, &baked.mesh, &edges, params)?;
+    let patches =
+        crate::contour::skinned::build(&asset.skeleton, &baked.palette(), &clips, &baked.mesh, &edges, params)?;
     baked.contours = Some(BakedContours { visible_only, patches });
     Ok(())
+}
+
+impl Baked {
+    /// The drivers as a skin (joints: their nodes): what the skinning matrices come from.
+    pub fn palette(&self) -> Skin {
+        Skin { name: String::new(), joints: self.joint_nodes.clone(), inverse_bind: self.inverse_bind.clone() }
+    }
 }
 
 /// The clips a bake's bounds were computed for, found in `asset` by name.
@@ -173,8 +222,9 @@ fn baked_clips<'a>(baked: &Baked, asset: &'a Asset) -> Result<Vec<&'a Clip>> {
         .collect()
 }
 
-/// Section tags: the six required ones, then the optional overdraw orders and contours.
-const TAGS: [&[u8; 4]; 8] = [b"INFO", b"SKIN", b"VERT", b"TRIS", b"MLET", b"BNDS", b"OVDR", b"CONT"];
+/// Section tags: the seven required ones, then the optional overdraw orders and contours.
+const TAGS: [&[u8; 4]; 9] = [b"INFO", b"SKIN", b"VERT", b"TRIS", b"MLET", b"BNDS", b"PART", b"OVDR", b"CONT"];
+const PART_STRIDE: usize = 40;
 const PATCH_STRIDE: usize = 48;
 const HEADER: usize = 16;
 const ENTRY: usize = 24;
@@ -239,7 +289,20 @@ pub fn to_bytes(b: &Baked) -> Vec<u8> {
     let mut skin = Out::default();
     skin.u32(b.inverse_bind.len() as u32);
     b.inverse_bind.iter().flat_map(|m| m.to_cols_array()).for_each(|x| skin.f32(x));
+    b.joint_nodes.iter().for_each(|&n| skin.u32(n));
     b.joint_names.iter().for_each(|n| skin.str(n));
+
+    let mut part = Out::default();
+    part.u32(b.parts.len() as u32);
+    for p in &b.parts {
+        for x in [p.node, p.mesh, p.primitive, p.skin.unwrap_or(u32::MAX)] {
+            part.u32(x);
+        }
+        for r in [&p.vertices, &p.triangles, &p.meshlets] {
+            part.u32(r.start);
+            part.u32(r.end);
+        }
+    }
 
     let m = &b.mesh;
     let (stride, joints, weights) =
@@ -271,10 +334,10 @@ pub fn to_bytes(b: &Baked) -> Vec<u8> {
         bnds.u32(class_code(*c));
     }
 
-    let mut sections = vec![info.0, skin.0, vert.0, tris.0, flat::to_bytes(&b.meshlets), bnds.0];
-    let mut tags: Vec<&[u8; 4]> = TAGS[..6].to_vec();
+    let mut sections = vec![info.0, skin.0, vert.0, tris.0, flat::to_bytes(&b.meshlets), bnds.0, part.0];
+    let mut tags: Vec<&[u8; 4]> = TAGS[..7].to_vec();
     if let Some(o) = &b.overdraw {
-        tags.push(TAGS[6]);
+        tags.push(TAGS[7]);
         let mut ov = Out::default();
         let l = &o.lookup;
         for x in [o.buffers.len(), o.keyframes.len(), l.polar, l.azimuth] {
@@ -296,7 +359,7 @@ pub fn to_bytes(b: &Baked) -> Vec<u8> {
         sections.push(ov.0);
     }
     if let Some(c) = &b.contours {
-        tags.push(TAGS[7]);
+        tags.push(TAGS[8]);
         let (sp, p) = (&c.patches, &c.patches.patches);
         let mut ct = Out::default();
         for x in [c.visible_only as usize, p.order.len(), p.len(), p.always_from, sp.rigid_quads, sp.animated_quads] {
@@ -440,7 +503,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
         return Err(Error::unsupported("bake header", format!("version {version}; this skinlet reads {VERSION}")));
     }
     let n = head.count("sections", ENTRY)?;
-    let mut found: [Option<&[u8]>; 8] = [None; 8];
+    let mut found: [Option<&[u8]>; 9] = [None; 9];
     for _ in 0..n {
         let tag: [u8; 4] = head.bytes(4)?.try_into().expect("4 bytes");
         head.u32()?;
@@ -483,6 +546,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
     let inverse_bind = (0..joints)
         .map(|_| (0..16).map(|_| s.f32()).collect::<Result<Vec<_>>>().map(|c| Mat4::from_cols_slice(&c)))
         .collect::<Result<Vec<_>>>()?;
+    let joint_nodes = (0..joints).map(|_| s.u32()).collect::<Result<Vec<_>>>()?;
     let joint_names = (0..joints).map(|_| s.str()).collect::<Result<Vec<_>>>()?;
     s.end()?;
 
@@ -551,9 +615,56 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
         bounds.push(b);
     }
     s.end()?;
-    let overdraw = if found[6].is_some() { Some(read_orders(section(6)?, &mesh, clips_len)?) } else { None };
-    let contours = if found[7].is_some() { Some(read_contours(section(7)?, &mesh, joints)?) } else { None };
-    Ok(Baked { settings, joint_names, inverse_bind, mesh, meshlets, bounds, classes, overdraw, contours })
+    let parts = read_parts(section(6)?, &mesh, &meshlets)?;
+    let overdraw = if found[7].is_some() { Some(read_orders(section(7)?, &mesh, clips_len)?) } else { None };
+    let contours = if found[8].is_some() { Some(read_contours(section(8)?, &mesh, joints)?) } else { None };
+    Ok(Baked {
+        settings,
+        joint_nodes,
+        joint_names,
+        inverse_bind,
+        parts,
+        mesh,
+        meshlets,
+        bounds,
+        classes,
+        overdraw,
+        contours,
+    })
+}
+
+/// The PART section: consecutive ranges covering the vertices, triangles and meshlets, each
+/// part's triangles and meshlets using only its own vertices.
+fn read_parts(mut s: In, mesh: &SkinnedMesh, meshlets: &Meshlets) -> Result<Vec<BakedPart>> {
+    let n = s.count("parts", PART_STRIDE)?;
+    let mut parts: Vec<BakedPart> = Vec::with_capacity(n);
+    let range = |s: &mut In| -> Result<Range<u32>> { Ok(s.u32()?..s.u32()?) };
+    for i in 0..n {
+        let (node, mesh_index, primitive, skin) = (s.u32()?, s.u32()?, s.u32()?, s.u32()?);
+        let (vertices, triangles, meshlet_range) = (range(&mut s)?, range(&mut s)?, range(&mut s)?);
+        let ends = parts.last().map_or([0; 3], |p| [p.vertices.end, p.triangles.end, p.meshlets.end]);
+        let own = |v: &u32| vertices.contains(v);
+        let ok = [&vertices, &triangles, &meshlet_range].iter().zip(ends).all(|(r, e)| r.start == e && r.end >= e)
+            && (triangles.end as usize) <= mesh.triangles.len()
+            && (meshlet_range.end as usize) <= meshlets.len()
+            && mesh.triangles[triangles.start as usize..triangles.end as usize].iter().flatten().all(own)
+            && meshlets.meshlets[meshlet_range.start as usize..meshlet_range.end as usize]
+                .iter()
+                .all(|m| meshlets.vertices_of(m).iter().all(own));
+        if !ok {
+            return Err(s.err(format!(
+                "part {i}: vertices {vertices:?}, triangles {triangles:?}, meshlets {meshlet_range:?} are not the next ranges of its own data"
+            )));
+        }
+        let skin = (skin != u32::MAX).then_some(skin);
+        parts.push(BakedPart { node, mesh: mesh_index, primitive, skin, vertices, triangles, meshlets: meshlet_range });
+    }
+    s.end()?;
+    let ends = parts.last().map_or([0; 3], |p| [p.vertices.end, p.triangles.end, p.meshlets.end]);
+    if ends != [mesh.positions.len(), mesh.triangles.len(), meshlets.len()].map(|x| x as u32) {
+        return Err(s.err("the parts do not cover every vertex, triangle and meshlet"));
+    }
+    Ok(parts)
 }
 
 /// The CONT section: patches partition the rebuilt edges' quads, ranges contiguous, joints
@@ -697,7 +808,9 @@ mod tests {
         let asset = demo_character(&DemoParams { triangles: 2000, ..DemoParams::default() });
         let clips: Vec<_> = asset.clips.iter().collect();
         let how = Refinement { max_rounds: 3, ..Refinement::NONE };
-        bake(&asset, 0, &clips, Builder::SkinAware, MeshletLimits::NVIDIA, &how, &mut |_| {}).unwrap().0
+        bake(&asset, &asset.character().unwrap(), &clips, Builder::SkinAware, MeshletLimits::NVIDIA, &how, &mut |_| {})
+            .unwrap()
+            .0
     }
 
     #[test]
@@ -710,7 +823,7 @@ mod tests {
         let asset = demo_character(&DemoParams { triangles: 2000, ..DemoParams::default() });
         let mut b = baked();
         let params = ClusterParams { k: 3, view_levels: 1, iterations: 2, ..ClusterParams::default() };
-        add_overdraw(&mut b, &asset, 0, &params, 3).unwrap();
+        add_overdraw(&mut b, &asset, &params, 3).unwrap();
         let bytes = to_bytes(&b);
         let back = from_bytes(&bytes).unwrap();
         assert_eq!(back, b);
@@ -736,7 +849,7 @@ mod tests {
         let mut b = baked();
         let how = Refinement { max_rounds: 1, ..Refinement::NONE };
         let params = SkinnedParams::new(crate::contour::skinned::SkinnedMethod::Animated, how);
-        add_contours(&mut b, &asset, 0, &params, true).unwrap();
+        add_contours(&mut b, &asset, &params, true).unwrap();
         let c = b.contours.as_ref().unwrap();
         assert!(c.patches.patches.len() > 10, "{}", c.patches.patches.len());
         let bytes = to_bytes(&b);
@@ -801,8 +914,8 @@ mod tests {
         wrong[0] = b'X';
         assert!(msg(&wrong).contains("magic"), "{}", msg(&wrong));
         let mut newer = bytes.clone();
-        newer[8] = 2;
-        assert!(msg(&newer).contains("version 2"), "{}", msg(&newer));
+        newer[8] = 3;
+        assert!(msg(&newer).contains("version 3"), "{}", msg(&newer));
         // A triangle index past the vertex count, in section TRIS.
         let tris = u64::from_le_bytes(bytes[HEADER + 3 * ENTRY + 8..HEADER + 3 * ENTRY + 16].try_into().unwrap());
         let at = tris as usize + 4;

@@ -53,7 +53,7 @@ pub fn demo_character(params: &DemoParams) -> Asset {
         meshes: vec![Mesh { name: "demo_creature".into(), primitives: vec![primitive] }],
         instances: vec![Instance { node: 0, mesh: 0, skin: Some(0) }],
         clips: vec![walk(&rig), twitch(&rig), wave(&rig)],
-        report: Default::default(),
+        ..Asset::default()
     }
 }
 

@@ -2,6 +2,7 @@
 //!
 //! This crate holds the algorithms and never prints. Modules, one algorithm each:
 //! - [`model`]: the character data model (hierarchy, skins, meshes, instances).
+//! - [`character`]: the whole scene as one skinned mesh over a palette of drivers.
 //! - [`clip`]: animation clips and their exact glTF sampling.
 //! - [`pose`]: global transforms and skinning matrices.
 //! - [`skinning`]: reference linear blend skinning (the ground truth of every bound).
@@ -18,6 +19,7 @@
 
 pub mod bake;
 pub mod bounds;
+pub mod character;
 pub mod clip;
 pub mod contour;
 pub mod cull;
@@ -32,5 +34,6 @@ pub mod skinning;
 pub mod summary;
 pub mod weld;
 
+pub use character::{Character, Part, PartKind};
 pub use error::{Error, Result};
 pub use model::{Asset, Influences, Instance, Mesh, Node, Skeleton, Skin, SkinnedMesh, Trs};

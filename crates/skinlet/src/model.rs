@@ -177,6 +177,25 @@ pub struct SkinnedMesh {
 }
 
 impl SkinnedMesh {
+    /// A copy of vertices `vertices` and triangles `triangles`, renumbered from 0 (the
+    /// triangles must use only those vertices, as a [`crate::Part`]'s do).
+    pub fn slice(&self, vertices: std::ops::Range<u32>, triangles: std::ops::Range<u32>) -> SkinnedMesh {
+        let v = vertices.start as usize..vertices.end as usize;
+        SkinnedMesh {
+            positions: self.positions[v.clone()].to_vec(),
+            normals: if self.normals.is_empty() { Vec::new() } else { self.normals[v.clone()].to_vec() },
+            triangles: self.triangles[triangles.start as usize..triangles.end as usize]
+                .iter()
+                .map(|t| t.map(|i| i - vertices.start))
+                .collect(),
+            influences: self.influences.as_ref().map(|inf| Influences {
+                stride: inf.stride,
+                joints: inf.joints[v.start * inf.stride..v.end * inf.stride].to_vec(),
+                weights: inf.weights[v.start * inf.stride..v.end * inf.stride].to_vec(),
+            }),
+        }
+    }
+
     /// Triangles that repeat a vertex or have zero area (valid, but they draw nothing).
     pub fn degenerate_triangles(&self) -> usize {
         let p = &self.positions;
@@ -222,6 +241,11 @@ pub struct Asset {
     pub meshes: Vec<Mesh>,
     pub instances: Vec<Instance>,
     pub clips: Vec<crate::clip::Clip>,
+    /// The root nodes of each glTF scene (empty for files without scenes: then every root
+    /// node is drawn).
+    pub scenes: Vec<Vec<u32>>,
+    /// The file's `scene` (the one to draw by default).
+    pub default_scene: Option<usize>,
     pub report: ImportReport,
 }
 
@@ -268,18 +292,9 @@ pub fn concat(meshes: &[&SkinnedMesh]) -> SkinnedMesh {
 }
 
 impl Asset {
-    /// Every triangle primitive drawn with skin `skin` (or, for `None`, every primitive of
-    /// every instance without a skin) merged into one mesh; each glTF mesh counted once.
-    pub fn combined_mesh(&self, skin: Option<u32>) -> SkinnedMesh {
-        let mut meshes: Vec<u32> = self.instances.iter().filter(|i| i.skin == skin).map(|i| i.mesh).collect();
-        meshes.sort_unstable();
-        meshes.dedup();
-        let parts: Vec<&SkinnedMesh> = meshes
-            .iter()
-            .flat_map(|&m| self.meshes[m as usize].primitives.iter().map(|p| &p.geometry))
-            .filter(|g| skin.is_none() || g.influences.is_some())
-            .collect();
-        concat(&parts)
+    /// The whole character of the default scene (see [`crate::character`]).
+    pub fn character(&self) -> crate::Result<crate::character::Character> {
+        crate::character::character(self, None)
     }
 }
 

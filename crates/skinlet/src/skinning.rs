@@ -129,6 +129,25 @@ pub fn skin_serial(
     Ok(())
 }
 
+/// The positions of `mesh` (over the joints of `joints`) posed by `clip` at time `t` (`None`:
+/// the clip's start), or in the rest pose without a clip: scene space, where a crowd is laid
+/// out and a camera framed.
+pub fn posed_positions(
+    skeleton: &crate::Skeleton,
+    joints: &crate::Skin,
+    mesh: &crate::SkinnedMesh,
+    clip: Option<&crate::clip::Clip>,
+    t: Option<f32>,
+) -> Result<Vec<Vec3>> {
+    let inf = mesh.influences.as_ref().ok_or_else(|| Error::invalid("posing", "the mesh has no skin weights"))?;
+    let mut mats = Vec::new();
+    let t = t.unwrap_or(clip.map_or(0.0, |c| c.start));
+    crate::pose::Poser::default().skinning_matrices(skeleton, joints, clip, t, &mut mats);
+    let mut out = vec![Vec3::ZERO; mesh.positions.len()];
+    skin(inf, &mesh.positions, &[], &mats, &mut out, &mut [])?;
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -21,7 +21,15 @@ impl WeldReport {
 
 /// Returns the welded mesh and the map from old to new vertex index.
 pub fn weld(mesh: &SkinnedMesh) -> (SkinnedMesh, Vec<u32>, WeldReport) {
+    weld_groups(mesh, &vec![0; mesh.positions.len()])
+}
+
+/// [`weld`], merging only vertices of the same group (`group[v]`, one per vertex): the
+/// parts of a character stay apart. Groups that are contiguous runs of vertices stay
+/// contiguous runs, in the same order (vertices are numbered by first occurrence).
+pub(crate) fn weld_groups(mesh: &SkinnedMesh, group: &[u32]) -> (SkinnedMesh, Vec<u32>, WeldReport) {
     let n = mesh.positions.len();
+    assert_eq!(group.len(), n, "one group per vertex");
     let stride = mesh.influences.as_ref().map_or(0, |i| i.stride);
     // Skin data padded to 8 slots, so one fixed-size stream each compares every slot.
     let (joints, weights): (Vec<[u16; 8]>, Vec<[f32; 8]>) = match &mesh.influences {
@@ -39,6 +47,7 @@ pub fn weld(mesh: &SkinnedMesh) -> (SkinnedMesh, Vec<u32>, WeldReport) {
         VertexStream::new(mesh.positions.as_ptr()),
         VertexStream::new(joints.as_ptr()),
         VertexStream::new(weights.as_ptr()),
+        VertexStream::new(group.as_ptr()),
     ];
     let (count, remap) = meshopt::generate_vertex_remap_multi(n, &streams, None);
     let mut first = vec![u32::MAX; count];

@@ -9,7 +9,7 @@ use common::assets_dir;
 use skinlet::bounds::meshlet::{Class, classify};
 use skinlet::bounds::refine::{Refinement, Stop, refine};
 use skinlet::bounds::verify::{sampled_bounds, verify_bounds};
-use skinlet::meshlet::{Builder, MeshletLimits, build, prepare};
+use skinlet::meshlet::{Builder, MeshletLimits, build};
 
 /// Refinement until nothing improves (what `skinlet bake` does within its budget).
 const CONVERGE: Refinement = Refinement { max_rounds: usize::MAX, ..Refinement::NONE };
@@ -23,9 +23,9 @@ fn spheres_hold_on_every_asset_and_clip_and_sampling_misses() {
     for path in files {
         let name = path.file_name().unwrap().to_string_lossy().into_owned();
         let asset = skinlet::import::load(&path).unwrap();
-        let skin_index = asset.instances.iter().find_map(|i| i.skin).unwrap();
-        let skin = &asset.skins[skin_index as usize];
-        let prepared = prepare(&asset.combined_mesh(Some(skin_index)));
+        let character = asset.character().unwrap();
+        let skin = &character.palette;
+        let prepared = skinlet::bake::prepare_character(&character).unwrap();
         let meshlets = build(&prepared, Builder::SkinAware, MeshletLimits::NVIDIA).unwrap();
         let all: Vec<_> = asset.clips.iter().collect();
         let mut sets: Vec<(String, Vec<_>)> = all.iter().map(|c| (format!("clip {:?}", c.name), vec![*c])).collect();
@@ -54,9 +54,9 @@ fn spheres_hold_on_every_asset_and_clip_and_sampling_misses() {
 fn xbot_skin_aware_meshlets_are_mostly_both_cullable() {
     let Some(dir) = assets_dir() else { return };
     let asset = skinlet::import::load(&dir.join("skinned/Xbot.glb")).unwrap();
-    let skin_index = asset.instances.iter().find_map(|i| i.skin).unwrap();
-    let skin = &asset.skins[skin_index as usize];
-    let prepared = prepare(&asset.combined_mesh(Some(skin_index)));
+    let character = asset.character().unwrap();
+    let skin = &character.palette;
+    let prepared = skinlet::bake::prepare_character(&character).unwrap();
     let clips: Vec<_> = asset.clips.iter().collect();
     let both = |builder| {
         let meshlets = build(&prepared, builder, MeshletLimits::NVIDIA).unwrap();

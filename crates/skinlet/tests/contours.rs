@@ -92,7 +92,7 @@ fn static_scans_match_brute_force() {
     assert!(files.len() >= 6, "{files:?}");
     for path in files {
         let asset = skinlet::import::load(&path).unwrap();
-        let (mesh, _, _) = skinlet::weld::weld(&asset.combined_mesh(None));
+        let (mesh, _, _) = skinlet::weld::weld(&asset.character().unwrap().mesh);
         let name = path.file_name().unwrap().to_string_lossy().to_string();
         let mut edges = Edges::build(&mesh.positions, &mesh.triangles).unwrap();
         // Complete contours on the smaller scans; visible ones (concave dropped) on all.
@@ -175,15 +175,15 @@ fn skinned_assets_match_brute_force_over_their_clips() {
     assets.push(("demo".into(), skinlet::demo::demo_character(&skinlet::demo::DemoParams::default())));
     let how = Refinement { max_rounds: 2, ..Refinement::NONE };
     for (name, asset) in &assets {
-        let Some(skin) = asset.instances.iter().find_map(|i| i.skin) else { continue };
-        let (mesh, _, _) = skinlet::weld::weld(&asset.combined_mesh(Some(skin)));
+        let character = asset.character().unwrap();
+        let (mesh, _, _) = skinlet::weld::weld(&character.mesh);
         let mut edges = Edges::build(&mesh.positions, &mesh.triangles).unwrap();
         let rigid = rigid_vertices(&mesh);
         if name.starts_with('B') || name.starts_with('X') {
             edges.drop_concave(&mesh.positions, |q| rigid_quad(&rigid, q));
         }
         let clips: Vec<&Clip> = asset.clips.iter().take(4).collect();
-        let views = check_skinned(name, &asset.skeleton, &asset.skins[skin as usize], &clips, &mesh, &edges, 3, &how);
+        let views = check_skinned(name, &asset.skeleton, &character.palette, &clips, &mesh, &edges, 3, &how);
         eprintln!("{name}: {views} frame-views x 2 methods equal brute force");
     }
 }

@@ -18,9 +18,19 @@ use skinlet::model::{Skeleton, Skin, SkinnedMesh};
 use skinlet::pose::Poser;
 use skinlet::{Asset, demo};
 
-fn baked(asset: &Asset, skin: u32) -> Baked {
+fn baked(asset: &Asset) -> Baked {
     let clips: Vec<&Clip> = asset.clips.iter().collect();
-    bake(asset, skin, &clips, Builder::SkinAware, MeshletLimits::NVIDIA, &Refinement::NONE, &mut |_| {}).unwrap().0
+    bake(
+        asset,
+        &asset.character().unwrap(),
+        &clips,
+        Builder::SkinAware,
+        MeshletLimits::NVIDIA,
+        &Refinement::NONE,
+        &mut |_| {},
+    )
+    .unwrap()
+    .0
 }
 
 fn shared_assets() -> Vec<(String, Asset)> {
@@ -34,11 +44,12 @@ fn shared_assets() -> Vec<(String, Asset)> {
 }
 
 fn check_crowd(name: &str, asset: &Asset, params: &CrowdParams) -> (f64, f64) {
-    let skin_index = asset.instances.iter().find_map(|i| i.skin).unwrap_or(0);
-    let b = baked(asset, skin_index);
+    let b = baked(asset);
     let clips: Vec<&Clip> = asset.clips.iter().collect();
-    let scene = crowd(&b.mesh.positions, clips.len(), params);
-    let skin = &asset.skins[skin_index as usize];
+    let skin = &b.palette();
+    let posed =
+        skinlet::skinning::posed_positions(&asset.skeleton, skin, &b.mesh, clips.first().copied(), None).unwrap();
+    let scene = crowd(&posed, clips.len(), params);
     let stats = run(&b, &asset.skeleton, skin, &clips, &scene, params, true).unwrap();
     eprintln!(
         "{name} (ortho {}): {} triangles checked, {} false culls; culled {:.1}% (frustum only {:.1}%, backface only {:.1}%), triangles saved {:.1}%",
@@ -125,9 +136,9 @@ fn check_boxes(
 #[test]
 fn joint_boxes_contain_every_skinned_vertex_on_shared_assets() {
     for (name, asset) in shared_assets() {
-        let skin_index = asset.instances.iter().find_map(|i| i.skin).unwrap();
-        let skin = &asset.skins[skin_index as usize];
-        let mesh = asset.combined_mesh(Some(skin_index));
+        let character = asset.character().unwrap();
+        let skin = &character.palette;
+        let mesh = character.mesh.clone();
         let clips: Vec<&Clip> = asset.clips.iter().collect();
         let in_joint = JointBoxes::new(&mesh, skin, JointSpace::Joint).unwrap();
         let folded = in_joint.fold_leaves(&asset.skeleton, skin, &mesh, &clips, 2).unwrap();

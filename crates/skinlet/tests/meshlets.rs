@@ -4,7 +4,7 @@
 mod common;
 use common::assets_dir;
 
-use skinlet::meshlet::{Builder, MeshletLimits, build, flat, prepare, stats};
+use skinlet::meshlet::{Builder, MeshletLimits, build, flat, stats};
 use std::path::PathBuf;
 
 fn files(dir: &std::path::Path) -> Vec<PathBuf> {
@@ -21,8 +21,7 @@ fn every_builder_is_valid_on_every_asset() {
     let Some(dir) = assets_dir() else { return };
     for path in files(&dir) {
         let asset = skinlet::import::load(&path).unwrap();
-        let skin = asset.instances.iter().find_map(|i| i.skin);
-        let prepared = prepare(&asset.combined_mesh(skin));
+        let prepared = skinlet::bake::prepare_character(&asset.character().unwrap()).unwrap();
         assert!(!prepared.mesh.triangles.is_empty(), "{}", path.display());
         for limits in [MeshletLimits::NVIDIA, MeshletLimits::LARGE, MeshletLimits::SMALL] {
             for b in Builder::ALL {
@@ -39,14 +38,19 @@ fn every_builder_is_valid_on_every_asset() {
 fn xbot_meshopt_parity_and_skin_aware_targets() {
     let Some(dir) = assets_dir() else { return };
     let asset = skinlet::import::load(&dir.join("skinned/Xbot.glb")).unwrap();
-    let prepared = prepare(&asset.combined_mesh(Some(0)));
+    let prepared = skinlet::bake::prepare_character(&asset.character().unwrap()).unwrap();
     let limits = MeshletLimits { max_vertices: 64, max_triangles: 124 };
     let ours = build(&prepared, Builder::Meshopt, limits).unwrap();
-    // meshoptimizer called directly on the same prepared index buffer.
-    let indices: Vec<u32> = prepared.mesh.triangles.iter().flatten().copied().collect();
+    // meshoptimizer called directly on the same prepared index buffer, part by part.
     let bytes = meshopt::typed_to_bytes(&prepared.mesh.positions);
     let adapter = meshopt::VertexDataAdapter::new(bytes, 12, 0).unwrap();
-    let direct = meshopt::build_meshlets(&indices, &adapter, 64, 124, 0.25).len();
+    let direct: usize = (prepared.parts.iter())
+        .map(|p| {
+            let tris = &prepared.mesh.triangles[p.triangles.start as usize..p.triangles.end as usize];
+            let indices: Vec<u32> = tris.iter().flatten().copied().collect();
+            meshopt::build_meshlets(&indices, &adapter, 64, 124, 0.25).len()
+        })
+        .sum();
     let ratio = ours.len() as f64 / direct as f64;
     assert!((ratio - 1.0).abs() <= 0.02, "meshopt builder {} vs meshoptimizer {direct}", ours.len());
 

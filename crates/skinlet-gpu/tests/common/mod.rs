@@ -41,11 +41,13 @@ pub fn assets() -> Vec<(String, Asset)> {
     out
 }
 
-/// A bake of skin `skin` over every clip: skin-aware meshlets with NVIDIA's limits, bounds from
-/// key intervals only.
-pub fn bake(asset: &Asset, skin: u32) -> skinlet::bake::Baked {
+/// A bake of the whole character over every clip: skin-aware meshlets with NVIDIA's limits,
+/// bounds from key intervals only.
+pub fn bake(asset: &Asset, character: &skinlet::Character) -> skinlet::bake::Baked {
     let clips: Vec<&skinlet::clip::Clip> = asset.clips.iter().collect();
     let limits = skinlet::meshlet::MeshletLimits::NVIDIA;
     let how = skinlet::bounds::refine::Refinement::NONE;
-    skinlet::bake::bake(asset, skin, &clips, skinlet::meshlet::Builder::SkinAware, limits, &how, &mut |_| {}).unwrap().0
+    skinlet::bake::bake(asset, character, &clips, skinlet::meshlet::Builder::SkinAware, limits, &how, &mut |_| {})
+        .unwrap()
+        .0
 }

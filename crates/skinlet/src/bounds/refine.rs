@@ -315,13 +315,14 @@ mod tests {
     use crate::bounds::meshlet::meshlet_bounds;
     use crate::bounds::verify::verify_bounds;
     use crate::demo::{DemoParams, demo_character};
-    use crate::meshlet::{Builder, MeshletLimits, build, prepare};
+    use crate::meshlet::{Builder, MeshletLimits, build};
 
     #[test]
     fn refinement_tightens_stays_conservative_and_is_deterministic() {
         let asset = demo_character(&DemoParams { triangles: 2000, ..DemoParams::default() });
-        let skin = &asset.skins[0];
-        let prepared = prepare(&asset.combined_mesh(Some(0)));
+        let character = asset.character().unwrap();
+        let skin = &character.palette;
+        let prepared = crate::bake::prepare_character(&character).unwrap();
         let meshlets = build(&prepared, Builder::SkinAware, MeshletLimits::NVIDIA).unwrap();
         let clips: Vec<&Clip> = asset.clips.iter().collect();
         let keys = meshlet_bounds(&asset.skeleton, skin, &clips, &prepared.mesh, &meshlets).unwrap();

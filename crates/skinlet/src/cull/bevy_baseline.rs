@@ -18,7 +18,7 @@ use super::crowd::{CrowdParams, crowd};
 use super::joint_aabb::{Box3, JointBoxes, JointSpace};
 use crate::model::Asset;
 use crate::pose::Poser;
-use crate::{Error, Result};
+use crate::{Character, Result};
 use glam::{Affine3A, Vec3A};
 
 /// Bevy's mesh-space joint box.
@@ -123,24 +123,19 @@ pub struct Workload {
     /// Entity-space joint matrices of every instance, `stride` per instance.
     pub palette: Vec<Affine3A>,
     pub stride: usize,
-    /// The skin posed (the asset's first skinned mesh).
-    pub skin: u32,
+    /// The character posed.
+    pub character: Character,
 }
 
 impl Workload {
-    /// Poses `instances` copies of the first skinned mesh of `asset` (seeded random times).
+    /// Poses `instances` copies of the whole character of `asset` (seeded random times).
     pub fn new(asset: &Asset, instances: usize, seed: u64) -> Result<Workload> {
-        let skin_index = asset
-            .instances
-            .iter()
-            .find_map(|i| i.skin)
-            .ok_or_else(|| Error::invalid("joint-box workload", "the asset has no skinned mesh"))?;
-        let skin = &asset.skins[skin_index as usize];
-        let mesh = asset.combined_mesh(Some(skin_index));
-        let boxes = JointBoxes::new(&mesh, skin, JointSpace::Joint)?;
-        let mesh_boxes = JointBoxes::new(&mesh, skin, JointSpace::Mesh)?;
-        let scene =
-            crowd(&mesh.positions, asset.clips.len(), &CrowdParams { instances, seed, ..CrowdParams::default() });
+        let character = asset.character()?;
+        let (skin, mesh) = (&character.palette, &character.mesh);
+        let boxes = JointBoxes::new(mesh, skin, JointSpace::Joint)?;
+        let mesh_boxes = JointBoxes::new(mesh, skin, JointSpace::Mesh)?;
+        let posed = crate::skinning::posed_positions(&asset.skeleton, skin, mesh, asset.clips.first(), None)?;
+        let scene = crowd(&posed, asset.clips.len(), &CrowdParams { instances, seed, ..CrowdParams::default() });
         let stride = skin.joints.len();
         let mut poser = Poser::default();
         let mut flat = BevyScene {
@@ -191,7 +186,7 @@ impl Workload {
         for (e, meta) in bevy.metas.iter().enumerate() {
             bevy.transforms[meta.row as usize] = flat.transforms[e];
         }
-        Ok(Workload { bevy, bevy_flat: flat, boxes, palette, stride, skin: skin_index })
+        Ok(Workload { bevy, bevy_flat: flat, boxes, palette, stride, character })
     }
 }
 
@@ -205,7 +200,8 @@ mod tests {
     #[test]
     fn baseline_and_ours_bound_the_skinned_instances() {
         let asset = demo_character(&DemoParams { triangles: 2000, ..DemoParams::default() });
-        let (skin, mesh) = (&asset.skins[0], asset.combined_mesh(Some(0)));
+        let character = asset.character().unwrap();
+        let (skin, mesh) = (&character.palette, character.mesh.clone());
         let w = Workload::new(&asset, 40, 3).unwrap();
         let (mut bevy, mut flat) = (Vec::new(), Vec::new());
         w.bevy.update(false, &mut bevy);

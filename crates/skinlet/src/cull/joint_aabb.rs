@@ -434,7 +434,8 @@ mod tests {
     #[test]
     fn policies_give_what_they_promise() {
         let asset = demo_character(&DemoParams { triangles: 2000, ..DemoParams::default() });
-        let (skin, mesh) = (&asset.skins[0], asset.combined_mesh(Some(0)));
+        let character = asset.character().unwrap();
+        let (skin, mesh) = (&character.palette, character.mesh.clone());
         let dynamic = JointBoxes::new(&mesh, skin, JointSpace::Mesh).unwrap();
         let bind_pose = points_box(&mesh.positions);
         let mut poser = Poser::default();
@@ -471,7 +472,8 @@ mod tests {
     #[test]
     fn wide_and_narrow_updates_agree() {
         let asset = demo_character(&DemoParams { triangles: 2000, ..DemoParams::default() });
-        let (skin, mesh) = (&asset.skins[0], asset.combined_mesh(Some(0)));
+        let character = asset.character().unwrap();
+        let (skin, mesh) = (&character.palette, character.mesh.clone());
         let boxes = JointBoxes::new(&mesh, skin, JointSpace::Joint).unwrap();
         let mut poser = Poser::default();
         let clip = &asset.clips[0];

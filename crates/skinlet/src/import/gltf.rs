@@ -36,7 +36,9 @@ pub fn load_gltf_slice(bytes: &[u8], base_dir: Option<&Path>) -> Result<Asset> {
     let meshes = doc.meshes().map(|m| load_mesh(&m, &buffers, &mut report)).collect::<Result<Vec<_>>>()?;
     let instances = load_instances(doc, &skins, &meshes, &mut report)?;
     let clips = doc.animations().map(|a| load_clip(&a, &buffers, &mut report)).collect::<Result<Vec<_>>>()?;
-    Ok(Asset { skeleton, skins, meshes, instances, clips, report })
+    let scenes = doc.scenes().map(|s| s.nodes().map(|n| n.index() as u32).collect()).collect();
+    let default_scene = doc.default_scene().map(|s| s.index());
+    Ok(Asset { skeleton, skins, meshes, instances, clips, scenes, default_scene, report })
 }
 
 /// Parses and validates the document. The gltf crate's own checks are run here rather than
@@ -527,14 +529,9 @@ fn load_instances(
             Some(s) => {
                 let count = skins[s as usize].joints.len();
                 for p in &m.primitives {
-                    let Some(inf) = &p.geometry.influences else {
-                        report.warnings.push(format!(
-                            "{loc}: has skin {s} but mesh {} primitive {} has no JOINTS_0/WEIGHTS_0; it stays at the rest pose",
-                            mesh.index(),
-                            p.index
-                        ));
-                        continue;
-                    };
+                    // A primitive without weights is an error of the character (glTF requires
+                    // them under a skin); a file can still be inspected.
+                    let Some(inf) = &p.geometry.influences else { continue };
                     if let Some(v) = (0..inf.vertex_count()).find(|&v| inf.of(v).any(|(j, _)| j as usize >= count)) {
                         let j = inf.of(v).map(|(j, _)| j).max().unwrap_or(0);
                         return Err(Error::invalid(

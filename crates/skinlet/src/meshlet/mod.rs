@@ -20,7 +20,7 @@ pub mod scan;
 pub mod skin_aware;
 pub mod stats;
 
-pub use prepare::{PreparedMesh, prepare};
+pub use prepare::{PartRange, PreparedMesh, prepare, prepare_parts};
 
 use crate::model::Influences;
 use crate::{Error, Result};
@@ -135,6 +135,15 @@ impl Meshlets {
         self.triangles.extend_from_slice(triangles);
     }
 
+    /// Appends `other`'s meshlets, whose vertex numbers start at `vertex_base` in this mesh
+    /// (joint sets are not copied: [`annotate_joint_sets`] recomputes them).
+    pub fn append(&mut self, other: &Meshlets, vertex_base: u32) {
+        for m in &other.meshlets {
+            let v: Vec<u32> = other.vertices_of(m).iter().map(|&i| i + vertex_base).collect();
+            self.push(&v, other.triangles_of(m));
+        }
+    }
+
     /// Checks the guarantee: limits kept, local indices in range, and the meshlets' triangles
     /// are exactly `triangles` (each once, same winding up to rotation).
     pub fn validate(&self, triangles: &[[u32; 3]], limits: MeshletLimits) -> Result<()> {
@@ -197,15 +206,26 @@ impl Builder {
     }
 }
 
-/// Splits a prepared mesh into meshlets with the chosen builder and records shared joint sets.
+/// Splits a prepared mesh into meshlets with the chosen builder, part by part (no meshlet
+/// holds triangles of two parts; the meshlets follow the parts' order), and records shared
+/// joint sets.
 pub fn build(prepared: &PreparedMesh, builder: Builder, limits: MeshletLimits) -> Result<Meshlets> {
     limits.check()?;
     let mesh = &prepared.mesh;
-    let mut meshlets = match builder {
+    let one = |mesh: &crate::model::SkinnedMesh| match builder {
         Builder::Scan => scan::build(&mesh.triangles, mesh.positions.len(), limits),
         Builder::CommonInfluences => common_influences::build(mesh, limits),
         Builder::Meshopt => greedy::build(&mesh.triangles, &mesh.positions, limits, greedy::CONE_WEIGHT),
         Builder::SkinAware => skin_aware::build(mesh, limits, &skin_aware::Params::default()),
+    };
+    let mut meshlets = if prepared.parts.len() <= 1 {
+        one(mesh)
+    } else {
+        let mut all = Meshlets::default();
+        for p in &prepared.parts {
+            all.append(&one(&mesh.slice(p.vertices.clone(), p.triangles.clone())), p.vertices.start);
+        }
+        all
     };
     if let Some(inf) = &mesh.influences {
         annotate_joint_sets(&mut meshlets, inf);

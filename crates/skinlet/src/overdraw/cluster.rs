@@ -428,8 +428,11 @@ mod tests {
     /// A few keyframes of the demo character's walk (skinned positions) and its triangles.
     fn walk(frames: usize) -> (Vec<Vec<Vec3>>, Vec<[u32; 3]>) {
         let asset = crate::demo::demo_character(&crate::demo::DemoParams { triangles: 3000, ..Default::default() });
-        let mesh = asset.combined_mesh(Some(0));
-        let (_, keyframes) = crate::overdraw::evaluate::keyframes(&asset, 0, &mesh, &asset.clips[0], frames).unwrap();
+        let character = asset.character().unwrap();
+        let mesh = character.mesh.clone();
+        let (_, keyframes) =
+            crate::overdraw::evaluate::keyframes(&asset.skeleton, &character.palette, &mesh, &asset.clips[0], frames)
+                .unwrap();
         (keyframes, mesh.triangles)
     }
 

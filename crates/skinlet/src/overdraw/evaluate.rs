@@ -48,11 +48,11 @@ pub struct MethodResult {
     pub preprocess_s: f64,
 }
 
-/// Up to `max` evenly chosen key times of `clip` and the skinned positions of `mesh` (of
-/// skin `skin` of `asset`) at each.
+/// Up to `max` evenly chosen key times of `clip` and the skinned positions of `mesh` (over
+/// the joints of `skin`, e.g. a [`crate::Character`]'s palette) at each.
 pub fn keyframes(
-    asset: &crate::Asset,
-    skin: u32,
+    skeleton: &crate::Skeleton,
+    skin: &crate::Skin,
     mesh: &crate::SkinnedMesh,
     clip: &crate::clip::Clip,
     max: usize,
@@ -65,14 +65,12 @@ pub fn keyframes(
     };
     let inf =
         mesh.influences.as_ref().ok_or_else(|| crate::Error::invalid("keyframes", "the mesh has no skin weights"))?;
-    let s =
-        asset.skins.get(skin as usize).ok_or_else(|| crate::Error::invalid("keyframes", format!("no skin {skin}")))?;
     let mut poser = crate::pose::Poser::default();
     let mut mats = Vec::new();
     let positions = times
         .iter()
         .map(|&t| {
-            poser.skinning_matrices(&asset.skeleton, s, Some(clip), t, &mut mats);
+            poser.skinning_matrices(skeleton, skin, Some(clip), t, &mut mats);
             let mut out = vec![Vec3::ZERO; mesh.positions.len()];
             crate::skinning::skin(inf, &mesh.positions, &[], &mats, &mut out, &mut [])?;
             Ok(out)

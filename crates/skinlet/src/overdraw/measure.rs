@@ -364,7 +364,7 @@ mod tests {
     #[test]
     fn overdraw_agrees_with_meshoptimizer_on_axis_views() {
         let asset = crate::demo::demo_character(&crate::demo::DemoParams { triangles: 20_000, ..Default::default() });
-        let mesh = asset.combined_mesh(Some(0));
+        let mesh = asset.character().unwrap().mesh;
         let mut r = Raster::new(256, 256);
         let adapter = meshopt::VertexDataAdapter::new(meshopt::typed_to_bytes(&mesh.positions), 12, 0).unwrap();
         for order in ["as built", "reversed"] {
@@ -392,7 +392,7 @@ mod tests {
     #[test]
     fn fragments_measure_any_order_like_a_render() {
         let asset = crate::demo::demo_character(&crate::demo::DemoParams { triangles: 3000, ..Default::default() });
-        let mesh = asset.combined_mesh(Some(0));
+        let mesh = asset.character().unwrap().mesh;
         let mut r = Raster::new(64, 64);
         let mut frags = Fragments::default();
         let mut depth = Vec::new();

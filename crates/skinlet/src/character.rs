@@ -1,0 +1,195 @@
+//! The whole character: every node of a scene that draws a triangle mesh, merged into one
+//! skinned mesh over one palette of *drivers*. A driver is a (node, inverse bind matrix)
+//! pair; its skinning matrix is `global(node) × inverse_bind`. A skinned part keeps its
+//! skin's joints (each a driver; glTF ignores the drawing node's own transform); a rigid or
+//! static part is weight 1 on a driver of its own node with an identity inverse bind, so it
+//! follows that node's global transform (a prop under a hand joint, an animated door, a
+//! static base). Meshlets, bounds, culling, contours, overdraw and the GPU code then see one
+//! [`SkinnedMesh`] and one [`Skin`] (the palette), whatever the scene holds.
+//!
+//! Guarantees: reference-skinning the merged mesh with the palette's matrices gives, for
+//! every part, exactly what glTF draws for that node and primitive (the part's vertices in
+//! scene space); parts keep their vertex and triangle ranges, in scene order, so a renderer
+//! can bind one material per primitive. A file whose skins all list the same joints in the
+//! same order (every single-skin file) gets that skin as its palette, unchanged.
+
+use crate::model::{Asset, Influences, Skin, SkinnedMesh};
+use crate::{Error, Result};
+use glam::Mat4;
+use std::collections::HashMap;
+use std::ops::Range;
+
+/// How a part moves.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PartKind {
+    /// Deformed by skin `skin` of the asset.
+    Skinned { skin: u32 },
+    /// Moved by its node's global transform.
+    Rigid,
+}
+
+/// One drawing: a primitive of a mesh drawn by a node.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Part {
+    pub node: u32,
+    pub mesh: u32,
+    /// Index of the primitive in the glTF mesh.
+    pub primitive: u32,
+    pub kind: PartKind,
+    /// The part's vertices and triangles in [`Character::mesh`].
+    pub vertices: Range<u32>,
+    pub triangles: Range<u32>,
+}
+
+/// Every drawing of a scene as one skinned mesh over one palette of drivers.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Character {
+    /// The drivers: `palette.joints[d]` is driver `d`'s node, `palette.inverse_bind[d]` its
+    /// inverse bind matrix. The merged mesh's joint numbers index it.
+    pub palette: Skin,
+    pub mesh: SkinnedMesh,
+    pub parts: Vec<Part>,
+}
+
+impl Character {
+    /// The parts' triangle ranges, in order (what [`crate::meshlet::prepare_parts`] keeps apart).
+    pub fn triangle_ranges(&self) -> Vec<Range<u32>> {
+        self.parts.iter().map(|p| p.triangles.clone()).collect()
+    }
+
+    /// One part's vertices and triangles, renumbered from 0, with palette joint numbers.
+    pub fn part_mesh(&self, part: &Part) -> SkinnedMesh {
+        self.mesh.slice(part.vertices.clone(), part.triangles.clone())
+    }
+
+    /// Triangles of every part: a mesh counted once per node that draws it.
+    pub fn triangle_count(&self) -> usize {
+        self.mesh.triangles.len()
+    }
+}
+
+/// The character of scene `scene` of `asset` (`None`: the file's default scene, or scene 0,
+/// or, for a file with no scenes, every root node).
+pub fn character(asset: &Asset, scene: Option<usize>) -> Result<Character> {
+    let roots = scene_roots(asset, scene)?;
+    let skeleton = &asset.skeleton;
+    let mut in_scene = vec![false; skeleton.nodes.len()];
+    for &i in &skeleton.order {
+        let node = &skeleton.nodes[i as usize];
+        in_scene[i as usize] = roots.contains(&i) || node.parent.is_some_and(|p| in_scene[p as usize]);
+    }
+    let mut drivers: Vec<(u32, Mat4)> = Vec::new();
+    let mut driver_of: HashMap<(u32, [u32; 16]), u16> = HashMap::new();
+    let mut driver = |node: u32, ibm: Mat4| -> Result<u16> {
+        let key = (node, ibm.to_cols_array().map(f32::to_bits));
+        if let Some(&d) = driver_of.get(&key) {
+            return Ok(d);
+        }
+        let d = u16::try_from(drivers.len())
+            .ok()
+            .filter(|&d| d < u16::MAX)
+            .ok_or_else(|| Error::unsupported("character", "more than 65535 drivers (joints and rigid nodes)"))?;
+        drivers.push((node, ibm));
+        driver_of.insert(key, d);
+        Ok(d)
+    };
+    // Skins first, in file order, so a single-skin file's palette is its skin.
+    let mut skin_drivers: Vec<Option<Vec<u16>>> = vec![None; asset.skins.len()];
+    let mut instances: Vec<_> = asset.instances.iter().filter(|i| in_scene[i.node as usize]).collect();
+    instances.sort_by_key(|i| i.node);
+    for inst in &instances {
+        if let Some(s) = inst.skin {
+            let skin = asset
+                .skins
+                .get(s as usize)
+                .ok_or_else(|| Error::invalid(format!("node {}", inst.node), format!("skin {s} does not exist")))?;
+            if skin_drivers[s as usize].is_none() {
+                let map =
+                    skin.joints.iter().zip(&skin.inverse_bind).map(|(&j, &m)| driver(j, m)).collect::<Result<_>>()?;
+                skin_drivers[s as usize] = Some(map);
+            }
+        }
+    }
+    let mut merged: Vec<SkinnedMesh> = Vec::new();
+    let mut parts = Vec::new();
+    let (mut vertices, mut triangles) = (0u32, 0u32);
+    for inst in &instances {
+        let mesh = asset.meshes.get(inst.mesh as usize).ok_or_else(|| {
+            Error::invalid(format!("node {}", inst.node), format!("mesh {} does not exist", inst.mesh))
+        })?;
+        for p in &mesh.primitives {
+            let g = &p.geometry;
+            let loc = || format!("node {} mesh {} ({:?}) primitive {}", inst.node, inst.mesh, mesh.name, p.index);
+            let (kind, influences) = match inst.skin {
+                Some(s) => {
+                    let map = skin_drivers[s as usize].as_ref().expect("mapped above");
+                    let inf = g.influences.as_ref().ok_or_else(|| {
+                        Error::invalid(
+                            loc(),
+                            format!("the node has skin {s} but the primitive has no JOINTS_0/WEIGHTS_0"),
+                        )
+                    })?;
+                    let mut out = inf.clone();
+                    for (k, j) in out.joints.iter_mut().enumerate() {
+                        if out.weights[k] == 0.0 {
+                            *j = 0;
+                            continue;
+                        }
+                        *j = *map.get(*j as usize).ok_or_else(|| {
+                            Error::invalid(
+                                format!("{} vertex {}", loc(), k / inf.stride),
+                                format!("joint index {j} is out of range: skin {s} has {} joints", map.len()),
+                            )
+                        })?;
+                    }
+                    (PartKind::Skinned { skin: s }, out)
+                }
+                None => {
+                    let d = driver(inst.node, Mat4::IDENTITY)?;
+                    let n = g.positions.len();
+                    let mut inf = Influences { stride: 4, joints: vec![0; 4 * n], weights: vec![0.0; 4 * n] };
+                    (0..n).for_each(|v| (inf.joints[4 * v], inf.weights[4 * v]) = (d, 1.0));
+                    (PartKind::Rigid, inf)
+                }
+            };
+            let (nv, nt) = (g.positions.len() as u32, g.triangles.len() as u32);
+            let too_big = || Error::unsupported("character", "more than 2^32 vertices or triangles");
+            let (v_end, t_end) =
+                (vertices.checked_add(nv).ok_or_else(too_big)?, triangles.checked_add(nt).ok_or_else(too_big)?);
+            parts.push(Part {
+                node: inst.node,
+                mesh: inst.mesh,
+                primitive: p.index as u32,
+                kind,
+                vertices: vertices..v_end,
+                triangles: triangles..t_end,
+            });
+            (vertices, triangles) = (v_end, t_end);
+            merged.push(SkinnedMesh { influences: Some(influences), ..g.clone() });
+        }
+    }
+    if parts.is_empty() {
+        let which = scene.map_or("the scene".to_string(), |s| format!("scene {s}"));
+        return Err(Error::invalid("character", format!("no node of {which} draws a triangle mesh")));
+    }
+    let mesh = crate::model::concat(&merged.iter().collect::<Vec<_>>());
+    let name = match asset.skins.len() {
+        1 => asset.skins[0].name.clone(),
+        _ => "character".to_string(),
+    };
+    let (joints, inverse_bind) = drivers.into_iter().unzip();
+    Ok(Character { palette: Skin { name, joints, inverse_bind }, mesh, parts })
+}
+
+/// The root nodes of the chosen scene.
+fn scene_roots(asset: &Asset, scene: Option<usize>) -> Result<Vec<u32>> {
+    let all_roots =
+        || asset.skeleton.nodes.iter().enumerate().filter(|(_, n)| n.parent.is_none()).map(|(i, _)| i as u32).collect();
+    match scene {
+        Some(s) => asset.scenes.get(s).cloned().ok_or_else(|| {
+            Error::invalid("scene", format!("scene {s} does not exist (the file has {})", asset.scenes.len()))
+        }),
+        None if asset.scenes.is_empty() => Ok(all_roots()),
+        None => Ok(asset.scenes[asset.default_scene.unwrap_or(0).min(asset.scenes.len() - 1)].clone()),
+    }
+}
