@@ -427,13 +427,38 @@ fn interp_names(c: &skinlet::summary::ClipSummary) -> Vec<&'static str> {
     c.interpolation.iter().map(|i| i.name()).collect()
 }
 
+/// What `inspect` says of each part: node, its name, mesh, primitive, kind, vertices, triangles.
+fn part_rows(asset: &Asset, character: &Character) -> Vec<(u32, String, u32, u32, String, usize, usize)> {
+    let animated = |node| asset.clips.iter().any(|c| !c.key_times_affecting(&asset.skeleton, node).is_empty());
+    (character.parts.iter())
+        .map(|p| {
+            let kind = match p.kind {
+                skinlet::PartKind::Skinned { skin } => format!("skinned by skin {skin}"),
+                skinlet::PartKind::Rigid if animated(p.node) => "rigid, animated".to_string(),
+                skinlet::PartKind::Rigid => "rigid, static".to_string(),
+            };
+            let name = asset.skeleton.nodes[p.node as usize].name.clone();
+            (p.node, name, p.mesh, p.primitive, kind, p.vertices.len(), p.triangles.len())
+        })
+        .collect()
+}
+
 fn inspect(file: &str, json: bool) -> Result<()> {
     let asset = load(file)?;
     let s = summarize(&asset);
     let r = &asset.report;
+    let character = asset.character();
+    let parts = character.as_ref().map(|c| part_rows(&asset, c)).unwrap_or_default();
+    let character_error = character.as_ref().err().map(|e| e.to_string());
     if json {
         let out = json!({
             "file": file,
+            "parts": parts.iter().map(|(node, name, mesh, prim, kind, v, t)| json!({
+                "node": node, "name": name, "mesh": mesh, "primitive": prim, "kind": kind, "vertices": v, "triangles": t,
+            })).collect::<Vec<_>>(),
+            "drawn_triangles": character.as_ref().map(|c| c.triangle_count()).ok(),
+            "drivers": character.as_ref().map(|c| c.palette.joints.len()).ok(),
+            "character_error": character_error,
             "vertices": s.vertices,
             "welded_vertices": s.welded_vertices,
             "triangles": s.triangles,
@@ -489,6 +514,22 @@ fn inspect(file: &str, json: bool) -> Result<()> {
     }
     for (i, k) in s.skins.iter().enumerate() {
         println!("  skin {i} {:?}: {} joints, hierarchy depth {}", k.name, k.joints, k.depth);
+    }
+    match &character {
+        Ok(c) => {
+            println!(
+                "  the character (default scene): {} parts, {} triangles drawn, {} drivers (joints and rigid nodes)",
+                c.parts.len(),
+                c.triangle_count(),
+                c.palette.joints.len()
+            );
+            for (node, name, mesh, prim, kind, v, t) in &parts {
+                println!(
+                    "    node {node:>4} {name:<24} mesh {mesh} primitive {prim}: {kind}, {v} vertices, {t} triangles"
+                );
+            }
+        }
+        Err(e) => println!("  the character cannot be built: {e}"),
     }
     if s.influence_histogram.iter().any(|&c| c > 0) {
         let h: Vec<String> = s

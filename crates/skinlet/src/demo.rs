@@ -4,7 +4,13 @@
 //! clips that together use every interpolation mode and the awkward cases of glTF animation:
 //! a near-180° turn between two keys, a spin past a full turn, non-uniform scale, STEP jumps
 //! and cubic-spline tangents. It is the test and benchmark input when no file is at hand:
-//! the same [`DemoParams`] always give the same [`Asset`], at the triangle count asked for.
+//! the same [`DemoParams`] always give the same [`Asset`], the body at the triangle count
+//! asked for.
+//!
+//! It is a whole character, as real files are: besides the body (mesh 0, skin 0) it has a
+//! collar around the neck (mesh 1, a second skin listing its joints in another order), a
+//! rigid anklet under the waving front foot's ankle joint (mesh 2), a propeller on the head,
+//! a non-joint node every clip spins (mesh 3), and one eye mesh drawn by two nodes (mesh 4).
 
 use crate::clip::{Channel, Clip, Interpolation};
 use crate::model::{Asset, Influences, Instance, Mesh, Node, Primitive, Skeleton, Skin, SkinnedMesh, Trs};
@@ -33,28 +39,112 @@ const MIN_WEIGHT: f32 = 1e-4;
 /// Time step of the finite differences that give cubic-spline tangents.
 const SLOPE_DT: f32 = 1e-3;
 
-/// Builds the demo character: skeleton, one skin, one mesh, one instance and three clips.
+/// The non-joint nodes after the joints: (name, parent joint, offset in the parent's space).
+const EXTRA_NODES: [(&str, &str, Vec3); 5] = [
+    ("collar", "root", Vec3::ZERO),
+    ("anklet", "front_r_ankle", Vec3::new(0.0, 0.05, 0.0)),
+    ("propeller", "head", Vec3::new(0.0, 0.2, 0.05)),
+    ("eye_l", "head", Vec3::new(0.07, 0.08, 0.25)),
+    ("eye_r", "head", Vec3::new(-0.07, 0.08, 0.25)),
+];
+
+/// Builds the demo character: skeleton, two skins, five meshes drawn by six nodes, and three
+/// clips.
 pub fn demo_character(params: &DemoParams) -> Asset {
     let rig = Rig::build(params.seed);
-    let skeleton = Skeleton::new(rig.nodes()).expect("the demo hierarchy is a tree");
+    let mut nodes = rig.nodes();
+    let joints = nodes.len() as u32;
+    for (name, parent, offset) in EXTRA_NODES {
+        let parent = rig.id(parent) as u32;
+        let rest = Trs { translation: offset, ..Trs::IDENTITY };
+        nodes.push(Node { name: name.into(), parent: Some(parent), rest, matrix: None });
+    }
+    let node = |name: &str| joints + EXTRA_NODES.iter().position(|e| e.0 == name).expect("a demo node") as u32;
+    let skeleton = Skeleton::new(nodes).expect("the demo hierarchy is a tree");
     let rest: Vec<Trs> = skeleton.nodes.iter().map(|n| n.rest).collect();
     let mut globals = Vec::new();
     crate::pose::global_transforms(&skeleton, &rest, &mut globals);
+    let inverse_bind = |j: u32| globals[j as usize].inverse().as_mat4();
     let skin = Skin {
         name: "demo_skin".into(),
-        joints: (0..rig.bones.len() as u32).collect(),
-        inverse_bind: globals.iter().map(|g| g.inverse().as_mat4()).collect(),
+        joints: (0..joints).collect(),
+        inverse_bind: (0..joints).map(inverse_bind).collect(),
     };
-    let geometry = build_mesh(&rig, &globals, params.triangles);
-    let primitive = Primitive { index: 0, geometry, morph_targets: 0 };
-    Asset {
-        skeleton,
-        skins: vec![skin],
-        meshes: vec![Mesh { name: "demo_creature".into(), primitives: vec![primitive] }],
-        instances: vec![Instance { node: 0, mesh: 0, skin: Some(0) }],
-        clips: vec![walk(&rig), twitch(&rig), wave(&rig)],
-        ..Asset::default()
+    let body = build_mesh(&rig, &globals, params.triangles);
+    let segments = ((params.triangles as f64 / (2 * rig.bones.len()) as f64).sqrt().round() as usize).clamp(6, 48);
+    let (collar, collar_joints) = collar(&rig, &globals, segments);
+    let collar_skin = Skin {
+        name: "collar_skin".into(),
+        inverse_bind: collar_joints.iter().map(|&j| inverse_bind(j)).collect(),
+        joints: collar_joints,
+    };
+    let one = |name: &str, geometry| Mesh {
+        name: name.into(),
+        primitives: vec![Primitive { index: 0, geometry, morph_targets: 0 }],
+    };
+    let meshes = vec![
+        one("demo_creature", body),
+        one("collar", collar),
+        one("anklet", rigid_box(Vec3::new(0.075, 0.03, 0.075))),
+        one("propeller", rigid_box(Vec3::new(0.22, 0.01, 0.03))),
+        one("eye", rigid_box(Vec3::splat(0.025))),
+    ];
+    let instances = vec![
+        Instance { node: 0, mesh: 0, skin: Some(0) },
+        Instance { node: node("collar"), mesh: 1, skin: Some(1) },
+        Instance { node: node("anklet"), mesh: 2, skin: None },
+        Instance { node: node("propeller"), mesh: 3, skin: None },
+        Instance { node: node("eye_l"), mesh: 4, skin: None },
+        Instance { node: node("eye_r"), mesh: 4, skin: None },
+    ];
+    let mut clips = vec![walk(&rig), twitch(&rig), wave(&rig)];
+    // The propeller spins in every clip, in each clip's interpolation mode.
+    for c in &mut clips {
+        let k = keys(c.interpolations()[0], 9, c.duration() / 8.0);
+        c.rotations.push(channel(node("propeller") as usize, &k, |t| Quat::from_rotation_y(3.0 * t)));
     }
+    Asset { skeleton, skins: vec![skin, collar_skin], meshes, instances, clips, ..Asset::default() }
+}
+
+/// A collar: a capsule around the neck bone, 1.35 times its radius, skinned like the body there
+/// but by its own skin, whose joints are the ones it uses in descending node order. Returns the
+/// mesh (joint numbers index that skin) and the skin's joints.
+fn collar(rig: &Rig, globals: &[DMat4], segments: usize) -> (SkinnedMesh, Vec<u32>) {
+    let neck = rig.id("neck");
+    let mut mesh =
+        SkinnedMesh { influences: Some(Influences { stride: 4, ..Default::default() }), ..Default::default() };
+    add_capsule(&mut mesh, rig, neck, 1.35, segments / 2 + 2, segments, globals[neck].as_mat4());
+    let inf = mesh.influences.as_mut().expect("skinned");
+    let mut used: Vec<u32> =
+        (0..inf.vertex_count()).flat_map(|v| inf.of(v).map(|(j, _)| j as u32).collect::<Vec<_>>()).collect();
+    used.sort_unstable_by(|a, b| b.cmp(a));
+    used.dedup();
+    for (k, j) in inf.joints.iter_mut().enumerate() {
+        if inf.weights[k] != 0.0 {
+            *j = used.iter().position(|u| *u == *j as u32).expect("a used joint") as u16;
+        }
+    }
+    (mesh, used)
+}
+
+/// An axis-aligned box of half extents `half` around its node's origin, flat-shaded
+/// (24 vertices, 12 triangles wound counter-clockwise outside), not skinned.
+fn rigid_box(half: Vec3) -> SkinnedMesh {
+    let mut mesh = SkinnedMesh::default();
+    for axis in 0..3 {
+        for sign in [1.0f32, -1.0] {
+            let n = Vec3::from_array(std::array::from_fn(|i| if i == axis { sign } else { 0.0 }));
+            let (u, v) = (n.any_orthonormal_pair().0, n.any_orthonormal_pair().1);
+            let base = mesh.positions.len() as u32;
+            for (a, b) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+                mesh.positions.push((n + u * a + v * b) * half);
+                mesh.normals.push(n);
+            }
+            // u × v = n for glam's orthonormal pair, so (0, 1, 2) winds counter-clockwise about n.
+            mesh.triangles.extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
+        }
+    }
+    mesh
 }
 
 /// splitmix64: tiny and well mixed, plenty for jittering proportions.
@@ -193,16 +283,17 @@ fn build_mesh(rig: &Rig, globals: &[DMat4], triangles: usize) -> SkinnedMesh {
         covered += profile(b);
         let rings = ((total_rings * covered / sum).round() as usize).saturating_sub(done).max(1);
         done += rings;
-        add_capsule(&mut mesh, rig, b, rings, segments, globals[b].as_mat4());
+        add_capsule(&mut mesh, rig, b, 1.0, rings, segments, globals[b].as_mat4());
     }
     mesh
 }
 
-/// Appends bone `b`'s capsule: a pole, `rings` rings evenly spaced along the profile (quarter
-/// circle, straight side, quarter circle) and the other pole, wound counter-clockwise outside.
-fn add_capsule(mesh: &mut SkinnedMesh, rig: &Rig, b: usize, rings: usize, segments: usize, to_model: Mat4) {
+/// Appends bone `b`'s capsule (its radius times `widen`): a pole, `rings` rings evenly spaced
+/// along the profile (quarter circle, straight side, quarter circle) and the other pole,
+/// wound counter-clockwise outside.
+fn add_capsule(mesh: &mut SkinnedMesh, rig: &Rig, b: usize, widen: f32, rings: usize, segments: usize, to_model: Mat4) {
     let inf = mesh.influences.as_mut().expect("the demo mesh is skinned");
-    let (length, radius) = (rig.bones[b].length, rig.bones[b].radius);
+    let (length, radius) = (rig.bones[b].length, rig.bones[b].radius * widen);
     let first = mesh.positions.len() as u32;
     let full = PI * radius + length;
     for i in 0..rings + 2 {
@@ -417,15 +508,60 @@ mod tests {
     }
 
     #[test]
-    fn skeleton_is_one_skin_of_thirty_plus_joints() {
+    fn skeleton_is_a_body_skin_of_thirty_plus_joints_and_extra_nodes() {
         let a = demo(7, 1_000);
         let nodes = &a.skeleton.nodes;
-        assert!(nodes.len() >= 30, "{} joints", nodes.len());
-        assert_eq!(a.skins[0].joints, (0..nodes.len() as u32).collect::<Vec<_>>());
+        let joints = nodes.len() - EXTRA_NODES.len();
+        assert!(joints >= 30, "{joints} joints");
+        assert_eq!(a.skins[0].joints, (0..joints as u32).collect::<Vec<_>>());
         assert!(nodes[0].parent.is_none());
         assert!(nodes.iter().enumerate().skip(1).all(|(i, n)| n.parent.is_some_and(|p| (p as usize) < i)));
-        assert_eq!(a.instances, [Instance { node: 0, mesh: 0, skin: Some(0) }]);
+        assert_eq!(a.instances[0], Instance { node: 0, mesh: 0, skin: Some(0) });
         assert_eq!(a.meshes[0].name, "demo_creature");
+        // The collar's skin lists its joints in another order than the body's.
+        let collar = &a.skins[1].joints;
+        assert!(collar.len() >= 3 && collar.windows(2).all(|w| w[0] > w[1]), "{collar:?}");
+    }
+
+    #[test]
+    fn the_whole_character_has_every_kind_of_part() {
+        use crate::character::PartKind;
+        let a = demo(7, 2_000);
+        let c = a.character().unwrap();
+        let kinds: Vec<(u32, PartKind)> = c.parts.iter().map(|p| (p.mesh, p.kind)).collect();
+        assert_eq!(
+            kinds,
+            [
+                (0, PartKind::Skinned { skin: 0 }),
+                (1, PartKind::Skinned { skin: 1 }),
+                (2, PartKind::Rigid),
+                (3, PartKind::Rigid),
+                (4, PartKind::Rigid),
+                (4, PartKind::Rigid)
+            ]
+        );
+        // The body skin's joints come first, unchanged; each rigid node adds one driver.
+        assert_eq!(c.palette.joints[..a.skins[0].joints.len()], a.skins[0].joints[..]);
+        assert_eq!(c.palette.joints.len(), a.skins[0].joints.len() + 4);
+        let drawn: usize =
+            a.instances.iter().map(|i| a.meshes[i.mesh as usize].primitives[0].geometry.triangles.len()).sum();
+        assert_eq!(c.triangle_count(), drawn);
+        // Only the propeller's node is animated among the rigid ones, and in every clip.
+        let propeller = c.parts[3].node;
+        assert!(a.clips.iter().all(|clip| clip.rotations.iter().any(|ch| ch.node == propeller)));
+    }
+
+    #[test]
+    fn every_mesh_faces_outwards() {
+        let a = demo(7, 1_000);
+        for m in &a.meshes {
+            let g = &m.primitives[0].geometry;
+            for t in &g.triangles {
+                let [p0, p1, p2] = t.map(|i| g.positions[i as usize]);
+                let normal: Vec3 = t.iter().map(|&i| g.normals[i as usize]).sum();
+                assert!((p1 - p0).cross(p2 - p0).dot(normal) > 0.0, "{}: triangle {t:?}", m.name);
+            }
+        }
     }
 
     #[test]
