@@ -88,10 +88,11 @@ enum Command {
     },
     /// Skin every vertex at one time of a clip and print positions and normals.
     ///
-    /// Output is in the space glTF defines for skinned meshes: joint transforms are global
-    /// (scene) transforms and the transform of the node that draws the mesh is ignored.
-    /// One entry per skinned node and primitive, one vertex per input vertex in accessor
-    /// order (no welding). `normals` is null for primitives without normals.
+    /// Output is in scene space, as glTF draws the file: a skinned primitive by its skin's
+    /// joints (the transform of the node that draws it is ignored), a rigid one by its node's
+    /// global transform. One entry per node of the default scene that draws a triangle mesh,
+    /// and per primitive, one vertex per input vertex in accessor order (no welding).
+    /// `normals` is null for primitives without normals.
     Pose {
         /// .glb or .gltf file, or @demo[:TRIANGLES].
         file: String,
@@ -107,8 +108,9 @@ enum Command {
     },
     /// Split a character into meshlets with one or all builders and compare them.
     ///
-    /// All primitives drawn with the first skin (or, for static meshes, all of them) are
-    /// merged, welded (equal position + skin data) and vertex-cache ordered, then split.
+    /// Every part of the character (every node of the default scene that draws a triangle
+    /// mesh) is welded (equal position + skin data) and vertex-cache ordered, then split;
+    /// no meshlet mixes two parts.
     /// Builders: scan (index order, thesis listing 4.1), common-influences (per shared joint
     /// set, thesis listing 4.2), meshopt (meshoptimizer's greedy builder), skin-aware (ours:
     /// meshlets that move with one joint). Columns: meshlet count, average vertices and
@@ -159,7 +161,8 @@ enum Command {
     },
     /// Bake a character: meshlets, conservative bounds and classes, vertices, in one file.
     ///
-    /// Builds meshlets for the first skin's combined mesh, computes bounds that hold over the
+    /// Builds meshlets for the whole character (every node of the default scene that draws a
+    /// triangle mesh: skinned, rigid and static parts), computes bounds that hold over the
     /// union of the chosen clips (key intervals, then refinement within --budget), classifies
     /// each meshlet at --sr and --alpha, and writes the bake file (layout: docs/FORMAT.md)
     /// atomically. Same input and options give the same bytes unless the budget cuts the

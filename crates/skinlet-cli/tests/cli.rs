@@ -507,3 +507,39 @@ fn render_writes_a_png_of_the_posed_character() {
     assert!(err.contains("--size"), "{err}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn pose_and_bake_cover_the_whole_demo_character() {
+    // `pose --json`: one entry per drawing node and primitive, in scene space: rigid parts at
+    // their node's global transform (computed here from the library's node globals).
+    let j = json_of(&["pose", "@demo:2000", "--clip", "wave", "--time", "0.7", "--json"]);
+    let asset = skinlet::demo::demo_character(&skinlet::demo::DemoParams { triangles: 2000, ..Default::default() });
+    let prims = j["primitives"].as_array().unwrap();
+    assert_eq!(prims.len(), asset.instances.len());
+    let clip = asset.clips.iter().find(|c| c.name == "wave");
+    let globals = skinlet::pose::Poser::default().globals(&asset.skeleton, clip, 0.7).to_vec();
+    for (p, inst) in prims.iter().zip(&asset.instances) {
+        assert_eq!(p["node"].as_u64().unwrap(), inst.node as u64);
+        let g = &asset.meshes[inst.mesh as usize].primitives[0].geometry;
+        let pos = p["positions"].as_array().unwrap();
+        assert_eq!(pos.len(), g.positions.len());
+        if inst.skin.is_none() {
+            for (a, b) in pos.iter().zip(&g.positions) {
+                let want = globals[inst.node as usize].transform_point3(b.as_dvec3());
+                let got = glam::DVec3::from_slice(
+                    &a.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect::<Vec<_>>(),
+                );
+                assert!(got.distance(want) < 1e-5, "node {}: {got} vs {want}", inst.node);
+            }
+        }
+    }
+    // `bake --json`: every part's triangles, a mesh counted once per node that draws it.
+    let out = std::env::temp_dir().join(format!("skinlet-whole-{}.skinlet", std::process::id()));
+    let b = json_of(&["bake", "@demo:2000", "-o", out.to_str().unwrap(), "--budget", "0", "--json"]);
+    let _ = std::fs::remove_file(&out);
+    let drawn: usize =
+        asset.instances.iter().map(|i| asset.meshes[i.mesh as usize].primitives[0].geometry.triangles.len()).sum();
+    assert_eq!(b["triangles"].as_u64().unwrap() as usize, drawn);
+    assert_eq!(b["parts"].as_u64().unwrap() as usize, asset.instances.len());
+    assert_eq!(b["skinned_parts"], 2);
+}

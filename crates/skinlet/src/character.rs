@@ -12,6 +12,19 @@
 //! scene space); parts keep their vertex and triangle ranges, in scene order, so a renderer
 //! can bind one material per primitive. A file whose skins all list the same joints in the
 //! same order (every single-skin file) gets that skin as its palette, unchanged.
+//!
+//! ```
+//! use skinlet::demo::{DemoParams, demo_character};
+//! let asset = demo_character(&DemoParams { triangles: 1000, ..DemoParams::default() });
+//! let character = asset.character()?;
+//! // Body and collar (two skins), anklet, propeller and two eyes (one mesh, two nodes).
+//! assert_eq!(character.parts.len(), 6);
+//! let mut matrices = Vec::new();
+//! let clip = asset.clips.first();
+//! skinlet::pose::Poser::default().skinning_matrices(&asset.skeleton, &character.palette, clip, 0.5, &mut matrices);
+//! assert_eq!(matrices.len(), character.palette.joints.len());
+//! # Ok::<(), skinlet::Error>(())
+//! ```
 
 use crate::model::{Asset, Influences, Skin, SkinnedMesh};
 use crate::{Error, Result};

@@ -1241,3 +1241,16 @@ fn broken_obj() {
     let a = expect_ok("ok.obj", format!("{head}v 1 1 0\nf 1/1/1 2//2 -1\nf 1 2 4 3\n").as_bytes());
     assert_eq!(mesh0(&a).triangles, vec![[0, 1, 3], [0, 1, 3], [0, 3, 2]]);
 }
+
+#[test]
+fn skinned_node_whose_primitive_has_no_weights() {
+    // The file imports (it can be inspected), but its character cannot be built: glTF
+    // requires JOINTS_0/WEIGHTS_0 on every primitive of a node with a skin.
+    let mut r = Rig::base();
+    (r.joints, r.weights) = (None, None);
+    let a = expect_ok("noweights.gltf", &r.gltf());
+    let e = a.character().unwrap_err().to_string();
+    for f in ["node 0", "mesh 0 (\"ladder\") primitive 0", "skin 0", "no JOINTS_0/WEIGHTS_0"] {
+        assert!(e.contains(f), "lacks {f:?}: {e}");
+    }
+}
