@@ -5,11 +5,14 @@
 use crate::{Error, Result};
 use gltf::accessor::{DataType, Dimensions};
 use std::cell::Cell;
+use std::collections::HashMap;
 
-/// Loaded bytes of every buffer of the document, by buffer index, and how many more numbers
-/// (accessor components) this import may read.
+/// Loaded bytes of every buffer of the document, by buffer index, the decoded bytes of the
+/// compressed buffer views, by view index, and how many more numbers (accessor components)
+/// this import may read.
 pub(crate) struct Buffers {
     data: Vec<Vec<u8>>,
+    decoded: HashMap<usize, Vec<u8>>,
     budget: Cell<usize>,
 }
 
@@ -18,9 +21,9 @@ impl Buffers {
     /// (about one per byte), but it stops a small file from making skinlet copy the same
     /// data (or a huge all-zero sparse accessor) once per referencing primitive until memory
     /// runs out.
-    pub(crate) fn new(data: Vec<Vec<u8>>) -> Self {
-        let bytes = data.iter().map(Vec::len).fold(0usize, usize::saturating_add);
-        Buffers { data, budget: Cell::new((1usize << 24).saturating_add(bytes.saturating_mul(4))) }
+    pub(crate) fn new(data: Vec<Vec<u8>>, decoded: HashMap<usize, Vec<u8>>) -> Self {
+        let bytes = data.iter().chain(decoded.values()).map(Vec::len).fold(0usize, usize::saturating_add);
+        Buffers { data, decoded, budget: Cell::new((1usize << 24).saturating_add(bytes.saturating_mul(4))) }
     }
 
     fn spend(&self, count: usize, n: usize, loc: &str) -> Result<()> {
@@ -103,6 +106,29 @@ fn view_bytes<'b>(
     count: usize,
     loc: &str,
 ) -> Result<&'b [u8]> {
+    let bytes = match buffers.decoded.get(&view.index()) {
+        Some(d) => d.as_slice(),
+        None => stored_view(view, buffers, loc)?,
+    };
+    if count > 0 {
+        let need =
+            (count - 1).checked_mul(stride).and_then(|x| x.checked_add(offset)).and_then(|x| x.checked_add(elem));
+        if need.is_none_or(|n| n > bytes.len()) {
+            return Err(Error::invalid(
+                loc,
+                format!(
+                    "{count} elements of {elem} bytes at offset {offset} with stride {stride} do not fit in buffer view {} ({} bytes)",
+                    view.index(),
+                    bytes.len()
+                ),
+            ));
+        }
+    }
+    Ok(bytes)
+}
+
+/// The bytes of a view stored as such in its buffer, checked to lie inside it.
+fn stored_view<'b>(view: &gltf::buffer::View, buffers: &'b Buffers, loc: &str) -> Result<&'b [u8]> {
     let buffer = buffers
         .data
         .get(view.buffer().index())
@@ -121,22 +147,7 @@ fn view_bytes<'b>(
             ),
         ));
     }
-    let bytes = &buffer[view.offset()..view.offset() + view.length()];
-    if count > 0 {
-        let need =
-            (count - 1).checked_mul(stride).and_then(|x| x.checked_add(offset)).and_then(|x| x.checked_add(elem));
-        if need.is_none_or(|n| n > bytes.len()) {
-            return Err(Error::invalid(
-                loc,
-                format!(
-                    "{count} elements of {elem} bytes at offset {offset} with stride {stride} do not fit in buffer view {} ({} bytes)",
-                    view.index(),
-                    bytes.len()
-                ),
-            ));
-        }
-    }
-    Ok(bytes)
+    Ok(&buffer[view.offset()..view.offset() + view.length()])
 }
 
 /// Reads an accessor as `count × components` numbers (normalized integers mapped to

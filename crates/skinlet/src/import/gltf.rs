@@ -25,7 +25,9 @@ const HARMLESS_EXTENSIONS: &[&str] =
 /// Parses a .glb or .gltf file held in memory. `base_dir` resolves external buffer URIs.
 pub fn load_gltf_slice(bytes: &[u8], base_dir: Option<&Path>) -> Result<Asset> {
     let gltf = parse(bytes)?;
-    let buffers = Buffers::new(load_buffers(&gltf, base_dir)?);
+    let data = load_buffers(&gltf, base_dir)?;
+    let decoded = super::meshopt::decode_views(&gltf.document, &data)?;
+    let buffers = Buffers::new(data, decoded);
     let doc = &gltf.document;
     let mut report = ImportReport::default();
 
@@ -61,7 +63,14 @@ fn parse(bytes: &[u8]) -> Result<gltf::Gltf> {
         .map_err(|e| Error::invalid("glTF", e.to_string()))?;
     let root = gltf.document.as_json();
     for ext in &root.extensions_required {
-        if !HARMLESS_EXTENSIONS.iter().any(|h| ext.starts_with(h)) {
+        if ext == "KHR_draco_mesh_compression" {
+            return Err(Error::unsupported(
+                "glTF extensionsRequired",
+                "KHR_draco_mesh_compression (skinlet has no Draco decoder); recompress the file with \
+                 meshoptimizer, which skinlet reads: `npx @gltf-transform/cli meshopt in.glb out.glb`",
+            ));
+        }
+        if !HARMLESS_EXTENSIONS.iter().chain(&super::meshopt::EXTENSIONS).any(|h| ext.starts_with(h)) {
             return Err(Error::unsupported("glTF extensionsRequired", format!("extension {ext}")));
         }
     }
@@ -168,6 +177,11 @@ fn load_buffers(gltf: &gltf::Gltf, base_dir: Option<&Path>) -> Result<Vec<Vec<u8
     let mut out = Vec::new();
     for b in gltf.document.buffers() {
         let loc = format!("buffer {}", b.index());
+        if super::meshopt::is_fallback(&b) {
+            // Stands in for meshopt-compressed views: nothing to load.
+            out.push(Vec::new());
+            continue;
+        }
         let data = match b.source() {
             gltf::buffer::Source::Bin => gltf
                 .blob

@@ -2,6 +2,7 @@
 
 mod accessor;
 mod gltf;
+mod meshopt;
 mod obj;
 
 pub use self::gltf::load_gltf_slice;

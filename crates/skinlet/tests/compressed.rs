@@ -1,0 +1,196 @@
+//! Compressed and quantized glTF: variants of the shared assets made here with the real
+//! tools (gltfpack; glTF Transform for Draco, versions pinned in `tools/package.json`) import
+//! to the same character as the original, within the quantization step. The tools live in
+//! `tools/node_modules` (`npm install --prefix tools`); without them the tests skip with a
+//! note, unless `SKINLET_REQUIRE_TOOLS=1` (CI sets it).
+
+mod common;
+
+use common::assets_dir;
+use glam::Vec3;
+use skinlet::Asset;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn tool(name: &str) -> Option<PathBuf> {
+    let path = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../tools/node_modules/.bin")).join(name);
+    if path.exists() {
+        return Some(path);
+    }
+    assert!(
+        std::env::var_os("SKINLET_REQUIRE_TOOLS").is_none(),
+        "{} is missing but SKINLET_REQUIRE_TOOLS is set (npm install --prefix tools)",
+        path.display()
+    );
+    eprintln!("note: {} is missing (npm install --prefix tools); skipping", path.display());
+    None
+}
+
+fn run(tool: &Path, args: &[&str]) {
+    let out = Command::new(tool).args(args).output().unwrap();
+    assert!(out.status.success(), "{} {args:?}: {}", tool.display(), String::from_utf8_lossy(&out.stderr));
+}
+
+/// The `extensionsRequired` of a .glb.
+fn required(path: &Path) -> Vec<String> {
+    let bytes = std::fs::read(path).unwrap();
+    let n = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let json: serde_json::Value = serde_json::from_slice(&bytes[20..20 + n]).unwrap();
+    json["extensionsRequired"].as_array().map_or(Vec::new(), |a| a.iter().map(|e| e.to_string()).collect())
+}
+
+/// The whole character's vertices posed in scene space (`None`: the rest pose), and the
+/// diagonal of their box.
+fn posed(asset: &Asset, t: Option<f32>) -> (Vec<Vec3>, f32) {
+    let c = asset.character().unwrap();
+    let clip = t.and(asset.clips.first());
+    let p = skinlet::skinning::posed_positions(&asset.skeleton, &c.palette, &c.mesh, clip, t).unwrap();
+    // Only vertices that a triangle uses: gltfpack drops the others.
+    let mut used = vec![false; p.len()];
+    c.mesh.triangles.iter().flatten().for_each(|&v| used[v as usize] = true);
+    let p: Vec<Vec3> = p.into_iter().zip(used).filter(|(_, u)| *u).map(|(p, _)| p).collect();
+    let (lo, hi) = p.iter().fold((Vec3::MAX, Vec3::MIN), |(l, h), v| (l.min(*v), h.max(*v)));
+    (p, (hi - lo).length())
+}
+
+/// The largest distance from a point of `a` to the nearest point of `b` (a grid of cells of
+/// `cell`, searched ring by ring up to `rings` cells away; farther counts as infinite).
+fn farthest_nearest(a: &[Vec3], b: &[Vec3], cell: f32, rings: i32) -> f32 {
+    let key = |p: Vec3| (p / cell).floor().as_ivec3();
+    let mut grid: HashMap<glam::IVec3, Vec<Vec3>> = HashMap::new();
+    b.iter().for_each(|&p| grid.entry(key(p)).or_default().push(p));
+    let mut worst = 0f32;
+    for &p in a {
+        let k = key(p);
+        let mut best = f32::INFINITY;
+        for dx in -rings..=rings {
+            for dy in -rings..=rings {
+                for dz in -rings..=rings {
+                    for q in grid.get(&(k + glam::IVec3::new(dx, dy, dz))).into_iter().flatten() {
+                        best = best.min(p.distance(*q));
+                    }
+                }
+            }
+        }
+        worst = worst.max(best);
+    }
+    worst
+}
+
+/// Posed vertex sets agree both ways within `tolerance` (relative to the original's size).
+fn same_shape(name: &str, original: &Asset, packed: &Asset, t: Option<f32>, tolerance: f32) {
+    let (a, size) = posed(original, t);
+    let (b, _) = posed(packed, t);
+    let tol = tolerance * size;
+    let d = farthest_nearest(&a, &b, tol, 1).max(farthest_nearest(&b, &a, tol, 1));
+    eprintln!(
+        "{name} at {t:?}: {} vs {} vertices, farthest {:.2e} of the size (tolerance {tolerance:.1e})",
+        a.len(),
+        b.len(),
+        d / size
+    );
+    assert!(d <= tol, "{name} at {t:?}: a vertex is {d} away ({} of the size)", d / size);
+}
+
+fn variants(dir: &Path) -> Vec<PathBuf> {
+    ["CesiumMan.glb", "Fox.glb", "RiggedFigure.glb", "BrainStem.glb"]
+        .iter()
+        .map(|f| dir.join("skinned").join(f))
+        .collect()
+}
+
+#[test]
+fn meshopt_compressed_files_import_like_the_originals() {
+    let (Some(dir), Some(gltfpack)) = (assets_dir(), tool("gltfpack")) else { return };
+    let tmp = std::env::temp_dir().join(format!("skinlet-compressed-{}", std::process::id()));
+    std::fs::create_dir_all(&tmp).unwrap();
+    for src in variants(&dir) {
+        let name = src.file_stem().unwrap().to_string_lossy().into_owned();
+        let original = skinlet::import::load(&src).unwrap();
+        let keys = original.clips.first().map(|c| c.key_times()).unwrap_or_default();
+        let key = keys.get(keys.len() / 2).copied();
+        // Compression alone (no quantization, animation not resampled): the rest pose is
+        // lossless. gltfpack still stores weights in 8 bits: posed, each of up to 4 weights
+        // is off by at most half a step (1/510), which moves a vertex by at most 4/510 of
+        // the largest distance between its joints' images of it (bounded by the size).
+        let exact = tmp.join(format!("{name}-noq.glb"));
+        run(&gltfpack, &["-i", src.to_str().unwrap(), "-o", exact.to_str().unwrap(), "-c", "-noq", "-af", "0", "-kn"]);
+        assert!(required(&exact).iter().any(|e| e.contains("EXT_meshopt_compression")), "{:?}", required(&exact));
+        let a = skinlet::import::load(&exact).unwrap();
+        same_shape(&format!("{name} (meshopt)"), &original, &a, None, 1e-5);
+        same_shape(&format!("{name} (meshopt)"), &original, &a, key, 4.0 / 510.0);
+        // gltfpack's defaults with the ratified extension: 14-bit positions in integer
+        // attributes, 8-bit weights, quantized animation, all meshopt-compressed.
+        let quantized = tmp.join(format!("{name}-q.glb"));
+        run(
+            &gltfpack,
+            &["-i", src.to_str().unwrap(), "-o", quantized.to_str().unwrap(), "-cc", "-ce", "khr", "-af", "0"],
+        );
+        let req = required(&quantized);
+        assert!(
+            req.iter().any(|e| e.contains("KHR_meshopt_compression"))
+                && req.iter().any(|e| e.contains("KHR_mesh_quantization")),
+            "{req:?}"
+        );
+        let q = skinlet::import::load(&quantized).unwrap();
+        // Rest pose: every skinning matrix is the same, so only the position step counts
+        // (1/2^14 of the mesh's box per axis; twice that as the bound).
+        same_shape(&format!("{name} (quantized)"), &original, &q, None, 2.0 * 3f32.sqrt() / 16384.0);
+        // gltfpack may merge meshes and drop degenerate triangles; it keeps the rest.
+        let (c0, c1) = (original.character().unwrap(), q.character().unwrap());
+        assert!(c1.triangle_count() <= c0.triangle_count() && 100 * c1.triangle_count() >= 99 * c0.triangle_count());
+    }
+    let _ = std::fs::remove_dir_all(&tmp);
+}
+
+#[test]
+fn draco_files_are_an_error_that_says_how_to_convert_them() {
+    let (Some(dir), Some(transform)) = (assets_dir(), tool("gltf-transform")) else { return };
+    let tmp = std::env::temp_dir().join(format!("skinlet-draco-{}", std::process::id()));
+    std::fs::create_dir_all(&tmp).unwrap();
+    let src = dir.join("skinned/CesiumMan.glb");
+    let draco = tmp.join("draco.glb");
+    run(&transform, &["draco", src.to_str().unwrap(), draco.to_str().unwrap()]);
+    let e = skinlet::import::load(&draco).unwrap_err().to_string();
+    assert!(e.contains("KHR_draco_mesh_compression") && e.contains("gltf-transform/cli meshopt"), "{e}");
+    // The command the message gives makes a file skinlet reads, equal within quantization.
+    let converted = tmp.join("meshopt.glb");
+    run(&transform, &["meshopt", draco.to_str().unwrap(), converted.to_str().unwrap()]);
+    let original = skinlet::import::load(&src).unwrap();
+    let back = skinlet::import::load(&converted).unwrap();
+    same_shape("CesiumMan (draco, then meshopt)", &original, &back, None, 1e-3);
+    let _ = std::fs::remove_dir_all(&tmp);
+}
+
+#[test]
+fn corrupt_compressed_data_is_an_error_not_a_panic() {
+    let (Some(dir), Some(gltfpack)) = (assets_dir(), tool("gltfpack")) else { return };
+    let packed = std::env::temp_dir().join(format!("skinlet-corrupt-{}.glb", std::process::id()));
+    let src = dir.join("skinned/RiggedFigure.glb");
+    run(&gltfpack, &["-i", src.to_str().unwrap(), "-o", packed.to_str().unwrap(), "-cc"]);
+    let bytes = std::fs::read(&packed).unwrap();
+    let _ = std::fs::remove_file(&packed);
+    let json_len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let bin = 20 + json_len + 8;
+    // Zeroed compressed bytes do not decode: an error naming the view.
+    let mut zeroed = bytes.clone();
+    zeroed[bin..].fill(0);
+    let e = skinlet::import::load_bytes(&zeroed, Path::new("zeroed.glb")).unwrap_err().to_string();
+    assert!(e.contains("buffer view") && e.contains("meshopt"), "{e}");
+    // Random byte flips in the compressed data: an error or a file, never a panic.
+    let mut rng = 0x2545F4914F6CDD1Du64;
+    for _ in 0..300 {
+        let mut b = bytes.clone();
+        for _ in 0..4 {
+            rng ^= rng << 13;
+            rng ^= rng >> 7;
+            rng ^= rng << 17;
+            let at = bin + (rng % (b.len() - bin) as u64) as usize;
+            b[at] ^= 1 << (rng >> 61);
+        }
+        if let Ok(a) = skinlet::import::load_bytes(&b, Path::new("flipped.glb")) {
+            let _ = a.character();
+        }
+    }
+}
