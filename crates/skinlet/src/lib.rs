@@ -7,6 +7,7 @@
 //! - [`pose`]: global transforms and skinning matrices.
 //! - [`skinning`]: reference linear blend skinning (the ground truth of every bound).
 //! - [`import`]: glTF 2.0 and OBJ loading with errors that say what and where.
+//! - [`export`]: writing an asset as a glTF binary (.glb).
 //! - [`bake`]: the bake file (meshlets, bounds, vertices) the runtime loads.
 //! - [`bounds`]: conservative animated meshlet bounds (spheres, normal cones) and their check.
 //! - [`cull`]: CPU culling at run time: meshlets, triangles, whole-mesh boxes, the crowd scene.
@@ -25,6 +26,7 @@ pub mod contour;
 pub mod cull;
 pub mod demo;
 pub mod error;
+pub mod export;
 pub mod import;
 pub mod meshlet;
 pub mod model;

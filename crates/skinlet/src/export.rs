@@ -1,0 +1,215 @@
+//! Writes an [`Asset`] as a glTF 2.0 binary (.glb): nodes (TRS or matrix), every mesh's
+//! triangle primitives (positions, normals, indices, JOINTS_0/WEIGHTS_0 and JOINTS_1/
+//! WEIGHTS_1 for eight influences), skins with their inverse bind matrices, and clips with
+//! their channels in the stored interpolation (CUBICSPLINE tangents kept). One scene holds
+//! every root node. What skinlet reads back is the same asset (tested), so the demo
+//! character can be handed to other glTF tools (`skinlet demo --glb`).
+
+use crate::clip::Channel;
+use crate::model::Asset;
+use crate::{Error, Result};
+use serde_json::{Value, json};
+
+const FLOAT: u32 = 5126;
+const U16: u32 = 5123;
+const U32: u32 = 5125;
+
+#[derive(Default)]
+struct Writer {
+    bin: Vec<u8>,
+    views: Vec<Value>,
+    accessors: Vec<Value>,
+}
+
+impl Writer {
+    /// Appends one accessor of `count` elements of `ty` with components of `component`.
+    fn accessor(&mut self, bytes: &[u8], component: u32, count: usize, ty: &str, extra: Value) -> usize {
+        while !self.bin.len().is_multiple_of(4) {
+            self.bin.push(0);
+        }
+        self.views.push(json!({"buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len()}));
+        self.bin.extend_from_slice(bytes);
+        let mut a = json!({"bufferView": self.views.len() - 1, "componentType": component, "count": count, "type": ty});
+        if let (Some(a), Value::Object(e)) = (a.as_object_mut(), extra) {
+            a.extend(e);
+        }
+        self.accessors.push(a);
+        self.accessors.len() - 1
+    }
+
+    fn floats(&mut self, v: &[f32], n: usize, ty: &str) -> usize {
+        let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+        let extra = if ty == "VEC3" && !v.is_empty() {
+            // POSITION needs min and max; harmless elsewhere.
+            let (mut lo, mut hi) = ([f32::MAX; 3], [f32::MIN; 3]);
+            for c in v.chunks_exact(3) {
+                (0..3).for_each(|k| (lo[k], hi[k]) = (lo[k].min(c[k]), hi[k].max(c[k])));
+            }
+            json!({"min": lo, "max": hi})
+        } else if ty == "SCALAR" && !v.is_empty() {
+            json!({"min": [v.iter().copied().fold(f32::MAX, f32::min)], "max": [v.iter().copied().fold(f32::MIN, f32::max)]})
+        } else {
+            json!({})
+        };
+        self.accessor(&bytes, FLOAT, v.len() / n, ty, extra)
+    }
+
+    fn channel<T: Copy>(&mut self, c: &Channel<T>, flat: impl Fn(T) -> Vec<f32>, n: usize, ty: &str) -> Value {
+        let input = self.floats(&c.times, 1, "SCALAR");
+        let values: Vec<f32> = c.values.iter().flat_map(|&v| flat(v)).collect();
+        let output = self.floats(&values, n, ty);
+        json!({"input": input, "output": output, "interpolation": c.interpolation.name()})
+    }
+}
+
+/// The .glb bytes of `asset`.
+pub fn to_glb(asset: &Asset) -> Result<Vec<u8>> {
+    let mut w = Writer::default();
+    let sk = &asset.skeleton;
+    let mut nodes: Vec<Value> = (sk.nodes.iter())
+        .map(|n| match n.matrix {
+            Some(m) => json!({"name": n.name, "matrix": m.to_cols_array()}),
+            None => json!({"name": n.name, "translation": n.rest.translation.to_array(),
+                "rotation": n.rest.rotation.to_array(), "scale": n.rest.scale.to_array()}),
+        })
+        .collect();
+    for (i, n) in sk.nodes.iter().enumerate() {
+        if let Some(p) = n.parent {
+            let children = nodes[p as usize].as_object_mut().expect("an object").entry("children").or_insert(json!([]));
+            children.as_array_mut().expect("an array").push(json!(i));
+        }
+    }
+    for inst in &asset.instances {
+        let node =
+            nodes.get_mut(inst.node as usize).ok_or_else(|| Error::invalid("export", "instance of a missing node"))?;
+        node["mesh"] = json!(inst.mesh);
+        if let Some(s) = inst.skin {
+            node["skin"] = json!(s);
+        }
+    }
+    let mut meshes = Vec::new();
+    for m in &asset.meshes {
+        let mut prims = Vec::new();
+        for p in &m.primitives {
+            let g = &p.geometry;
+            let flat = |v: &[glam::Vec3]| v.iter().flat_map(|x| x.to_array()).collect::<Vec<f32>>();
+            let mut attributes = json!({"POSITION": w.floats(&flat(&g.positions), 3, "VEC3")});
+            if !g.normals.is_empty() {
+                attributes["NORMAL"] = json!(w.floats(&flat(&g.normals), 3, "VEC3"));
+            }
+            if let Some(inf) = &g.influences {
+                for set in 0..inf.stride / 4 {
+                    let slots = |v: usize| v * inf.stride + 4 * set..v * inf.stride + 4 * set + 4;
+                    let joints: Vec<u8> = (0..inf.vertex_count())
+                        .flat_map(|v| inf.joints[slots(v)].iter().flat_map(|j| j.to_le_bytes()).collect::<Vec<_>>())
+                        .collect();
+                    let weights: Vec<f32> =
+                        (0..inf.vertex_count()).flat_map(|v| inf.weights[slots(v)].to_vec()).collect();
+                    attributes[format!("JOINTS_{set}")] =
+                        json!(w.accessor(&joints, U16, inf.vertex_count(), "VEC4", json!({})));
+                    attributes[format!("WEIGHTS_{set}")] = json!(w.floats(&weights, 4, "VEC4"));
+                }
+            }
+            let indices: Vec<u8> = g.triangles.iter().flatten().flat_map(|i| i.to_le_bytes()).collect();
+            let indices = w.accessor(&indices, U32, 3 * g.triangles.len(), "SCALAR", json!({}));
+            prims.push(json!({"attributes": attributes, "indices": indices, "mode": 4}));
+        }
+        meshes.push(json!({"name": m.name, "primitives": prims}));
+    }
+    let mut skins = Vec::new();
+    for s in &asset.skins {
+        let ibm: Vec<f32> = s.inverse_bind.iter().flat_map(|m| m.to_cols_array()).collect();
+        let ibm = w.floats(&ibm, 16, "MAT4");
+        skins.push(json!({"name": s.name, "joints": s.joints, "inverseBindMatrices": ibm}));
+    }
+    let mut animations = Vec::new();
+    for clip in &asset.clips {
+        let (mut samplers, mut channels) = (Vec::new(), Vec::new());
+        let mut add = |sampler: Value, node: u32, path: &str| {
+            samplers.push(sampler);
+            channels.push(json!({"sampler": samplers.len() - 1, "target": {"node": node, "path": path}}));
+        };
+        for c in &clip.translations {
+            add(w.channel(c, |v| v.to_array().to_vec(), 3, "VEC3"), c.node, "translation");
+        }
+        for c in &clip.rotations {
+            add(w.channel(c, |v| v.to_array().to_vec(), 4, "VEC4"), c.node, "rotation");
+        }
+        for c in &clip.scales {
+            add(w.channel(c, |v| v.to_array().to_vec(), 3, "VEC3"), c.node, "scale");
+        }
+        animations.push(json!({"name": clip.name, "samplers": samplers, "channels": channels}));
+    }
+    let roots: Vec<usize> = (0..sk.nodes.len()).filter(|&i| sk.nodes[i].parent.is_none()).collect();
+    let mut doc = json!({
+        "asset": {"version": "2.0", "generator": "skinlet"},
+        "scene": 0, "scenes": [{"nodes": roots}], "nodes": nodes, "meshes": meshes,
+        "buffers": [{"byteLength": w.bin.len()}], "bufferViews": w.views, "accessors": w.accessors,
+    });
+    if !skins.is_empty() {
+        doc["skins"] = json!(skins);
+    }
+    if !animations.is_empty() {
+        doc["animations"] = json!(animations);
+    }
+    let mut text = serde_json::to_vec(&doc).map_err(|e| Error::invalid("export", e.to_string()))?;
+    text.resize(text.len().next_multiple_of(4), b' ');
+    w.bin.resize(w.bin.len().next_multiple_of(4), 0);
+    let total = 12 + 8 + text.len() + 8 + w.bin.len();
+    let total = u32::try_from(total).map_err(|_| Error::unsupported("export", "a .glb over 4 GiB"))?;
+    let mut out = Vec::with_capacity(total as usize);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&total.to_le_bytes());
+    out.extend_from_slice(&(text.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&text);
+    out.extend_from_slice(&(w.bin.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"BIN\0");
+    out.extend_from_slice(&w.bin);
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::demo::{DemoParams, demo_character};
+
+    #[test]
+    fn the_demo_reads_back_as_written() {
+        let a = demo_character(&DemoParams { triangles: 1000, ..DemoParams::default() });
+        let bytes = super::to_glb(&a).unwrap();
+        let b = crate::import::load_gltf_slice(&bytes, None).unwrap();
+        assert!(a.skeleton == b.skeleton && a.skins == b.skins && a.instances == b.instances);
+        // The importer renormalizes weights whose f32 sum is not exactly 1: equal to rounding.
+        for (m, n) in a.meshes.iter().zip(&b.meshes) {
+            let (g, h) = (&m.primitives[0].geometry, &n.primitives[0].geometry);
+            assert!(g.positions == h.positions && g.normals == h.normals && g.triangles == h.triangles, "{}", m.name);
+            let (i, j) = (g.influences.as_ref(), h.influences.as_ref());
+            assert_eq!(i.map(|i| &i.joints), j.map(|j| &j.joints), "{}", m.name);
+            let (wi, wj) = (i.map_or(&[][..], |i| &i.weights[..]), j.map_or(&[][..], |j| &j.weights[..]));
+            assert!(wi.len() == wj.len() && wi.iter().zip(wj).all(|(x, y)| (x - y).abs() < 1e-6), "{}", m.name);
+        }
+        assert_eq!(b.scenes.len(), 1);
+        assert!(b.report.warnings.is_empty(), "{:?}", b.report.warnings);
+        let (ca, cb) = (a.character().unwrap(), b.character().unwrap());
+        assert!(ca.parts == cb.parts && ca.palette == cb.palette);
+        // Clips: the same channels; the importer renormalizes rotation keys, so poses agree
+        // to f32 rounding rather than bit for bit.
+        for (x, y) in a.clips.iter().zip(&b.clips) {
+            assert_eq!(
+                (x.translations.len(), x.rotations.len(), x.scales.len()),
+                (y.translations.len(), y.rotations.len(), y.scales.len())
+            );
+            for k in 0..=8 {
+                let t = x.start + x.duration() * k as f32 / 8.0;
+                let pose = |asset: &crate::Asset, clip| {
+                    crate::skinning::posed_positions(&asset.skeleton, &ca.palette, &ca.mesh, Some(clip), Some(t))
+                        .unwrap()
+                };
+                let (p, q) = (pose(&a, x), pose(&b, y));
+                let worst = p.iter().zip(&q).map(|(u, v)| u.distance(*v)).fold(0f32, f32::max);
+                assert!(worst < 1e-5, "{} at {t}: {worst}", x.name);
+            }
+        }
+    }
+}
