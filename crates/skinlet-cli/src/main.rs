@@ -433,13 +433,17 @@ fn interp_names(c: &skinlet::summary::ClipSummary) -> Vec<&'static str> {
 /// What `inspect` says of each part: node, its name, mesh, primitive, kind, vertices, triangles.
 fn part_rows(asset: &Asset, character: &Character) -> Vec<(u32, String, u32, u32, String, usize, usize)> {
     let animated = |node| asset.clips.iter().any(|c| !c.key_times_affecting(&asset.skeleton, node).is_empty());
-    (character.parts.iter())
-        .map(|p| {
-            let kind = match p.kind {
+    (character.parts.iter().enumerate())
+        .map(|(i, p)| {
+            let mut kind = match p.kind {
                 skinlet::PartKind::Skinned { skin } => format!("skinned by skin {skin}"),
                 skinlet::PartKind::Rigid if animated(p.node) => "rigid, animated".to_string(),
                 skinlet::PartKind::Rigid => "rigid, static".to_string(),
             };
+            if let Some(m) = character.morphs.iter().find(|m| m.part as usize == i) {
+                let animated = asset.clips.iter().any(|c| c.weights.iter().any(|w| w.channel.node == m.node));
+                kind += &format!(", {} morph targets{}", m.targets.len(), if animated { " (animated)" } else { "" });
+            }
             let name = asset.skeleton.nodes[p.node as usize].name.clone();
             (p.node, name, p.mesh, p.primitive, kind, p.vertices.len(), p.triangles.len())
         })
@@ -606,19 +610,15 @@ fn pose(file: &str, clip: Option<&str>, time: f32, json: bool) -> Result<()> {
     }
     let (asset, character) = load_character(file)?;
     let clip = find_clip(&asset, clip)?;
-    let mut mats = Vec::new();
-    Poser::default().skinning_matrices(&asset.skeleton, &character.palette, clip, time, &mut mats);
+    // Morphs, then skinning, of every part at once.
+    let (positions, normals) = character.posed(&asset.skeleton, clip, time)?;
     let mut entries = Vec::new();
     for part in &character.parts {
-        // The source primitive's normals (the merged mesh drops them all if one part has none).
-        let g = &asset.meshes[part.mesh as usize].primitives.iter().find(|p| p.index == part.primitive as usize);
-        let normals = g.map_or(&[][..], |g| &g.geometry.normals[..]);
-        let part_mesh = character.part_mesh(part);
-        let inf = part_mesh.influences.as_ref().context("a character's parts are all skinned")?;
-        let mut p = vec![glam::Vec3::ZERO; part_mesh.positions.len()];
-        let mut n = vec![glam::Vec3::ZERO; normals.len()];
-        skinlet::skinning::skin(inf, &part_mesh.positions, normals, &mats, &mut p, &mut n)?;
-        entries.push((part.node, part.mesh, part.primitive, p, n));
+        let source = asset.meshes[part.mesh as usize].primitives.iter().find(|p| p.index == part.primitive as usize);
+        let has_normals = source.is_some_and(|p| !p.geometry.normals.is_empty());
+        let range = part.vertices.start as usize..part.vertices.end as usize;
+        let n = if has_normals { normals[range.clone()].to_vec() } else { Vec::new() };
+        entries.push((part.node, part.mesh, part.primitive, positions[range].to_vec(), n));
     }
     if json {
         let prims: Vec<Value> = entries
@@ -871,6 +871,7 @@ fn load_character(file: &str) -> Result<(Asset, Character)> {
 /// [`load_character`], and the character prepared for meshlets (parts kept apart).
 fn prepared_character(file: &str) -> Result<(Asset, Character, skinlet::meshlet::PreparedMesh)> {
     let (asset, character) = load_character(file)?;
+    skinlet::bake::refuse_moving_morphs(&character, &asset.clips.iter().collect::<Vec<_>>())?;
     let prepared = skinlet::bake::prepare_character(&character)?;
     Ok((asset, character, prepared))
 }

@@ -110,6 +110,27 @@ pub fn prepare_character(character: &Character) -> Result<PreparedMesh> {
     prepare_parts(&character.mesh, &ranges)
 }
 
+/// Morph targets that move vertices are not bounded yet: an error naming the parts, rather
+/// than bounds that do not hold.
+pub fn refuse_moving_morphs(character: &Character, clips: &[&Clip]) -> Result<()> {
+    if !character.morphs_move(clips) {
+        return Ok(());
+    }
+    let parts: Vec<String> = (character.morphs.iter())
+        .map(|m| {
+            let p = &character.parts[m.part as usize];
+            format!("node {} mesh {} primitive {}", p.node, p.mesh, p.primitive)
+        })
+        .collect();
+    Err(Error::unsupported(
+        "bake",
+        format!(
+            "morph targets move the vertices of {}; conservative bounds over morph targets are not built yet (`skinlet pose` applies them)",
+            parts.join(", ")
+        ),
+    ))
+}
+
 /// Bakes the whole character of `asset` (every part, see [`crate::character`]): prepares
 /// its mesh part by part, builds meshlets (none mixes two parts), computes bounds over the
 /// union of `clips` refined as `how` allows, and classifies them.
@@ -123,6 +144,7 @@ pub fn bake(
     progress: &mut dyn FnMut(Progress),
 ) -> Result<(Baked, BakeStats)> {
     let s = &character.palette;
+    refuse_moving_morphs(character, clips)?;
     let prepared = prepare_character(character)?;
     let meshlets = build(&prepared, builder, limits)?;
     let mut parts = Vec::with_capacity(character.parts.len());

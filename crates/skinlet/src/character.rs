@@ -26,9 +26,10 @@
 //! # Ok::<(), skinlet::Error>(())
 //! ```
 
-use crate::model::{Asset, Influences, Skin, SkinnedMesh};
+use crate::clip::Clip;
+use crate::model::{Asset, Influences, MorphTarget, Skeleton, Skin, SkinnedMesh};
 use crate::{Error, Result};
-use glam::Mat4;
+use glam::{Mat4, Vec3};
 use std::collections::HashMap;
 use std::ops::Range;
 
@@ -54,6 +55,17 @@ pub struct Part {
     pub triangles: Range<u32>,
 }
 
+/// The morph targets of one part: deltas of its vertices, weighted by the morph weights of
+/// its node (glTF: the node's `weights`, else its mesh's, else zero; animated by the clips'
+/// weight channels of that node). Morphs apply before skinning, as glTF specifies.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PartMorphs {
+    pub part: u32,
+    pub node: u32,
+    pub defaults: Vec<f32>,
+    pub targets: Vec<MorphTarget>,
+}
+
 /// Every drawing of a scene as one skinned mesh over one palette of drivers.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Character {
@@ -62,6 +74,8 @@ pub struct Character {
     pub palette: Skin,
     pub mesh: SkinnedMesh,
     pub parts: Vec<Part>,
+    /// Morph targets of the parts that have them.
+    pub morphs: Vec<PartMorphs>,
 }
 
 impl Character {
@@ -73,6 +87,69 @@ impl Character {
     /// One part's vertices and triangles, renumbered from 0, with palette joint numbers.
     pub fn part_mesh(&self, part: &Part) -> SkinnedMesh {
         self.mesh.slice(part.vertices.clone(), part.triangles.clone())
+    }
+
+    /// Adds the morph displacement of `clip` at time `t` (`None`: the default weights) to
+    /// positions and, when not empty, normals (normalized after) of the merged mesh's
+    /// vertices ([`Character::mesh`] is the base shape, without morphs).
+    pub fn apply_morphs(&self, clip: Option<&Clip>, t: f32, positions: &mut [Vec3], normals: &mut [Vec3]) {
+        let mut weights = Vec::new();
+        for m in &self.morphs {
+            match clip {
+                Some(c) => c.sample_weights(m.node, t, &m.defaults, &mut weights),
+                None => weights.clone_from(&m.defaults),
+            }
+            if weights.iter().all(|&w| w == 0.0) {
+                continue;
+            }
+            let range = self.parts[m.part as usize].vertices.clone();
+            let (start, end) = (range.start as usize, range.end as usize);
+            for (target, &w) in m.targets.iter().zip(&weights) {
+                if w == 0.0 {
+                    continue;
+                }
+                for (p, d) in positions[start..end].iter_mut().zip(&target.positions) {
+                    *p += w * *d;
+                }
+                if !normals.is_empty() {
+                    for (n, d) in normals[start..end].iter_mut().zip(&target.normals) {
+                        *n += w * *d;
+                    }
+                }
+            }
+            if !normals.is_empty() {
+                normals[start..end].iter_mut().for_each(|n| *n = n.normalize_or_zero());
+            }
+        }
+    }
+
+    /// Every vertex and normal (empty when the mesh has none) posed as glTF draws `clip` at
+    /// time `t` (`None`: the rest pose with default morph weights), in scene space: morphs
+    /// first, then skinning over the palette.
+    pub fn posed(&self, skeleton: &Skeleton, clip: Option<&Clip>, t: f32) -> Result<(Vec<Vec3>, Vec<Vec3>)> {
+        let (mut p, mut n) = (self.mesh.positions.clone(), self.mesh.normals.clone());
+        self.apply_morphs(clip, t, &mut p, &mut n);
+        let mut mats = Vec::new();
+        crate::pose::Poser::default().skinning_matrices(skeleton, &self.palette, clip, t, &mut mats);
+        let inf = self.mesh.influences.as_ref().ok_or_else(|| Error::invalid("character", "no skin weights"))?;
+        let (mut op, mut on) = (vec![Vec3::ZERO; p.len()], vec![Vec3::ZERO; n.len()]);
+        crate::skinning::skin(inf, &p, &n, &mats, &mut op, &mut on)?;
+        Ok((op, on))
+    }
+
+    /// True when a morph target can move a vertex over `clips` or in the default pose: a
+    /// non-zero delta whose weight is non-zero by default or animated.
+    pub fn morphs_move(&self, clips: &[&Clip]) -> bool {
+        self.morphs.iter().any(|m| {
+            m.targets.iter().enumerate().any(|(k, t)| {
+                let moves = t.positions.iter().chain(&t.normals).any(|d| *d != Vec3::ZERO);
+                let weighted = m.defaults.get(k).is_some_and(|&w| w != 0.0)
+                    || clips
+                        .iter()
+                        .any(|c| c.weights.iter().any(|w| w.channel.node == m.node && w.target as usize == k));
+                moves && weighted
+            })
+        })
     }
 
     /// Triangles of every part: a mesh counted once per node that draws it.
@@ -125,6 +202,7 @@ pub fn character(asset: &Asset, scene: Option<usize>) -> Result<Character> {
     }
     let mut merged: Vec<SkinnedMesh> = Vec::new();
     let mut parts = Vec::new();
+    let mut morphs = Vec::new();
     let (mut vertices, mut triangles) = (0u32, 0u32);
     for inst in &instances {
         let mesh = asset.meshes.get(inst.mesh as usize).ok_or_else(|| {
@@ -178,6 +256,19 @@ pub fn character(asset: &Asset, scene: Option<usize>) -> Result<Character> {
                 triangles: triangles..t_end,
             });
             (vertices, triangles) = (v_end, t_end);
+            if !p.targets.is_empty() {
+                let defaults = match asset.node_weights.get(&inst.node) {
+                    Some(w) => w.clone(),
+                    None if !mesh.weights.is_empty() => mesh.weights.clone(),
+                    None => vec![0.0; p.targets.len()],
+                };
+                morphs.push(PartMorphs {
+                    part: parts.len() as u32 - 1,
+                    node: inst.node,
+                    defaults,
+                    targets: p.targets.clone(),
+                });
+            }
             merged.push(SkinnedMesh { influences: Some(influences), ..g.clone() });
         }
     }
@@ -191,7 +282,7 @@ pub fn character(asset: &Asset, scene: Option<usize>) -> Result<Character> {
         _ => "character".to_string(),
     };
     let (joints, inverse_bind) = drivers.into_iter().unzip();
-    Ok(Character { palette: Skin { name, joints, inverse_bind }, mesh, parts })
+    Ok(Character { palette: Skin { name, joints, inverse_bind }, mesh, parts, morphs })
 }
 
 /// The root nodes of the chosen scene.

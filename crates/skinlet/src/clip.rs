@@ -28,7 +28,8 @@ impl Interpolation {
     }
 }
 
-/// A value that can be keyframed: `Vec3` (translation, scale) or `Quat` (rotation).
+/// A value that can be keyframed: `Vec3` (translation, scale), `Quat` (rotation) or `f32`
+/// (one morph target's weight).
 pub trait Keyable: Copy + PartialEq + std::fmt::Debug {
     /// LINEAR interpolation between `a` and `b`, `s` in [0, 1].
     fn linear(a: Self, b: Self, s: f32) -> Self;
@@ -42,6 +43,16 @@ fn hermite_weights(s: f32) -> [f32; 4] {
 }
 
 impl Keyable for Vec3 {
+    fn linear(a: Self, b: Self, s: f32) -> Self {
+        a * (1.0 - s) + b * s
+    }
+    fn hermite(v0: Self, b0: Self, v1: Self, a1: Self, dt: f32, s: f32) -> Self {
+        let [h00, h10, h01, h11] = hermite_weights(s);
+        v0 * h00 + b0 * (dt * h10) + v1 * h01 + a1 * (dt * h11)
+    }
+}
+
+impl Keyable for f32 {
     fn linear(a: Self, b: Self, s: f32) -> Self {
         a * (1.0 - s) + b * s
     }
@@ -178,15 +189,22 @@ impl<T: Keyable> Channel<T> {
     }
 }
 
-/// One animation: channels per node and property. Morph-weight channels are counted
-/// but not sampled.
+/// The weight of morph target `target` of the mesh that node `channel.node` draws.
+#[derive(Clone, Debug, PartialEq)]
+pub struct WeightChannel {
+    pub target: u32,
+    pub channel: Channel<f32>,
+}
+
+/// One animation: channels per node and property; a glTF `weights` channel is one
+/// [`WeightChannel`] per morph target.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Clip {
     pub name: String,
     pub translations: Vec<Channel<Vec3>>,
     pub rotations: Vec<Channel<Quat>>,
     pub scales: Vec<Channel<Vec3>>,
-    pub weight_channels: usize,
+    pub weights: Vec<WeightChannel>,
     /// First and last key time over all channels.
     pub start: f32,
     pub end: f32,
@@ -207,7 +225,20 @@ impl Clip {
     fn all_channel_times(&self) -> impl Iterator<Item = &Vec<f32>> {
         let t = self.translations.iter().map(|c| &c.times);
         let r = self.rotations.iter().map(|c| &c.times);
-        t.chain(r).chain(self.scales.iter().map(|c| &c.times))
+        let w = self.weights.iter().map(|c| &c.channel.times);
+        t.chain(r).chain(self.scales.iter().map(|c| &c.times)).chain(w)
+    }
+
+    /// The morph weights of the mesh node `node` draws at time `t`: `defaults` with this
+    /// clip's weight channels for the node applied.
+    pub fn sample_weights(&self, node: u32, t: f32, defaults: &[f32], out: &mut Vec<f32>) {
+        out.clear();
+        out.extend_from_slice(defaults);
+        for w in self.weights.iter().filter(|w| w.channel.node == node) {
+            if let Some(slot) = out.get_mut(w.target as usize) {
+                *slot = w.channel.sample(t);
+            }
+        }
     }
 
     /// Largest key count of any channel.
@@ -219,7 +250,8 @@ impl Clip {
     pub fn interpolations(&self) -> Vec<Interpolation> {
         let t = self.translations.iter().map(|c| c.interpolation);
         let r = self.rotations.iter().map(|c| c.interpolation);
-        let used: Vec<Interpolation> = t.chain(r).chain(self.scales.iter().map(|c| c.interpolation)).collect();
+        let w = self.weights.iter().map(|c| c.channel.interpolation);
+        let used: Vec<Interpolation> = t.chain(r).chain(self.scales.iter().map(|c| c.interpolation)).chain(w).collect();
         [Interpolation::Step, Interpolation::Linear, Interpolation::CubicSpline]
             .into_iter()
             .filter(|m| used.contains(m))

@@ -80,7 +80,8 @@ pub fn demo_character(params: &DemoParams) -> Asset {
     };
     let one = |name: &str, geometry| Mesh {
         name: name.into(),
-        primitives: vec![Primitive { index: 0, geometry, morph_targets: 0 }],
+        primitives: vec![Primitive { index: 0, geometry, targets: Vec::new() }],
+        weights: Vec::new(),
     };
     let meshes = vec![
         one("demo_creature", body),
@@ -419,7 +420,7 @@ fn channel<T: Tangent>(node: usize, keys: &Keys, f: impl Fn(f32) -> T) -> Channe
 fn clip(name: &str, moves: Vec<Channel<Vec3>>, turns: Vec<Channel<Quat>>, scales: Vec<Channel<Vec3>>) -> Clip {
     let times = moves.iter().chain(&scales).map(|c| &c.times).chain(turns.iter().map(|c| &c.times));
     let (start, end) = times.fold((f32::INFINITY, f32::NEG_INFINITY), |(s, e), t| (s.min(t[0]), e.max(t[t.len() - 1])));
-    Clip { name: name.into(), translations: moves, rotations: turns, scales, weight_channels: 0, start, end }
+    Clip { name: name.into(), translations: moves, rotations: turns, scales, weights: Vec::new(), start, end }
 }
 
 /// LINEAR, 2 s: a trotting stride, tail wag, bobbing forward root, breathing belly, a 175°
@@ -634,7 +635,7 @@ mod tests {
             assert!(a.clips.iter().any(|c| c.interpolations() == [mode]), "no {} clip", mode.name());
         }
         for c in &a.clips {
-            assert!(c.start == 0.0 && (1.0..=3.0).contains(&c.duration()) && c.weight_channels == 0, "{}", c.name);
+            assert!(c.start == 0.0 && (1.0..=3.0).contains(&c.duration()) && c.weights.is_empty(), "{}", c.name);
             assert!(!c.translations.is_empty() && !c.rotations.is_empty() && !c.scales.is_empty(), "{}", c.name);
             c.translations.iter().chain(&c.scales).for_each(|ch| check(ch, c));
             c.rotations.iter().for_each(|ch| check(ch, c));

@@ -64,6 +64,11 @@ impl Writer {
 
 /// The .glb bytes of `asset`.
 pub fn to_glb(asset: &Asset) -> Result<Vec<u8>> {
+    if asset.meshes.iter().any(|m| m.primitives.iter().any(|p| !p.targets.is_empty()))
+        || asset.clips.iter().any(|c| !c.weights.is_empty())
+    {
+        return Err(Error::unsupported("export", "morph targets and weight channels are not written yet"));
+    }
     let mut w = Writer::default();
     let sk = &asset.skeleton;
     let mut nodes: Vec<Value> = (sk.nodes.iter())

@@ -214,6 +214,8 @@ impl SkinnedMesh {
 pub struct Mesh {
     pub name: String,
     pub primitives: Vec<Primitive>,
+    /// Default morph weights, one per target (empty: all zero).
+    pub weights: Vec<f32>,
 }
 
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -221,8 +223,16 @@ pub struct Primitive {
     /// Index of the primitive in the glTF mesh.
     pub index: usize,
     pub geometry: SkinnedMesh,
-    /// Number of morph targets in the file (loaded geometry ignores them).
-    pub morph_targets: usize,
+    /// Morph targets: every primitive of a mesh has the same number.
+    pub targets: Vec<MorphTarget>,
+}
+
+/// One morph target of a primitive: per vertex, a position delta and (empty when the file
+/// gives none) a normal delta. Tangent deltas are not read.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MorphTarget {
+    pub positions: Vec<Vec3>,
+    pub normals: Vec<Vec3>,
 }
 
 /// A node that draws a mesh, with the skin that deforms it.
@@ -246,6 +256,8 @@ pub struct Asset {
     pub scenes: Vec<Vec<u32>>,
     /// The file's `scene` (the one to draw by default).
     pub default_scene: Option<usize>,
+    /// Nodes whose `weights` override their mesh's default morph weights.
+    pub node_weights: std::collections::BTreeMap<u32, Vec<f32>>,
     pub report: ImportReport,
 }
 
@@ -265,12 +277,15 @@ pub struct ImportReport {
 pub fn concat(meshes: &[&SkinnedMesh]) -> SkinnedMesh {
     let mut out = SkinnedMesh::default();
     let stride = meshes.iter().filter_map(|m| m.influences.as_ref().map(|i| i.stride)).max();
-    let with_normals = meshes.iter().all(|m| !m.normals.is_empty());
+    // Normals when any mesh has them (zero vectors for the vertices of those without).
+    let with_normals = meshes.iter().any(|m| !m.normals.is_empty());
     let mut inf = stride.map(|stride| Influences { stride, joints: Vec::new(), weights: Vec::new() });
     for m in meshes {
         let base = out.positions.len() as u32;
         out.positions.extend_from_slice(&m.positions);
-        if with_normals {
+        if with_normals && m.normals.is_empty() {
+            out.normals.resize(out.positions.len(), Vec3::ZERO);
+        } else if with_normals {
             out.normals.extend_from_slice(&m.normals);
         }
         out.triangles.extend(m.triangles.iter().map(|t| t.map(|i| i + base)));

@@ -94,7 +94,7 @@ pub fn summarize(asset: &Asset) -> Summary {
                         welded_vertices: welded,
                         triangles: g.triangles.len(),
                         skinned: g.influences.is_some(),
-                        morph_targets: p.morph_targets,
+                        morph_targets: p.targets.len(),
                     }
                 })
                 .collect(),
@@ -132,7 +132,7 @@ pub fn summarize(asset: &Asset) -> Summary {
                 duration: c.duration(),
                 keys: c.key_times().len(),
                 max_channel_keys: c.max_channel_keys(),
-                channels: [c.translations.len(), c.rotations.len(), c.scales.len(), c.weight_channels],
+                channels: [c.translations.len(), c.rotations.len(), c.scales.len(), c.weights.len()],
                 animated_nodes: nodes.len(),
                 interpolation: c.interpolations(),
             }

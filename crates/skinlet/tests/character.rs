@@ -174,7 +174,8 @@ fn random_scene(seed: u64) -> Asset {
     };
     let one = |name: &str, geometry| Mesh {
         name: name.into(),
-        primitives: vec![Primitive { index: 0, geometry, morph_targets: 0 }],
+        primitives: vec![Primitive { index: 0, geometry, targets: Vec::new() }],
+        weights: Vec::new(),
     };
     Asset {
         skeleton,

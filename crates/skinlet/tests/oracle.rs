@@ -1,7 +1,8 @@
 //! skinlet's reference posing against code nobody here wrote: three.js (pinned in
-//! `tools/package.json`) loads every shared character and the demo (written as .glb by
-//! `skinlet::export`), samples a clip at several times (`tools/oracle.mjs`), and every part's
-//! every vertex must agree with skinlet's whole-character posing to 1e-5 of the scene's size.
+//! `tools/package.json`) loads every shared character, the morph-target test and the demo
+//! (written as .glb by `skinlet::export`), samples a clip at several times
+//! (`tools/oracle.mjs`; morph targets applied on the CPU), and every part's every vertex must
+//! agree with skinlet's whole-character posing (morphs, then skinning) to 1e-5 of the size.
 //! Without the tools the test skips with a note, unless `SKINLET_REQUIRE_TOOLS=1` (CI).
 
 mod common;
@@ -43,13 +44,16 @@ fn check(name: &str, tools: &Path, glb: &Path, asset: &Asset) -> (usize, f32) {
     let mut cmd = Command::new("node");
     cmd.arg(tools.join("oracle.mjs")).arg(glb).arg("0").args(times.iter().map(|t| t.to_string()));
     let three: serde_json::Value = serde_json::from_slice(&output(&mut cmd)).unwrap();
-    let (mut checked, mut worst) = (0, 0f32);
+    let (mut checked, mut worst, mut morphed) = (0, 0f32, 0f32);
     for (sample, &t) in three["samples"].as_array().unwrap().iter().zip(&times) {
-        let posed =
-            skinlet::skinning::posed_positions(&asset.skeleton, &character.palette, &character.mesh, clip, Some(t))
-                .unwrap();
+        let (posed, _) = character.posed(&asset.skeleton, clip, t).unwrap();
         let (lo, hi) = posed.iter().fold((Vec3::MAX, Vec3::MIN), |(l, h), p| (l.min(*p), h.max(*p)));
         let size = (hi - lo).length();
+        let unmorphed =
+            skinlet::skinning::posed_positions(&asset.skeleton, &character.palette, &character.mesh, clip, Some(t))
+                .unwrap();
+        let moved = posed.iter().zip(&unmorphed).map(|(a, b)| a.distance(*b)).fold(0f32, f32::max);
+        morphed = morphed.max(moved / size);
         let parts = sample["parts"].as_array().unwrap();
         assert_eq!(parts.len(), character.parts.len(), "{name}: three.js draws {} primitives", parts.len());
         for p in parts {
@@ -73,6 +77,11 @@ fn check(name: &str, tools: &Path, glb: &Path, asset: &Asset) -> (usize, f32) {
             checked += ours.len();
         }
     }
+    if !character.morphs.is_empty() {
+        // The morph file is static but for its morphs: at some sampled time they must move it
+        // far more than the tolerance, or this could not tell whether morphs are applied.
+        assert!(morphed > 1e-3, "{name}: morphs moved vertices by only {morphed:.2e} of the size");
+    }
     (checked, worst)
 }
 
@@ -88,6 +97,7 @@ fn poses_agree_with_three_js() {
     cases.push(("@demo".into(), demo_glb, demo));
     if let Some(dir) = assets_dir() {
         let mut files: Vec<_> = std::fs::read_dir(dir.join("skinned")).unwrap().map(|e| e.unwrap().path()).collect();
+        files.push(dir.join("morph/MorphStressTest.gltf"));
         files.sort();
         for path in files {
             let name = path.file_name().unwrap().to_string_lossy().into_owned();

@@ -6,9 +6,9 @@
 //! in [`ImportReport`]; malformed data is an [`Error`] naming where it is.
 
 use super::accessor::{Buffers, read_floats, read_uints};
-use crate::clip::{Channel, Clip, Interpolation};
+use crate::clip::{Channel, Clip, Interpolation, WeightChannel};
 use crate::model::{
-    Asset, ImportReport, Influences, Instance, Mesh, Node, Primitive, Skeleton, Skin, SkinnedMesh, Trs,
+    Asset, ImportReport, Influences, Instance, Mesh, MorphTarget, Node, Primitive, Skeleton, Skin, SkinnedMesh, Trs,
 };
 use crate::{Error, Result};
 use base64::Engine as _;
@@ -37,10 +37,11 @@ pub fn load_gltf_slice(bytes: &[u8], base_dir: Option<&Path>) -> Result<Asset> {
     let skins = doc.skins().map(|s| load_skin(&s, &buffers, &mut report)).collect::<Result<Vec<_>>>()?;
     let meshes = doc.meshes().map(|m| load_mesh(&m, &buffers, &mut report)).collect::<Result<Vec<_>>>()?;
     let instances = load_instances(doc, &skins, &meshes, &mut report)?;
-    let clips = doc.animations().map(|a| load_clip(&a, &buffers, &mut report)).collect::<Result<Vec<_>>>()?;
+    let clips = doc.animations().map(|a| load_clip(&a, &meshes, &buffers, &mut report)).collect::<Result<Vec<_>>>()?;
+    let node_weights = load_node_weights(doc, &meshes)?;
     let scenes = doc.scenes().map(|s| s.nodes().map(|n| n.index() as u32).collect()).collect();
     let default_scene = doc.default_scene().map(|s| s.index());
-    Ok(Asset { skeleton, skins, meshes, instances, clips, scenes, default_scene, report })
+    Ok(Asset { skeleton, skins, meshes, instances, clips, scenes, default_scene, node_weights, report })
 }
 
 /// Parses and validates the document. The gltf crate's own checks are run here rather than
@@ -371,15 +372,49 @@ fn load_mesh(mesh: &gltf::Mesh, buffers: &Buffers, report: &mut ImportReport) ->
             continue;
         }
         let geometry = load_primitive(&p, buffers, &loc, report)?;
-        let morph_targets = p.morph_targets().count();
-        if morph_targets > 0 {
-            report.warnings.push(format!(
-                "{loc}: {morph_targets} morph targets loaded as the base shape only; bounds ignore morphs for now"
+        let targets = load_targets(&p, buffers, geometry.positions.len(), &loc)?;
+        if let Some(first) = primitives.first().map(|q: &Primitive| q.targets.len())
+            && first != targets.len()
+        {
+            return Err(Error::invalid(
+                &loc,
+                format!("has {} morph targets, but primitive 0 of the mesh has {first}", targets.len()),
             ));
         }
-        primitives.push(Primitive { index: p.index(), geometry, morph_targets });
+        primitives.push(Primitive { index: p.index(), geometry, targets });
     }
-    Ok(Mesh { name: mesh.name().unwrap_or("").to_string(), primitives })
+    let weights = mesh.weights().map(<[f32]>::to_vec).unwrap_or_default();
+    let loc = format!("mesh {} ({:?})", mesh.index(), mesh.name().unwrap_or(""));
+    finite(&loc, "weights", &weights)?;
+    let targets = primitives.first().map_or(0, |p| p.targets.len());
+    if !weights.is_empty() && weights.len() != targets {
+        return Err(Error::invalid(loc, format!("{} default weights for {targets} morph targets", weights.len())));
+    }
+    Ok(Mesh { name: mesh.name().unwrap_or("").to_string(), primitives, weights })
+}
+
+/// POSITION and NORMAL deltas of every morph target (TANGENT deltas are not used).
+fn load_targets(p: &gltf::Primitive, buffers: &Buffers, n: usize, loc: &str) -> Result<Vec<MorphTarget>> {
+    let mut out = Vec::new();
+    for (k, t) in p.morph_targets().enumerate() {
+        let read = |acc: Option<gltf::Accessor>, what: &str| -> Result<Vec<Vec3>> {
+            let Some(acc) = acc else { return Ok(Vec::new()) };
+            let v = vec3s(read_floats(&acc, &[Dimensions::Vec3], buffers, &format!("{loc} morph target {k} {what}"))?);
+            if v.len() != n {
+                return Err(Error::invalid(
+                    loc,
+                    format!("morph target {k} {what} has {} elements but POSITION has {n}", v.len()),
+                ));
+            }
+            Ok(v)
+        };
+        let mut positions = read(t.positions(), "POSITION")?;
+        if positions.is_empty() {
+            positions = vec![Vec3::ZERO; n];
+        }
+        out.push(MorphTarget { positions, normals: read(t.normals(), "NORMAL")? });
+    }
+    Ok(out)
 }
 
 fn vec3s(v: Vec<f32>) -> Vec<Vec3> {
@@ -568,7 +603,23 @@ fn load_instances(
     Ok(out)
 }
 
-fn load_clip(anim: &gltf::Animation, buffers: &Buffers, report: &mut ImportReport) -> Result<Clip> {
+/// Nodes' `weights` (overriding their mesh's defaults): one per morph target, finite.
+fn load_node_weights(doc: &gltf::Document, meshes: &[Mesh]) -> Result<std::collections::BTreeMap<u32, Vec<f32>>> {
+    let mut out = std::collections::BTreeMap::new();
+    for n in doc.nodes() {
+        let Some(w) = n.weights() else { continue };
+        let loc = format!("node {} ({:?})", n.index(), n.name().unwrap_or(""));
+        finite(&loc, "weights", w)?;
+        let targets = n.mesh().map_or(0, |m| meshes[m.index()].primitives.first().map_or(0, |p| p.targets.len()));
+        if w.len() != targets {
+            return Err(Error::invalid(loc, format!("{} weights for {targets} morph targets of its mesh", w.len())));
+        }
+        out.insert(n.index() as u32, w.to_vec());
+    }
+    Ok(out)
+}
+
+fn load_clip(anim: &gltf::Animation, meshes: &[Mesh], buffers: &Buffers, report: &mut ImportReport) -> Result<Clip> {
     use gltf::animation::Property;
     let name = anim.name().unwrap_or("").to_string();
     let mut clip = Clip { name: name.clone(), start: f32::INFINITY, end: f32::NEG_INFINITY, ..Clip::default() };
@@ -634,15 +685,40 @@ fn load_clip(anim: &gltf::Animation, buffers: &Buffers, report: &mut ImportRepor
                 }
                 clip.rotations.push(Channel { node, interpolation, times, values });
             }
-            Property::MorphTargetWeights => clip.weight_channels += 1,
+            Property::MorphTargetWeights => {
+                let target_node = ch.target().node();
+                let targets = target_node
+                    .mesh()
+                    .map_or(0, |m| meshes[m.index()].primitives.first().map_or(0, |p| p.targets.len()));
+                if targets == 0 {
+                    return Err(Error::invalid(
+                        &loc,
+                        format!("animates the morph weights of node {node}, which draws no mesh with morph targets"),
+                    ));
+                }
+                let values = read_floats(&output, &[Dimensions::Scalar], buffers, &out_loc)?;
+                if values.len() != per_key * times.len() * targets {
+                    return Err(Error::invalid(
+                        &loc,
+                        format!(
+                            "{} keys × {targets} morph targets need {} weight values ({}), found {}",
+                            times.len(),
+                            per_key * times.len() * targets,
+                            interpolation.name(),
+                            values.len()
+                        ),
+                    ));
+                }
+                // Per key: all targets' values (CUBICSPLINE: in-tangents, values, out-tangents).
+                for target in 0..targets {
+                    let values = (0..per_key * times.len())
+                        .map(|i| values[(i / per_key) * per_key * targets + (i % per_key) * targets + target])
+                        .collect();
+                    let channel = Channel { node, interpolation, times: times.clone(), values };
+                    clip.weights.push(WeightChannel { target: target as u32, channel });
+                }
+            }
         }
-    }
-    if clip.weight_channels > 0 {
-        report.warnings.push(format!(
-            "animation {} ({name:?}): {} morph-weight channels ignored",
-            anim.index(),
-            clip.weight_channels
-        ));
     }
     if clip.start > clip.end {
         clip.start = 0.0;

@@ -58,7 +58,8 @@ pub fn load_obj_str(text: &str, name: &str) -> Result<Asset> {
         skeleton: Skeleton::new(vec![root])?,
         meshes: vec![Mesh {
             name: name.to_string(),
-            primitives: vec![Primitive { index: 0, geometry, morph_targets: 0 }],
+            primitives: vec![Primitive { index: 0, geometry, targets: Vec::new() }],
+            weights: Vec::new(),
         }],
         instances: vec![Instance { node: 0, mesh: 0, skin: None }],
         ..Asset::default()
