@@ -32,12 +32,74 @@ pub enum What {
         #[arg(long)]
         json: bool,
     },
+    /// Import time of glTF files against each other, e.g. a compressed file (gltfpack -cc)
+    /// against its original: each file read into memory once, then parsed, decoded and
+    /// turned into the whole character, alternating the files, median of each.
+    Import {
+        /// Two or more .glb/.gltf files; ratios are against the first.
+        #[arg(num_args = 2.., required = true)]
+        files: Vec<PathBuf>,
+        /// Seconds spent timing each file (at least 10 rounds).
+        #[arg(long, default_value_t = 2.0)]
+        seconds: f64,
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 pub fn command(what: &What) -> Result<()> {
     match what {
         What::JointAabb { file, instances, seconds, json } => joint_aabb(file.as_deref(), instances, *seconds, *json),
+        What::Import { files, seconds, json } => import(files, *seconds, *json),
     }
+}
+
+fn import(files: &[PathBuf], seconds: f64, json: bool) -> Result<()> {
+    anyhow::ensure!(seconds > 0.0 && seconds.is_finite(), "--seconds must be positive");
+    let bytes: Vec<Vec<u8>> = (files.iter())
+        .map(|f| std::fs::read(f).with_context(|| format!("cannot read {}", f.display())))
+        .collect::<Result<_>>()?;
+    let mut triangles = vec![0usize; files.len()];
+    let failed = std::cell::RefCell::new(None);
+    let mut calls: Vec<Box<dyn FnMut()>> = Vec::new();
+    for ((path, b), tris) in files.iter().zip(&bytes).zip(triangles.iter_mut()) {
+        // Checked once here, so the timed calls cannot fail.
+        let character = skinlet::import::load_bytes(b, path)?.character()?;
+        *tris = character.triangle_count();
+        let failed = &failed;
+        calls.push(Box::new(move || {
+            if let Err(e) = skinlet::import::load_bytes(b, path).and_then(|a| a.character()) {
+                failed.borrow_mut().get_or_insert(e.to_string());
+            }
+        }));
+    }
+    let mut refs: Vec<&mut dyn FnMut()> = calls.iter_mut().map(|c| &mut **c as &mut dyn FnMut()).collect();
+    let t = time_alternating(&mut refs, seconds);
+    drop(calls);
+    if let Some(e) = failed.into_inner() {
+        anyhow::bail!("an import failed while timing: {e}");
+    }
+    let rows: Vec<Value> = (files.iter().zip(&bytes).zip(&t).zip(&triangles))
+        .map(|(((f, b), s), tris)| {
+            json!({"file": f.display().to_string(), "bytes": b.len(), "triangles": tris, "import_ms": s * 1e3, "ratio": s / t[0]})
+        })
+        .collect();
+    if json {
+        println!("{}", serde_json::to_string_pretty(&rows)?);
+        return Ok(());
+    }
+    println!("{:>10} {:>10} {:>10} {:>8}  file", "bytes", "triangles", "import ms", "ratio");
+    for r in &rows {
+        println!(
+            "{:>10} {:>10} {:>10.3} {:>8.2}  {}",
+            r["bytes"].as_u64().unwrap_or(0),
+            r["triangles"].as_u64().unwrap_or(0),
+            r["import_ms"].as_f64().unwrap_or(0.0),
+            r["ratio"].as_f64().unwrap_or(0.0),
+            r["file"].as_str().unwrap_or("")
+        );
+    }
+    Ok(())
 }
 
 fn default_fox() -> Result<String> {

@@ -357,6 +357,9 @@ enum Command {
         /// Seed of the procedural generator.
         #[arg(long, default_value_t = 7)]
         seed: u64,
+        /// Also write the character as a glTF binary (.glb) for other glTF tools.
+        #[arg(long)]
+        glb: Option<PathBuf>,
         #[arg(long)]
         json: bool,
     },
@@ -405,7 +408,7 @@ fn main() {
         Command::Bench { what } => bench::command(&what),
         Command::Render { file, args } => render::command(&file, &args),
         Command::GpuBench { file, args } => gpu_bench::command(&file, &args),
-        Command::Demo { triangles, seed, json } => demo(triangles, seed, json),
+        Command::Demo { triangles, seed, glb, json } => demo(triangles, seed, glb.as_deref(), json),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");
@@ -650,13 +653,17 @@ fn bbox(p: &[glam::Vec3]) -> (glam::Vec3, glam::Vec3) {
     p.iter().fold((glam::Vec3::INFINITY, glam::Vec3::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)))
 }
 
-fn demo(triangles: usize, seed: u64, json: bool) -> Result<()> {
+fn demo(triangles: usize, seed: u64, glb: Option<&Path>, json: bool) -> Result<()> {
     if !(100..=5_000_000).contains(&triangles) {
         bail!("--triangles must be between 100 and 5000000");
     }
     let started = std::time::Instant::now();
     let asset = demo_character(&DemoParams { seed, triangles });
     let build_s = started.elapsed().as_secs_f64();
+    if let Some(path) = glb {
+        std::fs::write(path, skinlet::export::to_glb(&asset)?)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+    }
     let s = summarize(&asset);
     let character = asset.character()?;
     let skin = &character.palette;

@@ -543,3 +543,15 @@ fn pose_and_bake_cover_the_whole_demo_character() {
     assert_eq!(b["parts"].as_u64().unwrap() as usize, asset.instances.len());
     assert_eq!(b["skinned_parts"], 2);
 }
+
+#[test]
+fn bench_import_times_files_against_the_first() {
+    let Some(dir) = assets_dir() else { return };
+    let (a, b) = (dir.join("skinned/Fox.glb"), dir.join("skinned/RiggedSimple.glb"));
+    let rows = json_of(&["bench", "import", a.to_str().unwrap(), b.to_str().unwrap(), "--seconds", "0.05", "--json"]);
+    let rows = rows.as_array().unwrap();
+    assert_eq!(rows.len(), 2);
+    assert_eq!(rows[0]["ratio"], 1.0);
+    assert_eq!(rows[0]["triangles"], 576);
+    assert!(rows[1]["import_ms"].as_f64().unwrap() > 0.0);
+}
