@@ -13,18 +13,9 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn tool(name: &str) -> Option<PathBuf> {
-    let path = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../tools/node_modules/.bin")).join(name);
-    if path.exists() {
-        return Some(path);
-    }
-    assert!(
-        std::env::var_os("SKINLET_REQUIRE_TOOLS").is_none(),
-        "{} is missing but SKINLET_REQUIRE_TOOLS is set (npm install --prefix tools)",
-        path.display()
-    );
-    eprintln!("note: {} is missing (npm install --prefix tools); skipping", path.display());
-    None
+/// The tool `bin` of npm package `package`.
+fn tool(package: &str, bin: &str) -> Option<PathBuf> {
+    common::tools_dir(package).map(|d| d.join("node_modules/.bin").join(bin))
 }
 
 fn run(tool: &Path, args: &[&str]) {
@@ -102,7 +93,7 @@ fn variants(dir: &Path) -> Vec<PathBuf> {
 
 #[test]
 fn meshopt_compressed_files_import_like_the_originals() {
-    let (Some(dir), Some(gltfpack)) = (assets_dir(), tool("gltfpack")) else { return };
+    let (Some(dir), Some(gltfpack)) = (assets_dir(), tool("gltfpack", "gltfpack")) else { return };
     let tmp = std::env::temp_dir().join(format!("skinlet-compressed-{}", std::process::id()));
     std::fs::create_dir_all(&tmp).unwrap();
     for src in variants(&dir) {
@@ -146,7 +137,7 @@ fn meshopt_compressed_files_import_like_the_originals() {
 
 #[test]
 fn draco_files_are_an_error_that_says_how_to_convert_them() {
-    let (Some(dir), Some(transform)) = (assets_dir(), tool("gltf-transform")) else { return };
+    let (Some(dir), Some(transform)) = (assets_dir(), tool("@gltf-transform/cli", "gltf-transform")) else { return };
     let tmp = std::env::temp_dir().join(format!("skinlet-draco-{}", std::process::id()));
     std::fs::create_dir_all(&tmp).unwrap();
     let src = dir.join("skinned/CesiumMan.glb");
@@ -165,7 +156,7 @@ fn draco_files_are_an_error_that_says_how_to_convert_them() {
 
 #[test]
 fn corrupt_compressed_data_is_an_error_not_a_panic() {
-    let (Some(dir), Some(gltfpack)) = (assets_dir(), tool("gltfpack")) else { return };
+    let (Some(dir), Some(gltfpack)) = (assets_dir(), tool("gltfpack", "gltfpack")) else { return };
     let packed = std::env::temp_dir().join(format!("skinlet-corrupt-{}.glb", std::process::id()));
     let src = dir.join("skinned/RiggedFigure.glb");
     run(&gltfpack, &["-i", src.to_str().unwrap(), "-o", packed.to_str().unwrap(), "-cc"]);

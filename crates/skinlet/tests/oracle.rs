@@ -13,19 +13,6 @@ use skinlet::Asset;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn tools() -> Option<PathBuf> {
-    let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../tools"));
-    if dir.join("node_modules/three").is_dir() {
-        return Some(dir);
-    }
-    assert!(
-        std::env::var_os("SKINLET_REQUIRE_TOOLS").is_none(),
-        "three.js is missing but SKINLET_REQUIRE_TOOLS is set (npm install --prefix tools)"
-    );
-    eprintln!("note: three.js is missing (npm install --prefix tools); skipping");
-    None
-}
-
 fn output(cmd: &mut Command) -> Vec<u8> {
     let out = cmd.output().unwrap();
     assert!(out.status.success(), "{cmd:?}: {}", String::from_utf8_lossy(&out.stderr));
@@ -87,7 +74,7 @@ fn check(name: &str, tools: &Path, glb: &Path, asset: &Asset) -> (usize, f32) {
 
 #[test]
 fn poses_agree_with_three_js() {
-    let Some(tools) = tools() else { return };
+    let Some(tools) = common::tools_dir("three") else { return };
     let tmp = std::env::temp_dir().join(format!("skinlet-oracle-{}", std::process::id()));
     std::fs::create_dir_all(&tmp).unwrap();
     let mut cases: Vec<(String, PathBuf, Asset)> = Vec::new();
