@@ -10,8 +10,8 @@
 //! Guarantees: reference-skinning the merged mesh with the palette's matrices gives, for
 //! every part, exactly what glTF draws for that node and primitive (the part's vertices in
 //! scene space); parts keep their vertex and triangle ranges, in scene order, so a renderer
-//! can bind one material per primitive. A file whose skins all list the same joints in the
-//! same order (every single-skin file) gets that skin as its palette, unchanged.
+//! can bind one material per primitive. A single-skin file's palette is its skin, unchanged
+//! (then one driver per rigid node, if any).
 //!
 //! ```
 //! use skinlet::demo::{DemoParams, demo_character};
@@ -79,11 +79,6 @@ pub struct Character {
 }
 
 impl Character {
-    /// The parts' triangle ranges, in order (what [`crate::meshlet::prepare_parts`] keeps apart).
-    pub fn triangle_ranges(&self) -> Vec<Range<u32>> {
-        self.parts.iter().map(|p| p.triangles.clone()).collect()
-    }
-
     /// One part's vertices and triangles, renumbered from 0, with palette joint numbers.
     pub fn part_mesh(&self, part: &Part) -> SkinnedMesh {
         self.mesh.slice(part.vertices.clone(), part.triangles.clone())
@@ -92,7 +87,7 @@ impl Character {
     /// Adds the morph displacement of `clip` at time `t` (`None`: the default weights) to
     /// positions and, when not empty, normals (normalized after) of the merged mesh's
     /// vertices ([`Character::mesh`] is the base shape, without morphs).
-    pub fn apply_morphs(&self, clip: Option<&Clip>, t: f32, positions: &mut [Vec3], normals: &mut [Vec3]) {
+    fn apply_morphs(&self, clip: Option<&Clip>, t: f32, positions: &mut [Vec3], normals: &mut [Vec3]) {
         let mut weights = Vec::new();
         for m in &self.morphs {
             match clip {
@@ -183,7 +178,8 @@ pub fn character(asset: &Asset, scene: Option<usize>) -> Result<Character> {
         driver_of.insert(key, d);
         Ok(d)
     };
-    // Skins first, in file order, so a single-skin file's palette is its skin.
+    // Skins' joints first, in the order of the nodes that draw with them, so a single-skin
+    // file's palette starts with its skin.
     let mut skin_drivers: Vec<Option<Vec<u16>>> = vec![None; asset.skins.len()];
     let mut instances: Vec<_> = asset.instances.iter().filter(|i| in_scene[i.node as usize]).collect();
     instances.sort_by_key(|i| i.node);

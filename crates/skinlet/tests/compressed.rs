@@ -31,12 +31,13 @@ fn required(path: &Path) -> Vec<String> {
     json["extensionsRequired"].as_array().map_or(Vec::new(), |a| a.iter().map(|e| e.to_string()).collect())
 }
 
-/// The whole character's vertices posed in scene space (`None`: the rest pose), and the
+/// The whole character's vertices posed in scene space, morphs applied (`None`: the rest
+/// pose with default weights), and the
 /// diagonal of their box.
 fn posed(asset: &Asset, t: Option<f32>) -> (Vec<Vec3>, f32) {
     let c = asset.character().unwrap();
     let clip = t.and(asset.clips.first());
-    let p = skinlet::skinning::posed_positions(&asset.skeleton, &c.palette, &c.mesh, clip, t).unwrap();
+    let (p, _) = c.posed(&asset.skeleton, clip, t.unwrap_or(0.0)).unwrap();
     // Only vertices that a triangle uses: gltfpack drops the others.
     let mut used = vec![false; p.len()];
     c.mesh.triangles.iter().flatten().for_each(|&v| used[v as usize] = true);
@@ -85,10 +86,10 @@ fn same_shape(name: &str, original: &Asset, packed: &Asset, t: Option<f32>, tole
 }
 
 fn variants(dir: &Path) -> Vec<PathBuf> {
-    ["CesiumMan.glb", "Fox.glb", "RiggedFigure.glb", "BrainStem.glb"]
-        .iter()
-        .map(|f| dir.join("skinned").join(f))
-        .collect()
+    let skinned =
+        ["CesiumMan.glb", "Fox.glb", "RiggedFigure.glb", "BrainStem.glb"].map(|f| dir.join("skinned").join(f));
+    // Morph targets: gltfpack quantizes their deltas too (8-bit integers).
+    skinned.into_iter().chain([dir.join("morph/MorphStressTest.gltf")]).collect()
 }
 
 #[test]
@@ -99,8 +100,11 @@ fn meshopt_compressed_files_import_like_the_originals() {
     for src in variants(&dir) {
         let name = src.file_stem().unwrap().to_string_lossy().into_owned();
         let original = skinlet::import::load(&src).unwrap();
-        let keys = original.clips.first().map(|c| c.key_times()).unwrap_or_default();
-        let key = keys.get(keys.len() / 2).copied();
+        let times: Vec<f32> = original
+            .clips
+            .first()
+            .map(|c| [0.13, 0.5, 0.87].map(|f| c.start + f * c.duration()).to_vec())
+            .unwrap_or_default();
         // Compression alone (no quantization, animation not resampled): the rest pose is
         // lossless. gltfpack still stores weights in 8 bits: posed, each of up to 4 weights
         // is off by at most half a step (1/510), which moves a vertex by at most 4/510 of
@@ -110,7 +114,9 @@ fn meshopt_compressed_files_import_like_the_originals() {
         assert!(required(&exact).iter().any(|e| e.contains("EXT_meshopt_compression")), "{:?}", required(&exact));
         let a = skinlet::import::load(&exact).unwrap();
         same_shape(&format!("{name} (meshopt)"), &original, &a, None, 1e-5);
-        same_shape(&format!("{name} (meshopt)"), &original, &a, key, 4.0 / 510.0);
+        for &t in &times {
+            same_shape(&format!("{name} (meshopt)"), &original, &a, Some(t), 4.0 / 510.0);
+        }
         // gltfpack's defaults with the ratified extension: 14-bit positions in integer
         // attributes, 8-bit weights, quantized animation, all meshopt-compressed.
         let quantized = tmp.join(format!("{name}-q.glb"));
@@ -128,6 +134,11 @@ fn meshopt_compressed_files_import_like_the_originals() {
         // Rest pose: every skinning matrix is the same, so only the position step counts
         // (1/2^14 of the mesh's box per axis; twice that as the bound).
         same_shape(&format!("{name} (quantized)"), &original, &q, None, 2.0 * 3f32.sqrt() / 16384.0);
+        // Posed, 8-bit skin and morph weights and 12-bit rotation keys add to that: 4/510 of
+        // the size from the weights (above), 2^-12 rad per joint of a chain, loosely 1/100.
+        for &t in &times {
+            same_shape(&format!("{name} (quantized)"), &original, &q, Some(t), 1e-2);
+        }
         // gltfpack may merge meshes and drop degenerate triangles; it keeps the rest.
         let (c0, c1) = (original.character().unwrap(), q.character().unwrap());
         assert!(c1.triangle_count() <= c0.triangle_count() && 100 * c1.triangle_count() >= 99 * c0.triangle_count());
