@@ -12,10 +12,10 @@ use proptest::prelude::*;
 use rig::Rng;
 use skinlet::bake::{Baked, bake, prepare_character};
 use skinlet::bounds::refine::Refinement;
-use skinlet::clip::{Channel, Clip, Interpolation};
+use skinlet::clip::{Channel, Clip, Interpolation, WeightChannel};
 use skinlet::cull::crowd::{CrowdParams, crowd, run};
 use skinlet::meshlet::{Builder, MeshletLimits};
-use skinlet::model::{Influences, Instance, Mesh, Node, Primitive, Skeleton, Skin, SkinnedMesh, Trs};
+use skinlet::model::{Influences, Instance, Mesh, MorphTarget, Node, Primitive, Skeleton, Skin, SkinnedMesh, Trs};
 use skinlet::pose::Poser;
 use skinlet::{Asset, PartKind};
 
@@ -216,25 +216,37 @@ fn random_scene(seed: u64) -> Asset {
 fn check_parts_pose_like_gltf(asset: &Asset, clip: Option<&Clip>, t: f32) {
     let character = asset.character().unwrap();
     let mut poser = Poser::default();
-    let posed = skinlet::skinning::posed_positions(&asset.skeleton, &character.palette, &character.mesh, clip, Some(t))
-        .unwrap();
+    let (posed, _) = character.posed(&asset.skeleton, clip, t).unwrap();
     let globals = poser.globals(&asset.skeleton, clip, t).to_vec();
     let (lo, hi) = posed.iter().fold((Vec3::MAX, Vec3::MIN), |(l, h), p| (l.min(*p), h.max(*p)));
     let tolerance = 1e-5 * (hi - lo).length().max(1.0);
     for part in &character.parts {
-        let g = &asset.meshes[part.mesh as usize].primitives[0].geometry;
+        let mesh = &asset.meshes[part.mesh as usize];
+        let prim = &mesh.primitives[0];
+        let g = &prim.geometry;
+        // glTF's morph weights: the node's, else the mesh's, else zero; a clip's weight
+        // channel for the node replaces a target's. Morphs come before skinning.
+        let mut weights = (asset.node_weights.get(&part.node).cloned()).unwrap_or_else(|| {
+            if mesh.weights.is_empty() { vec![0.0; prim.targets.len()] } else { mesh.weights.clone() }
+        });
+        for w in clip.iter().flat_map(|c| &c.weights).filter(|w| w.channel.node == part.node) {
+            weights[w.target as usize] = w.channel.sample(t);
+        }
+        let base: Vec<Vec3> = (0..g.positions.len())
+            .map(|v| g.positions[v] + prim.targets.iter().zip(&weights).map(|(d, w)| *w * d.positions[v]).sum::<Vec3>())
+            .collect();
         let want: Vec<Vec3> = match part.kind {
             PartKind::Skinned { skin } => {
                 let mut mats = Vec::new();
                 poser.skinning_matrices(&asset.skeleton, &asset.skins[skin as usize], clip, t, &mut mats);
                 let mut out = vec![Vec3::ZERO; g.positions.len()];
                 let inf = g.influences.as_ref().unwrap();
-                skinlet::skinning::skin(inf, &g.positions, &[], &mats, &mut out, &mut []).unwrap();
+                skinlet::skinning::skin(inf, &base, &[], &mats, &mut out, &mut []).unwrap();
                 out
             }
-            PartKind::Rigid => (g.positions.iter())
-                .map(|p| globals[part.node as usize].transform_point3(p.as_dvec3()).as_vec3())
-                .collect(),
+            PartKind::Rigid => {
+                (base.iter()).map(|p| globals[part.node as usize].transform_point3(p.as_dvec3()).as_vec3()).collect()
+            }
         };
         let got = &posed[part.vertices.start as usize..part.vertices.end as usize];
         for (v, (a, b)) in got.iter().zip(&want).enumerate() {
@@ -273,11 +285,53 @@ fn check_scene(seed: u64) {
     assert_eq!(stats.false_culls, 0, "seed {seed}: {stats:?}");
 }
 
+/// [`random_scene`] with two morph targets on the body and on the rigid mesh: mesh default
+/// weights, one drawing node's own weights, and weight channels (random modes) on the body
+/// and on the animated node.
+fn random_morph_scene(seed: u64) -> Asset {
+    let mut asset = random_scene(seed);
+    let mut r = Rng(seed.wrapping_mul(0xA24BAED4963EE407) | 1);
+    for m in [0, 2] {
+        let n = asset.meshes[m].primitives[0].geometry.positions.len();
+        let targets =
+            (0..2).map(|_| MorphTarget { positions: (0..n).map(|_| r.v3(0.5)).collect(), normals: Vec::new() });
+        asset.meshes[m].primitives[0].targets = targets.collect();
+    }
+    asset.meshes[2].weights = vec![r.range(-1.0, 1.0), r.range(-1.0, 1.0)];
+    let (body, prop, spinner) = (asset.instances[0].node, asset.instances[2].node, asset.instances[3].node);
+    asset.node_weights.insert(prop, vec![r.range(-1.0, 1.0), r.range(0.0, 1.0)]);
+    let end = asset.clips[0].end;
+    let modes = [Interpolation::Step, Interpolation::Linear, Interpolation::CubicSpline];
+    for (node, target) in [(body, 1), (spinner, 0)] {
+        let mode = modes[r.below(3)];
+        let per = if mode == Interpolation::CubicSpline { 3 } else { 1 };
+        let times: Vec<f32> = (0..4).map(|k| end * k as f32 / 3.0).collect();
+        let values = (0..per * times.len()).map(|_| r.range(-1.0, 1.5)).collect();
+        let channel = Channel { node, interpolation: mode, times, values };
+        asset.clips[0].weights.push(WeightChannel { target, channel });
+    }
+    asset
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 48, ..ProptestConfig::default() })]
     #[test]
     fn random_whole_characters_pose_bound_and_cull_conservatively(seed in any::<u64>()) {
         check_scene(seed);
+    }
+
+    #[test]
+    fn random_morph_targets_pose_like_gltf_and_are_not_baked(seed in any::<u64>()) {
+        let asset = random_morph_scene(seed);
+        let clip = &asset.clips[0];
+        for k in 0..7 {
+            check_parts_pose_like_gltf(&asset, Some(clip), clip.start + clip.duration() * k as f32 / 6.0);
+        }
+        check_parts_pose_like_gltf(&asset, None, 0.0);
+        let character = asset.character().unwrap();
+        assert_eq!(character.morphs.len(), 3, "body, prop and spinner");
+        let e = bake(&asset, &character, &[clip], Builder::SkinAware, MeshletLimits::NVIDIA, &Refinement::NONE, &mut |_| {});
+        assert!(e.err().is_some_and(|e| e.to_string().contains("morph targets move")));
     }
 }
 
