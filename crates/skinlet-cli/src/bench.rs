@@ -64,11 +64,11 @@ fn import(files: &[PathBuf], seconds: f64, json: bool) -> Result<()> {
     let mut calls: Vec<Box<dyn FnMut()>> = Vec::new();
     for ((path, b), tris) in files.iter().zip(&bytes).zip(triangles.iter_mut()) {
         // Checked once here, so the timed calls cannot fail.
-        let character = skinlet::import::load_bytes(b, path)?.character()?;
+        let character = crate::character_of(&skinlet::import::load_bytes(b, path)?)?;
         *tris = character.triangle_count();
         let failed = &failed;
         calls.push(Box::new(move || {
-            if let Err(e) = skinlet::import::load_bytes(b, path).and_then(|a| a.character()) {
+            if let Err(e) = skinlet::import::load_bytes(b, path).and_then(|a| crate::character_of(&a)) {
                 failed.borrow_mut().get_or_insert(e.to_string());
             }
         }));

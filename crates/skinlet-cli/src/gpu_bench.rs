@@ -67,7 +67,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len());
     // MS-CI draws common-influences meshlets: baked too, over the same clips, for their bounds.
     let how = a.refine.refinement()?;
-    let character = asset.character()?;
+    let character = crate::character_of(&asset)?;
     let (ci, _) = skinlet::bake::bake(
         &asset,
         &character,

@@ -33,8 +33,21 @@ for the built-in procedural demo character.",
     after_help = "Examples:\n  skinlet demo\n  skinlet inspect character.glb\n  skinlet inspect character.glb --json\n  skinlet pose character.glb --clip walk --time 0.5 --json > pose.json"
 )]
 struct Cli {
+    /// The glTF scene whose nodes make the character (an index into the file's `scenes`;
+    /// default: the file's `scene`, else scene 0, else every root node).
+    #[arg(long, global = true)]
+    scene: Option<usize>,
     #[command(subcommand)]
     command: Command,
+}
+
+/// `--scene`, set once after parsing: the one piece of CLI state every command loading a
+/// character reads.
+static SCENE: std::sync::OnceLock<Option<usize>> = std::sync::OnceLock::new();
+
+/// The character of `asset` for the scene `--scene` chose.
+fn character_of(asset: &Asset) -> skinlet::Result<Character> {
+    skinlet::character::character(asset, SCENE.get().copied().flatten())
 }
 
 /// Refinement of conservative bounds and the classification thresholds it aims at.
@@ -239,9 +252,9 @@ enum Command {
         /// The glTF file a bake was made from (required with a bake file).
         #[arg(long)]
         gltf: Option<String>,
-        /// The scene: the paper's crowd.
+        /// The layout: the paper's crowd.
         #[arg(long, default_value = "crowd", value_parser = ["crowd"])]
-        scene: String,
+        layout: String,
         #[arg(long, default_value_t = 64)]
         instances: usize,
         #[arg(long, default_value_t = 30)]
@@ -374,6 +387,7 @@ fn main() {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
     let cli = Cli::parse();
+    SCENE.get_or_init(|| cli.scene);
     let result = match cli.command {
         Command::Inspect { file, json } => inspect(&file, json),
         Command::Pose { file, clip, time, json } => pose(&file, clip.as_deref(), time, json),
@@ -389,7 +403,7 @@ fn main() {
         Command::Verify { file, baked, builder, clips, refine, samples, json } => {
             verify(&file, baked.as_deref(), &builder, clips.as_deref(), refine, samples, json)
         }
-        Command::Cull { file, gltf, scene: _, instances, frames, seed, ortho, check, refine, json } => {
+        Command::Cull { file, gltf, layout: _, instances, frames, seed, ortho, check, refine, json } => {
             let params = skinlet::cull::crowd::CrowdParams {
                 instances,
                 frames,
@@ -457,7 +471,7 @@ fn inspect(file: &str, json: bool) -> Result<()> {
     let asset = load(file)?;
     let s = summarize(&asset);
     let r = &asset.report;
-    let character = asset.character();
+    let character = character_of(&asset);
     let parts = character.as_ref().map(|c| part_rows(&asset, c)).unwrap_or_default();
     let character_error = character.as_ref().err().map(|e| e.to_string());
     if json {
@@ -665,7 +679,7 @@ fn demo(triangles: usize, seed: u64, glb: Option<&Path>, json: bool) -> Result<(
             .with_context(|| format!("cannot write {}", path.display()))?;
     }
     let s = summarize(&asset);
-    let character = asset.character()?;
+    let character = character_of(&asset)?;
     let skin = &character.palette;
     let posed = |clip, t| skinlet::skinning::posed_positions(&asset.skeleton, skin, &character.mesh, clip, t);
     let (rest_lo, rest_hi) = bbox(&posed(None, None)?);
@@ -871,7 +885,7 @@ fn load_character(file: &str) -> Result<(Asset, Character)> {
     for w in &asset.report.warnings {
         eprintln!("warning: {file}: {w}");
     }
-    let character = asset.character().with_context(|| format!("{file}: cannot build the character"))?;
+    let character = character_of(&asset).with_context(|| format!("{file}: cannot build the character"))?;
     Ok((asset, character))
 }
 

@@ -298,7 +298,7 @@ fn bake_is_deterministic_verifiable_and_its_errors_are_clear() {
 #[test]
 fn cull_reports_table_one_columns_and_never_culls_visible_triangles() {
     let j =
-        json_of(&["cull", "@demo:2000", "--scene", "crowd", "--instances", "8", "--frames", "3", "--check", "--json"]);
+        json_of(&["cull", "@demo:2000", "--layout", "crowd", "--instances", "8", "--frames", "3", "--check", "--json"]);
     for field in [
         "culled_backface_pct",
         "culled_frustum_pct",
@@ -554,4 +554,13 @@ fn bench_import_times_files_against_the_first() {
     assert_eq!(rows[0]["ratio"], 1.0);
     assert_eq!(rows[0]["triangles"], 576);
     assert!(rows[1]["import_ms"].as_f64().unwrap() > 0.0);
+}
+
+#[test]
+fn scene_option_selects_the_gltf_scene() {
+    let j = json_of(&["inspect", "@demo:1000", "--json"]);
+    assert_eq!(j["parts"].as_array().unwrap().len(), 6);
+    let (code, _, err) = skinlet(&["bake", "@demo:1000", "-o", "/nonexistent/x.skinlet", "--scene", "1"]);
+    assert_eq!(code, 2);
+    assert!(err.contains("scene 1 does not exist"), "{err}");
 }

@@ -293,3 +293,33 @@ fn scene_roots(asset: &Asset, scene: Option<usize>) -> Result<Vec<u32>> {
         None => Ok(asset.scenes[asset.default_scene.unwrap_or(0).min(asset.scenes.len() - 1)].clone()),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::demo::{DemoParams, demo_character};
+    use crate::model::{Instance, Node, Skeleton, Trs};
+
+    #[test]
+    fn scenes_choose_the_parts() {
+        // The demo plus a second root node drawing the eye mesh, in scene 1 only.
+        let mut a = demo_character(&DemoParams { triangles: 1000, ..DemoParams::default() });
+        let mut nodes = a.skeleton.nodes.clone();
+        nodes.push(Node { name: "lamp".into(), parent: None, rest: Trs::IDENTITY, matrix: None });
+        let lamp = nodes.len() as u32 - 1;
+        a.skeleton = Skeleton::new(nodes).unwrap();
+        a.instances.push(Instance { node: lamp, mesh: 4, skin: None });
+        // No scenes: every root is drawn.
+        assert_eq!(character(&a, None).unwrap().parts.len(), 7);
+        a.scenes = vec![vec![0], vec![lamp]];
+        a.default_scene = Some(1);
+        let nodes = |c: Character| c.parts.iter().map(|p| p.node).collect::<Vec<_>>();
+        assert_eq!(nodes(character(&a, None).unwrap()), [lamp]);
+        assert_eq!(character(&a, Some(0)).unwrap().parts.len(), 6);
+        let e = character(&a, Some(2)).unwrap_err().to_string();
+        assert!(e.contains("scene 2 does not exist (the file has 2)"), "{e}");
+        a.scenes.push(Vec::new());
+        let e = character(&a, Some(2)).unwrap_err().to_string();
+        assert!(e.contains("no node of scene 2 draws a triangle mesh"), "{e}");
+    }
+}
