@@ -78,12 +78,21 @@ fn id_color(i: usize) -> [u8; 4] {
 
 pub fn command(file: &str, a: &Args) -> Result<()> {
     anyhow::ensure!((16..=8192).contains(&a.size), "--size must be between 16 and 8192");
-    let (asset, character, prepared) = crate::prepared_character(file)?;
+    let (asset, character) = crate::load_character(file)?;
     let clip = crate::find_clip(&asset, a.clip.as_deref())?;
     let skin = &character.palette;
-    let mesh = &character.mesh;
-    let inf = mesh.influences.as_ref().context("the skinned mesh has no weights")?;
     let t = clip.map_or(0.0, |c| c.start + a.time);
+    // Morph targets are applied here on the CPU for the shown time (the GPU paths do not
+    // morph yet, and the bakes the other views need refuse moving morphs).
+    let morphs_move = character.morphs_move(&asset.clips.iter().collect::<Vec<_>>());
+    anyhow::ensure!(
+        !morphs_move || (a.view == "shaded" && !a.skinning.starts_with("mesh")),
+        "{file} has morph targets that move: only --view shaded with --skinning vertex or compute draws them (applied on the CPU)"
+    );
+    let prepared = skinlet::bake::prepare_character(&character)?;
+    let morphed = character.morphed(clip, t);
+    let mesh = &morphed;
+    let inf = mesh.influences.as_ref().context("the skinned mesh has no weights")?;
     let mut poser = Poser::default();
     let mut matrices = Vec::new();
     poser.skinning_matrices(&asset.skeleton, skin, clip, t, &mut matrices);

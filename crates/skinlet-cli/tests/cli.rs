@@ -564,3 +564,34 @@ fn scene_option_selects_the_gltf_scene() {
     assert_eq!(code, 2);
     assert!(err.contains("scene 1 does not exist"), "{err}");
 }
+
+#[test]
+fn render_draws_morph_targets_in_the_shaded_view() {
+    let Some(dir) = assets_dir() else { return };
+    let file = dir.join("morph/MorphStressTest.gltf");
+    let out = std::env::temp_dir().join(format!("skinlet-render-morph-{}", std::process::id()));
+    std::fs::create_dir_all(&out).unwrap();
+    let mut images = Vec::new();
+    for (skinning, time) in [("vertex", "0.0"), ("vertex", "0.9"), ("compute", "0.9")] {
+        let png = out.join(format!("{skinning}-{time}.png"));
+        let args = ["render", file.to_str().unwrap(), "--clip", "TheWave", "--time", time, "--skinning", skinning];
+        let (code, _, err) = skinlet(&[&args[..], &["--size", "64", "-o", png.to_str().unwrap()]].concat());
+        if code != 0
+            && err.contains("no GPU adapter")
+            && std::env::var("SKINLET_REQUIRE_GPU").map_or(true, |v| v != "1")
+        {
+            eprintln!("skipping: {err}");
+            return;
+        }
+        assert_eq!(code, 0, "{err}");
+        images.push(std::fs::read(&png).unwrap());
+    }
+    // The morphs move the shape between the two times; both pipelines draw the same image.
+    assert_ne!(images[0], images[1]);
+    assert_eq!(images[1], images[2]);
+    // Views that need a bake say why they cannot draw it.
+    let (code, _, err) = skinlet(&["render", file.to_str().unwrap(), "--view", "culled", "-o", "/dev/null"]);
+    assert_eq!(code, 2);
+    assert!(err.contains("morph targets that move"), "{err}");
+    let _ = std::fs::remove_dir_all(&out);
+}

@@ -118,12 +118,19 @@ impl Character {
         }
     }
 
+    /// The merged mesh with the morphs of `clip` at time `t` applied (`None`: the default
+    /// weights): what skinning then poses.
+    pub fn morphed(&self, clip: Option<&Clip>, t: f32) -> SkinnedMesh {
+        let mut m = self.mesh.clone();
+        self.apply_morphs(clip, t, &mut m.positions, &mut m.normals);
+        m
+    }
+
     /// Every vertex and normal (empty when the mesh has none) posed as glTF draws `clip` at
     /// time `t` (`None`: the rest pose with default morph weights), in scene space: morphs
     /// first, then skinning over the palette.
     pub fn posed(&self, skeleton: &Skeleton, clip: Option<&Clip>, t: f32) -> Result<(Vec<Vec3>, Vec<Vec3>)> {
-        let (mut p, mut n) = (self.mesh.positions.clone(), self.mesh.normals.clone());
-        self.apply_morphs(clip, t, &mut p, &mut n);
+        let SkinnedMesh { positions: p, normals: n, .. } = self.morphed(clip, t);
         let mut mats = Vec::new();
         crate::pose::Poser::default().skinning_matrices(skeleton, &self.palette, clip, t, &mut mats);
         let inf = self.mesh.influences.as_ref().ok_or_else(|| Error::invalid("character", "no skin weights"))?;
