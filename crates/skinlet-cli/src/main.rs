@@ -542,7 +542,7 @@ fn inspect(file: &str, json: bool) -> Result<()> {
     match &character {
         Ok(c) => {
             println!(
-                "  the character (default scene): {} parts, {} triangles drawn, {} drivers (joints and rigid nodes)",
+                "  the character: {} parts, {} triangles drawn, {} drivers (joints and rigid nodes)",
                 c.parts.len(),
                 c.triangle_count(),
                 c.palette.joints.len()
@@ -739,6 +739,15 @@ fn demo(triangles: usize, seed: u64, glb: Option<&Path>, json: bool) -> Result<(
     println!(
         "  a procedural creature: {} joints in a branching skeleton, {} vertices, {} triangles",
         s.joints, s.vertices, s.triangles
+    );
+    let rigid = character.parts.iter().filter(|p| p.kind == skinlet::PartKind::Rigid).count();
+    println!(
+        "  a whole character: {} parts ({} skinned by {} skins, {rigid} rigid), {} drivers, {} triangles drawn",
+        character.parts.len(),
+        character.parts.len() - rigid,
+        asset.skins.len(),
+        character.palette.joints.len(),
+        character.triangle_count()
     );
     let h: Vec<String> =
         s.influence_histogram.iter().take(4).enumerate().map(|(k, c)| format!("{}:{c}", k + 1)).collect();
