@@ -122,7 +122,7 @@ pub fn run(
             "output": out.display().to_string(), "bytes": bytes, "builder": builder.name(),
             "meshlets": baked.meshlets.len(), "vertices": baked.mesh.positions.len(),
             "triangles": character.triangle_count(), "baked_triangles": baked.mesh.triangles.len(),
-            "parts": baked.parts.len(), "skinned_parts": baked.parts.iter().filter(|p| p.skin.is_some()).count(),
+            "parts": baked.parts.len(), "skinned_parts": baked.parts.iter().filter(|p| p.kind != skinlet::PartKind::Rigid).count(),
             "drivers": baked.joint_nodes.len(),
             "clips": s.clips, "sr": s.s_r, "alpha_deg": s.alpha_t.to_degrees(),
             "both_pct": both, "frustum_only_pct": frustum, "none_pct": none,
@@ -135,7 +135,7 @@ pub fn run(
         return Ok(());
     }
     println!("{} -> {} ({bytes} bytes)", file, out.display());
-    let skinned = baked.parts.iter().filter(|p| p.skin.is_some()).count();
+    let skinned = baked.parts.iter().filter(|p| p.kind != skinlet::PartKind::Rigid).count();
     println!(
         "  {} parts ({skinned} skinned, {} rigid) over {} drivers; {} triangles drawn",
         baked.parts.len(),

@@ -56,8 +56,7 @@ pub struct BakedPart {
     pub node: u32,
     pub mesh: u32,
     pub primitive: u32,
-    /// The glTF skin deforming it; `None` for a rigid part.
-    pub skin: Option<u32>,
+    pub kind: PartKind,
     pub vertices: Range<u32>,
     pub triangles: Range<u32>,
     pub meshlets: Range<u32>,
@@ -157,10 +156,7 @@ pub fn bake(
             node: p.node,
             mesh: p.mesh,
             primitive: p.primitive,
-            skin: match p.kind {
-                PartKind::Skinned { skin } => Some(skin),
-                PartKind::Rigid => None,
-            },
+            kind: p.kind,
             vertices: r.vertices.clone(),
             triangles: r.triangles.clone(),
             meshlets: first_meshlet..end,
@@ -317,7 +313,11 @@ pub fn to_bytes(b: &Baked) -> Vec<u8> {
     let mut part = Out::default();
     part.u32(b.parts.len() as u32);
     for p in &b.parts {
-        for x in [p.node, p.mesh, p.primitive, p.skin.unwrap_or(u32::MAX)] {
+        let skin = match p.kind {
+            PartKind::Skinned { skin } => skin,
+            PartKind::Rigid => u32::MAX,
+        };
+        for x in [p.node, p.mesh, p.primitive, skin] {
             part.u32(x);
         }
         for r in [&p.vertices, &p.triangles, &p.meshlets] {
@@ -678,8 +678,8 @@ fn read_parts(mut s: In, mesh: &SkinnedMesh, meshlets: &Meshlets) -> Result<Vec<
                 "part {i}: vertices {vertices:?}, triangles {triangles:?}, meshlets {meshlet_range:?} are not the next ranges of its own data"
             )));
         }
-        let skin = (skin != u32::MAX).then_some(skin);
-        parts.push(BakedPart { node, mesh: mesh_index, primitive, skin, vertices, triangles, meshlets: meshlet_range });
+        let kind = if skin == u32::MAX { PartKind::Rigid } else { PartKind::Skinned { skin } };
+        parts.push(BakedPart { node, mesh: mesh_index, primitive, kind, vertices, triangles, meshlets: meshlet_range });
     }
     s.end()?;
     let ends = parts.last().map_or([0; 3], |p| [p.vertices.end, p.triangles.end, p.meshlets.end]);

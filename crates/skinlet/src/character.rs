@@ -79,11 +79,6 @@ pub struct Character {
 }
 
 impl Character {
-    /// One part's vertices and triangles, renumbered from 0, with palette joint numbers.
-    pub fn part_mesh(&self, part: &Part) -> SkinnedMesh {
-        self.mesh.slice(part.vertices.clone(), part.triangles.clone())
-    }
-
     /// Adds the morph displacement of `clip` at time `t` (`None`: the default weights) to
     /// positions and, when not empty, normals (normalized after) of the merged mesh's
     /// vertices ([`Character::mesh`] is the base shape, without morphs).
