@@ -89,7 +89,8 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         !morphs_move || (a.view == "shaded" && !a.skinning.starts_with("mesh")),
         "{file} has morph targets that move: only --view shaded with --skinning vertex or compute draws them (applied on the CPU)"
     );
-    let prepared = skinlet::bake::prepare_character(&character)?;
+    // Only the meshlet-drawing views need the character prepared (welded, cache-ordered).
+    let prepare = || skinlet::bake::prepare_character(&character);
     let morphed = character.morphed(clip, t);
     let mesh = &morphed;
     let inf = mesh.influences.as_ref().context("the skinned mesh has no weights")?;
@@ -115,6 +116,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     };
     let image = match a.view.as_str() {
         "meshlets" => {
+            let prepared = prepare()?;
             let meshlets = skinlet::meshlet::build(&prepared, Builder::SkinAware, MeshletLimits::NVIDIA)?;
             let gpu_mesh = GpuMesh::new(&gpu, &prepared.mesh, Some(&meshlets))?;
             let colors: Vec<[u8; 4]> = (0..meshlets.len()).map(id_color).collect();
@@ -230,6 +232,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                         "mesh" => (Builder::SkinAware, Skinning::Mesh),
                         _ => (Builder::CommonInfluences, Skinning::MeshSlim),
                     };
+                    let prepared = prepare()?;
                     let meshlets = skinlet::meshlet::build(&prepared, builder, MeshletLimits::NVIDIA)?;
                     let gpu_mesh = GpuMesh::new(&gpu, &prepared.mesh, Some(&meshlets))?;
                     let m = gpu_mesh.meshlets.as_ref().context("uploaded with meshlets")?;
