@@ -5,7 +5,7 @@ use crate::{RefineArgs, bake::bake_asset};
 use anyhow::{Context, Result};
 use serde_json::{Value, json};
 use skinlet::clip::Clip;
-use skinlet::cull::crowd::{CrowdParams, CrowdStats, WHOLE_MESH_BOUNDS, crowd, run};
+use skinlet::cull::crowd::{CrowdParams, CrowdStats, WHOLE_MESH_BOUNDS, posed_crowd, run};
 use skinlet::meshlet::Builder;
 
 /// The report: `meshlets_total` over all instances and frames; the three pipelines'
@@ -96,9 +96,7 @@ pub fn command(
     let (asset, baked) = load(file, gltf, args, json)?;
     let clips: Vec<&Clip> = crate::bake::clips_of(&baked, &asset, gltf.unwrap_or(file))?;
     let palette = baked.palette();
-    let posed =
-        skinlet::skinning::posed_positions(&asset.skeleton, &palette, &baked.mesh, clips.first().copied(), None)?;
-    let scene = crowd(&posed, clips.len(), params);
+    let scene = posed_crowd(&asset.skeleton, &palette, &baked.mesh, &clips, params)?;
     let s = run(&baked, &asset.skeleton, &palette, &clips, &scene, params, check)?;
     if json {
         println!("{}", serde_json::to_string_pretty(&to_json(&s, check))?);

@@ -6,7 +6,7 @@ use crate::RefineArgs;
 use anyhow::{Context, Result};
 use glam::{Affine3A, Vec3};
 use serde_json::json;
-use skinlet::cull::crowd::{CrowdParams, crowd};
+use skinlet::cull::crowd::{CrowdParams, posed_crowd};
 use skinlet::cull::meshlet::{JointFrame, MeshletCuller, Tests};
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::Poser;
@@ -58,8 +58,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let palette = baked.palette();
     let skin = &palette;
     let params = CrowdParams { instances: a.instances, frames: a.frames + 1, ..CrowdParams::default() };
-    let posed = skinlet::skinning::posed_positions(&asset.skeleton, skin, &baked.mesh, clips.first().copied(), None)?;
-    let scene = crowd(&posed, clips.len(), &params);
+    let scene = posed_crowd(&asset.skeleton, skin, &baked.mesh, &clips, &params)?;
     let gpu = Gpu::new(GpuOptions { software: a.software, ..GpuOptions::default() })?;
     let height = (a.width * 9 / 16).max(1);
     let renderer = Renderer::new(&gpu, a.width, height)?;

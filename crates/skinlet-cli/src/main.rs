@@ -712,7 +712,7 @@ fn demo(triangles: usize, seed: u64, glb: Option<&Path>, json: bool) -> Result<(
     let bake_bytes = skinlet::bake::to_bytes(&baked).len();
     // A small crowd scene: 16 instances, 10 frames, every culled triangle checked.
     let crowd_params = skinlet::cull::crowd::CrowdParams { instances: 16, frames: 10, ..Default::default() };
-    let scene = skinlet::cull::crowd::crowd(&posed(all.first().copied(), None)?, all.len(), &crowd_params);
+    let scene = skinlet::cull::crowd::posed_crowd(&asset.skeleton, skin, &baked.mesh, &all, &crowd_params)?;
     let crowd_stats = skinlet::cull::crowd::run(&baked, &asset.skeleton, skin, &all, &scene, &crowd_params, true)?;
     if json {
         let out = json!({

@@ -13,7 +13,7 @@ use rig::Rng;
 use skinlet::bake::{Baked, bake, prepare_character};
 use skinlet::bounds::refine::Refinement;
 use skinlet::clip::{Channel, Clip, Interpolation, WeightChannel};
-use skinlet::cull::crowd::{CrowdParams, crowd, run};
+use skinlet::cull::crowd::{CrowdParams, posed_crowd, run};
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::model::{Influences, Instance, Mesh, MorphTarget, Node, Primitive, Skeleton, Skin, SkinnedMesh, Trs};
 use skinlet::pose::Poser;
@@ -279,8 +279,7 @@ fn check_scene(seed: u64) {
     );
     assert_eq!(report.violations(), 0, "seed {seed}: {report:?}");
     let params = CrowdParams { instances: 8, frames: 3, seed, ..CrowdParams::default() };
-    let posed = skinlet::skinning::posed_positions(&asset.skeleton, &palette, &baked.mesh, Some(clip), None).unwrap();
-    let scene = crowd(&posed, 1, &params);
+    let scene = posed_crowd(&asset.skeleton, &palette, &baked.mesh, &clips, &params).unwrap();
     let stats = run(&baked, &asset.skeleton, &palette, &clips, &scene, &params, true).unwrap();
     assert_eq!(stats.false_culls, 0, "seed {seed}: {stats:?}");
 }

@@ -11,7 +11,7 @@ use glam::Vec3;
 use skinlet::bake::{Baked, bake};
 use skinlet::bounds::refine::Refinement;
 use skinlet::clip::Clip;
-use skinlet::cull::crowd::{CrowdParams, crowd, run};
+use skinlet::cull::crowd::{CrowdParams, posed_crowd, run};
 use skinlet::cull::joint_aabb::{Box3, JointBoxes, JointSpace};
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::model::{Skeleton, Skin, SkinnedMesh};
@@ -47,9 +47,7 @@ fn check_crowd(name: &str, asset: &Asset, params: &CrowdParams) -> (f64, f64) {
     let b = baked(asset);
     let clips: Vec<&Clip> = asset.clips.iter().collect();
     let skin = &b.palette();
-    let posed =
-        skinlet::skinning::posed_positions(&asset.skeleton, skin, &b.mesh, clips.first().copied(), None).unwrap();
-    let scene = crowd(&posed, clips.len(), params);
+    let scene = posed_crowd(&asset.skeleton, skin, &b.mesh, &clips, params).unwrap();
     let stats = run(&b, &asset.skeleton, skin, &clips, &scene, params, true).unwrap();
     eprintln!(
         "{name} (ortho {}): {} triangles checked, {} false culls; culled {:.1}% (frustum only {:.1}%, backface only {:.1}%), triangles saved {:.1}%",

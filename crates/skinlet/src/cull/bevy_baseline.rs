@@ -14,7 +14,7 @@
 //! Ours ([`Workload::palette`]): joint-space boxes moved by entity-space joint matrices, one
 //! array for all instances, no matrix product and no lookup.
 
-use super::crowd::{CrowdParams, crowd};
+use super::crowd::{CrowdParams, posed_crowd};
 use super::joint_aabb::{Box3, JointBoxes, JointSpace};
 use crate::model::Asset;
 use crate::pose::Poser;
@@ -134,8 +134,14 @@ impl Workload {
         let (skin, mesh) = (&character.palette, &character.mesh);
         let boxes = JointBoxes::new(mesh, skin, JointSpace::Joint)?;
         let mesh_boxes = JointBoxes::new(mesh, skin, JointSpace::Mesh)?;
-        let posed = crate::skinning::posed_positions(&asset.skeleton, skin, mesh, asset.clips.first(), None)?;
-        let scene = crowd(&posed, asset.clips.len(), &CrowdParams { instances, seed, ..CrowdParams::default() });
+        let clips: Vec<&crate::clip::Clip> = asset.clips.iter().collect();
+        let scene = posed_crowd(
+            &asset.skeleton,
+            skin,
+            mesh,
+            &clips,
+            &CrowdParams { instances, seed, ..CrowdParams::default() },
+        )?;
         let stride = skin.joints.len();
         let mut poser = Poser::default();
         let mut flat = BevyScene {

@@ -89,9 +89,23 @@ impl Rng {
     }
 }
 
-/// Lays out the scene for a character whose bind-pose vertices are `positions`: a camera at
-/// the origin looking down −z, three quarters of the instances on a grid that fills the view
-/// and spills past its sides, one quarter centered on the four side planes.
+/// [`crowd`] for `mesh` (over the joints of `skin`) posed at the start of the first of
+/// `clips` (the rest pose without clips): laid out in scene space, so a centimetre, Z-up file
+/// gives the same scene as a metre, Y-up one.
+pub fn posed_crowd(
+    skeleton: &Skeleton,
+    skin: &Skin,
+    mesh: &crate::SkinnedMesh,
+    clips: &[&Clip],
+    params: &CrowdParams,
+) -> Result<Crowd> {
+    let posed = crate::skinning::posed_positions(skeleton, skin, mesh, clips.first().copied(), None)?;
+    Ok(crowd(&posed, clips.len(), params))
+}
+
+/// Lays out the scene for a character whose vertices (in scene space, posed) are `positions`:
+/// a camera at the origin looking down −z, three quarters of the instances on a grid that
+/// fills the view and spills past its sides, one quarter centered on the four side planes.
 pub fn crowd(positions: &[Vec3], clips: usize, params: &CrowdParams) -> Crowd {
     let (lo, hi) = positions
         .iter()
