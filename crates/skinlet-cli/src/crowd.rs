@@ -53,14 +53,14 @@ pub fn print(s: &CrowdStats, verify: bool) {
     }
 }
 
-/// The asset and the bake of its character for `file`: a bake (with `gltf`, the file it was
-/// baked from) or a glTF file, baked first.
+/// The asset, its character and the character's bake for `file`: a bake (with `gltf`, the
+/// file it was baked from) or a glTF file, baked first.
 pub fn load(
     file: &str,
     gltf: Option<&str>,
     args: RefineArgs,
     json: bool,
-) -> Result<(skinlet::Asset, skinlet::bake::Baked)> {
+) -> Result<(skinlet::Asset, skinlet::Character, skinlet::bake::Baked)> {
     let is_bake = std::fs::File::open(file)
         .and_then(|mut f| {
             let mut magic = [0u8; 8];
@@ -73,12 +73,12 @@ pub fn load(
         let (asset, character) = crate::load_character(gltf)?;
         let baked = skinlet::bake::read(std::path::Path::new(file))?;
         crate::bake::check_source(&baked, &character, gltf, std::path::Path::new(file))?;
-        Ok((asset, baked))
+        Ok((asset, character, baked))
     } else {
         anyhow::ensure!(gltf.is_none(), "--gltf goes with a bake file; {file} is not one");
         let (asset, character) = crate::load_character(file)?;
         let (baked, _) = bake_asset(&asset, &character, None, Builder::SkinAware, args, json)?;
-        Ok((asset, baked))
+        Ok((asset, character, baked))
     }
 }
 
@@ -93,7 +93,7 @@ pub fn command(
     json: bool,
 ) -> Result<()> {
     anyhow::ensure!(params.instances >= 1 && params.frames >= 1, "--instances and --frames must be at least 1");
-    let (asset, baked) = load(file, gltf, args, json)?;
+    let (asset, _, baked) = load(file, gltf, args, json)?;
     let clips: Vec<&Clip> = crate::bake::clips_of(&baked, &asset, gltf.unwrap_or(file))?;
     let palette = baked.palette();
     let scene = posed_crowd(&asset.skeleton, &palette, &baked.mesh, &clips, params)?;

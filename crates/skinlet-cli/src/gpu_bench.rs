@@ -53,7 +53,7 @@ struct Row {
 pub fn command(file: &str, a: &Args) -> Result<()> {
     anyhow::ensure!(a.instances >= 1 && a.frames >= 1, "--instances and --frames must be at least 1");
     anyhow::ensure!((64..=8192).contains(&a.width), "--width must be between 64 and 8192");
-    let (asset, baked) = crate::crowd::load(file, a.gltf.as_deref(), a.refine, a.json)?;
+    let (asset, character, baked) = crate::crowd::load(file, a.gltf.as_deref(), a.refine, a.json)?;
     let clips = crate::bake::clips_of(&baked, &asset, a.gltf.as_deref().unwrap_or(file))?;
     let palette = baked.palette();
     let skin = &palette;
@@ -66,7 +66,6 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len());
     // MS-CI draws common-influences meshlets: baked too, over the same clips, for their bounds.
     let how = a.refine.refinement()?;
-    let character = crate::character_of(&asset)?;
     let (ci, _) = skinlet::bake::bake(
         &asset,
         &character,
