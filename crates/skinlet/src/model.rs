@@ -218,6 +218,13 @@ pub struct Mesh {
     pub weights: Vec<f32>,
 }
 
+impl Mesh {
+    /// Number of morph targets (every primitive of a mesh has the same number).
+    pub fn morph_targets(&self) -> usize {
+        self.primitives.first().map_or(0, |p| p.targets.len())
+    }
+}
+
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Primitive {
     /// Index of the primitive in the glTF mesh.

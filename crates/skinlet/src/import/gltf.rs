@@ -610,7 +610,7 @@ fn load_node_weights(doc: &gltf::Document, meshes: &[Mesh]) -> Result<std::colle
         let Some(w) = n.weights() else { continue };
         let loc = format!("node {} ({:?})", n.index(), n.name().unwrap_or(""));
         finite(&loc, "weights", w)?;
-        let targets = n.mesh().map_or(0, |m| meshes[m.index()].primitives.first().map_or(0, |p| p.targets.len()));
+        let targets = n.mesh().map_or(0, |m| meshes[m.index()].morph_targets());
         if w.len() != targets {
             return Err(Error::invalid(loc, format!("{} weights for {targets} morph targets of its mesh", w.len())));
         }
@@ -687,9 +687,7 @@ fn load_clip(anim: &gltf::Animation, meshes: &[Mesh], buffers: &Buffers, report:
             }
             Property::MorphTargetWeights => {
                 let target_node = ch.target().node();
-                let targets = target_node
-                    .mesh()
-                    .map_or(0, |m| meshes[m.index()].primitives.first().map_or(0, |p| p.targets.len()));
+                let targets = target_node.mesh().map_or(0, |m| meshes[m.index()].morph_targets());
                 if targets == 0 {
                     return Err(Error::invalid(
                         &loc,
