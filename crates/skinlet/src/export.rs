@@ -1,8 +1,9 @@
 //! Writes an [`Asset`] as a glTF 2.0 binary (.glb): nodes (TRS or matrix), every mesh's
 //! triangle primitives (positions, normals, indices, JOINTS_0/WEIGHTS_0 and JOINTS_1/
 //! WEIGHTS_1 for eight influences), skins with their inverse bind matrices, and clips with
-//! their channels in the stored interpolation (CUBICSPLINE tangents kept). One scene holds
-//! every root node. What skinlet reads back is the same asset (tested), so the demo
+//! their channels in the stored interpolation (CUBICSPLINE tangents kept), and the scenes
+//! (or, for an asset without, one scene of every root node). Morph targets are refused, not
+//! dropped. What skinlet reads back is the same asset (tested), so the demo
 //! character can be handed to other glTF tools (`skinlet demo --glb`).
 
 use crate::clip::Channel;
@@ -145,10 +146,16 @@ pub fn to_glb(asset: &Asset) -> Result<Vec<u8>> {
         }
         animations.push(json!({"name": clip.name, "samplers": samplers, "channels": channels}));
     }
-    let roots: Vec<usize> = (0..sk.nodes.len()).filter(|&i| sk.nodes[i].parent.is_none()).collect();
+    // The asset's scenes, or one holding every root node (how skinlet reads a file without).
+    let scenes: Vec<Value> = if asset.scenes.is_empty() {
+        let roots: Vec<usize> = (0..sk.nodes.len()).filter(|&i| sk.nodes[i].parent.is_none()).collect();
+        vec![json!({"nodes": roots})]
+    } else {
+        asset.scenes.iter().map(|s| json!({"nodes": s})).collect()
+    };
     let mut doc = json!({
         "asset": {"version": "2.0", "generator": "skinlet"},
-        "scene": 0, "scenes": [{"nodes": roots}], "nodes": nodes, "meshes": meshes,
+        "scene": asset.default_scene.unwrap_or(0), "scenes": scenes, "nodes": nodes, "meshes": meshes,
         "buffers": [{"byteLength": w.bin.len()}], "bufferViews": w.views, "accessors": w.accessors,
     });
     if !skins.is_empty() {
@@ -194,7 +201,13 @@ mod tests {
             let (wi, wj) = (i.map_or(&[][..], |i| &i.weights[..]), j.map_or(&[][..], |j| &j.weights[..]));
             assert!(wi.len() == wj.len() && wi.iter().zip(wj).all(|(x, y)| (x - y).abs() < 1e-6), "{}", m.name);
         }
-        assert_eq!(b.scenes.len(), 1);
+        assert_eq!((b.scenes.len(), b.default_scene), (1, Some(0)));
+        // An asset's own scenes are written as they are.
+        let mut c = a.clone();
+        c.scenes = vec![vec![0], vec![0]];
+        c.default_scene = Some(1);
+        let d = crate::import::load_gltf_slice(&super::to_glb(&c).unwrap(), None).unwrap();
+        assert_eq!((d.scenes, d.default_scene), (c.scenes, c.default_scene));
         assert!(b.report.warnings.is_empty(), "{:?}", b.report.warnings);
         let (ca, cb) = (a.character().unwrap(), b.character().unwrap());
         assert!(ca.parts == cb.parts && ca.palette == cb.palette);
