@@ -450,16 +450,17 @@ fn interp_names(c: &skinlet::summary::ClipSummary) -> Vec<&'static str> {
 /// What `inspect` says of each part: node, its name, mesh, primitive, kind, vertices, triangles.
 fn part_rows(asset: &Asset, character: &Character) -> Vec<(u32, String, u32, u32, String, usize, usize)> {
     let animated = |node| asset.clips.iter().any(|c| !c.key_times_affecting(&asset.skeleton, node).is_empty());
-    (character.parts.iter().enumerate())
-        .map(|(i, p)| {
+    (character.parts.iter())
+        .map(|p| {
             let mut kind = match p.kind {
                 skinlet::PartKind::Skinned { skin } => format!("skinned by skin {skin}"),
                 skinlet::PartKind::Rigid if animated(p.node) => "rigid, animated".to_string(),
                 skinlet::PartKind::Rigid => "rigid, static".to_string(),
             };
-            if let Some(m) = character.morphs.iter().find(|m| m.part as usize == i) {
-                let animated = asset.clips.iter().any(|c| c.weights.iter().any(|w| w.channel.node == m.node));
-                kind += &format!(", {} morph targets{}", m.targets.len(), if animated { " (animated)" } else { "" });
+            let targets = asset.meshes[p.mesh as usize].morph_targets();
+            if targets > 0 {
+                let animated = asset.clips.iter().any(|c| c.weights.iter().any(|w| w.channel.node == p.node));
+                kind += &format!(", {targets} morph targets{}", if animated { " (animated)" } else { "" });
             }
             let name = asset.skeleton.nodes[p.node as usize].name.clone();
             (p.node, name, p.mesh, p.primitive, kind, p.vertices.len(), p.triangles.len())
@@ -901,7 +902,6 @@ fn load_character(file: &str) -> Result<(Asset, Character)> {
 /// [`load_character`], and the character prepared for meshlets (parts kept apart).
 fn prepared_character(file: &str) -> Result<(Asset, Character, skinlet::meshlet::PreparedMesh)> {
     let (asset, character) = load_character(file)?;
-    skinlet::bake::refuse_moving_morphs(&character, &asset.clips.iter().collect::<Vec<_>>())?;
     let prepared = skinlet::bake::prepare_character(&character)?;
     Ok((asset, character, prepared))
 }

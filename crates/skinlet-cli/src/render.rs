@@ -84,14 +84,17 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let t = clip.map_or(0.0, |c| c.start + a.time);
     // Morph targets are applied here on the CPU for the shown time (the GPU paths do not
     // morph yet, and the bakes the other views need refuse moving morphs).
-    let morphs_move = character.morphs_move(&asset.clips.iter().collect::<Vec<_>>());
+    let morphs_move = character.mesh.morphs.move_over(&asset.clips.iter().collect::<Vec<_>>());
     anyhow::ensure!(
         !morphs_move || (a.view == "shaded" && !a.skinning.starts_with("mesh")),
         "{file} has morph targets that move: only --view shaded with --skinning vertex or compute draws them (applied on the CPU)"
     );
     // Only the meshlet-drawing views need the character prepared (welded, cache-ordered).
     let prepare = || skinlet::bake::prepare_character(&character);
-    let morphed = character.morphed(clip, t);
+    let mut weights = Vec::new();
+    character.mesh.morphs.weights_at(clip, t, &mut weights);
+    let (positions, normals) = character.mesh.morphed(&weights);
+    let morphed = SkinnedMesh { positions, normals, morphs: Default::default(), ..character.mesh.clone() };
     let mesh = &morphed;
     let inf = mesh.influences.as_ref().context("the skinned mesh has no weights")?;
     let mut poser = Poser::default();

@@ -22,7 +22,7 @@ use crate::contour::skinned::{ClipWindows, SkinnedParams, SkinnedPatches, skinne
 use crate::meshlet::{
     Builder, MeshletLimits, Meshlets, PartRange, PreparedMesh, build, canonical, flat, prepare_parts,
 };
-use crate::model::{Asset, Influences, Skin, SkinnedMesh};
+use crate::model::{Asset, Influences, MorphDelta, MorphWeight, Morphs, Skin, SkinnedMesh};
 use crate::overdraw::cluster::{ClusterParams, Framing, Lookup, Orders, cluster};
 use crate::overdraw::evaluate::keyframes;
 use crate::{Error, Result};
@@ -32,7 +32,7 @@ use std::ops::Range;
 use std::path::Path;
 
 pub const MAGIC: [u8; 8] = *b"SKINLET\0";
-pub const VERSION: u32 = 2;
+pub const VERSION: u32 = 3;
 
 /// How a bake was made (enough to reproduce it from the same source file).
 #[derive(Clone, Debug, PartialEq)]
@@ -109,27 +109,6 @@ pub fn prepare_character(character: &Character) -> Result<PreparedMesh> {
     prepare_parts(&character.mesh, &ranges)
 }
 
-/// Morph targets that move vertices are not bounded yet: an error naming the parts, rather
-/// than bounds that do not hold.
-pub fn refuse_moving_morphs(character: &Character, clips: &[&Clip]) -> Result<()> {
-    if !character.morphs_move(clips) {
-        return Ok(());
-    }
-    let parts: Vec<String> = (character.morphs.iter())
-        .map(|m| {
-            let p = &character.parts[m.part as usize];
-            format!("node {} mesh {} primitive {}", p.node, p.mesh, p.primitive)
-        })
-        .collect();
-    Err(Error::unsupported(
-        "bake",
-        format!(
-            "morph targets move the vertices of {}; conservative bounds over morph targets are not built yet (`skinlet pose` applies them)",
-            parts.join(", ")
-        ),
-    ))
-}
-
 /// Bakes the whole character of `asset` (every part, see [`crate::character`]): prepares
 /// its mesh part by part, builds meshlets (none mixes two parts), computes bounds over the
 /// union of `clips` refined as `how` allows, and classifies them.
@@ -143,7 +122,6 @@ pub fn bake(
     progress: &mut dyn FnMut(Progress),
 ) -> Result<(Baked, BakeStats)> {
     let s = &character.palette;
-    refuse_moving_morphs(character, clips)?;
     let prepared = prepare_character(character)?;
     let meshlets = build(&prepared, builder, limits)?;
     let mut parts = Vec::with_capacity(character.parts.len());
@@ -241,7 +219,10 @@ fn baked_clips<'a>(baked: &Baked, asset: &'a Asset) -> Result<Vec<&'a Clip>> {
 }
 
 /// Section tags: the seven required ones, then the optional overdraw orders and contours.
-const TAGS: [&[u8; 4]; 9] = [b"INFO", b"SKIN", b"VERT", b"TRIS", b"MLET", b"BNDS", b"PART", b"OVDR", b"CONT"];
+const TAGS: [&[u8; 4]; 10] =
+    [b"INFO", b"SKIN", b"VERT", b"TRIS", b"MLET", b"BNDS", b"PART", b"OVDR", b"CONT", b"MRPH"];
+const MORPH_WEIGHT_STRIDE: usize = 12;
+const MORPH_DELTA_STRIDE: usize = 28;
 const PART_STRIDE: usize = 40;
 const PATCH_STRIDE: usize = 48;
 const HEADER: usize = 16;
@@ -379,6 +360,25 @@ pub fn to_bytes(b: &Baked) -> Vec<u8> {
         ov.0.extend_from_slice(&l.table);
         ov.0.resize(ov.0.len().next_multiple_of(4), 0);
         sections.push(ov.0);
+    }
+    if !m.morphs.is_empty() {
+        tags.push(TAGS[9]);
+        let mut mr = Out::default();
+        let mo = &m.morphs;
+        mr.u32(mo.weights.len() as u32);
+        mr.u32(mo.deltas.len() as u32);
+        for w in &mo.weights {
+            mr.u32(w.node);
+            mr.u32(w.target);
+            mr.f32(w.default);
+        }
+        mo.offsets.iter().for_each(|&o| mr.u32(o));
+        for d in &mo.deltas {
+            mr.u32(d.weight);
+            mr.vec3(d.position);
+            mr.vec3(d.normal);
+        }
+        sections.push(mr.0);
     }
     if let Some(c) = &b.contours {
         tags.push(TAGS[8]);
@@ -525,7 +525,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
         return Err(Error::unsupported("bake header", format!("version {version}; this skinlet reads {VERSION}")));
     }
     let n = head.count("sections", ENTRY)?;
-    let mut found: [Option<&[u8]>; 9] = [None; 9];
+    let mut found: [Option<&[u8]>; 10] = [None; 10];
     for _ in 0..n {
         let tag: [u8; 4] = head.bytes(4)?.try_into().expect("4 bytes");
         head.u32()?;
@@ -603,7 +603,8 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
         })
         .collect::<Result<Vec<_>>>()?;
     s.end()?;
-    let mesh = SkinnedMesh { positions, normals, triangles, influences };
+    let morphs = if found[9].is_some() { read_morphs(section(9)?, vertices)? } else { Morphs::default() };
+    let mesh = SkinnedMesh { positions, normals, triangles, influences, morphs };
 
     let s = section(4)?;
     let meshlets = flat::from_bytes(s.b).map_err(|e| s.err(e))?;
@@ -653,6 +654,27 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
         overdraw,
         contours,
     })
+}
+
+/// The MRPH section: the morph weights, then per vertex its first delta (one more offset
+/// than vertices), then the deltas; checked like any [`Morphs`].
+fn read_morphs(mut s: In, vertices: usize) -> Result<Morphs> {
+    let n = s.count("morph weights", MORPH_WEIGHT_STRIDE)?;
+    let d = s.count("morph deltas", MORPH_DELTA_STRIDE)?;
+    let weights = (0..n)
+        .map(|_| Ok(MorphWeight { node: s.u32()?, target: s.u32()?, default: s.f32()? }))
+        .collect::<Result<Vec<_>>>()?;
+    if (vertices + 1).saturating_mul(4) > s.b.len() - s.at {
+        return Err(s.err(format!("{} vertex offsets do not fit in the section", vertices + 1)));
+    }
+    let offsets = (0..=vertices).map(|_| s.u32()).collect::<Result<Vec<_>>>()?;
+    let deltas = (0..d)
+        .map(|_| Ok(MorphDelta { weight: s.u32()?, position: s.vec3()?, normal: s.vec3()? }))
+        .collect::<Result<Vec<_>>>()?;
+    s.end()?;
+    let morphs = Morphs { weights, offsets, deltas };
+    morphs.check(vertices).map_err(|e| s.err(e))?;
+    Ok(morphs)
 }
 
 /// The PART section: consecutive ranges covering the vertices, triangles and meshlets, each
@@ -936,8 +958,9 @@ mod tests {
         wrong[0] = b'X';
         assert!(msg(&wrong).contains("magic"), "{}", msg(&wrong));
         let mut newer = bytes.clone();
-        newer[8] = 3;
-        assert!(msg(&newer).contains("version 3"), "{}", msg(&newer));
+        newer[8] = VERSION as u8 + 1;
+        let m = msg(&newer);
+        assert!(m.contains(&format!("version {}", VERSION + 1)), "{m}");
         // A triangle index past the vertex count, in section TRIS.
         let tris = u64::from_le_bytes(bytes[HEADER + 3 * ENTRY + 8..HEADER + 3 * ENTRY + 16].try_into().unwrap());
         let at = tris as usize + 4;

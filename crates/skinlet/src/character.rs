@@ -27,7 +27,7 @@
 //! ```
 
 use crate::clip::Clip;
-use crate::model::{Asset, Influences, MorphTarget, Skeleton, Skin, SkinnedMesh};
+use crate::model::{Asset, Influences, MorphDelta, MorphWeight, Morphs, Skeleton, Skin, SkinnedMesh};
 use crate::{Error, Result};
 use glam::{Mat4, Vec3};
 use std::collections::HashMap;
@@ -55,17 +55,6 @@ pub struct Part {
     pub triangles: Range<u32>,
 }
 
-/// The morph targets of one part: deltas of its vertices, weighted by the morph weights of
-/// its node (glTF: the node's `weights`, else its mesh's, else zero; animated by the clips'
-/// weight channels of that node). Morphs apply before skinning, as glTF specifies.
-#[derive(Clone, Debug, PartialEq)]
-pub struct PartMorphs {
-    pub part: u32,
-    pub node: u32,
-    pub defaults: Vec<f32>,
-    pub targets: Vec<MorphTarget>,
-}
-
 /// Every drawing of a scene as one skinned mesh over one palette of drivers.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Character {
@@ -74,79 +63,26 @@ pub struct Character {
     pub palette: Skin,
     pub mesh: SkinnedMesh,
     pub parts: Vec<Part>,
-    /// Morph targets of the parts that have them.
-    pub morphs: Vec<PartMorphs>,
 }
 
 impl Character {
-    /// Adds the morph displacement of `clip` at time `t` (`None`: the default weights) to
-    /// positions and, when not empty, normals (normalized after) of the merged mesh's
-    /// vertices ([`Character::mesh`] is the base shape, without morphs).
-    fn apply_morphs(&self, clip: Option<&Clip>, t: f32, positions: &mut [Vec3], normals: &mut [Vec3]) {
-        let mut weights = Vec::new();
-        for m in &self.morphs {
-            match clip {
-                Some(c) => c.sample_weights(m.node, t, &m.defaults, &mut weights),
-                None => weights.clone_from(&m.defaults),
-            }
-            if weights.iter().all(|&w| w == 0.0) {
-                continue;
-            }
-            let range = self.parts[m.part as usize].vertices.clone();
-            let (start, end) = (range.start as usize, range.end as usize);
-            for (target, &w) in m.targets.iter().zip(&weights) {
-                if w == 0.0 {
-                    continue;
-                }
-                for (p, d) in positions[start..end].iter_mut().zip(&target.positions) {
-                    *p += w * *d;
-                }
-                if !normals.is_empty() {
-                    for (n, d) in normals[start..end].iter_mut().zip(&target.normals) {
-                        *n += w * *d;
-                    }
-                }
-            }
-            if !normals.is_empty() {
-                normals[start..end].iter_mut().for_each(|n| *n = n.normalize_or_zero());
-            }
-        }
-    }
-
-    /// The merged mesh with the morphs of `clip` at time `t` applied (`None`: the default
-    /// weights): what skinning then poses.
-    pub fn morphed(&self, clip: Option<&Clip>, t: f32) -> SkinnedMesh {
-        let mut m = self.mesh.clone();
-        self.apply_morphs(clip, t, &mut m.positions, &mut m.normals);
-        m
-    }
-
     /// Every vertex and normal (empty when the mesh has none) posed as glTF draws `clip` at
     /// time `t` (`None`: the rest pose with default morph weights), in scene space: morphs
     /// first, then skinning over the palette.
     pub fn posed(&self, skeleton: &Skeleton, clip: Option<&Clip>, t: f32) -> Result<(Vec<Vec3>, Vec<Vec3>)> {
-        let SkinnedMesh { positions: p, normals: n, .. } = self.morphed(clip, t);
-        let mut mats = Vec::new();
+        let (mut mats, mut weights) = (Vec::new(), Vec::new());
         crate::pose::Poser::default().skinning_matrices(skeleton, &self.palette, clip, t, &mut mats);
-        let inf = self.mesh.influences.as_ref().ok_or_else(|| Error::invalid("character", "no skin weights"))?;
-        let (mut op, mut on) = (vec![Vec3::ZERO; p.len()], vec![Vec3::ZERO; n.len()]);
-        crate::skinning::skin(inf, &p, &n, &mats, &mut op, &mut on)?;
+        self.mesh.morphs.weights_at(clip, t, &mut weights);
+        let n = self.mesh.positions.len();
+        let (mut op, mut on) = (vec![Vec3::ZERO; n], vec![Vec3::ZERO; self.mesh.normals.len()]);
+        crate::skinning::skin_mesh(&self.mesh, &weights, &mats, &mut op, &mut on)?;
         Ok((op, on))
     }
 
-    /// True when a morph target can move a vertex over `clips` or in the default pose: a
-    /// non-zero delta whose weight is non-zero by default or animated.
-    pub fn morphs_move(&self, clips: &[&Clip]) -> bool {
-        self.morphs.iter().any(|m| {
-            m.targets.iter().enumerate().any(|(k, t)| {
-                let moves = t.positions.iter().chain(&t.normals).any(|d| *d != Vec3::ZERO);
-                let weighted = m.defaults.get(k).is_some_and(|&w| w != 0.0)
-                    || clips
-                        .iter()
-                        .any(|c| c.weights.iter().any(|w| w.channel.node == m.node && w.target as usize == k));
-                moves && weighted
-            })
-        })
+    /// The parts whose vertices morph targets move (see [`crate::model::Morphs::move_over`]).
+    pub fn morphed_parts(&self) -> impl Iterator<Item = &Part> {
+        let m = &self.mesh.morphs;
+        self.parts.iter().filter(|p| (p.vertices.start..p.vertices.end).any(|v| !m.of(v as usize).is_empty()))
     }
 
     /// Triangles of every part: a mesh counted once per node that draws it.
@@ -200,7 +136,7 @@ pub fn character(asset: &Asset, scene: Option<usize>) -> Result<Character> {
     }
     let mut merged: Vec<SkinnedMesh> = Vec::new();
     let mut parts = Vec::new();
-    let mut morphs = Vec::new();
+    let mut morphs = Morphs::default();
     let (mut vertices, mut triangles) = (0u32, 0u32);
     for inst in &instances {
         let mesh = asset.meshes.get(inst.mesh as usize).ok_or_else(|| {
@@ -255,17 +191,30 @@ pub fn character(asset: &Asset, scene: Option<usize>) -> Result<Character> {
             });
             (vertices, triangles) = (v_end, t_end);
             if !p.targets.is_empty() {
-                let defaults = match asset.node_weights.get(&inst.node) {
-                    Some(w) => w.clone(),
-                    None if !mesh.weights.is_empty() => mesh.weights.clone(),
-                    None => vec![0.0; p.targets.len()],
-                };
-                morphs.push(PartMorphs {
-                    part: parts.len() as u32 - 1,
-                    node: inst.node,
-                    defaults,
-                    targets: p.targets.clone(),
-                });
+                // One weight per (node, target): the primitives of a mesh share their node's.
+                let defaults = asset.node_weights.get(&inst.node).unwrap_or(&mesh.weights);
+                let slots: Vec<u32> = (0..p.targets.len() as u32)
+                    .map(|k| match morphs.weight_index(inst.node, k) {
+                        Some(i) => i as u32,
+                        None => {
+                            let default = defaults.get(k as usize).copied().unwrap_or(0.0);
+                            morphs.weights.push(MorphWeight { node: inst.node, target: k, default });
+                            morphs.weights.len() as u32 - 1
+                        }
+                    })
+                    .collect();
+                let first = morphs.deltas.len();
+                morphs.offsets.resize(vertices as usize - nv as usize + 1, first as u32);
+                for v in 0..nv as usize {
+                    for (t, &weight) in p.targets.iter().zip(&slots) {
+                        let position = t.positions[v];
+                        let normal = t.normals.get(v).copied().unwrap_or(Vec3::ZERO);
+                        if position != Vec3::ZERO || normal != Vec3::ZERO {
+                            morphs.deltas.push(MorphDelta { weight, position, normal });
+                        }
+                    }
+                    morphs.offsets.push(morphs.deltas.len() as u32);
+                }
             }
             merged.push(SkinnedMesh { influences: Some(influences), ..g.clone() });
         }
@@ -274,13 +223,20 @@ pub fn character(asset: &Asset, scene: Option<usize>) -> Result<Character> {
         let which = scene.map_or("the scene".to_string(), |s| format!("scene {s}"));
         return Err(Error::invalid("character", format!("no node of {which} draws a triangle mesh")));
     }
-    let mesh = crate::model::concat(&merged.iter().collect::<Vec<_>>());
+    let mut mesh = crate::model::concat(&merged.iter().collect::<Vec<_>>());
+    if !morphs.deltas.is_empty() {
+        // Vertices after the last morphed part have no deltas.
+        morphs.offsets.resize(vertices as usize + 1, morphs.deltas.len() as u32);
+        mesh.morphs = morphs;
+    } else {
+        mesh.morphs = Morphs { weights: morphs.weights, ..Morphs::default() };
+    }
     let name = match asset.skins.len() {
         1 => asset.skins[0].name.clone(),
         _ => "character".to_string(),
     };
     let (joints, inverse_bind) = drivers.into_iter().unzip();
-    Ok(Character { palette: Skin { name, joints, inverse_bind }, mesh, parts, morphs })
+    Ok(Character { palette: Skin { name, joints, inverse_bind }, mesh, parts })
 }
 
 /// The root nodes of the chosen scene.

@@ -174,6 +174,135 @@ pub struct SkinnedMesh {
     pub triangles: Vec<[u32; 3]>,
     /// `None` for a mesh with no JOINTS/WEIGHTS attributes.
     pub influences: Option<Influences>,
+    /// Morph target deltas (empty: none). Morphs apply before skinning, as glTF specifies.
+    pub morphs: Morphs,
+}
+
+/// One morph weight of a mesh: target `target` of the mesh that node `node` draws (glTF's
+/// weights are per node), with the weight it has where no clip animates it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MorphWeight {
+    pub node: u32,
+    pub target: u32,
+    pub default: f32,
+}
+
+/// One vertex's displacement by one morph weight: the vertex moves by `weight × position`
+/// and its normal by `weight × normal` (zero where the file gives no normal deltas).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MorphDelta {
+    /// Index into [`Morphs::weights`].
+    pub weight: u32,
+    pub position: Vec3,
+    pub normal: Vec3,
+}
+
+/// Morph targets of a mesh, stored like skin influences: a palette of weights (the frame's
+/// values are sampled per weight, like joint matrices per joint) and, per vertex, the
+/// deltas that move it (only non-zero ones, so a face's targets cost nothing on the body).
+/// The morphed vertex is `p + Σ wₖ·dₖ` over the vertex's deltas in stored order.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Morphs {
+    pub weights: Vec<MorphWeight>,
+    /// Vertex `v`'s deltas are `deltas[offsets[v]..offsets[v + 1]]`; empty when the mesh has
+    /// no deltas at all.
+    pub offsets: Vec<u32>,
+    pub deltas: Vec<MorphDelta>,
+}
+
+impl Morphs {
+    /// True when no vertex has a delta.
+    pub fn is_empty(&self) -> bool {
+        self.deltas.is_empty()
+    }
+
+    /// The deltas of vertex `v`.
+    pub fn of(&self, v: usize) -> &[MorphDelta] {
+        match self.offsets.get(v..v + 2) {
+            Some(r) => &self.deltas[r[0] as usize..r[1] as usize],
+            None => &[],
+        }
+    }
+
+    /// The value of every weight when `clip` plays at time `t` (`None`: the defaults).
+    pub fn weights_at(&self, clip: Option<&crate::clip::Clip>, t: f32, out: &mut Vec<f32>) {
+        out.clear();
+        out.extend(self.weights.iter().map(|w| w.default));
+        for ch in clip.into_iter().flat_map(|c| &c.weights) {
+            if let Some(k) = self.weight_index(ch.channel.node, ch.target) {
+                out[k] = ch.channel.sample(t);
+            }
+        }
+    }
+
+    /// The weight of target `target` of node `node`, if the mesh has it.
+    pub fn weight_index(&self, node: u32, target: u32) -> Option<usize> {
+        self.weights.iter().position(|w| w.node == node && w.target == target)
+    }
+
+    /// Vertex `v` with its deltas weighted by `values` (see [`Morphs::weights_at`]) added.
+    #[inline]
+    pub fn morph(&self, v: usize, values: &[f32], position: Vec3, normal: Vec3) -> (Vec3, Vec3) {
+        let (mut p, mut n) = (position, normal);
+        for d in self.of(v) {
+            let w = values[d.weight as usize];
+            p += w * d.position;
+            n += w * d.normal;
+        }
+        (p, n)
+    }
+
+    /// The morphs of vertices `kept` (in that order), e.g. after welding or slicing.
+    pub fn select(&self, kept: impl Iterator<Item = usize>) -> Morphs {
+        if self.is_empty() {
+            return Morphs { weights: self.weights.clone(), ..Morphs::default() };
+        }
+        let mut out = Morphs { weights: self.weights.clone(), offsets: vec![0], deltas: Vec::new() };
+        for v in kept {
+            out.deltas.extend_from_slice(self.of(v));
+            out.offsets.push(out.deltas.len() as u32);
+        }
+        out
+    }
+
+    /// True when some vertex can move over `clips` or in the default pose: a delta whose
+    /// weight is non-zero by default or animated by a clip.
+    pub fn move_over(&self, clips: &[&crate::clip::Clip]) -> bool {
+        let live: Vec<bool> = (self.weights.iter())
+            .map(|w| {
+                w.default != 0.0
+                    || clips.iter().flat_map(|c| &c.weights).any(|c| c.channel.node == w.node && c.target == w.target)
+            })
+            .collect();
+        self.deltas.iter().any(|d| live[d.weight as usize] && (d.position != Vec3::ZERO || d.normal != Vec3::ZERO))
+    }
+
+    /// Checks the layout against a mesh of `vertices` vertices: offsets, weight indices and
+    /// finite deltas.
+    pub fn check(&self, vertices: usize) -> crate::Result<()> {
+        let bad = |what: String| Err(crate::Error::invalid("morph targets", what));
+        if self.offsets.is_empty() {
+            return if self.deltas.is_empty() { Ok(()) } else { bad("deltas without vertex offsets".into()) };
+        }
+        if self.offsets.len() != vertices + 1 || self.offsets[0] != 0 {
+            return bad(format!("{} vertex offsets for {vertices} vertices", self.offsets.len()));
+        }
+        if let Some(v) = self.offsets.windows(2).position(|w| w[1] < w[0]) {
+            return bad(format!("vertex {v}: offsets decrease"));
+        }
+        if *self.offsets.last().unwrap_or(&0) as usize != self.deltas.len() {
+            return bad(format!("the offsets end at {} but there are {} deltas", self.offsets.last().unwrap_or(&0), self.deltas.len()));
+        }
+        if let Some(d) = self.deltas.iter().find(|d| d.weight as usize >= self.weights.len()) {
+            return bad(format!("a delta uses weight {} of {}", d.weight, self.weights.len()));
+        }
+        if self.deltas.iter().any(|d| !(d.position.is_finite() && d.normal.is_finite()))
+            || self.weights.iter().any(|w| !w.default.is_finite())
+        {
+            return bad("non-finite delta or default weight".into());
+        }
+        Ok(())
+    }
 }
 
 impl SkinnedMesh {
@@ -193,7 +322,24 @@ impl SkinnedMesh {
                 joints: inf.joints[v.start * inf.stride..v.end * inf.stride].to_vec(),
                 weights: inf.weights[v.start * inf.stride..v.end * inf.stride].to_vec(),
             }),
+            morphs: self.morphs.select(v),
         }
+    }
+
+    /// Positions and normals (empty when the mesh has none) with the morph weights `values`
+    /// applied: the shape skinning then poses.
+    pub fn morphed(&self, values: &[f32]) -> (Vec<Vec3>, Vec<Vec3>) {
+        let (mut p, mut n) = (self.positions.clone(), self.normals.clone());
+        if !self.morphs.is_empty() {
+            for v in 0..p.len() {
+                let (mp, mn) = self.morphs.morph(v, values, p[v], n.get(v).copied().unwrap_or(Vec3::ZERO));
+                p[v] = mp;
+                if let Some(nv) = n.get_mut(v) {
+                    *nv = mn;
+                }
+            }
+        }
+        (p, n)
     }
 
     /// Triangles that repeat a vertex or have zero area (valid, but they draw nothing).
@@ -287,8 +433,22 @@ pub fn concat(meshes: &[&SkinnedMesh]) -> SkinnedMesh {
     // Normals when any mesh has them (zero vectors for the vertices of those without).
     let with_normals = meshes.iter().any(|m| !m.normals.is_empty());
     let mut inf = stride.map(|stride| Influences { stride, joints: Vec::new(), weights: Vec::new() });
+    let with_morphs = meshes.iter().any(|m| !m.morphs.is_empty());
     for m in meshes {
         let base = out.positions.len() as u32;
+        // Each mesh's morph weights are its own: appended to the palette, indices offset.
+        let first_weight = out.morphs.weights.len() as u32;
+        out.morphs.weights.extend_from_slice(&m.morphs.weights);
+        if with_morphs {
+            if out.morphs.offsets.is_empty() {
+                out.morphs.offsets.push(0);
+            }
+            for v in 0..m.positions.len() {
+                let deltas = m.morphs.of(v).iter().map(|d| MorphDelta { weight: d.weight + first_weight, ..*d });
+                out.morphs.deltas.extend(deltas);
+                out.morphs.offsets.push(out.morphs.deltas.len() as u32);
+            }
+        }
         out.positions.extend_from_slice(&m.positions);
         if with_normals && m.normals.is_empty() {
             out.normals.resize(out.positions.len(), Vec3::ZERO);

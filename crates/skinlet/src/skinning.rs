@@ -2,11 +2,13 @@
 //! checked against: `p' = (Σ wᵢ Mᵢ) p` and `n' = normalize(cof(Σ wᵢ Mᵢ) n)` where `cof` is the
 //! cofactor matrix (det × inverse-transpose, sign-corrected), i.e. the exact normal
 //! transform of the blended linear map, also under non-uniform or negative scale.
+//! [`skin_mesh`] first adds each vertex's morph target deltas (`p + Σ wₖ·dₖ`, normals alike),
+//! as glTF specifies.
 //!
 //! Each vertex is computed independently in a fixed order, so the parallel and serial
 //! entry points give bit-identical results.
 
-use crate::model::Influences;
+use crate::model::{Influences, Morphs, SkinnedMesh};
 use crate::{Error, Result};
 use glam::{Affine3A, Mat3A, Vec3, Vec3A};
 use rayon::prelude::*;
@@ -69,8 +71,17 @@ fn checked<'o>(
     Ok(out_normals)
 }
 
+/// Morph targets and the frame's weight values, applied to each vertex before skinning.
+#[derive(Clone, Copy)]
+struct Morphing<'a> {
+    morphs: &'a Morphs,
+    values: &'a [f32],
+}
+
+#[allow(clippy::too_many_arguments)]
 fn skin_range(
     influences: &Influences,
+    morphing: Option<Morphing>,
     start: usize,
     positions: &[Vec3],
     normals: &[Vec3],
@@ -81,11 +92,42 @@ fn skin_range(
     for i in 0..out_p.len() {
         let v = start + i;
         let m = blend_matrix(influences, v, matrices);
-        out_p[i] = m.transform_point3(positions[v]);
+        let n = normals.get(v).copied().unwrap_or(Vec3::ZERO);
+        let (p, n) = match morphing {
+            Some(mo) => mo.morphs.morph(v, mo.values, positions[v], n),
+            None => (positions[v], n),
+        };
+        out_p[i] = m.transform_point3(p);
         if !out_n.is_empty() {
-            out_n[i] = transform_normal(&m, normals[v]);
+            out_n[i] = transform_normal(&m, n);
         }
     }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn skin_all(
+    influences: &Influences,
+    morphing: Option<Morphing>,
+    positions: &[Vec3],
+    normals: &[Vec3],
+    matrices: &[Affine3A],
+    out_positions: &mut [Vec3],
+    out_normals: &mut [Vec3],
+    parallel: bool,
+) -> Result<()> {
+    let out_normals = checked(influences, positions, normals, matrices, out_positions, out_normals)?;
+    if !parallel || positions.len() < PARALLEL_MIN_VERTICES {
+        skin_range(influences, morphing, 0, positions, normals, matrices, out_positions, out_normals);
+    } else if out_normals.is_empty() {
+        out_positions.par_chunks_mut(CHUNK).enumerate().for_each(|(c, op)| {
+            skin_range(influences, morphing, c * CHUNK, positions, normals, matrices, op, &mut []);
+        });
+    } else {
+        out_positions.par_chunks_mut(CHUNK).zip(out_normals.par_chunks_mut(CHUNK)).enumerate().for_each(
+            |(c, (op, on))| skin_range(influences, morphing, c * CHUNK, positions, normals, matrices, op, on),
+        );
+    }
+    Ok(())
 }
 
 /// Skins every vertex, in parallel for large meshes. `normals` may be empty (then
@@ -98,21 +140,7 @@ pub fn skin(
     out_positions: &mut [Vec3],
     out_normals: &mut [Vec3],
 ) -> Result<()> {
-    let out_normals = checked(influences, positions, normals, matrices, out_positions, out_normals)?;
-    if positions.len() < PARALLEL_MIN_VERTICES {
-        skin_range(influences, 0, positions, normals, matrices, out_positions, out_normals);
-    } else if out_normals.is_empty() {
-        out_positions.par_chunks_mut(CHUNK).enumerate().for_each(|(c, op)| {
-            skin_range(influences, c * CHUNK, positions, normals, matrices, op, &mut []);
-        });
-    } else {
-        out_positions
-            .par_chunks_mut(CHUNK)
-            .zip(out_normals.par_chunks_mut(CHUNK))
-            .enumerate()
-            .for_each(|(c, (op, on))| skin_range(influences, c * CHUNK, positions, normals, matrices, op, on));
-    }
-    Ok(())
+    skin_all(influences, None, positions, normals, matrices, out_positions, out_normals, true)
 }
 
 /// Same as [`skin`], on the calling thread only.
@@ -124,12 +152,37 @@ pub fn skin_serial(
     out_positions: &mut [Vec3],
     out_normals: &mut [Vec3],
 ) -> Result<()> {
-    let out_normals = checked(influences, positions, normals, matrices, out_positions, out_normals)?;
-    skin_range(influences, 0, positions, normals, matrices, out_positions, out_normals);
-    Ok(())
+    skin_all(influences, None, positions, normals, matrices, out_positions, out_normals, false)
 }
 
-/// The positions of `mesh` (over the joints of `joints`) posed by `clip` at time `t` (`None`:
+/// Skins a whole mesh: each vertex first moved by its morph deltas weighted by `weights`
+/// (the frame's values of [`Morphs::weights`], see [`Morphs::weights_at`]; may be empty
+/// for a mesh without morphs), then skinned like [`skin`]. `out_normals` may be empty.
+pub fn skin_mesh(
+    mesh: &SkinnedMesh,
+    weights: &[f32],
+    matrices: &[Affine3A],
+    out_positions: &mut [Vec3],
+    out_normals: &mut [Vec3],
+) -> Result<()> {
+    let inf = mesh.influences.as_ref().ok_or_else(|| Error::invalid("skinning", "the mesh has no skin weights"))?;
+    let morphing = if mesh.morphs.is_empty() {
+        None
+    } else {
+        mesh.morphs.check(mesh.positions.len())?;
+        if weights.len() != mesh.morphs.weights.len() {
+            return Err(Error::invalid(
+                "skinning",
+                format!("{} morph weight values for {} morph weights", weights.len(), mesh.morphs.weights.len()),
+            ));
+        }
+        Some(Morphing { morphs: &mesh.morphs, values: weights })
+    };
+    let normals = if out_normals.is_empty() { &[][..] } else { &mesh.normals[..] };
+    skin_all(inf, morphing, &mesh.positions, normals, matrices, out_positions, out_normals, true)
+}
+
+/// The positions of `mesh` (over the joints of `joints`, morphs applied) posed by `clip` at time `t` (`None`:
 /// the clip's start), or in the rest pose without a clip: scene space, where a crowd is laid
 /// out and a camera framed.
 pub fn posed_positions(
@@ -139,12 +192,12 @@ pub fn posed_positions(
     clip: Option<&crate::clip::Clip>,
     t: Option<f32>,
 ) -> Result<Vec<Vec3>> {
-    let inf = mesh.influences.as_ref().ok_or_else(|| Error::invalid("posing", "the mesh has no skin weights"))?;
-    let mut mats = Vec::new();
+    let (mut mats, mut weights) = (Vec::new(), Vec::new());
     let t = t.unwrap_or(clip.map_or(0.0, |c| c.start));
     crate::pose::Poser::default().skinning_matrices(skeleton, joints, clip, t, &mut mats);
+    mesh.morphs.weights_at(clip, t, &mut weights);
     let mut out = vec![Vec3::ZERO; mesh.positions.len()];
-    skin(inf, &mesh.positions, &[], &mats, &mut out, &mut [])?;
+    skin_mesh(mesh, &weights, &mats, &mut out, &mut [])?;
     Ok(out)
 }
 

@@ -1,5 +1,5 @@
-//! Vertex welding: merges vertices whose position and skin data (joints and weights) are
-//! bit-identical, so that UV or normal seams no longer split the surface. The remap is
+//! Vertex welding: merges vertices whose position, skin data (joints and weights) and morph
+//! target deltas are bit-identical, so that UV or normal seams no longer split the surface. The remap is
 //! meshoptimizer's (`meshopt_generateVertexRemapMulti`, vertices numbered by first
 //! occurrence); the welded vertex keeps the attributes of the first vertex of its group, so
 //! the output is deterministic and triangle windings are unchanged.
@@ -43,11 +43,23 @@ pub(crate) fn weld_groups(mesh: &SkinnedMesh, group: &[u32]) -> (SkinnedMesh, Ve
             .unzip(),
         None => (vec![[0; 8]; n], vec![[0.0; 8]; n]),
     };
+    // Morph deltas differ in length per vertex: each distinct list gets a number.
+    let mut lists: std::collections::HashMap<Vec<u32>, u32> = std::collections::HashMap::new();
+    let morph_class: Vec<u32> = (0..n)
+        .map(|v| {
+            let key: Vec<u32> = (mesh.morphs.of(v).iter())
+                .flat_map(|d| [d.weight].into_iter().chain(d.position.to_array().into_iter().chain(d.normal.to_array()).map(f32::to_bits)))
+                .collect();
+            let next = lists.len() as u32;
+            *lists.entry(key).or_insert(next)
+        })
+        .collect();
     let streams = [
         VertexStream::new(mesh.positions.as_ptr()),
         VertexStream::new(joints.as_ptr()),
         VertexStream::new(weights.as_ptr()),
         VertexStream::new(group.as_ptr()),
+        VertexStream::new(morph_class.as_ptr()),
     ];
     let (count, remap) = meshopt::generate_vertex_remap_multi(n, &streams, None);
     let mut first = vec![u32::MAX; count];
@@ -67,6 +79,7 @@ pub(crate) fn weld_groups(mesh: &SkinnedMesh, group: &[u32]) -> (SkinnedMesh, Ve
         normals: if mesh.normals.is_empty() { Vec::new() } else { kept.iter().map(|&v| mesh.normals[v]).collect() },
         triangles: mesh.triangles.iter().map(|t| t.map(|i| remap[i as usize])).collect(),
         influences,
+        morphs: mesh.morphs.select(kept.iter().copied()),
     };
     let report = WeldReport { input_vertices: n, output_vertices: count };
     (welded, remap, report)
@@ -90,6 +103,7 @@ mod tests {
             normals: vec![Vec3::X, Vec3::Y, Vec3::Z],
             triangles: vec![[0, 1, 2]],
             influences: Some(inf),
+            ..SkinnedMesh::default()
         };
         let (w, remap, r) = weld(&mesh);
         assert_eq!(remap, vec![0, 0, 1]);

@@ -1,7 +1,8 @@
 //! The conservative-bounds guarantee, checked against dense sampling of reference skinning:
 //! random hierarchies (branching, up to depth 12, constant matrix nodes with shear), random
 //! clips in all three interpolation modes (rotations up to 180° between keys, full turns
-//! over several keys, non-uniform and negative scale), random soft weights and targets.
+//! over several keys, non-uniform and negative scale), random soft weights and targets, and
+//! morph targets whose weights are animated in all three modes.
 
 use glam::{DVec3, Quat, Vec3};
 use proptest::prelude::*;
@@ -29,7 +30,16 @@ fn relative(skeleton: &Skeleton, locals: &[Trs], from: u32, to: u32) -> glam::DM
 /// Checks every vertex against every target joint over every key interval and a random
 /// sub-interval of each, at 40 sample times per interval (ends included).
 fn check_character(seed: u64) -> Result<usize, String> {
-    let (skeleton, skin, clip, positions, inf) = random_character(seed);
+    let (skeleton, skin, mut clip, positions, inf) = random_character(seed);
+    // Half the characters morph before skinning (weights animated in all three modes).
+    let morphs = if seed % 2 == 0 {
+        rig::random_morphs(seed, positions.len(), 0, &mut clip)
+    } else {
+        skinlet::model::Morphs::default()
+    };
+    let mesh = skinlet::SkinnedMesh { positions, influences: Some(inf), morphs, ..Default::default() };
+    let (positions, inf) = (&mesh.positions, mesh.influences.as_ref().unwrap());
+    let mut weights = Vec::new();
     let mut keys = clip.key_times();
     if keys.len() == 1 {
         keys.push(keys[0]);
@@ -42,11 +52,11 @@ fn check_character(seed: u64) -> Result<usize, String> {
         let (u1, u2) = (r.u(), r.u());
         let sub = (a + (b - a) * u1.min(u2), a + (b - a) * u1.max(u2));
         for (t1, t2) in [(a, b), sub] {
-            let motions = IntervalMotions::new(&skeleton, Some(&clip), t1, t2).map_err(|e| e.to_string())?;
+            let motions =
+                IntervalMotions::new(&skeleton, &mesh.morphs, Some(&clip), t1, t2).map_err(|e| e.to_string())?;
             for target in 0..skin.joints.len() as u16 {
-                let boxes: Vec<_> = (0..positions.len())
-                    .map(|v| vertex_box(&skeleton, &skin, &motions, &inf, v, positions[v], target))
-                    .collect();
+                let boxes: Vec<_> =
+                    (0..positions.len()).map(|v| vertex_box(&skeleton, &skin, &motions, &mesh, v, target)).collect();
                 for k in 0..40 {
                     let t = t1 + (t2 - t1) * k as f32 / 39.0;
                     let t = t.min(t2);
@@ -55,14 +65,19 @@ fn check_character(seed: u64) -> Result<usize, String> {
                     // common part cancels exactly, so a scale passing through zero above it does
                     // not turn rounding into false alarms), times the inverse bind matrix.
                     clip.sample_locals(&skeleton, t, &mut locals);
+                    mesh.morphs.weights_at(Some(&clip), t, &mut weights);
                     let to = skin.joints[target as usize];
                     for v in 0..positions.len() {
+                        // The morphed rest point, in f64 from the sampled weights.
+                        let morphed = (mesh.morphs.of(v).iter())
+                            .map(|d| d.position.as_dvec3() * weights[d.weight as usize] as f64)
+                            .fold(positions[v].as_dvec3(), |p, d| p + d);
                         let q: DVec3 = inf
                             .of(v)
                             .map(|(j, w)| {
                                 let rel = relative(&skeleton, &locals, skin.joints[j as usize], to);
                                 let bind = skin.inverse_bind[j as usize].as_dmat4();
-                                (rel * bind).transform_point3(positions[v].as_dvec3()) * w as f64
+                                (rel * bind).transform_point3(morphed) * w as f64
                             })
                             .sum();
                         let p = q;
@@ -110,7 +125,7 @@ fn half_turn_between_keys_is_covered_both_ways() {
         end: 1.0,
         ..Clip::default()
     };
-    let motions = IntervalMotions::new(&skeleton, Some(&clip), 0.0, 1.0).unwrap();
+    let motions = IntervalMotions::new(&skeleton, &Default::default(), Some(&clip), 0.0, 1.0).unwrap();
     // A point on node 1's X axis seen from its unrotated sibling: both half circles.
     let b = motions.carry(&skeleton, 1, 2, skinlet::bounds::Aabb::point(DVec3::X));
     assert!(b.contains(DVec3::Y * 0.999) && b.contains(-DVec3::Y * 0.999), "{b:?}");
@@ -154,7 +169,7 @@ fn check_meshlet_bounds(seed: u64) -> Result<Option<bool>, String> {
     if triangles.is_empty() {
         return Ok(None);
     }
-    let mesh = skinlet::SkinnedMesh { positions, normals: Vec::new(), triangles, influences: Some(inf) };
+    let mesh = skinlet::SkinnedMesh { positions, triangles, influences: Some(inf), ..Default::default() };
     let prepared = prepare(&mesh);
     let limits = MeshletLimits { max_vertices: 8, max_triangles: 8 };
     let meshlets = build(&prepared, Builder::SkinAware, limits).map_err(|e| e.to_string())?;

@@ -284,7 +284,7 @@ fn random_skinned(seed: u64) -> (Skeleton, Skin, Clip, SkinnedMesh) {
             inf.weights[4 * v + s] = w / total;
         }
     }
-    (skeleton, skin, clip, SkinnedMesh { positions: p, normals: Vec::new(), triangles: t, influences: Some(inf) })
+    (skeleton, skin, clip, SkinnedMesh { positions: p, triangles: t, influences: Some(inf), ..Default::default() })
 }
 
 #[test]

@@ -1,7 +1,8 @@
 //! Run-time culling guarantees: the crowd scene never culls a triangle that brute force finds
 //! visible (every shared asset and the demo, perspective and orthographic), and per-joint
-//! boxes contain every skinned vertex at every sampled time (shared assets, random rigs with
-//! negative and zero scale and shear through non-uniform parent scale).
+//! boxes contain every skinned vertex at every sampled time (shared assets, morph targets
+//! included, random rigs with negative and zero scale and shear through non-uniform parent
+//! scale).
 
 mod common;
 mod rig;
@@ -33,10 +34,12 @@ fn baked(asset: &Asset) -> Baked {
     .0
 }
 
+/// Every shared skinned character and the morph-target test.
 fn shared_assets() -> Vec<(String, Asset)> {
     let Some(dir) = assets_dir() else { return Vec::new() };
     let mut files: Vec<_> = std::fs::read_dir(dir.join("skinned")).unwrap().map(|e| e.unwrap().path()).collect();
     files.sort();
+    files.push(dir.join("morph/MorphStressTest.gltf"));
     files
         .iter()
         .map(|p| (p.file_name().unwrap().to_string_lossy().into_owned(), skinlet::import::load(p).unwrap()))
@@ -93,9 +96,10 @@ fn check_boxes(
     clip: Option<&Clip>,
     folded: Option<&JointBoxes>,
 ) -> usize {
-    let inf = mesh.influences.as_ref().unwrap();
-    let in_mesh = JointBoxes::new(mesh, skin, JointSpace::Mesh).unwrap();
-    let in_joint = JointBoxes::new(mesh, skin, JointSpace::Joint).unwrap();
+    let clips: Vec<&Clip> = clip.into_iter().collect();
+    let in_mesh = JointBoxes::new(mesh, skin, JointSpace::Mesh, &clips).unwrap();
+    let in_joint = JointBoxes::new(mesh, skin, JointSpace::Joint, &clips).unwrap();
+    let mut weights = Vec::new();
     let mut poser = Poser::default();
     let (mut skinning, mut skinned) = (Vec::new(), vec![Vec3::ZERO; mesh.positions.len()]);
     let times: Vec<f32> = match clip {
@@ -108,7 +112,8 @@ fn check_boxes(
         skinlet::pose::skinning_matrices(skin, &globals, &mut skinning);
         let mut joint_globals = Vec::new();
         skinlet::pose::joint_globals(skin, &globals, &mut joint_globals);
-        skinlet::skinning::skin(inf, &mesh.positions, &[], &skinning, &mut skinned, &mut []).unwrap();
+        mesh.morphs.weights_at(clip, t, &mut weights);
+        skinlet::skinning::skin_mesh(mesh, &weights, &skinning, &mut skinned, &mut []).unwrap();
         let mut boxes: Vec<(&str, Box3)> =
             vec![("mesh space", in_mesh.update(&skinning)), ("joint space", in_joint.update(&joint_globals))];
         if let Some(f) = folded {
@@ -138,7 +143,7 @@ fn joint_boxes_contain_every_skinned_vertex_on_shared_assets() {
         let skin = &character.palette;
         let mesh = character.mesh.clone();
         let clips: Vec<&Clip> = asset.clips.iter().collect();
-        let in_joint = JointBoxes::new(&mesh, skin, JointSpace::Joint).unwrap();
+        let in_joint = JointBoxes::new(&mesh, skin, JointSpace::Joint, &clips).unwrap();
         let folded = in_joint.fold_leaves(&asset.skeleton, skin, &mesh, &clips, 2).unwrap();
         let mut checked = 0;
         for clip in &clips {
@@ -165,8 +170,8 @@ fn joint_boxes_contain_every_skinned_vertex_on_random_rigs() {
             let k = seed as usize % ch.values.len();
             ch.values[k].y = 0.0;
         }
-        let mesh = SkinnedMesh { positions, normals: Vec::new(), triangles: Vec::new(), influences: Some(inf) };
-        let folded = JointBoxes::new(&mesh, &skin, JointSpace::Joint)
+        let mesh = SkinnedMesh { positions, influences: Some(inf), ..SkinnedMesh::default() };
+        let folded = JointBoxes::new(&mesh, &skin, JointSpace::Joint, &[&clip])
             .unwrap()
             .fold_leaves(&skeleton, &skin, &mesh, &[&clip], 1)
             .ok();

@@ -87,7 +87,7 @@ pub(crate) fn piece_extent(
     let mut min_cos = (rest.rest_cone_angle as f64).cos();
     boxes.clear();
     boxes.extend(verts.iter().map(|&v| {
-        vertex_box(ctx.skeleton, ctx.skin, mo, ctx.inf, v as usize, ctx.mesh.positions[v as usize], rest.joint)
+        vertex_box(ctx.skeleton, ctx.skin, mo, ctx.mesh, v as usize, rest.joint)
     }));
     for bx in boxes.iter() {
         r = r.max(bx.inflated(INFLATE).max_distance(c));
@@ -169,8 +169,12 @@ pub(crate) fn round_up(x: f64) -> f32 {
 }
 
 /// Rest-pose bounds: principal joint, bounding sphere of the vertices in the joint's bind
-/// space (center of their box, radius to the farthest vertex), rest normal cone.
+/// space (center of their box, radius to the farthest vertex), rest normal cone. The rest
+/// shape has the default morph weights applied.
 pub fn rest_bounds(skin: &Skin, mesh: &SkinnedMesh, meshlets: &Meshlets) -> Vec<MeshletBounds> {
+    let mut defaults = Vec::new();
+    mesh.morphs.weights_at(None, 0.0, &mut defaults);
+    let (rest, _) = mesh.morphed(&defaults);
     meshlets
         .meshlets
         .iter()
@@ -178,8 +182,7 @@ pub fn rest_bounds(skin: &Skin, mesh: &SkinnedMesh, meshlets: &Meshlets) -> Vec<
             let verts = meshlets.vertices_of(m);
             let joint = principal_joint(mesh, verts).map_or(0, |(j, _)| j);
             let ibm = skin.inverse_bind[joint as usize].as_dmat4();
-            let bind: Vec<DVec3> =
-                verts.iter().map(|&v| ibm.transform_point3(mesh.positions[v as usize].as_dvec3())).collect();
+            let bind: Vec<DVec3> = verts.iter().map(|&v| ibm.transform_point3(rest[v as usize].as_dvec3())).collect();
             let (lo, hi) = bind.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(l, h), &p| (l.min(p), h.max(p)));
             let center = (lo + hi) / 2.0;
             let r = bind.iter().map(|p| p.distance(center)).fold(0.0, f64::max);

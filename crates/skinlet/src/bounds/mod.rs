@@ -66,6 +66,18 @@ impl Aabb {
         ]
     }
 
+    /// The box of the points `m·x`, x in the box (the affine image of a box is spanned by
+    /// its corners); a point maps to a point.
+    pub fn transformed(&self, m: &glam::DMat4) -> Aabb {
+        if self.min == self.max {
+            return Aabb::point(m.transform_point3(self.min));
+        }
+        self.corners().iter().fold(Aabb::EMPTY, |mut acc, &c| {
+            acc.extend(m.transform_point3(c));
+            acc
+        })
+    }
+
     pub fn is_finite(&self) -> bool {
         self.min.is_finite() && self.max.is_finite()
     }

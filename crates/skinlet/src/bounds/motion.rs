@@ -92,6 +92,27 @@ pub fn node_motion(node: &Node, index: u32, clip: Option<&Clip>, t1: f32, t2: f3
     Ok(Motion::Trs { translation, rotation, scale })
 }
 
+/// Range of one morph weight over `[t1, t2]` (inside one key segment of its channel; no
+/// channel: the default weight): LINEAR the ends, STEP the held key and the next one at the
+/// segment's end, CUBICSPLINE the cubic's extrema, widened by f32 interpolation rounding
+/// like translations.
+pub fn weight_range(channel: Option<&Channel<f32>>, default: f32, node: u32, t1: f32, t2: f32) -> Result<(f64, f64)> {
+    let Some(ch) = channel else { return Ok((default as f64, default as f64)) };
+    let s = segment(ch, t1, t2, node)?;
+    let splat = |x: f32| Vec3::new(x, 0.0, 0.0);
+    let seg = Segment {
+        t0: s.t0,
+        t1: s.t1,
+        interpolation: s.interpolation,
+        v0: splat(s.v0),
+        v1: splat(s.v1),
+        out_tangent0: splat(s.out_tangent0),
+        in_tangent1: splat(s.in_tangent1),
+    };
+    let b = vec3_range(&seg, t1, t2);
+    Ok((b.min.x, b.max.x))
+}
+
 fn segment<T: Keyable>(ch: &Channel<T>, t1: f32, t2: f32, node: u32) -> Result<Segment<T>> {
     let seg = ch.segment(t1);
     if t2 > seg.t1 {

@@ -21,7 +21,7 @@ use super::vertex::IntervalMotions;
 use crate::Result;
 use crate::clip::Clip;
 use crate::meshlet::{Meshlet, Meshlets};
-use crate::model::{Influences, Skeleton, Skin, SkinnedMesh};
+use crate::model::{Skeleton, Skin, SkinnedMesh};
 use rayon::prelude::*;
 use std::f64::consts::{FRAC_PI_2, PI};
 use std::time::{Duration, Instant};
@@ -169,9 +169,9 @@ pub fn refine_with_progress(
         .collect();
     let motions = intervals
         .iter()
-        .map(|&(c, a, b)| IntervalMotions::new(skeleton, Some(clips[c as usize]), a, b))
+        .map(|&(c, a, b)| IntervalMotions::new(skeleton, &mesh.morphs, Some(clips[c as usize]), a, b))
         .collect::<Result<Vec<_>>>()?;
-    let ctx = Ctx { skeleton, skin, inf, mesh, meshlets };
+    let ctx = Ctx { skeleton, skin, mesh, meshlets };
     let mut states: Vec<State> = bounds
         .par_iter()
         .zip(&meshlets.meshlets)
@@ -245,7 +245,6 @@ pub fn refine_with_progress(
 pub(crate) struct Ctx<'a> {
     pub skeleton: &'a Skeleton,
     pub skin: &'a Skin,
-    pub inf: &'a Influences,
     pub mesh: &'a SkinnedMesh,
     pub meshlets: &'a Meshlets,
 }
@@ -294,7 +293,7 @@ fn refine_once(
     let clip = clips[p.clip as usize];
     let mut boxes = Vec::new();
     let mut half = |t1: f32, t2: f32| -> Result<Piece> {
-        let mo = IntervalMotions::new(ctx.skeleton, Some(clip), t1, t2)?;
+        let mo = IntervalMotions::new(ctx.skeleton, &ctx.mesh.morphs, Some(clip), t1, t2)?;
         let (radius, min_cos) = piece_extent(ctx, m, rest, &mo, &mut boxes);
         let mut h = Piece { t1, t2, depth: p.depth + 1, radius, min_cos, ..p };
         // A half that kept (nearly) the parent's value holds the extreme: flat for that bound.

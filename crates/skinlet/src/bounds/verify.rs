@@ -1,6 +1,6 @@
 //! Ground-truth check of meshlet bounds: dense sampling of every clip (uniform times plus
-//! every key time and every interval midpoint), reference skinning of every vertex
-//! ([`crate::skinning`]), then in world space, as the runtime culls: every meshlet vertex in
+//! every key time and every interval midpoint), reference skinning of every vertex with its
+//! morph targets applied ([`crate::skinning`]), then in world space, as the runtime culls: every meshlet vertex in
 //! its moved sphere ([`world_sphere`]) and every triangle's face normal in its moved cone
 //! ([`world_cone`]). Tolerances are float rounding of the f32 reference only: 1e-5 of the
 //! radius plus 1e-6 of the scene size for points; for normals the angle that f32 rounding of
@@ -167,17 +167,19 @@ fn scan(
     let per_time = |&(clip, t): &(&Clip, f32)| {
         let mut poser = Poser::default();
         let globals = poser.globals(skeleton, Some(clip), t).to_vec();
-        let mut mats = Vec::new();
+        let (mut mats, mut weights) = (Vec::new(), Vec::new());
         skinning_matrices(skin, &globals, &mut mats);
+        mesh.morphs.weights_at(Some(clip), t, &mut weights);
+        let (morphed, _) = mesh.morphed(&weights);
         let mut p = vec![Vec3::ZERO; mesh.positions.len()];
-        crate::skinning::skin_serial(inf, &mesh.positions, &[], &mats, &mut p, &mut []).expect("validated mesh");
+        crate::skinning::skin_serial(inf, &morphed, &[], &mats, &mut p, &mut []).expect("validated mesh");
         // Per vertex, the magnitudes skinning sums (|M|·|p| + |t|): f32 rounds relative to
         // them, which exceed the result's when the joint's matrix nearly collapses.
         let sums: Vec<f64> = if any_cone {
             (0..p.len())
                 .map(|v| {
                     let m = crate::skinning::blend_matrix(inf, v, &mats);
-                    let q = mesh.positions[v].abs();
+                    let q = morphed[v].abs();
                     (m.matrix3.x_axis.abs() * q.x
                         + m.matrix3.y_axis.abs() * q.y
                         + m.matrix3.z_axis.abs() * q.z

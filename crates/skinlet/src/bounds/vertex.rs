@@ -5,13 +5,19 @@
 //! inverse motions (eq. 2); never through decomposed global matrices, whose intermediate
 //! extremes would be missed. The per-influence boxes are combined by the weighted Minkowski
 //! sum (fig. 7): `Σ wᵢ·Bᵢ`, since the skinned point in target space is `Σ wᵢ·qᵢ(t)`.
+//!
+//! Morph targets (glTF: applied before skinning) turn the rest point into a box: each morph
+//! weight's exact range over the interval ([`super::motion::weight_range`]) times each of
+//! the vertex's deltas, summed per axis (`p + Σ [lo, hi]·d`). Every influence's box is then
+//! carried from that box; choosing the morphed point independently per influence and apart
+//! from the joints' motion only adds points, so the result stays a superset.
 
 use super::Aabb;
-use super::motion::{Motion, node_motion};
+use super::motion::{Motion, node_motion, weight_range};
 use crate::Result;
 use crate::clip::Clip;
-use crate::model::{Influences, Skeleton, Skin};
-use glam::{DVec3, Vec3};
+use crate::model::{Morphs, Skeleton, Skin, SkinnedMesh};
+use glam::DVec3;
 
 /// Motions of every node during one interval `[t1, t2]` of a clip.
 pub struct IntervalMotions {
@@ -20,11 +26,15 @@ pub struct IntervalMotions {
     motions: Vec<Motion>,
     /// Parent links from each node to its root.
     depth: Vec<u32>,
+    /// Range of each morph weight of the mesh ([`Morphs::weights`]) over the interval.
+    weights: Vec<(f64, f64)>,
 }
 
 impl IntervalMotions {
-    /// Errors when `[t1, t2]` spans a key of some channel.
-    pub fn new(skeleton: &Skeleton, clip: Option<&Clip>, t1: f32, t2: f32) -> Result<IntervalMotions> {
+    /// The motions of every node and the ranges of the morph weights `morphs` (may be
+    /// empty) over `[t1, t2]`; errors when the interval spans a key of some channel.
+    pub fn new(skeleton: &Skeleton, morphs: &Morphs, clip: Option<&Clip>, t1: f32, t2: f32) -> Result<IntervalMotions> {
+        let weights = weight_ranges(morphs, clip, t1, t2)?;
         let motions = skeleton
             .nodes
             .iter()
@@ -37,7 +47,14 @@ impl IntervalMotions {
                 depth[i as usize] = depth[p as usize] + 1;
             }
         }
-        Ok(IntervalMotions { t1, t2, motions, depth })
+        Ok(IntervalMotions { t1, t2, motions, depth, weights })
+    }
+
+    /// Box of vertex `v` of `mesh` in mesh space over the interval: its position moved by
+    /// every morph delta times the range of the delta's weight, grown by the f32 rounding of
+    /// the reference's sum (4 ulps of the magnitudes summed). A point without deltas.
+    pub fn rest_box(&self, mesh: &SkinnedMesh, v: usize) -> Aabb {
+        morph_box(mesh, v, &self.weights)
     }
 
     /// All points `global(to)⁻¹ · global(from) · x`, x in `b`, over the interval.
@@ -74,24 +91,78 @@ impl IntervalMotions {
     }
 }
 
-/// Box containing vertex `v` (bind position `position`) at every time of the interval, in
+/// Range of each morph weight of `morphs` over `[t1, t2]` of `clip` (`None`: the defaults);
+/// errors when the interval spans a key of a weight channel.
+pub fn weight_ranges(morphs: &Morphs, clip: Option<&Clip>, t1: f32, t2: f32) -> Result<Vec<(f64, f64)>> {
+    (morphs.weights.iter())
+        .map(|w| {
+            let ch = clip.and_then(|c| c.weights.iter().find(|c| c.channel.node == w.node && c.target == w.target));
+            weight_range(ch.map(|c| &c.channel), w.default, w.node, t1, t2)
+        })
+        .collect()
+}
+
+/// Range of each morph weight over every key interval of every clip in `clips` (no clip:
+/// the defaults): what a bound valid for whole clips must cover.
+pub fn clip_weight_ranges(morphs: &Morphs, clips: &[&Clip]) -> Result<Vec<(f64, f64)>> {
+    let mut out = weight_ranges(morphs, None, 0.0, 0.0)?;
+    if clips.is_empty() {
+        return Ok(out);
+    }
+    out.fill((f64::INFINITY, f64::NEG_INFINITY));
+    for c in clips {
+        for (a, b) in super::meshlet::key_intervals(c) {
+            for (o, r) in out.iter_mut().zip(weight_ranges(morphs, Some(c), a, b)?) {
+                *o = (o.0.min(r.0), o.1.max(r.1));
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// Box of vertex `v` of `mesh` in mesh space while each morph weight `k` stays in
+/// `ranges[k]`: its position plus every delta times its weight's range, per axis, grown by
+/// the f32 rounding of the reference's sum (4 ulps of the magnitudes summed). A point for a
+/// vertex without deltas.
+pub fn morph_box(mesh: &SkinnedMesh, v: usize, ranges: &[(f64, f64)]) -> Aabb {
+    let p = mesh.positions[v].as_dvec3();
+    let deltas = mesh.morphs.of(v);
+    if deltas.is_empty() {
+        return Aabb::point(p);
+    }
+    let (mut lo, mut hi, mut magnitude) = (p, p, p.abs());
+    for d in deltas {
+        let (wlo, whi) = ranges[d.weight as usize];
+        let d = d.position.as_dvec3();
+        let (a, b) = (d * wlo, d * whi);
+        lo += a.min(b);
+        hi += a.max(b);
+        magnitude += a.abs().max(b.abs());
+    }
+    let e = magnitude * (4.0 * f32::EPSILON as f64);
+    Aabb { min: lo - e, max: hi + e }
+}
+
+/// Box containing vertex `v` of `mesh` (morphs applied) at every time of the interval, in
 /// the space of skin joint `target` (`global(joint node, t)⁻¹ · p(t)`), in exact arithmetic:
 /// callers add [`super::INFLATE`] where f32 rounding of the reference must be covered. A
-/// vertex bound to `target` alone gives a point.
+/// vertex without morphs bound to `target` alone gives a point. The mesh must have
+/// influences.
 pub fn vertex_box(
     skeleton: &Skeleton,
     skin: &Skin,
     motions: &IntervalMotions,
-    influences: &Influences,
+    mesh: &SkinnedMesh,
     v: usize,
-    position: Vec3,
     target: u16,
 ) -> Aabb {
     let to = skin.joints[target as usize];
+    let rest = motions.rest_box(mesh, v);
+    let Some(influences) = &mesh.influences else { return Aabb::EVERYWHERE };
     let mut sum = Aabb::point(DVec3::ZERO);
     for (j, w) in influences.of(v) {
-        let bind = skin.inverse_bind[j as usize].as_dmat4().transform_point3(position.as_dvec3());
-        let b = motions.carry(skeleton, skin.joints[j as usize], to, Aabb::point(bind));
+        let bind = rest.transformed(&skin.inverse_bind[j as usize].as_dmat4());
+        let b = motions.carry(skeleton, skin.joints[j as usize], to, bind);
         let w = w as f64;
         sum.min += w * b.min;
         sum.max += w * b.max;

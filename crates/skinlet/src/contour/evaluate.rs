@@ -295,7 +295,6 @@ pub fn evaluate_skinned(
     repeats: usize,
 ) -> crate::Result<Vec<MethodResult>> {
     use super::skinned::{SkinnedPatches, build};
-    let inf = input.mesh.influences.as_ref().ok_or_else(|| crate::Error::invalid("contours", "no skin weights"))?;
     let built: Vec<(super::skinned::SkinnedMethod, SkinnedPatches, f64)> = methods
         .iter()
         .map(|&m| {
@@ -307,7 +306,7 @@ pub fn evaluate_skinned(
         .collect::<crate::Result<_>>()?;
     // Frames: positions and the joints' inverse global matrices (once per frame).
     let mut poser = crate::pose::Poser::default();
-    let mut matrices = Vec::new();
+    let (mut matrices, mut weights) = (Vec::new(), Vec::new());
     // (skinned positions, inverse joint globals, (clip, time)) per frame.
     type Frame = (Vec<Vec3>, Vec<glam::DMat4>, (usize, f32));
     let mut frames: Vec<Frame> = Vec::new();
@@ -319,8 +318,9 @@ pub fn evaluate_skinned(
             let t = t0 + (t1 - t0) * (k as f32 + 0.5) / n as f32;
             let globals = poser.globals(input.skeleton, Some(clip), t).to_vec();
             crate::pose::skinning_matrices(input.skin, &globals, &mut matrices);
+            input.mesh.morphs.weights_at(Some(clip), t, &mut weights);
             let mut p = vec![Vec3::ZERO; input.mesh.positions.len()];
-            crate::skinning::skin(inf, &input.mesh.positions, &[], &matrices, &mut p, &mut [])?;
+            crate::skinning::skin_mesh(input.mesh, &weights, &matrices, &mut p, &mut [])?;
             let inverses = input.skin.joints.iter().map(|&j| globals[j as usize].inverse()).collect();
             frames.push((p, inverses, (c, t)));
         }

@@ -31,7 +31,7 @@ use crate::bounds::refine::{PieceExtent, Refinement, refine};
 use crate::clip::Clip;
 use crate::meshlet::Meshlets;
 use crate::meshlet::stats::principal_joint;
-use crate::model::{Influences, Skeleton, Skin, SkinnedMesh};
+use crate::model::{Skeleton, Skin, SkinnedMesh};
 use crate::{Error, Result};
 use glam::{DMat4, DVec3, Vec3};
 use rayon::prelude::*;
@@ -130,9 +130,9 @@ pub fn build(
     sp: &SkinnedParams,
 ) -> Result<SkinnedPatches> {
     let (method, params, how) = (sp.method, &sp.patches, &sp.refine);
-    let Some(inf) = &mesh.influences else {
+    if mesh.influences.is_none() {
         return Err(Error::invalid("contours", "the mesh has no skin weights"));
-    };
+    }
     let p = &mesh.positions;
     let rigid_vertex = rigid_vertices(mesh);
     // Group quads by (joint, rigid); rigid quads keep the joint their vertices follow.
@@ -167,7 +167,7 @@ pub fn build(
             (j, rigid, b, a)
         })
         .collect();
-    let magnitude = model_extent(skeleton, skin, clips, &mesh.positions, inf)?;
+    let magnitude = model_extent(skeleton, skin, clips, mesh)?;
     let eta = SKIN_ROUNDING * magnitude;
     let mut out: Vec<(u16, bool, BuiltPatch, Vec<PieceExtent>)> = Vec::new();
     let mut animated: Vec<BuiltPatch> = Vec::new();
@@ -308,11 +308,15 @@ pub fn skinned_edges(mesh: &SkinnedMesh, visible_only: bool) -> Result<Edges> {
 }
 
 /// Per vertex, the joint that carries all its weight (a single influence of weight exactly
-/// 1; with any other weight `w`, `w·G·x` is not fixed in the joint's space).
+/// 1; with any other weight `w`, `w·G·x` is not fixed in the joint's space) when no morph
+/// target moves it.
 pub fn rigid_vertices(mesh: &SkinnedMesh) -> Vec<Option<u16>> {
     let Some(inf) = &mesh.influences else { return vec![None; mesh.positions.len()] };
     (0..mesh.positions.len())
         .map(|v| {
+            if !mesh.morphs.of(v).is_empty() {
+                return None;
+            }
             let mut it = inf.of(v).filter(|&(_, w)| w != 0.0);
             match (it.next(), it.next()) {
                 (Some((j, 1.0)), None) => Some(j),
@@ -377,15 +381,12 @@ fn thinness(p: &[Vec3], edges: &Edges, quads: &[u32]) -> f64 {
 /// An upper bound of |skinned position| over the clips, from the bind pose and the clips'
 /// key times (doubled: a margin for the rounding allowance, not a bound the culling relies
 /// on for anything but its size).
-fn model_extent(skeleton: &Skeleton, skin: &Skin, clips: &[&Clip], rest: &[Vec3], inf: &Influences) -> Result<f64> {
-    let mut poser = crate::pose::Poser::default();
-    let mut m = Vec::new();
-    let mut out = vec![Vec3::ZERO; rest.len()];
-    let mut extent = rest.iter().map(|p| p.length() as f64).fold(0.0, f64::max);
+fn model_extent(skeleton: &Skeleton, skin: &Skin, clips: &[&Clip], mesh: &SkinnedMesh) -> Result<f64> {
+    let rest = crate::skinning::posed_positions(skeleton, skin, mesh, None, None)?;
+    let mut extent = (mesh.positions.iter().chain(&rest)).map(|p| p.length() as f64).fold(0.0, f64::max);
     for clip in clips {
         for t in clip.key_times() {
-            poser.skinning_matrices(skeleton, skin, Some(clip), t, &mut m);
-            crate::skinning::skin(inf, rest, &[], &m, &mut out, &mut [])?;
+            let out = crate::skinning::posed_positions(skeleton, skin, mesh, Some(clip), Some(t))?;
             extent = extent.max(out.iter().map(|p| p.length() as f64).fold(0.0, f64::max));
         }
     }

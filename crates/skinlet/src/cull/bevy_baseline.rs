@@ -132,9 +132,9 @@ impl Workload {
     pub fn new(asset: &Asset, instances: usize, seed: u64) -> Result<Workload> {
         let character = asset.character()?;
         let (skin, mesh) = (&character.palette, &character.mesh);
-        let boxes = JointBoxes::new(mesh, skin, JointSpace::Joint)?;
-        let mesh_boxes = JointBoxes::new(mesh, skin, JointSpace::Mesh)?;
         let clips: Vec<&crate::clip::Clip> = asset.clips.iter().collect();
+        let boxes = JointBoxes::new(mesh, skin, JointSpace::Joint, &clips)?;
+        let mesh_boxes = JointBoxes::new(mesh, skin, JointSpace::Mesh, &clips)?;
         let scene = posed_crowd(
             &asset.skeleton,
             skin,

@@ -268,6 +268,7 @@ struct Scratch {
     joint_to_world: Vec<Affine3A>,
     joint_to_model: Vec<Affine3A>,
     skinning: Vec<Affine3A>,
+    morph_weights: Vec<f32>,
     frame: JointFrame,
     flags: Vec<u8>,
     visible: Vec<u32>,
@@ -287,11 +288,9 @@ pub fn run(
     verify: bool,
 ) -> Result<CrowdStats> {
     let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len());
-    let boxes = JointBoxes::new(&baked.mesh, skin, JointSpace::Joint)?;
-    let mesh_boxes = JointBoxes::new(&baked.mesh, skin, JointSpace::Mesh)?;
+    let boxes = JointBoxes::new(&baked.mesh, skin, JointSpace::Joint, clips)?;
+    let mesh_boxes = JointBoxes::new(&baked.mesh, skin, JointSpace::Mesh, clips)?;
     let folded = boxes.fold_leaves(skeleton, skin, &baked.mesh, clips, 2)?;
-    let inf =
-        baked.mesh.influences.as_ref().ok_or_else(|| crate::Error::invalid("crowd", "the bake has no skin weights"))?;
     let meshlets = &baked.meshlets;
     let per_meshlet_refs: Vec<usize> = meshlets.meshlets.iter().map(|m| m.vertex_count as usize).collect();
     let per_meshlet_tris: Vec<usize> = meshlets.meshlets.iter().map(|m| m.triangle_count as usize).collect();
@@ -345,7 +344,8 @@ pub fn run(
                 // Skin, move to world and clip space; per-triangle culling in kept meshlets.
                 let n = baked.mesh.positions.len();
                 s.skinned.resize(n, Vec3::ZERO);
-                skinning::skin(inf, &baked.mesh.positions, &[], &s.skinning, &mut s.skinned, &mut [])?;
+                baked.mesh.morphs.weights_at(clip, t, &mut s.morph_weights);
+                skinning::skin_mesh(&baked.mesh, &s.morph_weights, &s.skinning, &mut s.skinned, &mut [])?;
                 let model = Affine3A::from_mat4(pl.model.as_mat4());
                 s.world.clear();
                 s.world.extend(s.skinned.iter().map(|&p| model.transform_point3(p)));

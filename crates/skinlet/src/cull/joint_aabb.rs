@@ -17,7 +17,7 @@
 //! asked for in the PR's discussion.
 
 use crate::bounds::meshlet::key_intervals;
-use crate::bounds::vertex::IntervalMotions;
+use crate::bounds::vertex::{IntervalMotions, clip_weight_ranges, morph_box};
 use crate::bounds::{Aabb as DAabb, INFLATE};
 use crate::clip::Clip;
 use crate::model::{Skeleton, Skin, SkinnedMesh};
@@ -134,24 +134,27 @@ impl Default for JointBoxes {
 }
 
 impl JointBoxes {
-    /// Boxes of the vertices with a nonzero weight on each joint. Errors when the mesh has no
-    /// skin weights or a joint index has no inverse bind matrix.
-    pub fn new(mesh: &SkinnedMesh, skin: &Skin, space: JointSpace) -> Result<JointBoxes> {
+    /// Boxes of the vertices with a nonzero weight on each joint. A vertex that morph targets
+    /// move counts with its box over every weight value of `clips` (no clip: the default
+    /// weights; see [`crate::bounds::vertex::clip_weight_ranges`]), so the boxes hold for
+    /// those clips. Errors when the mesh has no skin weights or a joint index has no inverse
+    /// bind matrix.
+    pub fn new(mesh: &SkinnedMesh, skin: &Skin, space: JointSpace, clips: &[&Clip]) -> Result<JointBoxes> {
         let inf =
             mesh.influences.as_ref().ok_or_else(|| Error::invalid("joint boxes", "the mesh has no skin weights"))?;
+        let ranges = clip_weight_ranges(&mesh.morphs, clips)?;
         let mut boxes = vec![DAabb::EMPTY; skin.joints.len()];
-        for (v, p) in mesh.positions.iter().enumerate() {
+        for v in 0..mesh.positions.len() {
+            let rest = morph_box(mesh, v, &ranges);
             for (j, _) in inf.of(v) {
                 let ibm = skin.inverse_bind.get(j as usize).ok_or_else(|| {
                     Error::invalid("joint boxes", format!("vertex {v} uses joint {j} of {}", skin.joints.len()))
                 })?;
                 let q = match space {
-                    JointSpace::Mesh => p.as_dvec3(),
-                    JointSpace::Joint => ibm.as_dmat4().transform_point3(p.as_dvec3()),
+                    JointSpace::Mesh => rest,
+                    JointSpace::Joint => rest.transformed(&ibm.as_dmat4()),
                 };
-                let b = &mut boxes[j as usize];
-                b.min = b.min.min(q);
-                b.max = b.max.max(q);
+                boxes[j as usize] = boxes[j as usize].union(&q);
             }
         }
         Ok(Self::from_boxes(space, &boxes))
@@ -312,26 +315,20 @@ impl JointBoxes {
         let mut motions = Vec::new();
         for c in clips {
             for (a, b) in key_intervals(c) {
-                motions.push(IntervalMotions::new(skeleton, Some(c), a, b)?);
+                motions.push(IntervalMotions::new(skeleton, &mesh.morphs, Some(c), a, b)?);
             }
         }
         if motions.is_empty() {
-            motions.push(IntervalMotions::new(skeleton, None, 0.0, 0.0)?);
+            motions.push(IntervalMotions::new(skeleton, &mesh.morphs, None, 0.0, 0.0)?);
         }
-        for (v, p) in mesh.positions.iter().enumerate() {
+        for v in 0..mesh.positions.len() {
             for (j, _) in inf.of(v) {
                 let (j, t) = (j as usize, target[j as usize]);
-                let q = skin.inverse_bind[j].as_dmat4().transform_point3(p.as_dvec3());
-                let b = &mut boxes[t];
-                if t == j {
-                    b.min = b.min.min(q);
-                    b.max = b.max.max(q);
-                    continue;
-                }
+                let ibm = skin.inverse_bind[j].as_dmat4();
                 for mo in &motions {
-                    let carried = mo.carry(skeleton, skin.joints[j], skin.joints[t], DAabb::point(q));
-                    b.min = b.min.min(carried.min);
-                    b.max = b.max.max(carried.max);
+                    let q = mo.rest_box(mesh, v).transformed(&ibm);
+                    let carried = if t == j { q } else { mo.carry(skeleton, skin.joints[j], skin.joints[t], q) };
+                    boxes[t] = boxes[t].union(&carried);
                 }
             }
         }
@@ -436,7 +433,7 @@ mod tests {
         let asset = demo_character(&DemoParams { triangles: 2000, ..DemoParams::default() });
         let character = asset.character().unwrap();
         let (skin, mesh) = (&character.palette, character.mesh.clone());
-        let dynamic = JointBoxes::new(&mesh, skin, JointSpace::Mesh).unwrap();
+        let dynamic = JointBoxes::new(&mesh, skin, JointSpace::Mesh, &asset.clips.iter().collect::<Vec<_>>()).unwrap();
         let bind_pose = points_box(&mesh.positions);
         let mut poser = Poser::default();
         let clip = &asset.clips[0];
@@ -474,7 +471,7 @@ mod tests {
         let asset = demo_character(&DemoParams { triangles: 2000, ..DemoParams::default() });
         let character = asset.character().unwrap();
         let (skin, mesh) = (&character.palette, character.mesh.clone());
-        let boxes = JointBoxes::new(&mesh, skin, JointSpace::Joint).unwrap();
+        let boxes = JointBoxes::new(&mesh, skin, JointSpace::Joint, &asset.clips.iter().collect::<Vec<_>>()).unwrap();
         let mut poser = Poser::default();
         let clip = &asset.clips[0];
         // Odd and even box counts (the wide path pairs an odd last box with itself).

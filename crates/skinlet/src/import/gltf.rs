@@ -445,7 +445,7 @@ fn load_primitive(p: &gltf::Primitive, buffers: &Buffers, loc: &str, report: &mu
     }
     let triangles = assemble_triangles(p.mode(), &indices, loc)?;
     let influences = load_influences(p, buffers, n, loc, report)?;
-    let mesh = SkinnedMesh { positions, normals, triangles, influences };
+    let mesh = SkinnedMesh { positions, normals, triangles, influences, ..SkinnedMesh::default() };
     report.degenerate_triangles += mesh.degenerate_triangles();
     Ok(mesh)
 }

@@ -51,7 +51,7 @@ pub fn load_obj_str(text: &str, name: &str) -> Result<Asset> {
     if triangles.is_empty() {
         return Err(Error::invalid(name, "no faces found (is this an OBJ file?)"));
     }
-    let geometry = SkinnedMesh { positions, normals: Vec::new(), triangles, influences: None };
+    let geometry = SkinnedMesh { positions, triangles, ..SkinnedMesh::default() };
     let degenerate = geometry.degenerate_triangles();
     let root = Node { name: "root".into(), parent: None, rest: Trs::IDENTITY, matrix: None };
     let mut asset = Asset {

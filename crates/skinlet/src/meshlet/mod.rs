@@ -354,7 +354,7 @@ mod tests {
                 inf.weights[4 * v + i] = 1.0 / (i + 1) as f32 / sum;
             }
         }
-        SkinnedMesh { positions, normals: Vec::new(), triangles: tris, influences: Some(inf) }
+        SkinnedMesh { positions, triangles: tris, influences: Some(inf), ..SkinnedMesh::default() }
     }
 
     fn check_all_builders(mesh: &SkinnedMesh, limits: MeshletLimits) {
@@ -397,9 +397,9 @@ mod tests {
         let inf = Influences { stride: 4, joints: vec![0; 24], weights: [1.0, 0.0, 0.0, 0.0].repeat(6) };
         let mesh = SkinnedMesh {
             positions: p.to_vec(),
-            normals: Vec::new(),
             triangles: vec![[0, 1, 2], [3, 5, 4], [0, 0, 1]],
             influences: Some(inf),
+            ..SkinnedMesh::default()
         };
         let prepared = prepare(&mesh);
         assert_eq!(prepared.weld.output_vertices, 4);

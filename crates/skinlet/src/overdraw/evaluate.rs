@@ -63,18 +63,8 @@ pub fn keyframes(
     } else {
         (0..max).map(|i| keys[i * (keys.len() - 1) / (max - 1).max(1)]).collect()
     };
-    let inf =
-        mesh.influences.as_ref().ok_or_else(|| crate::Error::invalid("keyframes", "the mesh has no skin weights"))?;
-    let mut poser = crate::pose::Poser::default();
-    let mut mats = Vec::new();
-    let positions = times
-        .iter()
-        .map(|&t| {
-            poser.skinning_matrices(skeleton, skin, Some(clip), t, &mut mats);
-            let mut out = vec![Vec3::ZERO; mesh.positions.len()];
-            crate::skinning::skin(inf, &mesh.positions, &[], &mats, &mut out, &mut [])?;
-            Ok(out)
-        })
+    let positions = (times.iter())
+        .map(|&t| crate::skinning::posed_positions(skeleton, skin, mesh, Some(clip), Some(t)))
         .collect::<crate::Result<Vec<_>>>()?;
     Ok((times, positions))
 }

@@ -179,3 +179,36 @@ pub fn random_character(seed: u64) -> (Skeleton, Skin, Clip, Vec<Vec3>, Influenc
     }
     (skeleton, skin, clip, positions, inf)
 }
+
+/// Random morph targets for a mesh of `vertices` vertices drawn by `node`: three weights
+/// (default weights in [-1, 1]), two animated by `clip` in random interpolation modes, and
+/// deltas on about half the vertices.
+pub fn random_morphs(seed: u64, vertices: usize, node: u32, clip: &mut Clip) -> skinlet::model::Morphs {
+    use skinlet::clip::WeightChannel;
+    use skinlet::model::{MorphDelta, MorphWeight, Morphs};
+    let mut r = Rng(seed.wrapping_mul(0x2545F4914F6CDD1D) | 1);
+    let weights: Vec<MorphWeight> =
+        (0..3).map(|target| MorphWeight { node, target, default: r.range(-1.0, 1.0) }).collect();
+    let end = clip.end.max(0.5);
+    for target in 0..2 {
+        let mode = [Interpolation::Step, Interpolation::Linear, Interpolation::CubicSpline][r.below(3)];
+        let keys = 2 + r.below(4);
+        let times: Vec<f32> = (0..keys).map(|k| end * k as f32 / (keys - 1) as f32).collect();
+        let per = if mode == Interpolation::CubicSpline { 3 } else { 1 };
+        let values = (0..per * keys).map(|_| r.range(-1.0, 1.5)).collect();
+        clip.weights.push(WeightChannel { target, channel: Channel { node, interpolation: mode, times, values } });
+    }
+    clip.end = end;
+    let mut morphs = Morphs { weights, offsets: vec![0], deltas: Vec::new() };
+    for _ in 0..vertices {
+        if r.u() < 0.5 {
+            for weight in 0..3 {
+                if r.u() < 0.7 {
+                    morphs.deltas.push(MorphDelta { weight, position: r.v3(0.6), normal: r.v3(0.3) });
+                }
+            }
+        }
+        morphs.offsets.push(morphs.deltas.len() as u32);
+    }
+    morphs
+}
