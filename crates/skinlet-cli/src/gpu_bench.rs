@@ -10,7 +10,7 @@ use skinlet::cull::crowd::{CrowdParams, posed_crowd};
 use skinlet::cull::meshlet::{JointFrame, MeshletCuller, Tests};
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::Poser;
-use skinlet_gpu::mesh::GpuMesh;
+use skinlet_gpu::mesh::{GpuMesh, Pose};
 use skinlet_gpu::render::{CrowdDraw, Culling, Instance, Renderer, Skinning};
 use skinlet_gpu::{Gpu, GpuOptions};
 
@@ -77,17 +77,18 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     )?;
     let ci_mesh = GpuMesh::new(&gpu, &ci.mesh, Some(&ci.meshlets))?;
     let ci_culler = MeshletCuller::new(&ci.bounds, &ci.classes, skin.joints.len());
-    // Per frame and instance: world-space skinning matrices and joint matrices.
+    // Per frame and instance: world-space skinning matrices, joint matrices, morph weights.
     let mut poser = Poser::default();
-    let mut frames: Vec<Vec<(Vec<Affine3A>, Vec<Affine3A>)>> = Vec::new();
+    let mut frames: Vec<Vec<(Vec<Affine3A>, Vec<Affine3A>, Vec<f32>)>> = Vec::new();
     for f in 0..params.frames {
         let mut instances = Vec::new();
         for pl in &scene.placements {
             let clip = clips.get(pl.clip).copied();
             let t = pl.time(clip, f, params.fps);
-            let (mut joints, mut skinning) = (Vec::new(), Vec::new());
+            let (mut joints, mut skinning, mut weights) = (Vec::new(), Vec::new(), Vec::new());
             pl.world_matrices(skin, poser.globals(&asset.skeleton, clip, t), &mut joints, &mut skinning);
-            instances.push((skinning, joints));
+            baked.mesh.morphs.weights_at(clip, t, &mut weights);
+            instances.push((skinning, joints, weights));
         }
         frames.push(instances);
     }
@@ -125,7 +126,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 let prepared: Vec<JointFrame> = match tests {
                     Some(tests) => instances
                         .iter()
-                        .map(|(_, joints)| {
+                        .map(|(_, joints, _)| {
                             let mut frame = JointFrame::default();
                             culler.prepare(joints, &scene.camera, tests, &mut frame);
                             frame
@@ -140,7 +141,10 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                     }
                 }
                 let list: Vec<Instance> = (instances.iter().enumerate())
-                    .map(|(i, (m, _))| Instance { matrices: m, frame: prepared.get(i) })
+                    .map(|(i, (m, _, w))| Instance {
+                        pose: Pose { matrices: m, morph_weights: w },
+                        frame: prepared.get(i),
+                    })
                     .collect();
                 let how = match culling_path {
                     Some(culling) => CrowdDraw::Culled { culler, culling, skinning, triangles: None },

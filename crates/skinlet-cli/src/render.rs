@@ -13,7 +13,7 @@ use skinlet::model::SkinnedMesh;
 use skinlet::overdraw::cluster::ClusterParams;
 use skinlet::pose::Poser;
 use skinlet_gpu::contours::{ContourExtraction, ContourView, GpuContours};
-use skinlet_gpu::mesh::GpuMesh;
+use skinlet_gpu::mesh::{GpuMesh, Pose};
 use skinlet_gpu::render::{Image, Renderer, Skinning, framing};
 use skinlet_gpu::{Gpu, GpuOptions};
 
@@ -82,26 +82,16 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let clip = crate::find_clip(&asset, a.clip.as_deref())?;
     let skin = &character.palette;
     let t = clip.map_or(0.0, |c| c.start + a.time);
-    // Morph targets are applied here on the CPU for the shown time (the GPU paths do not
-    // morph yet, and the bakes the other views need refuse moving morphs).
-    let morphs_move = character.mesh.morphs.move_over(&asset.clips.iter().collect::<Vec<_>>());
-    anyhow::ensure!(
-        !morphs_move || (a.view == "shaded" && !a.skinning.starts_with("mesh")),
-        "{file} has morph targets that move: only --view shaded with --skinning vertex or compute draws them (applied on the CPU)"
-    );
     // Only the meshlet-drawing views need the character prepared (welded, cache-ordered).
     let prepare = || skinlet::bake::prepare_character(&character);
-    let mut weights = Vec::new();
-    character.mesh.morphs.weights_at(clip, t, &mut weights);
-    let (positions, normals) = character.mesh.morphed(&weights);
-    let morphed = SkinnedMesh { positions, normals, morphs: Default::default(), ..character.mesh.clone() };
-    let mesh = &morphed;
-    let inf = mesh.influences.as_ref().context("the skinned mesh has no weights")?;
+    let mesh = &character.mesh;
     let mut poser = Poser::default();
-    let mut matrices = Vec::new();
+    let (mut matrices, mut weights) = (Vec::new(), Vec::new());
     poser.skinning_matrices(&asset.skeleton, skin, clip, t, &mut matrices);
+    mesh.morphs.weights_at(clip, t, &mut weights);
+    let pose = Pose { matrices: &matrices, morph_weights: &weights };
     let mut posed = vec![Vec3::ZERO; mesh.positions.len()];
-    skinlet::skinning::skin(inf, &mesh.positions, &[], &matrices, &mut posed, &mut [])?;
+    skinlet::skinning::skin_mesh(mesh, &weights, &matrices, &mut posed, &mut [])?;
     let gpu = Gpu::new(GpuOptions { software: a.software, ..GpuOptions::default() })?;
     let renderer = Renderer::new(&gpu, a.size, a.size)?;
     let need_mesh_shaders =
@@ -115,7 +105,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     );
     let mut summary = json!({});
     let colored = |gpu_mesh: &GpuMesh, colors: &[[u8; 4]]| {
-        renderer.render_colored(&gpu, gpu_mesh, &matrices, framing(&posed, FRONT, 1.0).view_proj, LIGHT, colors)
+        renderer.render_colored(&gpu, gpu_mesh, pose, framing(&posed, FRONT, 1.0).view_proj, LIGHT, colors)
     };
     let image = match a.view.as_str() {
         "meshlets" => {
@@ -150,7 +140,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 "backface_culled": counts.backface});
             let gpu_mesh = GpuMesh::new(&gpu, &baked.mesh, Some(&baked.meshlets))?;
             let observer = framing(&posed, OBSERVER, 0.95).view_proj;
-            renderer.render_colored(&gpu, &gpu_mesh, &matrices, observer, LIGHT, &colors)?
+            renderer.render_colored(&gpu, &gpu_mesh, pose, observer, LIGHT, &colors)?
         }
         "classes" => {
             let baked = bake(&asset, &character, None)?;
@@ -181,16 +171,8 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             let inverses: Vec<DMat4> = skin.joints.iter().map(|&j| globals[j as usize].inverse()).collect();
             let at = baked_clip(&baked, clip).map(|c| (c, t));
             let view = ContourView::skinned(patches, &inverses, at, camera.projection);
-            let (image, found) = renderer.render_contours(
-                &gpu,
-                &gpu_mesh,
-                &matrices,
-                camera.view_proj,
-                LIGHT,
-                &extraction,
-                &shape,
-                &view,
-            )?;
+            let (image, found) =
+                renderer.render_contours(&gpu, &gpu_mesh, pose, camera.view_proj, LIGHT, &extraction, &shape, &view)?;
             summary = json!({"edges": edges.len(), "patches": patches.patches.len(), "contour_edges": found.edges.len(),
                 "tested_edges": found.tested, "accepted_groups": found.accepted_groups});
             image
@@ -201,8 +183,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             skinlet::bake::add_overdraw(&mut baked, &asset, &ClusterParams::default(), 8)?;
             let orders = baked.overdraw.as_ref().context("orders were just added")?;
             let mut on_bake = vec![Vec3::ZERO; baked.mesh.positions.len()];
-            let inf = baked.mesh.influences.as_ref().context("the bake has no skin weights")?;
-            skinlet::skinning::skin(inf, &baked.mesh.positions, &[], &matrices, &mut on_bake, &mut [])?;
+            skinlet::skinning::skin_mesh(&baked.mesh, &weights, &matrices, &mut on_bake, &mut [])?;
             let framing = skinlet::overdraw::cluster::Framing::of(std::slice::from_ref(&on_bake));
             let eye = framing.eye(FRONT.normalize(), 3.0);
             let chosen = orders.select(baked_clip(&baked, clip).unwrap_or(0) as u32, t, eye);
@@ -211,8 +192,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             for order in [&baked.mesh.triangles, &orders.buffers[chosen]] {
                 let ordered = SkinnedMesh { triangles: order.clone(), ..baked.mesh.clone() };
                 let gpu_mesh = GpuMesh::new(&gpu, &ordered, None)?;
-                let (counts, overdraw) =
-                    renderer.render_overdraw(&gpu, &gpu_mesh, &matrices, framing.view_proj(eye))?;
+                let (counts, overdraw) = renderer.render_overdraw(&gpu, &gpu_mesh, pose, framing.view_proj(eye))?;
                 halves.push(skinlet::overdraw::measure::heatmap(&counts));
                 ratios.push(overdraw.ratio());
             }
@@ -244,7 +224,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                     (gpu_mesh, path)
                 }
             };
-            renderer.render(&gpu, &gpu_mesh, &matrices, framing(&posed, FRONT, 1.0).view_proj, LIGHT, path)?
+            renderer.render(&gpu, &gpu_mesh, pose, framing(&posed, FRONT, 1.0).view_proj, LIGHT, path)?
         }
     };
     crate::write_png(&a.out, image.width, image.height, png::ColorType::Rgba, &image.rgba)?;

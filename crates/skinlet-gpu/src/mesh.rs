@@ -1,8 +1,9 @@
-//! A skinned mesh on the GPU: bind-pose vertices, influences, triangles, and the buffers the
-//! compute path writes skinned vertices to.
+//! A skinned mesh on the GPU: bind-pose vertices, influences, morph target deltas, triangles,
+//! and the buffers the compute path writes skinned vertices to; a [`Pose`] is what one draw
+//! moves it by.
 
 use crate::{Gpu, GpuError, Result};
-use glam::Vec3;
+use glam::{Affine3A, Vec3};
 use skinlet::meshlet::Meshlets;
 use skinlet::model::{Influences, SkinnedMesh};
 
@@ -33,17 +34,45 @@ pub struct GpuMeshlets {
     pub(crate) draws: wgpu::Buffer,
 }
 
+/// What one draw poses a mesh with: a skinning matrix per joint and, for a mesh with morph
+/// targets, the frame's value of each of its morph weights (`skinlet::model::Morphs::weights_at`).
+#[derive(Clone, Copy, Debug)]
+pub struct Pose<'a> {
+    pub matrices: &'a [Affine3A],
+    pub morph_weights: &'a [f32],
+}
+
+impl<'a> From<&'a [Affine3A]> for Pose<'a> {
+    /// Skinning matrices alone (a mesh without morph targets).
+    fn from(matrices: &'a [Affine3A]) -> Self {
+        Pose { matrices, morph_weights: &[] }
+    }
+}
+
+impl<'a> From<&'a Vec<Affine3A>> for Pose<'a> {
+    fn from(matrices: &'a Vec<Affine3A>) -> Self {
+        Pose { matrices, morph_weights: &[] }
+    }
+}
+
 pub struct GpuMesh {
     pub vertices: u32,
     pub has_normals: bool,
     /// One more than the largest joint index used: the skinning matrices a draw needs.
     pub joint_count: usize,
-    /// Vertex count, influences per vertex, normals present (0/1), padding: `Params` in WGSL.
+    /// Morph weights a pose must give (0: the mesh has no morph deltas).
+    pub morph_weights: usize,
+    /// Vertex count, influences per vertex, normals present (0/1), morph deltas present
+    /// (0/1), where the morph weights start in the pose buffer (in vec4s), where the deltas
+    /// start in the morph buffer, padding: `Params` in WGSL.
     pub(crate) params: wgpu::Buffer,
     pub(crate) positions: wgpu::Buffer,
     pub(crate) normals: wgpu::Buffer,
     pub(crate) joints: wgpu::Buffer,
     pub(crate) weights: wgpu::Buffer,
+    /// Per vertex its first morph delta (one more entry than vertices; one 0 without
+    /// morphs), then eight words per delta: position delta, weight index, normal delta, 0.
+    pub(crate) morphs: wgpu::Buffer,
     pub(crate) indices: wgpu::Buffer,
     pub index_count: u32,
     /// Skinned positions and unit normals written by compute skinning (3 f32 per vertex).
@@ -79,17 +108,40 @@ impl GpuMesh {
             None => mesh.triangles.iter().flatten().copied().collect(),
         };
         let meshlets = meshlets.map(|m| upload_meshlets(gpu, m, inf)).transpose()?;
-        let params: [u32; 4] = [n as u32, inf.stride as u32, !normals.is_empty() as u32, 0];
+        let morphs = &mesh.morphs;
+        morphs.check(n).map_err(|e| invalid(e.to_string()))?;
+        // One u32 buffer: per vertex its first delta (one more offset than vertices), then
+        // eight words per delta: position delta, weight index, normal delta, 0.
+        let mut morph_data: Vec<u32> = if morphs.is_empty() { vec![0] } else { morphs.offsets.clone() };
+        let delta_base = morph_data.len() as u32;
+        for d in &morphs.deltas {
+            let [px, py, pz] = d.position.to_array().map(f32::to_bits);
+            let [nx, ny, nz] = d.normal.to_array().map(f32::to_bits);
+            morph_data.extend([px, py, pz, d.weight, nx, ny, nz, 0]);
+        }
+        let joint_count = inf.joints.iter().map(|&j| j as usize + 1).max().unwrap_or(0);
+        let params: [u32; 8] = [
+            n as u32,
+            inf.stride as u32,
+            !normals.is_empty() as u32,
+            !morphs.is_empty() as u32,
+            4 * joint_count as u32,
+            delta_base,
+            0,
+            0,
+        ];
         let out = wgpu::BufferUsages::COPY_SRC;
         gpu.checked("GPU mesh upload", || GpuMesh {
             vertices: n as u32,
             has_normals: !normals.is_empty(),
-            joint_count: inf.joints.iter().map(|&j| j as usize + 1).max().unwrap_or(0),
+            joint_count,
+            morph_weights: if morphs.is_empty() { 0 } else { morphs.weights.len() },
             params: gpu.buffer("mesh params", &params, wgpu::BufferUsages::UNIFORM),
             positions: vec3_buffer(gpu, "positions", positions),
             normals: vec3_buffer(gpu, "normals", normals),
             joints: gpu.buffer("joints", &joints, wgpu::BufferUsages::STORAGE),
             weights: gpu.buffer("weights", &inf.weights, wgpu::BufferUsages::STORAGE),
+            morphs: gpu.buffer("morph deltas", &morph_data, wgpu::BufferUsages::STORAGE),
             indices: gpu.buffer("indices", &indices, wgpu::BufferUsages::INDEX),
             index_count: indices.len() as u32,
             out_positions: gpu.buffer("skinned positions", &vec![0f32; 3 * n], wgpu::BufferUsages::STORAGE | out),
@@ -102,21 +154,34 @@ impl GpuMesh {
         })
     }
 
-    /// The skinning matrices as the shaders read them: per joint the four columns of glam's
-    /// `Affine3A` (x, y, z axes, translation), each a vec4. Errors when a joint has no matrix.
-    pub(crate) fn matrix_buffer(&self, gpu: &Gpu, matrices: &[glam::Affine3A]) -> Result<wgpu::Buffer> {
-        if matrices.len() < self.joint_count {
-            return Err(GpuError::Invalid {
-                location: "skinning",
-                message: format!("joint {} used but only {} skinning matrices", self.joint_count - 1, matrices.len()),
-            });
+    /// A pose as the shaders read it: per joint the four columns of glam's `Affine3A` (x, y,
+    /// z axes, translation), each a vec4, for the joints the mesh uses, then its morph
+    /// weights, four per vec4. Errors when a joint has no matrix or the weights are not the
+    /// mesh's.
+    pub(crate) fn pose_buffer(&self, gpu: &Gpu, pose: Pose) -> Result<wgpu::Buffer> {
+        let invalid = |message: String| GpuError::Invalid { location: "skinning", message };
+        if pose.matrices.len() < self.joint_count {
+            return Err(invalid(format!(
+                "joint {} used but only {} skinning matrices",
+                self.joint_count - 1,
+                pose.matrices.len()
+            )));
         }
-        let columns: Vec<[f32; 4]> = matrices
+        if pose.morph_weights.len() != self.morph_weights {
+            return Err(invalid(format!(
+                "{} morph weight values for a mesh with {} morph weights",
+                pose.morph_weights.len(),
+                self.morph_weights
+            )));
+        }
+        let mut columns: Vec<[f32; 4]> = pose.matrices[..self.joint_count]
             .iter()
             .flat_map(|m| [m.matrix3.x_axis, m.matrix3.y_axis, m.matrix3.z_axis, m.translation])
             .map(|c| c.extend(0.0).to_array())
             .collect();
-        Ok(gpu.buffer("skinning matrices", &columns, wgpu::BufferUsages::STORAGE))
+        columns.extend(pose.morph_weights.chunks(4).map(|w| std::array::from_fn(|k| w.get(k).copied().unwrap_or(0.0))));
+        columns.resize(columns.len().max(1), [0.0; 4]);
+        Ok(gpu.buffer("pose", &columns, wgpu::BufferUsages::STORAGE))
     }
 }
 

@@ -8,10 +8,10 @@
 
 use crate::contours::{ContourExtraction, ContourView, DRAW_ARGS_OFFSET, Extracted, GpuContours};
 use crate::cull::{ComputeCulling, CullInput};
-use crate::mesh::{GpuMesh, entry};
+use crate::mesh::{GpuMesh, Pose, entry};
 use crate::skinning::{ComputeSkinning, buffer_entry, mesh_bindings, mesh_entries};
 use crate::{Gpu, GpuError, Result};
-use glam::{Affine3A, Mat4, Vec3};
+use glam::{Mat4, Vec3};
 use skinlet::cull::meshlet::{JointFrame, MeshletCuller};
 use skinlet::cull::{Camera, Projection};
 use skinlet::overdraw::measure::Overdraw;
@@ -102,8 +102,8 @@ enum Draw<'a> {
 /// One character of a crowd draw ([`Renderer::render_crowd`]).
 #[derive(Clone, Copy, Debug)]
 pub struct Instance<'a> {
-    /// Skinning matrices, into the space of the camera's `view_proj` (world).
-    pub matrices: &'a [Affine3A],
+    /// Skinning matrices, into the space of the camera's `view_proj` (world), and morph weights.
+    pub pose: Pose<'a>,
     /// For culled drawing: the culler's preparation of this instance for the camera.
     pub frame: Option<&'a JointFrame>,
 }
@@ -384,18 +384,19 @@ impl Renderer {
         })
     }
 
-    /// Renders `mesh` posed by `matrices` (skinning matrices) through `view_proj` (wgpu's
-    /// clip space: depth 0 to 1), lit from `light` (a direction), by the given pipeline.
-    pub fn render(
+    /// Renders `mesh` in `pose` (skinning matrices, and morph weights for a mesh with morph
+    /// targets) through `view_proj` (wgpu's clip space: depth 0 to 1), lit from `light` (a
+    /// direction), by the given pipeline.
+    pub fn render<'a>(
         &self,
         gpu: &Gpu,
         mesh: &GpuMesh,
-        matrices: &[Affine3A],
+        pose: impl Into<Pose<'a>>,
         view_proj: Mat4,
         light: Vec3,
         skinning: Skinning,
     ) -> Result<Image> {
-        let one = [Instance { matrices, frame: None }];
+        let one = [Instance { pose: pose.into(), frame: None }];
         self.draw(gpu, mesh, &one, view_proj, light, Draw::Plain(skinning)).map(|d| d.image)
     }
 
@@ -413,18 +414,18 @@ impl Renderer {
     ///
     /// Also returns how many triangles were drawn (after per-triangle culling where it runs).
     #[allow(clippy::too_many_arguments)]
-    pub fn render_culled(
+    pub fn render_culled<'a>(
         &self,
         gpu: &Gpu,
         mesh: &GpuMesh,
-        matrices: &[Affine3A],
+        pose: impl Into<Pose<'a>>,
         view_proj: Mat4,
         light: Vec3,
         culler: &MeshletCuller,
         frame: &JointFrame,
         triangles: Option<Projection>,
     ) -> Result<(Image, u32)> {
-        let one = [Instance { matrices, frame: Some(frame) }];
+        let one = [Instance { pose: pose.into(), frame: Some(frame) }];
         let (culling, skinning) = match self.mesh_path {
             Some(_) => (Culling::Task, Skinning::Mesh),
             None => (Culling::ComputeIndirect, Skinning::Vertex),
@@ -457,16 +458,16 @@ impl Renderer {
     /// Like [`Renderer::render`] with mesh-shader skinning, every meshlet shaded in its own
     /// color (`colors[i]`, RGBA8, for meshlet `i`): pictures of meshlets, classes or culling.
     #[allow(clippy::too_many_arguments)]
-    pub fn render_colored(
+    pub fn render_colored<'a>(
         &self,
         gpu: &Gpu,
         mesh: &GpuMesh,
-        matrices: &[Affine3A],
+        pose: impl Into<Pose<'a>>,
         view_proj: Mat4,
         light: Vec3,
         colors: &[[u8; 4]],
     ) -> Result<Image> {
-        let one = [Instance { matrices, frame: None }];
+        let one = [Instance { pose: pose.into(), frame: None }];
         self.draw(gpu, mesh, &one, view_proj, light, Draw::Colored(colors)).map(|d| d.image)
     }
 
@@ -475,11 +476,11 @@ impl Renderer {
     /// as lines by an indirect draw: visible ones bright, hidden ones dim. `contours` must be
     /// built over `mesh`'s vertices. Also returns what the extraction found.
     #[allow(clippy::too_many_arguments)]
-    pub fn render_contours(
+    pub fn render_contours<'a>(
         &self,
         gpu: &Gpu,
         mesh: &GpuMesh,
-        matrices: &[Affine3A],
+        pose: impl Into<Pose<'a>>,
         view_proj: Mat4,
         light: Vec3,
         extraction: &ContourExtraction,
@@ -492,24 +493,24 @@ impl Renderer {
                 message: format!("contours over {} vertices, the mesh has {}", contours.vertices, mesh.vertices),
             });
         }
-        let one = [Instance { matrices, frame: None }];
+        let one = [Instance { pose: pose.into(), frame: None }];
         let d = self.draw(gpu, mesh, &one, view_proj, light, Draw::Contours(extraction, contours, view))?;
         Ok((d.image, contours.read(gpu)?))
     }
 
-    /// Overdraw of `mesh` posed by `matrices`, its triangles in the order of its index buffer
+    /// Overdraw of `mesh` in `pose`, its triangles in the order of its index buffer
     /// (upload the mesh with the triangles in the order to measure): per pixel (rows top to
     /// bottom) the fragments that passed the depth test ("less", back faces culled; at most
     /// 255), and their total over the pixels covered — the OVR of skinlet's CPU rasterizer
     /// ([`skinlet::overdraw::measure::Raster`]), measured by the GPU's.
-    pub fn render_overdraw(
+    pub fn render_overdraw<'a>(
         &self,
         gpu: &Gpu,
         mesh: &GpuMesh,
-        matrices: &[Affine3A],
+        pose: impl Into<Pose<'a>>,
         view_proj: Mat4,
     ) -> Result<(Vec<u32>, Overdraw)> {
-        let one = [Instance { matrices, frame: None }];
+        let one = [Instance { pose: pose.into(), frame: None }];
         let d = self.draw(gpu, mesh, &one, view_proj, Vec3::ZERO, Draw::Overdraw)?;
         let counts: Vec<u32> = d.image.rgba.chunks_exact(4).map(|p| p[0] as u32).collect();
         let covered = counts.iter().filter(|&&n| n > 0).count() as u64;
@@ -556,7 +557,7 @@ impl Renderer {
             _ => {}
         }
         let matrices: Vec<wgpu::Buffer> =
-            instances.iter().map(|i| mesh.matrix_buffer(gpu, i.matrices)).collect::<Result<_>>()?;
+            instances.iter().map(|i| mesh.pose_buffer(gpu, i.pose)).collect::<Result<_>>()?;
         let (width, height) = (self.width, self.height);
         let row = (4 * width).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
         let timestamps = gpu.has_timestamps();

@@ -1,15 +1,15 @@
 //! Compute-shader skinning (thesis chapter 3: skinned vertices written to a buffer that a
 //! plain vertex shader then draws).
 //!
-//! `shaders/common.wgsl` performs skinlet's reference linear blend skinning
-//! ([`skinlet::skinning`]) with the same operations in the same order, one invocation per
+//! `shaders/common.wgsl` performs skinlet's reference linear blend skinning with morph
+//! targets first ([`skinlet::skinning::skin_mesh`]) with the same operations in the same order, one invocation per
 //! vertex, so the only differences are the GPU's own rounding (fused multiply-adds, the
 //! normalization): tests/skinning.rs checks every vertex of every shared asset against the
 //! CPU to 1e-5 of the model's size (on lavapipe they agree bit for bit).
 
-use crate::mesh::{GpuMesh, entry};
+use crate::mesh::{GpuMesh, Pose, entry};
 use crate::{Gpu, Result};
-use glam::{Affine3A, Vec3};
+use glam::Vec3;
 
 /// The compute pipeline (create once per device).
 pub struct ComputeSkinning {
@@ -31,22 +31,26 @@ pub(crate) fn buffer_entry(
     }
 }
 
-/// Bindings 0–5 of `common.wgsl` (mesh parameters, bind-pose vertices, influences, matrices).
+/// Bindings 0–5 and 8 of `common.wgsl` (mesh parameters, bind-pose vertices, influences,
+/// the pose, morph deltas).
 pub(crate) fn mesh_entries(stages: wgpu::ShaderStages) -> Vec<wgpu::BindGroupLayoutEntry> {
     let mut entries = vec![buffer_entry(0, stages, wgpu::BufferBindingType::Uniform)];
-    entries.extend((1..=5).map(|b| buffer_entry(b, stages, wgpu::BufferBindingType::Storage { read_only: true })));
+    entries.extend(
+        [1, 2, 3, 4, 5, 8].map(|b| buffer_entry(b, stages, wgpu::BufferBindingType::Storage { read_only: true })),
+    );
     entries
 }
 
-/// Entries for bindings 0–5 of `common.wgsl`.
-pub(crate) fn mesh_bindings<'a>(mesh: &'a GpuMesh, matrices: &'a wgpu::Buffer) -> Vec<wgpu::BindGroupEntry<'a>> {
+/// Entries for bindings 0–5 and 8 of `common.wgsl`; `pose` from `GpuMesh::pose_buffer`.
+pub(crate) fn mesh_bindings<'a>(mesh: &'a GpuMesh, pose: &'a wgpu::Buffer) -> Vec<wgpu::BindGroupEntry<'a>> {
     vec![
         entry(0, &mesh.params),
         entry(1, &mesh.positions),
         entry(2, &mesh.normals),
         entry(3, &mesh.joints),
         entry(4, &mesh.weights),
-        entry(5, matrices),
+        entry(5, pose),
+        entry(8, &mesh.morphs),
     ]
 }
 
@@ -83,10 +87,11 @@ impl ComputeSkinning {
         pass.dispatch_workgroups(mesh.vertices.div_ceil(64), 1, 1);
     }
 
-    /// Skins `mesh` with `matrices` (one skinning matrix per joint) into its output buffers
-    /// (submitted, not waited for). Errors when a joint has no matrix.
-    pub fn skin(&self, gpu: &Gpu, mesh: &GpuMesh, matrices: &[Affine3A]) -> Result<()> {
-        let matrices = mesh.matrix_buffer(gpu, matrices)?;
+    /// Skins `mesh` in `pose` (one skinning matrix per joint, morph weights for a mesh with
+    /// morph targets) into its output buffers (submitted, not waited for). Errors when a
+    /// joint has no matrix or the morph weights are not the mesh's.
+    pub fn skin<'a>(&self, gpu: &Gpu, mesh: &GpuMesh, pose: impl Into<Pose<'a>>) -> Result<()> {
+        let matrices = mesh.pose_buffer(gpu, pose.into())?;
         gpu.checked("compute skinning", || {
             let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
             self.encode_into(gpu, &mut encoder, mesh, &matrices, &mesh.out_positions, &mesh.out_normals);

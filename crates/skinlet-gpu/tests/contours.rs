@@ -16,7 +16,7 @@ use skinlet::contour::{Edges, Projection, Tested, brute_force};
 use skinlet::pose::Poser;
 use skinlet_gpu::Gpu;
 use skinlet_gpu::contours::{ContourExtraction, ContourView, Extracted, GpuContours, positions_buffer};
-use skinlet_gpu::mesh::GpuMesh;
+use skinlet_gpu::mesh::{GpuMesh, Pose};
 use skinlet_gpu::render::{Renderer, Skinning, framing};
 use skinlet_gpu::skinning::ComputeSkinning;
 use std::path::PathBuf;
@@ -129,19 +129,21 @@ fn skinned_assets_match_brute_force() {
         let buffers = GpuMesh::new(&gpu, &mesh, None).unwrap();
         let mut poser = Poser::default();
         let (mut frames, mut found) = (0, 0);
-        let (mut matrices, mut out) = (Vec::new(), Vec::new());
+        let (mut matrices, mut weights, mut out) = (Vec::new(), Vec::new(), Vec::new());
         for (c, clip) in clips.iter().enumerate() {
             for f in [0.15f32, 0.6, 0.95] {
                 let t = clip.start + f * clip.duration();
                 poser.skinning_matrices(&asset.skeleton, skin, Some(clip), t, &mut matrices);
                 let globals = poser.globals(&asset.skeleton, Some(clip), t);
                 let inverses: Vec<DMat4> = skin.joints.iter().map(|&j| globals[j as usize].inverse()).collect();
-                skinning.skin(&gpu, &buffers, &matrices).unwrap();
+                mesh.morphs.weights_at(Some(clip), t, &mut weights);
+                let pose = Pose { matrices: &matrices, morph_weights: &weights };
+                skinning.skin(&gpu, &buffers, pose).unwrap();
                 // The contours of the GPU-skinned positions (equal to the CPU's on lavapipe:
                 // tests/skinning.rs), compared with the CPU's extraction of the same.
                 let (positions, _) = skinning.read(&gpu, &buffers).unwrap();
                 if f == 0.15 {
-                    check_drawing(&gpu, &renderer, &pipes, (&shape, &buffers), &matrices, &positions, &edges, |p| {
+                    check_drawing(&gpu, &renderer, &pipes, (&shape, &buffers), pose, &positions, &edges, |p| {
                         let cpu = sp.extract_prepared(&positions, &edges, &inverses, Some((c, t)), p, &mut Vec::new());
                         (ContourView::skinned(&sp, &inverses, Some((c, t)), p), cpu)
                     });
@@ -176,17 +178,16 @@ fn check_drawing(
     renderer: &Renderer,
     pipes: &ContourExtraction,
     (shape, mesh): (&GpuContours, &GpuMesh),
-    matrices: &[glam::Affine3A],
+    pose: Pose,
     positions: &[Vec3],
     edges: &Edges,
     view: impl Fn(Projection) -> (ContourView, Tested),
 ) {
     let camera = framing(positions, Vec3::new(0.3, 0.2, 1.0), 1.0);
     let light = Vec3::new(0.4, 0.8, 0.6);
-    let plain = renderer.render(gpu, mesh, matrices, camera.view_proj, light, Skinning::Compute).unwrap();
+    let plain = renderer.render(gpu, mesh, pose, camera.view_proj, light, Skinning::Compute).unwrap();
     let (v, cpu) = view(camera.projection);
-    let (lined, found) =
-        renderer.render_contours(gpu, mesh, matrices, camera.view_proj, light, pipes, shape, &v).unwrap();
+    let (lined, found) = renderer.render_contours(gpu, mesh, pose, camera.view_proj, light, pipes, shape, &v).unwrap();
     check("drawing", found, positions, edges, camera.projection, cpu);
     let lines = [[255, 140, 26, 255], [107, 69, 31, 255]];
     let mut changed = 0;

@@ -1,15 +1,15 @@
 //! Every skinning pipeline renders the same image of a posed character (thesis fig. 3.2),
 //! pixel for pixel: vertex-shader, compute-shader and mesh-shader skinning (skin-aware and
-//! common-influences meshlets, full and slim vertices), on every shared skinned asset and the
-//! demo character, mid-clip. With SKINLET_REQUIRE_GPU=1 (CI, lavapipe) the mesh-shader paths
+//! common-influences meshlets, full and slim vertices), on every shared skinned asset, the
+//! morph-target test and the demo character, mid-clip. With SKINLET_REQUIRE_GPU=1 (CI, lavapipe) the mesh-shader paths
 //! must run.
 
 mod common;
-use common::{assets, gpu};
-use glam::{Affine3A, Vec3};
+use common::{Posed, assets, gpu};
+use glam::Vec3;
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::Poser;
-use skinlet_gpu::mesh::GpuMesh;
+use skinlet_gpu::mesh::{GpuMesh, Pose};
 use skinlet_gpu::render::{CrowdDraw, Culling, Instance, Renderer, Skinning, framing};
 use skinlet_gpu::{Gpu, GpuOptions};
 
@@ -27,16 +27,12 @@ fn every_skinning_pipeline_draws_the_same_image() {
         let mesh = prepared.mesh;
         let clip = asset.clips.first();
         let t = clip.map_or(0.0, |c| c.start + 0.4 * c.duration());
-        let mut matrices: Vec<Affine3A> = Vec::new();
-        Poser::default().skinning_matrices(&asset.skeleton, skin, clip, t, &mut matrices);
-        let mut posed = vec![Vec3::ZERO; mesh.positions.len()];
-        let inf = mesh.influences.as_ref().unwrap();
-        skinlet::skinning::skin(inf, &mesh.positions, &[], &matrices, &mut posed, &mut []).unwrap();
-        let view_proj = framing(&posed, Vec3::new(0.3, 0.2, 1.0), 1.0).view_proj;
+        let posed = Posed::new(&asset, skin, &mesh, clip, t);
+        let view_proj = framing(&posed.positions, Vec3::new(0.3, 0.2, 1.0), 1.0).view_proj;
         let gpu_mesh = GpuMesh::new(&gpu, &mesh, Some(&meshlets)).unwrap();
         let light = Vec3::new(0.4, 0.8, 0.6);
-        let by_vertex = renderer.render(&gpu, &gpu_mesh, &matrices, view_proj, light, Skinning::Vertex).unwrap();
-        let by_compute = renderer.render(&gpu, &gpu_mesh, &matrices, view_proj, light, Skinning::Compute).unwrap();
+        let by_vertex = renderer.render(&gpu, &gpu_mesh, posed.pose(), view_proj, light, Skinning::Vertex).unwrap();
+        let by_compute = renderer.render(&gpu, &gpu_mesh, posed.pose(), view_proj, light, Skinning::Compute).unwrap();
         // The character covers part of the image (the test would pass on two blank images).
         let background = &by_vertex.rgba[..4];
         let covered = by_vertex.rgba.chunks(4).filter(|p| *p != background).count();
@@ -48,7 +44,7 @@ fn every_skinning_pipeline_draws_the_same_image() {
                 let ml = gpu_mesh.meshlets.as_ref().unwrap();
                 (slim, meshlet_total) = (slim + ml.slim, meshlet_total + ml.count);
                 for path in [Skinning::Mesh, Skinning::MeshSlim] {
-                    let image = renderer.render(&gpu, &gpu_mesh, &matrices, view_proj, light, path).unwrap();
+                    let image = renderer.render(&gpu, &gpu_mesh, posed.pose(), view_proj, light, path).unwrap();
                     others.push((format!("{path:?} on {builder} meshlets ({} of {} slim)", ml.slim, ml.count), image));
                 }
             }
@@ -77,22 +73,18 @@ fn a_pose_change_changes_the_image() {
     let view_proj = framing(&mesh.positions, Vec3::Z, 1.0).view_proj;
     let mut images = Vec::new();
     for t in [0.2, 0.6] {
-        let mut matrices = Vec::new();
-        Poser::default().skinning_matrices(
-            &asset.skeleton,
-            skin,
-            Some(clip),
-            clip.start + t * clip.duration(),
-            &mut matrices,
-        );
-        images.push(renderer.render(&gpu, &gpu_mesh, &matrices, view_proj, Vec3::Y, Skinning::Vertex).unwrap());
+        let posed = Posed::new(&asset, skin, mesh, Some(clip), clip.start + t * clip.duration());
+        images.push(renderer.render(&gpu, &gpu_mesh, posed.pose(), view_proj, Vec3::Y, Skinning::Vertex).unwrap());
     }
     assert_ne!(images[0], images[1]);
-    assert!(renderer.render(&gpu, &gpu_mesh, &[], view_proj, Vec3::Y, Skinning::Vertex).is_err(), "no matrices");
-    let mut matrices = Vec::new();
-    Poser::default().skinning_matrices(&asset.skeleton, skin, Some(clip), clip.start, &mut matrices);
-    let no_meshlets = renderer.render(&gpu, &gpu_mesh, &matrices, view_proj, Vec3::Y, Skinning::Mesh);
+    assert!(renderer.render(&gpu, &gpu_mesh, &[][..], view_proj, Vec3::Y, Skinning::Vertex).is_err(), "no matrices");
+    let posed = Posed::new(&asset, skin, mesh, Some(clip), clip.start);
+    let no_meshlets = renderer.render(&gpu, &gpu_mesh, posed.pose(), view_proj, Vec3::Y, Skinning::Mesh);
     assert!(no_meshlets.is_err(), "mesh shading without meshlets");
+    if gpu_mesh.morph_weights > 0 {
+        let unmorphed = renderer.render(&gpu, &gpu_mesh, &posed.matrices, view_proj, Vec3::Y, Skinning::Vertex);
+        assert!(unmorphed.is_err(), "a pose without the mesh's morph weights");
+    }
 }
 
 #[test]
@@ -128,18 +120,15 @@ fn culled_drawing_gives_the_unculled_image() {
         let clip = clips.first().copied();
         let t = clip.map_or(0.0, |c| c.start + 0.6 * c.duration());
         let mut poser = Poser::default();
-        let mut matrices = Vec::new();
-        poser.skinning_matrices(&asset.skeleton, skin, clip, t, &mut matrices);
+        let at = Posed::new(&asset, skin, &baked.mesh, clip, t);
+        let (posed, pose) = (&at.positions, at.pose());
         let mut joints = Vec::new();
         skinlet::pose::joint_globals(skin, poser.globals(&asset.skeleton, clip, t), &mut joints);
-        let mut posed = vec![Vec3::ZERO; baked.mesh.positions.len()];
-        let inf = baked.mesh.influences.as_ref().unwrap();
-        skinlet::skinning::skin(inf, &baked.mesh.positions, &[], &matrices, &mut posed, &mut []).unwrap();
         for (device, renderer) in &devices {
             let mesh_shaders = device.has_mesh_shaders();
             let gpu_mesh = GpuMesh::new(device, &baked.mesh, Some(&baked.meshlets)).unwrap();
             for (dir, zoom) in [(Vec3::new(0.3, 0.2, 1.0), 1.0), (Vec3::new(-1.0, 0.4, -0.5), 2.5)] {
-                let camera = framing(&posed, dir, zoom);
+                let camera = framing(posed, dir, zoom);
                 let mut frame = skinlet::cull::meshlet::JointFrame::default();
                 culler.prepare(&joints, &camera, skinlet::cull::meshlet::Tests::Both, &mut frame);
                 let mut visible = Vec::new();
@@ -147,25 +136,16 @@ fn culled_drawing_gives_the_unculled_image() {
                 culled_total += counts.meshlets - counts.visible;
                 let light = Vec3::new(0.4, 0.8, 0.6);
                 let unculled = if mesh_shaders { Skinning::Mesh } else { Skinning::Vertex };
-                let all = renderer.render(device, &gpu_mesh, &matrices, camera.view_proj, light, unculled).unwrap();
+                let all = renderer.render(device, &gpu_mesh, pose, camera.view_proj, light, unculled).unwrap();
                 // The CPU's per-triangle culling of the visible meshlets, on the same skinned positions.
                 let kept =
-                    skinlet::cull::triangle::cull_triangles(&baked.meshlets, &visible, &posed, camera.projection, None);
+                    skinlet::cull::triangle::cull_triangles(&baked.meshlets, &visible, posed, camera.projection, None);
                 let in_visible: u32 =
                     visible.iter().map(|&m| baked.meshlets.meshlets[m as usize].triangle_count as u32).sum();
                 let per_triangle = if mesh_shaders { kept.kept as u32 } else { in_visible };
                 for (triangles, expected) in [(None, in_visible), (Some(camera.projection), per_triangle)] {
                     let (culled, drawn) = renderer
-                        .render_culled(
-                            device,
-                            &gpu_mesh,
-                            &matrices,
-                            camera.view_proj,
-                            light,
-                            &culler,
-                            &frame,
-                            triangles,
-                        )
+                        .render_culled(device, &gpu_mesh, pose, camera.view_proj, light, &culler, &frame, triangles)
                         .unwrap();
                     let differing = all.rgba.chunks(4).zip(culled.rgba.chunks(4)).filter(|(a, b)| a != b).count();
                     let subgroups = device.has_subgroups();
@@ -177,7 +157,7 @@ fn culled_drawing_gives_the_unculled_image() {
                 }
                 if mesh_shaders {
                     // The paper's three task pipelines, one per culling class.
-                    let one = [Instance { matrices: &matrices, frame: Some(&frame) }];
+                    let one = [Instance { pose, frame: Some(&frame) }];
                     let how = CrowdDraw::Culled {
                         culler: &culler,
                         culling: Culling::TaskByClass,
@@ -213,10 +193,12 @@ fn crowd_draws_agree_and_are_timed() {
     let (mut matrices, mut frames, mut expected) = (Vec::new(), Vec::new(), 0);
     for pl in &scene.placements {
         let clip = clips[pl.clip];
-        let globals = poser.globals(&demo.skeleton, Some(clip), pl.time(Some(clip), 0, params.fps));
-        let (mut joints, mut skinning) = (Vec::new(), Vec::new());
+        let t = pl.time(Some(clip), 0, params.fps);
+        let globals = poser.globals(&demo.skeleton, Some(clip), t);
+        let (mut joints, mut skinning, mut weights) = (Vec::new(), Vec::new(), Vec::new());
         pl.world_matrices(skin, globals, &mut joints, &mut skinning);
-        matrices.push(skinning);
+        baked.mesh.morphs.weights_at(Some(clip), t, &mut weights);
+        matrices.push((skinning, weights));
         let mut frame = skinlet::cull::meshlet::JointFrame::default();
         culler.prepare(&joints, &scene.camera, skinlet::cull::meshlet::Tests::Both, &mut frame);
         let mut visible = Vec::new();
@@ -224,8 +206,9 @@ fn crowd_draws_agree_and_are_timed() {
         expected += visible.iter().map(|&m| baked.meshlets.meshlets[m as usize].triangle_count as u32).sum::<u32>();
         frames.push(frame);
     }
-    let instances: Vec<Instance> =
-        matrices.iter().zip(&frames).map(|(m, f)| Instance { matrices: m, frame: Some(f) }).collect();
+    let instances: Vec<Instance> = (matrices.iter().zip(&frames))
+        .map(|((m, w), f)| Instance { pose: Pose { matrices: m, morph_weights: w }, frame: Some(f) })
+        .collect();
     let mesh_gpu = GpuMesh::new(&gpu, &baked.mesh, Some(&baked.meshlets)).unwrap();
     let (view_proj, light) = (scene.camera.view_proj, Vec3::new(0.4, 0.8, 0.6));
     let draw = |how| renderer.render_crowd(&gpu, &mesh_gpu, &instances, view_proj, light, how).unwrap();
@@ -299,27 +282,17 @@ fn gpu_overdraw_matches_the_cpu_rasterizer() {
         let mesh = skinlet::bake::prepare_character(&character).unwrap().mesh;
         let clip = asset.clips.first();
         let t = clip.map_or(0.0, |c| c.start + 0.3 * c.duration());
-        let mut matrices: Vec<Affine3A> = Vec::new();
-        Poser::default().skinning_matrices(&asset.skeleton, skin, clip, t, &mut matrices);
-        let mut posed = vec![Vec3::ZERO; mesh.positions.len()];
-        skinlet::skinning::skin(
-            mesh.influences.as_ref().unwrap(),
-            &mesh.positions,
-            &[],
-            &matrices,
-            &mut posed,
-            &mut [],
-        )
-        .unwrap();
-        let framing = skinlet::overdraw::cluster::Framing::of(std::slice::from_ref(&posed));
+        let pose = Posed::new(&asset, skin, &mesh, clip, t);
+        let posed = &pose.positions;
+        let framing = skinlet::overdraw::cluster::Framing::of(std::slice::from_ref(posed));
         let view_proj = framing.view_proj(framing.eye(Vec3::new(0.3, 0.2, 1.0).normalize(), 3.0));
         let reversed: Vec<[u32; 3]> = mesh.triangles.iter().rev().copied().collect();
         let mut ratios = Vec::new();
         for order in [mesh.triangles.clone(), reversed] {
             let ordered = skinlet::model::SkinnedMesh { triangles: order.clone(), ..mesh.clone() };
             let gpu_mesh = GpuMesh::new(&gpu, &ordered, None).unwrap();
-            let (counts, on_gpu) = renderer.render_overdraw(&gpu, &gpu_mesh, &matrices, view_proj).unwrap();
-            let on_cpu = raster.render(&posed, &order, &view_proj);
+            let (counts, on_gpu) = renderer.render_overdraw(&gpu, &gpu_mesh, pose.pose(), view_proj).unwrap();
+            let on_cpu = raster.render(posed, &order, &view_proj);
             let pixels = counts.iter().zip(&raster.shaded).filter(|(a, b)| a != b).count();
             eprintln!(
                 "{name}: OVR GPU {:.4} CPU {:.4}, {} vs {} pixels covered, {pixels} pixels count differently",

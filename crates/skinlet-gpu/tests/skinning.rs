@@ -1,5 +1,6 @@
-//! Compute-shader skinning against skinlet's CPU reference skinning: every vertex and normal
-//! of every shared skinned asset and the demo character, at several times of each clip.
+//! Compute-shader skinning against skinlet's CPU reference skinning (morph targets, then
+//! skinning): every vertex and normal of every shared skinned asset, the morph-target test
+//! and the demo character, at several times of each clip.
 //!
 //! Runs on any Vulkan adapter; on CPU-only machines that is Mesa's lavapipe. With
 //! SKINLET_REQUIRE_GPU=1 (CI) a missing adapter fails the test instead of skipping it.
@@ -8,7 +9,7 @@ use glam::{Affine3A, Vec3};
 mod common;
 use common::{assets, gpu};
 use skinlet::pose::Poser;
-use skinlet_gpu::mesh::GpuMesh;
+use skinlet_gpu::mesh::{GpuMesh, Pose};
 use skinlet_gpu::skinning::ComputeSkinning;
 use skinlet_gpu::{Gpu, GpuOptions};
 
@@ -26,7 +27,6 @@ fn compute_skinning_matches_the_cpu_reference() {
         let character = asset.character().unwrap();
         let skin = &character.palette;
         let mesh = character.mesh.clone();
-        let inf = mesh.influences.as_ref().unwrap();
         let buffers = GpuMesh::new(&gpu, &mesh, None).unwrap();
         let mut poser = Poser::default();
         let mut times: Vec<(Option<usize>, f32)> = vec![(None, 0.0)];
@@ -34,12 +34,14 @@ fn compute_skinning_matches_the_cpu_reference() {
             times.extend([0.1f32, 0.5, 0.9].map(|f| (Some(c), clip.start + f * clip.duration())));
         }
         for (clip, t) in times {
-            let mut matrices: Vec<Affine3A> = Vec::new();
-            poser.skinning_matrices(&asset.skeleton, skin, clip.map(|c| &asset.clips[c]), t, &mut matrices);
+            let (mut matrices, mut weights): (Vec<Affine3A>, Vec<f32>) = (Vec::new(), Vec::new());
+            let clip = clip.map(|c| &asset.clips[c]);
+            poser.skinning_matrices(&asset.skeleton, skin, clip, t, &mut matrices);
+            mesh.morphs.weights_at(clip, t, &mut weights);
             let mut cpu_p = vec![Vec3::ZERO; mesh.positions.len()];
             let mut cpu_n = vec![Vec3::ZERO; mesh.normals.len()];
-            skinlet::skinning::skin(inf, &mesh.positions, &mesh.normals, &matrices, &mut cpu_p, &mut cpu_n).unwrap();
-            pipeline.skin(&gpu, &buffers, &matrices).unwrap();
+            skinlet::skinning::skin_mesh(&mesh, &weights, &matrices, &mut cpu_p, &mut cpu_n).unwrap();
+            pipeline.skin(&gpu, &buffers, Pose { matrices: &matrices, morph_weights: &weights }).unwrap();
             let (gpu_p, gpu_n) = pipeline.read(&gpu, &buffers).unwrap();
             assert_eq!((gpu_p.len(), gpu_n.len()), (cpu_p.len(), cpu_n.len()), "{name}");
             // Errors relative to the posed model's size.
@@ -47,6 +49,7 @@ fn compute_skinning_matches_the_cpu_reference() {
             let size = (hi - lo).length().max(1e-6);
             let p_err = cpu_p.iter().zip(&gpu_p).map(|(a, b)| (*a - *b).length()).fold(0.0f32, f32::max) / size;
             let n_err = cpu_n.iter().zip(&gpu_n).map(|(a, b)| (*a - *b).length()).fold(0.0f32, f32::max);
+            let clip = clip.map(|c| &c.name);
             assert!(p_err <= 1e-5, "{name} clip {clip:?} t {t}: position error {p_err:e} of the model size");
             assert!(n_err <= 1e-5, "{name} clip {clip:?} t {t}: normal error {n_err:e}");
             worst = (worst.0.max(p_err), worst.1.max(n_err));

@@ -219,8 +219,7 @@ fn baked_clips<'a>(baked: &Baked, asset: &'a Asset) -> Result<Vec<&'a Clip>> {
 }
 
 /// Section tags: the seven required ones, then the optional overdraw orders and contours.
-const TAGS: [&[u8; 4]; 10] =
-    [b"INFO", b"SKIN", b"VERT", b"TRIS", b"MLET", b"BNDS", b"PART", b"OVDR", b"CONT", b"MRPH"];
+const TAGS: [&[u8; 4]; 10] = [b"INFO", b"SKIN", b"VERT", b"TRIS", b"MLET", b"BNDS", b"PART", b"OVDR", b"CONT", b"MRPH"];
 const MORPH_WEIGHT_STRIDE: usize = 12;
 const MORPH_DELTA_STRIDE: usize = 28;
 const PART_STRIDE: usize = 40;

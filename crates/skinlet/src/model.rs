@@ -291,7 +291,11 @@ impl Morphs {
             return bad(format!("vertex {v}: offsets decrease"));
         }
         if *self.offsets.last().unwrap_or(&0) as usize != self.deltas.len() {
-            return bad(format!("the offsets end at {} but there are {} deltas", self.offsets.last().unwrap_or(&0), self.deltas.len()));
+            return bad(format!(
+                "the offsets end at {} but there are {} deltas",
+                self.offsets.last().unwrap_or(&0),
+                self.deltas.len()
+            ));
         }
         if let Some(d) = self.deltas.iter().find(|d| d.weight as usize >= self.weights.len()) {
             return bad(format!("a delta uses weight {} of {}", d.weight, self.weights.len()));

@@ -48,7 +48,11 @@ pub(crate) fn weld_groups(mesh: &SkinnedMesh, group: &[u32]) -> (SkinnedMesh, Ve
     let morph_class: Vec<u32> = (0..n)
         .map(|v| {
             let key: Vec<u32> = (mesh.morphs.of(v).iter())
-                .flat_map(|d| [d.weight].into_iter().chain(d.position.to_array().into_iter().chain(d.normal.to_array()).map(f32::to_bits)))
+                .flat_map(|d| {
+                    [d.weight]
+                        .into_iter()
+                        .chain(d.position.to_array().into_iter().chain(d.normal.to_array()).map(f32::to_bits))
+                })
                 .collect();
             let next = lists.len() as u32;
             *lists.entry(key).or_insert(next)

@@ -22,7 +22,7 @@ fn skin_slim(v: u32, count: u32) -> vec3<f32> {
         z += slim_matrices[4u * i + 2u].xyz * w;
         t += slim_matrices[4u * i + 3u].xyz * w;
     }
-    let p = vec3<f32>(positions[3u * v], positions[3u * v + 1u], positions[3u * v + 2u]);
+    let p = morphed(v).position;
     return x * p.x + y * p.y + z * p.z + t;
 }
 

@@ -1,8 +1,10 @@
-//! Shared by the GPU tests: the device (or a skip, unless SKINLET_REQUIRE_GPU=1) and the
-//! shared skinned assets plus the demo character.
+//! Shared by the GPU tests: the device (or a skip, unless SKINLET_REQUIRE_GPU=1), the shared
+//! skinned assets and morph-target test plus the demo character, and posing on the CPU.
 #![allow(dead_code)]
 
+use glam::{Affine3A, Vec3};
 use skinlet::Asset;
+use skinlet_gpu::mesh::Pose;
 use skinlet_gpu::{Gpu, GpuOptions};
 use std::path::PathBuf;
 
@@ -26,6 +28,8 @@ pub fn assets() -> Vec<(String, Asset)> {
         Ok(entries) => {
             let mut paths: Vec<PathBuf> = entries.flatten().map(|e| e.path()).collect();
             paths.sort();
+            // The skinned characters, then the morph-target test.
+            paths.push(dir.join("morph/MorphStressTest.gltf"));
             for p in paths.into_iter().filter(|p| p.extension().is_some_and(|e| e == "glb" || e == "gltf")) {
                 let asset = skinlet::import::load(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
                 out.push((p.file_name().unwrap().to_string_lossy().into_owned(), asset));
@@ -50,4 +54,33 @@ pub fn bake(asset: &Asset, character: &skinlet::Character) -> skinlet::bake::Bak
     skinlet::bake::bake(asset, character, &clips, skinlet::meshlet::Builder::SkinAware, limits, &how, &mut |_| {})
         .unwrap()
         .0
+}
+
+/// A mesh posed on the CPU: the skinning matrices and morph weights of `clip` at `t` (what a
+/// draw takes), and the reference positions.
+pub struct Posed {
+    pub matrices: Vec<Affine3A>,
+    pub weights: Vec<f32>,
+    pub positions: Vec<Vec3>,
+}
+
+impl Posed {
+    pub fn new(
+        asset: &Asset,
+        skin: &skinlet::Skin,
+        mesh: &skinlet::SkinnedMesh,
+        clip: Option<&skinlet::clip::Clip>,
+        t: f32,
+    ) -> Posed {
+        let (mut matrices, mut weights) = (Vec::new(), Vec::new());
+        skinlet::pose::Poser::default().skinning_matrices(&asset.skeleton, skin, clip, t, &mut matrices);
+        mesh.morphs.weights_at(clip, t, &mut weights);
+        let mut positions = vec![Vec3::ZERO; mesh.positions.len()];
+        skinlet::skinning::skin_mesh(mesh, &weights, &matrices, &mut positions, &mut []).unwrap();
+        Posed { matrices, weights, positions }
+    }
+
+    pub fn pose(&self) -> Pose<'_> {
+        Pose { matrices: &self.matrices, morph_weights: &self.weights }
+    }
 }

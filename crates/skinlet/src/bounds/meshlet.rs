@@ -86,9 +86,7 @@ pub(crate) fn piece_extent(
     let mut r = rest.radius as f64;
     let mut min_cos = (rest.rest_cone_angle as f64).cos();
     boxes.clear();
-    boxes.extend(verts.iter().map(|&v| {
-        vertex_box(ctx.skeleton, ctx.skin, mo, ctx.mesh, v as usize, rest.joint)
-    }));
+    boxes.extend(verts.iter().map(|&v| vertex_box(ctx.skeleton, ctx.skin, mo, ctx.mesh, v as usize, rest.joint)));
     for bx in boxes.iter() {
         r = r.max(bx.inflated(INFLATE).max_distance(c));
     }
