@@ -39,6 +39,13 @@ pub struct Args {
     json: bool,
 }
 
+/// One instance in one frame: world-space skinning and joint matrices, morph weights.
+struct InstancePose {
+    skinning: Vec<Affine3A>,
+    joints: Vec<Affine3A>,
+    weights: Vec<f32>,
+}
+
 /// One measured configuration.
 struct Row {
     pipeline: &'static str,
@@ -79,7 +86,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let ci_culler = MeshletCuller::new(&ci.bounds, &ci.classes, skin.joints.len());
     // Per frame and instance: world-space skinning matrices, joint matrices, morph weights.
     let mut poser = Poser::default();
-    let mut frames: Vec<Vec<(Vec<Affine3A>, Vec<Affine3A>, Vec<f32>)>> = Vec::new();
+    let mut frames: Vec<Vec<InstancePose>> = Vec::new();
     for f in 0..params.frames {
         let mut instances = Vec::new();
         for pl in &scene.placements {
@@ -88,7 +95,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             let (mut joints, mut skinning, mut weights) = (Vec::new(), Vec::new(), Vec::new());
             pl.world_matrices(skin, poser.globals(&asset.skeleton, clip, t), &mut joints, &mut skinning);
             baked.mesh.morphs.weights_at(clip, t, &mut weights);
-            instances.push((skinning, joints, weights));
+            instances.push(InstancePose { skinning, joints, weights });
         }
         frames.push(instances);
     }
@@ -126,9 +133,9 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 let prepared: Vec<JointFrame> = match tests {
                     Some(tests) => instances
                         .iter()
-                        .map(|(_, joints, _)| {
+                        .map(|i| {
                             let mut frame = JointFrame::default();
-                            culler.prepare(joints, &scene.camera, tests, &mut frame);
+                            culler.prepare(&i.joints, &scene.camera, tests, &mut frame);
                             frame
                         })
                         .collect(),
@@ -141,9 +148,9 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                     }
                 }
                 let list: Vec<Instance> = (instances.iter().enumerate())
-                    .map(|(i, (m, _, w))| Instance {
-                        pose: Pose { matrices: m, morph_weights: w },
-                        frame: prepared.get(i),
+                    .map(|(k, i)| Instance {
+                        pose: Pose { matrices: &i.skinning, morph_weights: &i.weights },
+                        frame: prepared.get(k),
                     })
                     .collect();
                 let how = match culling_path {

@@ -37,17 +37,51 @@ struct Cli {
     /// default: the file's `scene`, else scene 0, else every root node).
     #[arg(long, global = true)]
     scene: Option<usize>,
+    /// Keep only the parts drawn by this glTF node (repeat for several; `inspect` lists the
+    /// parts and their nodes). Every command then works on those parts alone.
+    #[arg(long, global = true)]
+    node: Vec<u32>,
+    /// Keep only this part (its index in `inspect`'s parts table; repeat for several).
+    #[arg(long, global = true)]
+    part: Vec<usize>,
     #[command(subcommand)]
     command: Command,
 }
 
-/// `--scene`, set once after parsing: the one piece of CLI state every command loading a
-/// character reads.
-static SCENE: std::sync::OnceLock<Option<usize>> = std::sync::OnceLock::new();
+/// Which character the command works on: the scene, and the node and part filters.
+#[derive(Default)]
+struct Selection {
+    scene: Option<usize>,
+    nodes: Vec<u32>,
+    parts: Vec<usize>,
+}
 
-/// The character of `asset` for the scene `--scene` chose.
+/// `--scene`, `--node` and `--part`, set once after parsing: the one piece of CLI state every
+/// command loading a character reads.
+static SELECTION: std::sync::OnceLock<Selection> = std::sync::OnceLock::new();
+
+/// The character of `asset` for the scene `--scene` chose, restricted to the parts `--node`
+/// and `--part` name (all without them); a filter that names nothing is an error.
 fn character_of(asset: &Asset) -> skinlet::Result<Character> {
-    skinlet::character::character(asset, SCENE.get().copied().flatten())
+    let sel = SELECTION.get_or_init(Selection::default);
+    let character = skinlet::character::character(asset, sel.scene)?;
+    if sel.nodes.is_empty() && sel.parts.is_empty() {
+        return Ok(character);
+    }
+    let drawing: Vec<u32> = character.parts.iter().map(|p| p.node).collect();
+    if let Some(n) = sel.nodes.iter().find(|n| !drawing.contains(n)) {
+        return Err(skinlet::Error::Invalid {
+            location: format!("--node {n}"),
+            message: format!("node {n} draws no part of the character (parts are drawn by nodes {drawing:?})"),
+        });
+    }
+    if let Some(p) = sel.parts.iter().find(|&&p| p >= drawing.len()) {
+        return Err(skinlet::Error::Invalid {
+            location: format!("--part {p}"),
+            message: format!("the character has {} parts (0 to {})", drawing.len(), drawing.len() - 1),
+        });
+    }
+    character.select(|i, p| sel.parts.contains(&i) || sel.nodes.contains(&p.node))
 }
 
 /// Refinement of conservative bounds and the classification thresholds it aims at.
@@ -387,7 +421,7 @@ fn main() {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
     let cli = Cli::parse();
-    SCENE.get_or_init(|| cli.scene);
+    SELECTION.get_or_init(|| Selection { scene: cli.scene, nodes: cli.node.clone(), parts: cli.part.clone() });
     let result = match cli.command {
         Command::Inspect { file, json } => inspect(&file, json),
         Command::Pose { file, clip, time, json } => pose(&file, clip.as_deref(), time, json),

@@ -566,13 +566,37 @@ fn scene_option_selects_the_gltf_scene() {
 }
 
 #[test]
-fn render_draws_morph_targets_in_the_shaded_view() {
+fn node_and_part_filters_keep_those_parts() {
+    let all = json_of(&["inspect", "@demo:1000", "--json"]);
+    let parts = all["parts"].as_array().unwrap();
+    let propeller = parts[3]["node"].to_string();
+    let j = json_of(&["inspect", "@demo:1000", "--node", &propeller, "--json"]);
+    assert_eq!(j["parts"].as_array().unwrap().len(), 1);
+    assert_eq!(j["parts"][0]["node"].to_string(), propeller);
+    let j = json_of(&["inspect", "@demo:1000", "--part", "0", "--part", "4", "--json"]);
+    let kept: Vec<&Value> = j["parts"].as_array().unwrap().iter().map(|p| &p["node"]).collect();
+    assert_eq!(kept, [&parts[0]["node"], &parts[4]["node"]]);
+    // A bake of the propeller alone holds its triangles only.
+    let out = std::env::temp_dir().join(format!("skinlet-filter-{}.skinlet", std::process::id()));
+    let b =
+        json_of(&["bake", "@demo:1000", "--node", &propeller, "-o", out.to_str().unwrap(), "--budget", "0", "--json"]);
+    let _ = std::fs::remove_file(&out);
+    assert_eq!((b["parts"].as_u64(), &b["triangles"]), (Some(1), &parts[3]["triangles"]));
+    // Filters that name nothing are errors that say so.
+    let (code, _, err) = skinlet(&["inspect", "@demo:1000", "--node", "9999"]);
+    assert!(code == 2 && err.contains("node 9999 draws no part of the character"), "{err}");
+    let (code, _, err) = skinlet(&["inspect", "@demo:1000", "--part", "6"]);
+    assert!(code == 2 && err.contains("the character has 6 parts"), "{err}");
+}
+
+#[test]
+fn render_draws_morph_targets_in_every_pipeline() {
     let Some(dir) = assets_dir() else { return };
     let file = dir.join("morph/MorphStressTest.gltf");
     let out = std::env::temp_dir().join(format!("skinlet-render-morph-{}", std::process::id()));
     std::fs::create_dir_all(&out).unwrap();
     let mut images = Vec::new();
-    for (skinning, time) in [("vertex", "0.0"), ("vertex", "0.9"), ("compute", "0.9")] {
+    for (skinning, time) in [("vertex", "0.0"), ("vertex", "0.9"), ("compute", "0.9"), ("mesh", "0.9")] {
         let png = out.join(format!("{skinning}-{time}.png"));
         let args = ["render", file.to_str().unwrap(), "--clip", "TheWave", "--time", time, "--skinning", skinning];
         let (code, _, err) = skinlet(&[&args[..], &["--size", "64", "-o", png.to_str().unwrap()]].concat());
@@ -586,12 +610,14 @@ fn render_draws_morph_targets_in_the_shaded_view() {
         assert_eq!(code, 0, "{err}");
         images.push(std::fs::read(&png).unwrap());
     }
-    // The morphs move the shape between the two times; both pipelines draw the same image.
+    // The morphs move the shape between the two times; every pipeline draws the same image.
     assert_ne!(images[0], images[1]);
     assert_eq!(images[1], images[2]);
-    // Views that need a bake say why they cannot draw it.
-    let (code, _, err) = skinlet(&["render", file.to_str().unwrap(), "--view", "culled", "-o", "/dev/null"]);
-    assert_eq!(code, 2);
-    assert!(err.contains("morph targets that move"), "{err}");
+    assert_eq!(images[1], images[3]);
+    // The views that bake draw it too: the bounds hold over the morphs.
+    let png = out.join("culled.png");
+    let args = ["render", file.to_str().unwrap(), "--clip", "TheWave", "--view", "culled", "--size", "64", "-o"];
+    let (code, _, err) = skinlet(&[&args[..], &[png.to_str().unwrap()]].concat());
+    assert_eq!(code, 0, "{err}");
     let _ = std::fs::remove_dir_all(&out);
 }

@@ -966,5 +966,17 @@ mod tests {
         bytes[at..at + 4].copy_from_slice(&u32::MAX.to_le_bytes());
         let m = msg(&bytes);
         assert!(m.contains("TRIS") && m.contains("triangle 0 uses vertex 4294967295"), "{m}");
+        // The demo's face is in MRPH: a delta naming a weight that does not exist.
+        assert!(!b.mesh.morphs.is_empty());
+        let mut bytes = to_bytes(&b);
+        let n = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+        let entry = (0..n).map(|i| HEADER + i * ENTRY).find(|&e| &bytes[e..e + 4] == b"MRPH").expect("a MRPH section");
+        let start = u64::from_le_bytes(bytes[entry + 8..entry + 16].try_into().unwrap()) as usize;
+        let mo = &b.mesh.morphs;
+        let first_delta = start + 8 + MORPH_WEIGHT_STRIDE * mo.weights.len() + 4 * mo.offsets.len();
+        bytes[first_delta..first_delta + 4].copy_from_slice(&9u32.to_le_bytes());
+        let m = msg(&bytes);
+        assert!(m.contains("MRPH") && m.contains("a delta uses weight 9 of 2"), "{m}");
+        assert_eq!(from_bytes(&to_bytes(&b)).unwrap().mesh.morphs, b.mesh.morphs, "read back as written");
     }
 }

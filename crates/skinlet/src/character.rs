@@ -79,10 +79,39 @@ impl Character {
         Ok((op, on))
     }
 
-    /// The parts whose vertices morph targets move (see [`crate::model::Morphs::move_over`]).
+    /// The parts some of whose vertices have morph deltas.
     pub fn morphed_parts(&self) -> impl Iterator<Item = &Part> {
         let m = &self.mesh.morphs;
         self.parts.iter().filter(|p| (p.vertices.start..p.vertices.end).any(|v| !m.of(v as usize).is_empty()))
+    }
+
+    /// The character of the parts `keep` accepts (given each part's index and the part): their
+    /// vertices, triangles and morph deltas in the same order, over the same palette of
+    /// drivers and morph weights (so poses and bakes of either agree on the kept parts).
+    /// Errors when no part is kept.
+    pub fn select(&self, mut keep: impl FnMut(usize, &Part) -> bool) -> Result<Character> {
+        let kept: Vec<&Part> = self.parts.iter().enumerate().filter(|(i, p)| keep(*i, p)).map(|(_, p)| p).collect();
+        if kept.is_empty() {
+            return Err(Error::invalid("character", "no part is selected"));
+        }
+        let slices: Vec<SkinnedMesh> =
+            kept.iter().map(|p| self.mesh.slice(p.vertices.clone(), p.triangles.clone())).collect();
+        let mut mesh = crate::model::concat(&slices.iter().collect::<Vec<_>>());
+        let vertices = kept.iter().flat_map(|p| p.vertices.start as usize..p.vertices.end as usize);
+        mesh.morphs = self.mesh.morphs.select(vertices);
+        let (mut v, mut t) = (0u32, 0u32);
+        let parts = (kept.iter())
+            .map(|p| {
+                let part = Part {
+                    vertices: v..v + p.vertices.len() as u32,
+                    triangles: t..t + p.triangles.len() as u32,
+                    ..(*p).clone()
+                };
+                (v, t) = (part.vertices.end, part.triangles.end);
+                part
+            })
+            .collect();
+        Ok(Character { palette: self.palette.clone(), mesh, parts })
     }
 
     /// Triangles of every part: a mesh counted once per node that draws it.
@@ -279,5 +308,28 @@ mod tests {
         a.scenes.push(Vec::new());
         let e = character(&a, Some(2)).unwrap_err().to_string();
         assert!(e.contains("no node of scene 2 draws a triangle mesh"), "{e}");
+    }
+
+    #[test]
+    fn a_selection_poses_like_its_parts_in_the_whole() {
+        let a = demo_character(&DemoParams { triangles: 1000, ..DemoParams::default() });
+        let whole = a.character().unwrap();
+        // The body (morph face) and the propeller (animated rigid node).
+        let some = whole.select(|i, _| i == 0 || i == 3).unwrap();
+        assert_eq!(some.parts.iter().map(|p| p.node).collect::<Vec<_>>(), [whole.parts[0].node, whole.parts[3].node]);
+        assert!(!some.mesh.morphs.is_empty() && some.mesh.morphs.weights == whole.mesh.morphs.weights);
+        let clip = &a.clips[2];
+        let ((all, _), (sel, _)) =
+            (whole.posed(&a.skeleton, Some(clip), 0.7).unwrap(), some.posed(&a.skeleton, Some(clip), 0.7).unwrap());
+        for (p, q) in [&whole.parts[0], &whole.parts[3]].into_iter().zip(&some.parts) {
+            let range = |p: &Part| p.vertices.start as usize..p.vertices.end as usize;
+            assert_eq!(all[range(p)], sel[range(q)]);
+            let tris = |c: &Character, p: &Part| -> Vec<[u32; 3]> {
+                let t = &c.mesh.triangles[p.triangles.start as usize..p.triangles.end as usize];
+                t.iter().map(|t| t.map(|i| i - p.vertices.start)).collect()
+            };
+            assert_eq!(tris(&whole, p), tris(&some, q));
+        }
+        assert!(whole.select(|_, _| false).is_err());
     }
 }

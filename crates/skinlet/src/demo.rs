@@ -11,9 +11,12 @@
 //! collar around the neck (mesh 1, a second skin listing its joints in another order), a
 //! rigid anklet under the waving front foot's ankle joint (mesh 2), a propeller on the head,
 //! a non-joint node every clip spins (mesh 3), and one eye mesh drawn by two nodes (mesh 4).
+//! Its face is morph targets on the body, as in most exported characters: "cheeks" puffs the
+//! head out along its normals, "mouth" drops and opens the jaw (with normal deltas); default
+//! weights 0.25 and 0, and every clip animates both in its own interpolation mode.
 
-use crate::clip::{Channel, Clip, Interpolation};
-use crate::model::{Asset, Influences, Instance, Mesh, Node, Primitive, Skeleton, Skin, SkinnedMesh, Trs};
+use crate::clip::{Channel, Clip, Interpolation, WeightChannel};
+use crate::model::{Asset, Influences, Instance, Mesh, MorphTarget, Node, Primitive, Skeleton, Skin, SkinnedMesh, Trs};
 use glam::{DMat4, Mat4, Quat, Vec3, Vec4};
 use std::f32::consts::{FRAC_PI_2, PI, TAU};
 
@@ -40,7 +43,8 @@ const MIN_WEIGHT: f32 = 1e-4;
 const SLOPE_DT: f32 = 1e-3;
 
 /// The non-joint nodes after the joints: (name, parent joint, offset in the parent's space).
-const EXTRA_NODES: [(&str, &str, Vec3); 5] = [
+const EXTRA_NODES: [(&str, &str, Vec3); 6] = [
+    ("body", "root", Vec3::ZERO),
     ("collar", "root", Vec3::ZERO),
     ("anklet", "front_r_ankle", Vec3::new(0.0, 0.05, 0.0)),
     ("propeller", "head", Vec3::new(0.0, 0.2, 0.05)),
@@ -83,15 +87,20 @@ pub fn demo_character(params: &DemoParams) -> Asset {
         primitives: vec![Primitive { index: 0, geometry, targets: Vec::new() }],
         weights: Vec::new(),
     };
+    let face = face_targets(&rig, &body);
     let meshes = vec![
-        one("demo_creature", body),
+        Mesh {
+            name: "demo_creature".into(),
+            primitives: vec![Primitive { index: 0, geometry: body, targets: face }],
+            weights: vec![0.25, 0.0],
+        },
         one("collar", collar),
         one("anklet", rigid_box(Vec3::new(0.075, 0.03, 0.075))),
         one("propeller", rigid_box(Vec3::new(0.22, 0.01, 0.03))),
         one("eye", rigid_box(Vec3::splat(0.025))),
     ];
     let instances = vec![
-        Instance { node: 0, mesh: 0, skin: Some(0) },
+        Instance { node: node("body"), mesh: 0, skin: Some(0) },
         Instance { node: node("collar"), mesh: 1, skin: Some(1) },
         Instance { node: node("anklet"), mesh: 2, skin: None },
         Instance { node: node("propeller"), mesh: 3, skin: None },
@@ -99,12 +108,31 @@ pub fn demo_character(params: &DemoParams) -> Asset {
         Instance { node: node("eye_r"), mesh: 4, skin: None },
     ];
     let mut clips = vec![walk(&rig), twitch(&rig), wave(&rig)];
-    // The propeller spins in every clip, in each clip's interpolation mode.
+    // The propeller spins and the face moves in every clip, in each clip's interpolation mode.
     for c in &mut clips {
         let k = keys(c.interpolations()[0], 9, c.duration() / 8.0);
         c.rotations.push(channel(node("propeller") as usize, &k, |t| Quat::from_rotation_y(3.0 * t)));
+        let d = c.duration();
+        let cheeks = channel(node("body") as usize, &k, |t| 0.5 - 0.5 * (TAU * t / d).cos());
+        let mouth = channel(node("body") as usize, &k, |t| (PI * t / d).sin().powi(2));
+        c.weights.extend([WeightChannel { target: 0, channel: cheeks }, WeightChannel { target: 1, channel: mouth }]);
     }
     Asset { skeleton, skins: vec![skin, collar_skin], meshes, instances, clips, ..Asset::default() }
+}
+
+/// The face's morph targets on the body: "cheeks" moves the vertices that follow the head
+/// most 4 cm out along their normals; "mouth" moves those that follow the jaw most 5 cm down
+/// and 2 cm forward in the jaw's bind frame and tilts their normals forward.
+fn face_targets(rig: &Rig, body: &SkinnedMesh) -> Vec<MorphTarget> {
+    let inf = body.influences.as_ref().expect("the body is skinned");
+    let (head, jaw) = (rig.id("head") as u16, rig.id("jaw") as u16);
+    let follows = |v: usize, j: u16| inf.of(v).next().is_some_and(|(first, _)| first == j);
+    let n = body.positions.len();
+    let normal = |v: usize| body.normals.get(v).copied().unwrap_or(Vec3::ZERO);
+    let cheeks = (0..n).map(|v| if follows(v, head) { 0.04 * normal(v) } else { Vec3::ZERO }).collect();
+    let mouth = (0..n).map(|v| if follows(v, jaw) { Vec3::new(0.0, -0.05, 0.02) } else { Vec3::ZERO }).collect();
+    let tilt = (0..n).map(|v| if follows(v, jaw) { Vec3::new(0.0, 0.0, 0.3) } else { Vec3::ZERO }).collect();
+    vec![MorphTarget { positions: cheeks, normals: Vec::new() }, MorphTarget { positions: mouth, normals: tilt }]
 }
 
 /// A collar: a capsule around the neck bone, 1.35 times its radius, skinned like the body there
@@ -384,6 +412,12 @@ impl Tangent for Vec3 {
     }
 }
 
+impl Tangent for f32 {
+    fn slope(before: Self, after: Self, dt: f32) -> Self {
+        (after - before) / dt
+    }
+}
+
 impl Tangent for Quat {
     fn slope(before: Self, after: Self, dt: f32) -> Self {
         Quat::from_vec4((Vec4::from(after) - Vec4::from(before)) / dt)
@@ -517,7 +551,7 @@ mod tests {
         assert_eq!(a.skins[0].joints, (0..joints as u32).collect::<Vec<_>>());
         assert!(nodes[0].parent.is_none());
         assert!(nodes.iter().enumerate().skip(1).all(|(i, n)| n.parent.is_some_and(|p| (p as usize) < i)));
-        assert_eq!(a.instances[0], Instance { node: 0, mesh: 0, skin: Some(0) });
+        assert_eq!(a.instances[0], Instance { node: joints as u32, mesh: 0, skin: Some(0) });
         assert_eq!(a.meshes[0].name, "demo_creature");
         // The collar's skin lists its joints in another order than the body's.
         let collar = &a.skins[1].joints;
@@ -635,7 +669,10 @@ mod tests {
             assert!(a.clips.iter().any(|c| c.interpolations() == [mode]), "no {} clip", mode.name());
         }
         for c in &a.clips {
-            assert!(c.start == 0.0 && (1.0..=3.0).contains(&c.duration()) && c.weights.is_empty(), "{}", c.name);
+            assert!(c.start == 0.0 && (1.0..=3.0).contains(&c.duration()), "{}", c.name);
+            // The face: both morph weights of the body, in the clip's own mode.
+            assert_eq!(c.weights.iter().map(|w| w.target).collect::<Vec<_>>(), [0, 1], "{}", c.name);
+            c.weights.iter().for_each(|w| check(&w.channel, c));
             assert!(!c.translations.is_empty() && !c.rotations.is_empty() && !c.scales.is_empty(), "{}", c.name);
             c.translations.iter().chain(&c.scales).for_each(|ch| check(ch, c));
             c.rotations.iter().for_each(|ch| check(ch, c));

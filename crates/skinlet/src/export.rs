@@ -1,9 +1,10 @@
 //! Writes an [`Asset`] as a glTF 2.0 binary (.glb): nodes (TRS or matrix), every mesh's
 //! triangle primitives (positions, normals, indices, JOINTS_0/WEIGHTS_0 and JOINTS_1/
 //! WEIGHTS_1 for eight influences), skins with their inverse bind matrices, and clips with
-//! their channels in the stored interpolation (CUBICSPLINE tangents kept), and the scenes
-//! (or, for an asset without, one scene of every root node). Morph targets are refused, not
-//! dropped. What skinlet reads back is the same asset (tested), so the demo
+//! their channels in the stored interpolation (CUBICSPLINE tangents kept), morph targets
+//! (POSITION and NORMAL deltas, mesh and node default weights, one `weights` channel per
+//! node holding all its targets), and the scenes (or, for an asset without, one scene of
+//! every root node). What skinlet reads back is the same asset (tested), so the demo
 //! character can be handed to other glTF tools (`skinlet demo --glb`).
 
 use crate::clip::Channel;
@@ -63,13 +64,50 @@ impl Writer {
     }
 }
 
+/// One glTF `weights` sampler per node that `clip` animates morph weights of: per key every
+/// target's value (CUBICSPLINE: in-tangents, values, out-tangents), a target without a
+/// channel holding its default weight. The node's channels must share key times and
+/// interpolation, as one glTF sampler does.
+fn weight_samplers(asset: &Asset, clip: &crate::clip::Clip, w: &mut Writer) -> Result<Vec<(u32, Value)>> {
+    let mut by_node: std::collections::BTreeMap<u32, Vec<&crate::clip::WeightChannel>> = Default::default();
+    for c in &clip.weights {
+        by_node.entry(c.channel.node).or_default().push(c);
+    }
+    let mut out = Vec::new();
+    for (node, channels) in by_node {
+        let mesh = (asset.instances.iter().find(|i| i.node == node))
+            .and_then(|i| asset.meshes.get(i.mesh as usize))
+            .ok_or_else(|| Error::invalid(format!("clip {:?}", clip.name), format!("node {node} draws no mesh")))?;
+        let first = &channels[0].channel;
+        if channels.iter().any(|c| c.channel.times != first.times || c.channel.interpolation != first.interpolation) {
+            return Err(Error::unsupported(
+                format!("clip {:?} node {node}", clip.name),
+                "morph weight channels with different keys cannot be written as one glTF weights channel",
+            ));
+        }
+        let targets = mesh.morph_targets();
+        let defaults = asset.node_weights.get(&node).unwrap_or(&mesh.weights);
+        let per_key = if first.interpolation == crate::clip::Interpolation::CubicSpline { 3 } else { 1 };
+        let mut values = Vec::with_capacity(per_key * first.times.len() * targets);
+        for i in 0..per_key * first.times.len() {
+            for target in 0..targets as u32 {
+                let value = match channels.iter().find(|c| c.target == target) {
+                    Some(c) => c.channel.values[i],
+                    None if per_key == 1 || i % 3 == 1 => defaults.get(target as usize).copied().unwrap_or(0.0),
+                    None => 0.0,
+                };
+                values.push(value);
+            }
+        }
+        let input = w.floats(&first.times, 1, "SCALAR");
+        let output = w.floats(&values, 1, "SCALAR");
+        out.push((node, json!({"input": input, "output": output, "interpolation": first.interpolation.name()})));
+    }
+    Ok(out)
+}
+
 /// The .glb bytes of `asset`.
 pub fn to_glb(asset: &Asset) -> Result<Vec<u8>> {
-    if asset.meshes.iter().any(|m| m.primitives.iter().any(|p| !p.targets.is_empty()))
-        || asset.clips.iter().any(|c| !c.weights.is_empty())
-    {
-        return Err(Error::unsupported("export", "morph targets and weight channels are not written yet"));
-    }
     let mut w = Writer::default();
     let sk = &asset.skeleton;
     let mut nodes: Vec<Value> = (sk.nodes.iter())
@@ -91,6 +129,9 @@ pub fn to_glb(asset: &Asset) -> Result<Vec<u8>> {
         node["mesh"] = json!(inst.mesh);
         if let Some(s) = inst.skin {
             node["skin"] = json!(s);
+        }
+        if let Some(weights) = asset.node_weights.get(&inst.node) {
+            node["weights"] = json!(weights);
         }
     }
     let mut meshes = Vec::new();
@@ -118,9 +159,26 @@ pub fn to_glb(asset: &Asset) -> Result<Vec<u8>> {
             }
             let indices: Vec<u8> = g.triangles.iter().flatten().flat_map(|i| i.to_le_bytes()).collect();
             let indices = w.accessor(&indices, U32, 3 * g.triangles.len(), "SCALAR", json!({}));
-            prims.push(json!({"attributes": attributes, "indices": indices, "mode": 4}));
+            let mut prim = json!({"attributes": attributes, "indices": indices, "mode": 4});
+            if !p.targets.is_empty() {
+                let targets: Vec<Value> = (p.targets.iter())
+                    .map(|t| {
+                        let mut target = json!({"POSITION": w.floats(&flat(&t.positions), 3, "VEC3")});
+                        if !t.normals.is_empty() {
+                            target["NORMAL"] = json!(w.floats(&flat(&t.normals), 3, "VEC3"));
+                        }
+                        target
+                    })
+                    .collect();
+                prim["targets"] = json!(targets);
+            }
+            prims.push(prim);
         }
-        meshes.push(json!({"name": m.name, "primitives": prims}));
+        let mut mesh = json!({"name": m.name, "primitives": prims});
+        if !m.weights.is_empty() {
+            mesh["weights"] = json!(m.weights);
+        }
+        meshes.push(mesh);
     }
     let mut skins = Vec::new();
     for s in &asset.skins {
@@ -143,6 +201,9 @@ pub fn to_glb(asset: &Asset) -> Result<Vec<u8>> {
         }
         for c in &clip.scales {
             add(w.channel(c, |v| v.to_array().to_vec(), 3, "VEC3"), c.node, "scale");
+        }
+        for (node, sampler) in weight_samplers(asset, clip, &mut w)? {
+            add(sampler, node, "weights");
         }
         animations.push(json!({"name": clip.name, "samplers": samplers, "channels": channels}));
     }
@@ -194,6 +255,7 @@ mod tests {
         assert!(a.skeleton == b.skeleton && a.skins == b.skins && a.instances == b.instances);
         // The importer renormalizes weights whose f32 sum is not exactly 1: equal to rounding.
         for (m, n) in a.meshes.iter().zip(&b.meshes) {
+            assert!(m.weights == n.weights && m.primitives[0].targets == n.primitives[0].targets, "{}", m.name);
             let (g, h) = (&m.primitives[0].geometry, &n.primitives[0].geometry);
             assert!(g.positions == h.positions && g.normals == h.normals && g.triangles == h.triangles, "{}", m.name);
             let (i, j) = (g.influences.as_ref(), h.influences.as_ref());
@@ -218,6 +280,7 @@ mod tests {
                 (x.translations.len(), x.rotations.len(), x.scales.len()),
                 (y.translations.len(), y.rotations.len(), y.scales.len())
             );
+            assert_eq!(x.weights, y.weights, "{}", x.name);
             for k in 0..=8 {
                 let t = x.start + x.duration() * k as f32 / 8.0;
                 let pose = |asset: &crate::Asset, clip| {

@@ -265,18 +265,6 @@ impl Morphs {
         out
     }
 
-    /// True when some vertex can move over `clips` or in the default pose: a delta whose
-    /// weight is non-zero by default or animated by a clip.
-    pub fn move_over(&self, clips: &[&crate::clip::Clip]) -> bool {
-        let live: Vec<bool> = (self.weights.iter())
-            .map(|w| {
-                w.default != 0.0
-                    || clips.iter().flat_map(|c| &c.weights).any(|c| c.channel.node == w.node && c.target == w.target)
-            })
-            .collect();
-        self.deltas.iter().any(|d| live[d.weight as usize] && (d.position != Vec3::ZERO || d.normal != Vec3::ZERO))
-    }
-
     /// Checks the layout against a mesh of `vertices` vertices: offsets, weight indices and
     /// finite deltas.
     pub fn check(&self, vertices: usize) -> crate::Result<()> {
@@ -335,9 +323,9 @@ impl SkinnedMesh {
     pub fn morphed(&self, values: &[f32]) -> (Vec<Vec3>, Vec<Vec3>) {
         let (mut p, mut n) = (self.positions.clone(), self.normals.clone());
         if !self.morphs.is_empty() {
-            for v in 0..p.len() {
-                let (mp, mn) = self.morphs.morph(v, values, p[v], n.get(v).copied().unwrap_or(Vec3::ZERO));
-                p[v] = mp;
+            for (v, pv) in p.iter_mut().enumerate() {
+                let (mp, mn) = self.morphs.morph(v, values, *pv, n.get(v).copied().unwrap_or(Vec3::ZERO));
+                *pv = mp;
                 if let Some(nv) = n.get_mut(v) {
                     *nv = mn;
                 }

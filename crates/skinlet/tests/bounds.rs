@@ -32,7 +32,7 @@ fn relative(skeleton: &Skeleton, locals: &[Trs], from: u32, to: u32) -> glam::DM
 fn check_character(seed: u64) -> Result<usize, String> {
     let (skeleton, skin, mut clip, positions, inf) = random_character(seed);
     // Half the characters morph before skinning (weights animated in all three modes).
-    let morphs = if seed % 2 == 0 {
+    let morphs = if seed.is_multiple_of(2) {
         rig::random_morphs(seed, positions.len(), 0, &mut clip)
     } else {
         skinlet::model::Morphs::default()
