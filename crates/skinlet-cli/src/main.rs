@@ -784,6 +784,12 @@ fn demo(triangles: usize, seed: u64, glb: Option<&Path>, json: bool) -> Result<(
         character.palette.joints.len(),
         character.triangle_count()
     );
+    let morphs = &character.mesh.morphs;
+    let morphed = (0..character.mesh.positions.len()).filter(|&v| !morphs.of(v).is_empty()).count();
+    println!(
+        "  a morph face: {} morph weights animated by every clip, moving {morphed} vertices before skinning",
+        morphs.weights.len()
+    );
     let h: Vec<String> =
         s.influence_histogram.iter().take(4).enumerate().map(|(k, c)| format!("{}:{c}", k + 1)).collect();
     println!("  soft skinning, vertices by influence count: {}", h.join("  "));

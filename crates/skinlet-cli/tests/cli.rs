@@ -583,10 +583,12 @@ fn node_and_part_filters_keep_those_parts() {
     let _ = std::fs::remove_file(&out);
     assert_eq!((b["parts"].as_u64(), &b["triangles"]), (Some(1), &parts[3]["triangles"]));
     // Filters that name nothing are errors that say so.
-    let (code, _, err) = skinlet(&["inspect", "@demo:1000", "--node", "9999"]);
+    let (code, _, err) = skinlet(&["pose", "@demo:1000", "--time", "0", "--node", "9999"]);
     assert!(code == 2 && err.contains("node 9999 draws no part of the character"), "{err}");
-    let (code, _, err) = skinlet(&["inspect", "@demo:1000", "--part", "6"]);
+    let (code, _, err) = skinlet(&["pose", "@demo:1000", "--time", "0", "--part", "6"]);
     assert!(code == 2 && err.contains("the character has 6 parts"), "{err}");
+    let j = json_of(&["inspect", "@demo:1000", "--part", "6", "--json"]);
+    assert!(j["character_error"].as_str().is_some_and(|e| e.contains("the character has 6 parts")), "{j}");
 }
 
 #[test]

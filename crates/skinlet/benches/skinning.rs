@@ -1,6 +1,8 @@
 //! Reference skinning throughput, in vertex-influences per second (criterion's
 //! "elements"), serial and parallel, on Xbot.glb (when the shared assets are present) and
-//! on the 1M-triangle demo character. Run: `cargo bench -p skinlet --bench skinning`.
+//! on the 1M-triangle demo character; and the cost of morph targets: the whole demo
+//! character skinned with its face's morphs and without them, in one run.
+//! Run: `cargo bench -p skinlet --bench skinning`.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::Vec3;
@@ -61,7 +63,31 @@ fn bench_asset(c: &mut Criterion, label: &str, asset: &Asset) {
     });
 }
 
+/// The whole demo character (every part) skinned by `skin_mesh` with its morph deltas and
+/// weights, and the same mesh without morphs: what morph targets add to a frame.
+fn bench_morphs(c: &mut Criterion, asset: &Asset) {
+    let character = asset.character().expect("the demo is a character");
+    let clip = &asset.clips[0];
+    let t = clip.start + 0.37 * clip.duration();
+    let (mut mats, mut weights) = (Vec::new(), Vec::new());
+    Poser::default().skinning_matrices(&asset.skeleton, &character.palette, Some(clip), t, &mut mats);
+    character.mesh.morphs.weights_at(Some(clip), t, &mut weights);
+    let plain = skinlet::SkinnedMesh { morphs: Default::default(), ..character.mesh.clone() };
+    let n = character.mesh.positions.len();
+    let (mut op, mut on) = (vec![Vec3::ZERO; n], vec![Vec3::ZERO; character.mesh.normals.len()]);
+    let mut group = c.benchmark_group("skinning/demo-whole-character");
+    group.throughput(Throughput::Elements(n as u64));
+    group.sample_size(30);
+    for (name, mesh, w) in [("with-morphs", &character.mesh, &weights[..]), ("without-morphs", &plain, &[][..])] {
+        group.bench_function(name, |b| {
+            b.iter(|| skinning::skin_mesh(mesh, black_box(w), black_box(&mats), &mut op, &mut on).unwrap())
+        });
+    }
+    group.finish();
+}
+
 fn benches(c: &mut Criterion) {
+    bench_morphs(c, &demo_character(&DemoParams::default()));
     let xbot = assets_dir().join("skinned/Xbot.glb");
     if xbot.is_file() {
         bench_asset(c, "Xbot", &skinlet::import::load(&xbot).expect("Xbot.glb loads"));

@@ -169,7 +169,10 @@ pub fn bake(
 }
 
 /// Adds overdraw-reducing index buffers to a bake: the "joint" clustering of Han & Sander
-/// over up to `max_keyframes` key times of every clip the bounds were baked for.
+/// over up to `max_keyframes` key times of every clip the bounds were baked for. Each buffer
+/// keeps every part's triangles in the part's triangle range (a stable partition of the
+/// clustered order by part), so a renderer still binds one material per range; the order
+/// within a part is the clustering's.
 pub fn add_overdraw(baked: &mut Baked, asset: &Asset, params: &ClusterParams, max_keyframes: usize) -> Result<()> {
     let mut keys = Vec::new();
     let mut positions = Vec::new();
@@ -183,7 +186,12 @@ pub fn add_overdraw(baked: &mut Baked, asset: &Asset, params: &ClusterParams, ma
         return Err(Error::invalid("bake", "overdraw orders need at least one clip"));
     }
     let c = cluster(&positions, &baked.mesh.triangles, params);
-    baked.overdraw = Some(Orders::new(&c, keys, params.lambda));
+    let mut orders = Orders::new(&c, keys, params.lambda);
+    let part_of = |t: &[u32; 3]| baked.parts.partition_point(|p| p.vertices.end <= t[0]);
+    for buffer in &mut orders.buffers {
+        buffer.sort_by_key(part_of);
+    }
+    baked.overdraw = Some(orders);
     Ok(())
 }
 
@@ -638,7 +646,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
     }
     s.end()?;
     let parts = read_parts(section(6)?, &mesh, &meshlets)?;
-    let overdraw = if found[7].is_some() { Some(read_orders(section(7)?, &mesh, clips_len)?) } else { None };
+    let overdraw = if found[7].is_some() { Some(read_orders(section(7)?, &mesh, &parts, clips_len)?) } else { None };
     let contours = if found[8].is_some() { Some(read_contours(section(8)?, &mesh, joints)?) } else { None };
     Ok(Baked {
         settings,
@@ -800,7 +808,7 @@ fn read_contours(mut s: In, mesh: &SkinnedMesh, joints: usize) -> Result<BakedCo
 }
 
 /// The OVDR section: every buffer a permutation of the triangles, table entries in range.
-fn read_orders(mut s: In, mesh: &SkinnedMesh, clips: usize) -> Result<Orders> {
+fn read_orders(mut s: In, mesh: &SkinnedMesh, parts: &[BakedPart], clips: usize) -> Result<Orders> {
     let (k, f, polar, azimuth) = (s.u32()? as usize, s.u32()? as usize, s.u32()? as usize, s.u32()? as usize);
     if k == 0 || k > 255 || polar == 0 || azimuth == 0 {
         return Err(s.err(format!("{k} buffers, {polar} × {azimuth} cells")));
@@ -828,6 +836,11 @@ fn read_orders(mut s: In, mesh: &SkinnedMesh, clips: usize) -> Result<Orders> {
         got.sort_unstable();
         if got != want {
             return Err(s.err(format!("buffer {b} is not a reordering of the mesh's triangles")));
+        }
+        if let Some(p) = (parts.iter()).position(|p| {
+            buf[p.triangles.start as usize..p.triangles.end as usize].iter().flatten().any(|v| !p.vertices.contains(v))
+        }) {
+            return Err(s.err(format!("buffer {b} moves a triangle out of part {p}'s range")));
         }
         buffers.push(buf);
     }
@@ -875,6 +888,16 @@ mod tests {
         assert_eq!(o.keyframes.len(), 3 * asset.clips.len().min(b.settings.clips.len()));
         // A stored keyframe seen from a stored viewpoint selects a valid buffer.
         assert!(o.select(0, o.keyframes[0].1, o.framing.center + glam::Vec3::Z) < 3);
+        // Every buffer keeps each part's triangles in the part's range, reordered within it.
+        let mut reordered = 0;
+        for buffer in &o.buffers {
+            for p in &b.parts {
+                let range = p.triangles.start as usize..p.triangles.end as usize;
+                assert!(buffer[range.clone()].iter().flatten().all(|v| p.vertices.contains(v)), "{p:?}");
+                reordered += (buffer[range.clone()] != b.mesh.triangles[range]) as usize;
+            }
+        }
+        assert!(reordered > 0, "no part was reordered");
         // Damage the last buffer's first index: no longer a reordering, refused.
         let table = o.lookup.table.len().next_multiple_of(4);
         let n = b.mesh.triangles.len();

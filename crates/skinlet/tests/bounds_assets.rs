@@ -1,5 +1,5 @@
 //! Conservative meshlet bounds (spheres and normal cones, refined until converged) on the
-//! shared skinned assets: zero violations under dense sampling for every clip on its own and
+//! shared skinned assets and the morph-target test: zero violations under dense sampling for every clip on its own and
 //! for the union of all clips, the sampled baseline (radius from a few uniform samples, like
 //! engines' precomputed clip bounds) shown to miss, and the classification target on Xbot.
 
@@ -19,6 +19,7 @@ fn spheres_hold_on_every_asset_and_clip_and_sampling_misses() {
     let Some(dir) = assets_dir() else { return };
     let mut files: Vec<_> = std::fs::read_dir(dir.join("skinned")).unwrap().map(|e| e.unwrap().path()).collect();
     files.sort();
+    files.push(dir.join("morph/MorphStressTest.gltf"));
     let mut baseline_misses = 0;
     for path in files {
         let name = path.file_name().unwrap().to_string_lossy().into_owned();
