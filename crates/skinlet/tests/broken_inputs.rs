@@ -1258,7 +1258,12 @@ fn required_extensions() {
         r#""extensionsUsed":["KHR_draco_mesh_compression"]"#.into(),
         r#""extensionsRequired":["KHR_draco_mesh_compression"]"#.into(),
     ];
-    expect_err("draco.gltf", &d.gltf(), &["unsupported", "KHR_draco_mesh_compression", "gltf-transform/cli meshopt"]);
+    // Draco is decoded: a primitive whose Draco stream is not one is an error naming it.
+    let draco =
+        r#""extensions":{"KHR_draco_mesh_compression":{"bufferView":0,"attributes":{"POSITION":0}}},"attributes":"#;
+    let mut bad = d.clone();
+    bad.meshes[0] = bad.meshes[0].replacen(r#""attributes":"#, draco, 1);
+    expect_err("draco.gltf", &bad.gltf(), &["mesh 0 primitive 0 (KHR_draco_mesh_compression)", "does not decode"]);
     // meshopt compression is decoded (here no view uses it).
     d.top = vec![
         r#""extensionsUsed":["EXT_meshopt_compression"]"#.into(),

@@ -8,11 +8,13 @@ use std::cell::Cell;
 use std::collections::HashMap;
 
 /// Loaded bytes of every buffer of the document, by buffer index, the decoded bytes of the
-/// compressed buffer views, by view index, and how many more numbers (accessor components)
+/// compressed buffer views, by view index, the values of accessors decoded from compressed
+/// primitives (Draco), by accessor index, and how many more numbers (accessor components)
 /// this import may read.
 pub(crate) struct Buffers {
     data: Vec<Vec<u8>>,
     decoded: HashMap<usize, Vec<u8>>,
+    accessors: HashMap<usize, Vec<f64>>,
     budget: Cell<usize>,
 }
 
@@ -21,9 +23,15 @@ impl Buffers {
     /// (about one per byte), but it stops a small file from making skinlet copy the same
     /// data (or a huge all-zero sparse accessor) once per referencing primitive until memory
     /// runs out.
-    pub(crate) fn new(data: Vec<Vec<u8>>, decoded: HashMap<usize, Vec<u8>>) -> Self {
+    pub(crate) fn new(
+        data: Vec<Vec<u8>>,
+        decoded: HashMap<usize, Vec<u8>>,
+        accessors: HashMap<usize, Vec<f64>>,
+    ) -> Self {
         let bytes = data.iter().chain(decoded.values()).map(Vec::len).fold(0usize, usize::saturating_add);
-        Buffers { data, decoded, budget: Cell::new((1usize << 24).saturating_add(bytes.saturating_mul(4))) }
+        let numbers = accessors.values().map(Vec::len).fold(bytes, usize::saturating_add);
+        let budget = Cell::new((1usize << 24).saturating_add(numbers.saturating_mul(4)));
+        Buffers { data, decoded, accessors, budget }
     }
 
     fn spend(&self, count: usize, n: usize, loc: &str) -> Result<()> {
@@ -160,6 +168,11 @@ fn read_f64(acc: &gltf::Accessor, buffers: &Buffers, loc: &str) -> Result<Vec<f6
     let ty = acc.data_type();
     let elem = n * ty.size();
     let count = acc.count();
+    if let Some(values) = buffers.accessors.get(&acc.index()) {
+        // Decoded from a compressed primitive, already `count × n` numbers.
+        buffers.spend(count, n, loc)?;
+        return Ok(values.clone());
+    }
     let mut out = Vec::new();
     match acc.view() {
         Some(view) => {

@@ -27,7 +27,8 @@ pub fn load_gltf_slice(bytes: &[u8], base_dir: Option<&Path>) -> Result<Asset> {
     let gltf = parse(bytes)?;
     let data = load_buffers(&gltf, base_dir)?;
     let decoded = super::meshopt::decode_views(&gltf.document, &data)?;
-    let buffers = Buffers::new(data, decoded);
+    let draco = super::draco::decode_primitives(&gltf.document, &data)?;
+    let buffers = Buffers::new(data, decoded, draco);
     let doc = &gltf.document;
     let mut report = ImportReport::default();
 
@@ -64,14 +65,8 @@ fn parse(bytes: &[u8]) -> Result<gltf::Gltf> {
         .map_err(|e| Error::invalid("glTF", e.to_string()))?;
     let root = gltf.document.as_json();
     for ext in &root.extensions_required {
-        if ext == "KHR_draco_mesh_compression" {
-            return Err(Error::unsupported(
-                "glTF extensionsRequired",
-                "KHR_draco_mesh_compression (skinlet has no Draco decoder); recompress the file with \
-                 meshoptimizer, which skinlet reads: `npx @gltf-transform/cli meshopt in.glb out.glb`",
-            ));
-        }
-        if !HARMLESS_EXTENSIONS.iter().chain(&super::meshopt::EXTENSIONS).any(|h| ext.starts_with(h)) {
+        let decoded = super::meshopt::EXTENSIONS.iter().chain([&super::draco::EXTENSION]);
+        if !HARMLESS_EXTENSIONS.iter().chain(decoded).any(|h| ext.starts_with(h)) {
             return Err(Error::unsupported("glTF extensionsRequired", format!("extension {ext}")));
         }
     }
@@ -92,8 +87,14 @@ fn parse(bytes: &[u8]) -> Result<gltf::Gltf> {
         root.validate(root, gltf::json::Path::new, &mut |path, e| errors.push(format!("{}: {e}", path())))
     }))
     .map_err(contained)?;
-    // Already decided above: the required extensions left are harmless.
-    errors.retain(|e| !e.starts_with("extensionsRequired"));
+    // Already decided above: the required extensions left are harmless. The gltf crate wants
+    // a bufferView on every accessor that is not sparse, but a Draco-compressed primitive's
+    // accessors have none: their values come from the decoded stream.
+    let draco: Vec<String> = (root.meshes.iter().flat_map(|m| &m.primitives))
+        .filter(|p| p.extensions.as_ref().is_some_and(|e| e.others.contains_key(super::draco::EXTENSION)))
+        .flat_map(|p| p.attributes.values().chain(&p.indices).map(|a| format!("accessors[{}].bufferView:", a.value())))
+        .collect();
+    errors.retain(|e| !e.starts_with("extensionsRequired") && !draco.iter().any(|d| e.starts_with(d.as_str())));
     if !errors.is_empty() {
         let more = if errors.len() > 8 { format!("; and {} more", errors.len() - 8) } else { String::new() };
         errors.truncate(8);

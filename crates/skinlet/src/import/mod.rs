@@ -1,6 +1,7 @@
 //! Loading assets from files: glTF 2.0 for skinned characters, OBJ for static meshes.
 
 mod accessor;
+mod draco;
 mod gltf;
 mod meshopt;
 mod obj;
