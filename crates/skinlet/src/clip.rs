@@ -229,18 +229,6 @@ impl Clip {
         t.chain(r).chain(self.scales.iter().map(|c| &c.times)).chain(w)
     }
 
-    /// The morph weights of the mesh node `node` draws at time `t`: `defaults` with this
-    /// clip's weight channels for the node applied.
-    pub fn sample_weights(&self, node: u32, t: f32, defaults: &[f32], out: &mut Vec<f32>) {
-        out.clear();
-        out.extend_from_slice(defaults);
-        for w in self.weights.iter().filter(|w| w.channel.node == node) {
-            if let Some(slot) = out.get_mut(w.target as usize) {
-                *slot = w.channel.sample(t);
-            }
-        }
-    }
-
     /// Largest key count of any channel.
     pub fn max_channel_keys(&self) -> usize {
         self.all_channel_times().map(Vec::len).max().unwrap_or(0)

@@ -216,12 +216,10 @@ impl Morphs {
         self.deltas.is_empty()
     }
 
-    /// The deltas of vertex `v`.
+    /// The deltas of vertex `v` (none where the offsets do not say: see [`Morphs::check`]).
     pub fn of(&self, v: usize) -> &[MorphDelta] {
-        match self.offsets.get(v..v + 2) {
-            Some(r) => &self.deltas[r[0] as usize..r[1] as usize],
-            None => &[],
-        }
+        let range = self.offsets.get(v..v + 2).and_then(|r| self.deltas.get(r[0] as usize..r[1] as usize));
+        range.unwrap_or(&[])
     }
 
     /// The value of every weight when `clip` plays at time `t` (`None`: the defaults).
@@ -240,12 +238,13 @@ impl Morphs {
         self.weights.iter().position(|w| w.node == node && w.target == target)
     }
 
-    /// Vertex `v` with its deltas weighted by `values` (see [`Morphs::weights_at`]) added.
+    /// Vertex `v` with its deltas weighted by `values` (see [`Morphs::weights_at`]; a weight
+    /// without a value counts as 0) added.
     #[inline]
     pub fn morph(&self, v: usize, values: &[f32], position: Vec3, normal: Vec3) -> (Vec3, Vec3) {
         let (mut p, mut n) = (position, normal);
         for d in self.of(v) {
-            let w = values[d.weight as usize];
+            let w = values.get(d.weight as usize).copied().unwrap_or(0.0);
             p += w * d.position;
             n += w * d.normal;
         }

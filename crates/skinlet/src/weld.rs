@@ -45,8 +45,12 @@ pub(crate) fn weld_groups(mesh: &SkinnedMesh, group: &[u32]) -> (SkinnedMesh, Ve
     };
     // Morph deltas differ in length per vertex: each distinct list gets a number.
     let mut lists: std::collections::HashMap<Vec<u32>, u32> = std::collections::HashMap::new();
+    lists.insert(Vec::new(), 0);
     let morph_class: Vec<u32> = (0..n)
         .map(|v| {
+            if mesh.morphs.of(v).is_empty() {
+                return 0;
+            }
             let key: Vec<u32> = (mesh.morphs.of(v).iter())
                 .flat_map(|d| {
                     [d.weight]
@@ -116,5 +120,30 @@ mod tests {
         assert_eq!(w.normals, vec![Vec3::X, Vec3::Z]);
         assert_eq!(w.triangles, vec![[0, 0, 1]]);
         assert_eq!(w.influences.unwrap().joints[4], 1);
+    }
+
+    #[test]
+    fn vertices_with_other_morph_deltas_stay_apart() {
+        use crate::model::{MorphDelta, MorphWeight, Morphs};
+        let p = Vec3::new(1.0, 2.0, 3.0);
+        let inf = Influences { stride: 4, joints: vec![0; 16], weights: [1.0, 0.0, 0.0, 0.0].repeat(4) };
+        let d = |x: f32| MorphDelta { weight: 0, position: Vec3::X * x, normal: Vec3::ZERO };
+        // Vertices 0 and 1 move alike, 2 otherwise, 3 not at all.
+        let morphs = Morphs {
+            weights: vec![MorphWeight { node: 0, target: 0, default: 0.0 }],
+            offsets: vec![0, 1, 2, 3, 3],
+            deltas: vec![d(1.0), d(1.0), d(2.0)],
+        };
+        let mesh = SkinnedMesh {
+            positions: vec![p; 4],
+            triangles: vec![[0, 1, 2], [1, 2, 3]],
+            influences: Some(inf),
+            morphs,
+            ..SkinnedMesh::default()
+        };
+        let (w, remap, _) = weld(&mesh);
+        assert_eq!(remap, vec![0, 0, 1, 2]);
+        assert_eq!(w.morphs.offsets, vec![0, 1, 2, 2]);
+        assert_eq!(w.morphs.deltas, vec![d(1.0), d(2.0)]);
     }
 }

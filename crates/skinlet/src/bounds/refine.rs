@@ -161,6 +161,7 @@ pub fn refine_with_progress(
     let Some(inf) = &mesh.influences else {
         return Err(crate::Error::invalid("meshlet bounds", "the mesh has no skin weights"));
     };
+    mesh.morphs.check(mesh.positions.len())?;
     let mut bounds = rest_bounds(skin, mesh, meshlets);
     let intervals: Vec<(u32, f32, f32)> = clips
         .iter()

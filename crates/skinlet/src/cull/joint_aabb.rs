@@ -142,6 +142,7 @@ impl JointBoxes {
     pub fn new(mesh: &SkinnedMesh, skin: &Skin, space: JointSpace, clips: &[&Clip]) -> Result<JointBoxes> {
         let inf =
             mesh.influences.as_ref().ok_or_else(|| Error::invalid("joint boxes", "the mesh has no skin weights"))?;
+        mesh.morphs.check(mesh.positions.len())?;
         let ranges = clip_weight_ranges(&mesh.morphs, clips)?;
         let mut boxes = vec![DAabb::EMPTY; skin.joints.len()];
         for v in 0..mesh.positions.len() {
@@ -282,6 +283,7 @@ impl JointBoxes {
         }
         let inf =
             mesh.influences.as_ref().ok_or_else(|| Error::invalid("joint boxes", "the mesh has no skin weights"))?;
+        mesh.morphs.check(mesh.positions.len())?;
         let n = skin.joints.len();
         // Nearest ancestor joint of each joint (skin order), through non-joint nodes.
         let slot_of_node = |node: u32| skin.joints.iter().position(|&x| x == node);
