@@ -70,7 +70,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let height = (a.width * 9 / 16).max(1);
     let renderer = Renderer::new(&gpu, a.width, height)?;
     let mesh = GpuMesh::new(&gpu, &baked.mesh, Some(&baked.meshlets))?;
-    let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len());
+    let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len())?;
     // MS-CI draws common-influences meshlets: baked too, over the same clips, for their bounds.
     let how = a.refine.refinement()?;
     let (ci, _) = skinlet::bake::bake(
@@ -83,7 +83,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         &mut |_| {},
     )?;
     let ci_mesh = GpuMesh::new(&gpu, &ci.mesh, Some(&ci.meshlets))?;
-    let ci_culler = MeshletCuller::new(&ci.bounds, &ci.classes, skin.joints.len());
+    let ci_culler = MeshletCuller::new(&ci.bounds, &ci.classes, skin.joints.len())?;
     // Per frame and instance: world-space skinning matrices, joint matrices, morph weights.
     let mut poser = Poser::default();
     let mut frames: Vec<Vec<InstancePose>> = Vec::new();

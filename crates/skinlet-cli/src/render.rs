@@ -118,7 +118,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         }
         "culled" => {
             let baked = bake(&asset, &character, None)?;
-            let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len());
+            let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len())?;
             let mut joints = Vec::new();
             skinlet::pose::joint_globals(skin, poser.globals(&asset.skeleton, clip, t), &mut joints);
             let camera = framing(&posed, FRONT, 1.6);

@@ -21,7 +21,7 @@ fn gpu_culling_matches_the_cpu_on_the_crowd_scene() {
         let clips: Vec<&Clip> = asset.clips.iter().collect();
         let baked = bake(&asset, &character);
         let skin = &character.palette;
-        let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len());
+        let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len()).unwrap();
         for orthographic in [false, true] {
             let params = CrowdParams { instances: 24, frames: 3, orthographic, ..CrowdParams::default() };
             let scene = crowd(&baked.mesh.positions, clips.len(), &params);

@@ -116,7 +116,8 @@ fn culled_drawing_gives_the_unculled_image() {
         let clips: Vec<&skinlet::clip::Clip> = asset.clips.iter().collect();
         let baked = common::bake(&asset, &character);
         let skin = &character.palette;
-        let culler = skinlet::cull::meshlet::MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len());
+        let culler =
+            skinlet::cull::meshlet::MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len()).unwrap();
         let clip = clips.first().copied();
         let t = clip.map_or(0.0, |c| c.start + 0.6 * c.duration());
         let mut poser = Poser::default();
@@ -188,7 +189,7 @@ fn crowd_draws_agree_and_are_timed() {
     let skin = &baked.palette();
     let params = skinlet::cull::crowd::CrowdParams { instances: 12, ..Default::default() };
     let scene = skinlet::cull::crowd::crowd(&baked.mesh.positions, clips.len(), &params);
-    let culler = skinlet::cull::meshlet::MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len());
+    let culler = skinlet::cull::meshlet::MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len()).unwrap();
     let mut poser = Poser::default();
     let (mut matrices, mut frames, mut expected) = (Vec::new(), Vec::new(), 0);
     for pl in &scene.placements {

@@ -65,7 +65,7 @@ fn meshlet_culling(c: &mut Criterion, name: &str, asset: &Asset, instances: usiz
         bake(asset, &character, &clips, Builder::SkinAware, MeshletLimits::NVIDIA, &Refinement::NONE, &mut |_| {})
             .unwrap();
     let skin = &character.palette;
-    let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len());
+    let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len()).unwrap();
     let (_, world, _) = poses(asset, &character, instances);
     // One palette of world-space joint matrices for the whole crowd, as an engine keeps it.
     let joints = skin.joints.len();

@@ -174,6 +174,9 @@ pub fn bake(
 /// clustered order by part), so a renderer still binds one material per range; the order
 /// within a part is the clustering's.
 pub fn add_overdraw(baked: &mut Baked, asset: &Asset, params: &ClusterParams, max_keyframes: usize) -> Result<()> {
+    if !(1..=255).contains(&params.k) {
+        return Err(Error::invalid("bake", format!("{} overdraw buffers (the bake holds 1 to 255)", params.k)));
+    }
     let mut keys = Vec::new();
     let mut positions = Vec::new();
     let palette = baked.palette();
@@ -628,7 +631,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
     for i in 0..n {
         let (center, radius, cone_axis, cone_angle) = (s.vec3()?, s.f32()?, s.vec3()?, s.f32()?);
         let (rest_radius, rest_cone_angle, joint) = (s.f32()?, s.f32()?, s.u32()?);
-        if joint as usize >= joints.max(1) {
+        if joint as usize >= joints {
             return Err(s.err(format!("meshlet {i}'s principal joint {joint} is not one of {joints} joints")));
         }
         classes.push(match s.u32()? {
@@ -752,8 +755,8 @@ fn read_contours(mut s: In, mesh: &SkinnedMesh, joints: usize) -> Result<BakedCo
     for i in 0..n {
         let (center, radius, axis, sin_angle, cos_angle) = (s.vec3()?, s.f32()?, s.vec3()?, s.f32()?, s.f32()?);
         let (joint, first, count) = (s.u32()?, s.u32()?, s.u32()?);
-        let at = p.ranges.last().map_or(0, |r: &[u32; 2]| (r[0] + r[1]) as usize);
-        if joint as usize >= joints.max(1)
+        let at = p.ranges.last().map_or(0, |r: &[u32; 2]| r[0] as usize + r[1] as usize);
+        if joint as usize >= joints
             || first as usize != at
             || count == 0
             || radius < 0.0
@@ -768,7 +771,7 @@ fn read_contours(mut s: In, mesh: &SkinnedMesh, joints: usize) -> Result<BakedCo
         p.ranges.push([first, count]);
         patch_joints.push(joint as u16);
     }
-    if p.ranges.last().map_or(0, |r| (r[0] + r[1]) as usize) != always_from {
+    if p.ranges.last().map_or(0, |r| r[0] as usize + r[1] as usize) != always_from {
         return Err(s.err(format!("patches hold other than {always_from} quads")));
     }
     p.order = (0..quads).map(|_| s.u32()).collect::<Result<Vec<_>>>()?;
@@ -810,8 +813,8 @@ fn read_contours(mut s: In, mesh: &SkinnedMesh, joints: usize) -> Result<BakedCo
 /// The OVDR section: every buffer a permutation of the triangles, table entries in range.
 fn read_orders(mut s: In, mesh: &SkinnedMesh, parts: &[BakedPart], clips: usize) -> Result<Orders> {
     let (k, f, polar, azimuth) = (s.u32()? as usize, s.u32()? as usize, s.u32()? as usize, s.u32()? as usize);
-    if k == 0 || k > 255 || polar == 0 || azimuth == 0 {
-        return Err(s.err(format!("{k} buffers, {polar} × {azimuth} cells")));
+    if k == 0 || k > 255 || polar == 0 || azimuth == 0 || f == 0 {
+        return Err(s.err(format!("{k} buffers, {f} keyframes, {polar} × {azimuth} cells")));
     }
     let lambda = s.f32()?;
     let framing = Framing { center: s.vec3()?, radius: s.f32()? };
@@ -953,13 +956,55 @@ mod tests {
         }
     }
 
+    /// Everything `from_bytes` accepts goes through the run-time consumers without a panic or
+    /// an error: the culler (and a cull), the overdraw lookup, joint boxes, skinning with
+    /// morphs, the contour edges the patches index.
+    fn consume(b: &Baked) {
+        let palette = b.palette();
+        let culler = crate::cull::meshlet::MeshletCuller::new(&b.bounds, &b.classes, palette.joints.len()).unwrap();
+        let camera = crate::cull::Camera::perspective(
+            glam::Vec3::new(0.0, 1.0, 4.0),
+            glam::Vec3::ZERO,
+            glam::Vec3::Y,
+            1.0,
+            1.0,
+            0.1,
+            100.0,
+        );
+        let joints = vec![glam::Affine3A::IDENTITY; palette.joints.len()];
+        let mut frame = crate::cull::meshlet::JointFrame::default();
+        culler.prepare(&joints, &camera, crate::cull::meshlet::Tests::Both, &mut frame);
+        culler.cull(&frame, &mut Vec::new(), &mut Vec::new());
+        if let Some(o) = &b.overdraw {
+            assert!(o.select(0, 0.0, glam::Vec3::Z) < o.buffers.len());
+        }
+        crate::cull::joint_aabb::JointBoxes::new(&b.mesh, &palette, crate::cull::joint_aabb::JointSpace::Joint, &[])
+            .unwrap();
+        let mut weights = Vec::new();
+        b.mesh.morphs.weights_at(None, 0.0, &mut weights);
+        let mut out = vec![glam::Vec3::ZERO; b.mesh.positions.len()];
+        crate::skinning::skin_mesh(&b.mesh, &weights, &joints, &mut out, &mut []).unwrap();
+        if let Some(c) = &b.contours {
+            assert_eq!(skinned_edges(&b.mesh, c.visible_only).unwrap().quads.len(), c.patches.patches.order.len());
+        }
+    }
+
     #[test]
     fn every_truncation_and_many_corruptions_give_errors_not_panics() {
-        let bytes = to_bytes(&baked());
-        for cut in (0..bytes.len()).step_by(97).chain([bytes.len() - 1]) {
+        let asset = demo_character(&DemoParams { triangles: 2000, ..DemoParams::default() });
+        let mut b = baked();
+        let params = ClusterParams { k: 3, view_levels: 1, iterations: 2, ..ClusterParams::default() };
+        add_overdraw(&mut b, &asset, &params, 3).unwrap();
+        let how = crate::contour::skinned::refinement(None, 0);
+        let sp = SkinnedParams::new(crate::contour::skinned::SkinnedMethod::Animated, how);
+        add_contours(&mut b, &asset, &sp, true).unwrap();
+        let bytes = to_bytes(&b);
+        consume(&from_bytes(&bytes).unwrap());
+        for cut in 0..bytes.len() {
             assert!(from_bytes(&bytes[..cut]).is_err(), "truncated at {cut} was accepted");
         }
         let mut rng = 0x9E3779B97F4A7C15u64;
+        let mut accepted = 0;
         for _ in 0..3000 {
             rng ^= rng << 13;
             rng ^= rng >> 7;
@@ -967,8 +1012,44 @@ mod tests {
             let mut b = bytes.clone();
             let at = (rng % b.len() as u64) as usize;
             b[at] ^= 1 << (rng >> 60 & 7);
-            let _ = from_bytes(&b); // must not panic; many flips (e.g. in a float's low bits) are valid
+            // Many flips (e.g. in a float's low bits) are valid: those must run everywhere.
+            if let Ok(back) = from_bytes(&b) {
+                consume(&back);
+                accepted += 1;
+            }
         }
+        assert!(accepted > 0 && accepted < 3000, "{accepted} of 3000 flipped files accepted");
+    }
+
+    #[test]
+    fn readers_refuse_what_consumers_cannot_take() {
+        let asset = demo_character(&DemoParams { triangles: 2000, ..DemoParams::default() });
+        let mut b = baked();
+        let params = ClusterParams { k: 2, view_levels: 1, iterations: 1, ..ClusterParams::default() };
+        add_overdraw(&mut b, &asset, &params, 2).unwrap();
+        let bytes = to_bytes(&b);
+        let section = |bytes: &[u8], tag: &[u8; 4]| {
+            let n = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+            let e = (0..n).map(|i| HEADER + i * ENTRY).find(|&e| &bytes[e..e + 4] == tag).unwrap();
+            u64::from_le_bytes(bytes[e + 8..e + 16].try_into().unwrap()) as usize
+        };
+        // No keyframes: the lookup would select from an empty table.
+        let mut no_keys = bytes.clone();
+        let at = section(&bytes, b"OVDR") + 4;
+        no_keys[at..at + 4].copy_from_slice(&0u32.to_le_bytes());
+        let e = from_bytes(&no_keys).unwrap_err().to_string();
+        assert!(e.contains("OVDR") && e.contains("0 keyframes"), "{e}");
+        // No joints: every meshlet's principal joint is out of range.
+        let mut no_joints = bytes.clone();
+        let at = section(&bytes, b"SKIN");
+        no_joints[at..at + 4].copy_from_slice(&0u32.to_le_bytes());
+        assert!(from_bytes(&no_joints).is_err());
+        // More buffers than a bake holds, and culler inputs that do not match.
+        let many = ClusterParams { k: 256, ..params };
+        assert!(add_overdraw(&mut b, &asset, &many, 2).unwrap_err().to_string().contains("256 overdraw buffers"));
+        let culler = crate::cull::meshlet::MeshletCuller::new(&b.bounds, &b.classes[1..], b.joint_nodes.len());
+        assert!(culler.is_err());
+        assert!(crate::cull::meshlet::MeshletCuller::new(&b.bounds, &b.classes, 0).is_err());
     }
 
     #[test]

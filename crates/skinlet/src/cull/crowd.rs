@@ -287,7 +287,7 @@ pub fn run(
     params: &CrowdParams,
     verify: bool,
 ) -> Result<CrowdStats> {
-    let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len());
+    let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len())?;
     let boxes = JointBoxes::new(&baked.mesh, skin, JointSpace::Joint, clips)?;
     let mesh_boxes = JointBoxes::new(&baked.mesh, skin, JointSpace::Mesh, clips)?;
     let folded = boxes.fold_leaves(skeleton, skin, &baked.mesh, clips, 2)?;

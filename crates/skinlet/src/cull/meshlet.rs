@@ -260,15 +260,28 @@ impl CullCounts {
 }
 
 impl MeshletCuller {
-    /// Lays out bounds and their classes (`joints`: the skin's joint count).
-    pub fn new(bounds: &[MeshletBounds], classes: &[Class], joints: usize) -> MeshletCuller {
+    /// Lays out bounds and their classes (`joints`: the skin's joint count). Errors when the
+    /// counts of bounds and classes differ or a meshlet's principal joint is not below `joints`.
+    pub fn new(bounds: &[MeshletBounds], classes: &[Class], joints: usize) -> crate::Result<MeshletCuller> {
+        if bounds.len() != classes.len() {
+            return Err(crate::Error::invalid(
+                "meshlet culler",
+                format!("{} bounds but {} classes", bounds.len(), classes.len()),
+            ));
+        }
+        if let Some((i, b)) = bounds.iter().enumerate().find(|(_, b)| b.joint as usize >= joints) {
+            return Err(crate::Error::invalid(
+                "meshlet culler",
+                format!("meshlet {i}'s principal joint {} is not one of {joints} joints", b.joint),
+            ));
+        }
         let mut order: Vec<u32> = (0..bounds.len() as u32).collect();
         order.sort_by_key(|&i| bounds[i as usize].joint);
         let mut c = MeshletCuller { extent: vec![0.0; joints], ..MeshletCuller::default() };
         c.groups = vec![0; joints + 1];
         for &i in &order {
             let (b, class) = (&bounds[i as usize], classes[i as usize]);
-            let j = (b.joint as usize).min(joints.saturating_sub(1));
+            let j = b.joint as usize;
             c.groups[j + 1] += 1;
             c.ids.push(i);
             c.cx.push(b.center.x);
@@ -318,7 +331,7 @@ impl MeshletCuller {
             })
             .collect();
         c.instance = JointBoxes::from_boxes(JointSpace::Joint, &group_boxes);
-        c
+        Ok(c)
     }
 
     pub fn len(&self) -> usize {
@@ -609,7 +622,7 @@ mod tests {
     }
 
     fn culled(b: MeshletBounds, g: Affine3A, cam: &Camera) -> u8 {
-        let c = MeshletCuller::new(&[b], &[Class::Both], 1);
+        let c = MeshletCuller::new(&[b], &[Class::Both], 1).unwrap();
         let mut frame = JointFrame::default();
         c.prepare(&[g], cam, Tests::Both, &mut frame);
         let (mut flags, mut visible) = (Vec::new(), Vec::new());

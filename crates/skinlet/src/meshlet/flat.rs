@@ -91,8 +91,14 @@ pub fn from_bytes(b: &[u8]) -> Result<Meshlets> {
             (h.triangle_offset as usize + 3 * h.triangle_count as usize, nt),
             (h.joint_offset as usize + h.joint_count as usize, nj),
         ];
-        if ends.iter().any(|(end, n)| end > n) || (packed >> 31 == 1) != h.single_joint_set() {
-            return Err(Error::invalid("meshlet buffer", format!("meshlet {i} has ranges outside the buffer")));
+        if ends.iter().any(|(end, n)| end > n)
+            || !h.triangle_offset.is_multiple_of(3)
+            || (packed >> 31 == 1) != h.single_joint_set()
+        {
+            return Err(Error::invalid(
+                "meshlet buffer",
+                format!("meshlet {i} has ranges outside the buffer or a triangle offset off a triangle"),
+            ));
         }
         m.meshlets.push(h);
     }

@@ -429,5 +429,9 @@ mod tests {
         let mut bad = bytes.clone();
         bad[16..20].copy_from_slice(&u32::MAX.to_le_bytes()); // first meshlet's vertex offset
         assert!(flat::from_bytes(&bad).unwrap_err().to_string().contains("meshlet 0"));
+        // A triangle offset inside a triangle (in range, not a multiple of 3).
+        let mut bad = bytes.clone();
+        bad[20..24].copy_from_slice(&1u32.to_le_bytes()); // first meshlet's triangle offset
+        assert!(flat::from_bytes(&bad).unwrap_err().to_string().contains("triangle offset"));
     }
 }

@@ -379,7 +379,9 @@ impl Lookup {
         let i = (theta / std::f32::consts::PI * (self.polar - 1).max(1) as f32).round() as usize;
         let j = (phi / std::f32::consts::TAU * self.azimuth as f32).round() as usize % self.azimuth.max(1);
         let f = f.min(self.keyframes.saturating_sub(1));
-        self.table[(f * self.polar + i.min(self.polar - 1)) * self.azimuth + j]
+        // An empty table (no keyframes) selects buffer 0.
+        let cell = (f * self.polar + i.min(self.polar.saturating_sub(1))) * self.azimuth + j;
+        self.table.get(cell).copied().unwrap_or(0)
     }
 }
 
