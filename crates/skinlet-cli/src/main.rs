@@ -312,7 +312,8 @@ enum Command {
     /// keyframe: one buffer per keyframe), single (k buffers per clip from clustering
     /// keyframe x viewpoint nodes), joint (k buffers for all clips). ACMR for a 16-entry FIFO
     /// cache; OVR averaged over random (keyframe, viewpoint) pairs at 3x the bounding radius,
-    /// rendered by skinlet's software rasterizer. Work in progress: not yet in the bake file.
+    /// rendered by skinlet's software rasterizer. `skinlet bake --overdraw` stores the joint
+    /// clustering's buffers and their lookup in the bake.
     Overdraw {
         /// .glb or .gltf file, or @demo[:TRIANGLES].
         file: String,

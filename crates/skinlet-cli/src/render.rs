@@ -234,7 +234,8 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             "summary": summary});
         println!("{}", serde_json::to_string_pretty(&out)?);
     } else {
-        println!("{}: {file} at {:.2} s, {} view on {} {summary}", a.out.display(), a.time, a.view, gpu.info.name);
+        let facts = summary.as_object().filter(|m| !m.is_empty()).map(|_| format!(" {summary}")).unwrap_or_default();
+        println!("{}: {file} at {:.2} s, {} view on {}{facts}", a.out.display(), a.time, a.view, gpu.info.name);
     }
     Ok(())
 }

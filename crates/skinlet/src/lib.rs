@@ -5,7 +5,8 @@
 //! - [`character`]: the whole scene as one skinned mesh over a palette of drivers.
 //! - [`clip`]: animation clips and their exact glTF sampling.
 //! - [`pose`]: global transforms and skinning matrices.
-//! - [`skinning`]: reference linear blend skinning (the ground truth of every bound).
+//! - [`skinning`]: reference linear blend skinning, morph targets first (the ground truth of
+//!   every bound).
 //! - [`import`]: glTF 2.0 and OBJ loading with errors that say what and where.
 //! - [`export`]: writing an asset as a glTF binary (.glb).
 //! - [`bake`]: the bake file (meshlets, bounds, vertices) the runtime loads.
@@ -13,8 +14,9 @@
 //! - [`cull`]: CPU culling at run time: meshlets, triangles, whole-mesh boxes, the crowd scene.
 //! - [`meshlet`]: meshlet layout, four builders (incl. skin-aware), flat GPU form, metrics.
 //! - [`contour`]: mesh contour extraction with patch decomposition (and its baselines).
-//! - [`overdraw`]: triangle orders for low overdraw (in progress: the measures).
-//! - [`weld`]: merging vertices that are equal in position and skin data.
+//! - [`overdraw`]: triangle orders for low overdraw over animation (measures, clustering,
+//!   run-time lookup).
+//! - [`weld`]: merging vertices that are equal in position, skin data and morph deltas.
 //! - [`summary`]: the facts `skinlet inspect` reports.
 //! - [`demo`]: the built-in procedural demo character.
 
