@@ -433,7 +433,7 @@ fn render_writes_a_png_of_the_posed_character() {
     let out = dir.join("demo.png");
     let (code, stdout, err) =
         skinlet(&["render", "@demo:2000", "--time", "0.3", "--size", "64", "-o", out.to_str().unwrap(), "--json"]);
-    if code != 0 && err.contains("no GPU adapter") && std::env::var("SKINLET_REQUIRE_GPU").map_or(true, |v| v != "1") {
+    if code != 0 && err.contains("no GPU adapter") && !common::required("SKINLET_REQUIRE_GPU") {
         eprintln!("skipping: {err}");
         return;
     }
@@ -444,7 +444,7 @@ fn render_writes_a_png_of_the_posed_character() {
     assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
     // The colored views need mesh shaders (lavapipe from bookworm-backports has them; CI
     // requires them).
-    let needs_mesh = std::env::var("SKINLET_REQUIRE_GPU").is_ok_and(|v| v == "1");
+    let needs_mesh = common::required("SKINLET_REQUIRE_GPU");
     for view in ["meshlets", "culled", "classes", "contours", "overdraw"] {
         let (code, stdout, err) =
             skinlet(&["render", "@demo:2000", "--view", view, "--size", "64", "-o", out.to_str().unwrap(), "--json"]);
@@ -602,10 +602,7 @@ fn render_draws_morph_targets_in_every_pipeline() {
         let png = out.join(format!("{skinning}-{time}.png"));
         let args = ["render", file.to_str().unwrap(), "--clip", "TheWave", "--time", time, "--skinning", skinning];
         let (code, _, err) = skinlet(&[&args[..], &["--size", "64", "-o", png.to_str().unwrap()]].concat());
-        if code != 0
-            && err.contains("no GPU adapter")
-            && std::env::var("SKINLET_REQUIRE_GPU").map_or(true, |v| v != "1")
-        {
+        if code != 0 && err.contains("no GPU adapter") && !common::required("SKINLET_REQUIRE_GPU") {
             eprintln!("skipping: {err}");
             return;
         }

@@ -5,7 +5,7 @@
 //! bounds over every clip. It also tests exactly as many edges as the CPU patch extractor.
 
 mod common;
-use common::{assets, gpu};
+use common::{assets, assets_dir, gpu};
 
 use glam::{DMat4, Vec3};
 use skinlet::bounds::refine::Refinement;
@@ -19,7 +19,6 @@ use skinlet_gpu::contours::{ContourExtraction, ContourView, Extracted, GpuContou
 use skinlet_gpu::mesh::{GpuMesh, Pose};
 use skinlet_gpu::render::{Renderer, Skinning, framing};
 use skinlet_gpu::skinning::ComputeSkinning;
-use std::path::PathBuf;
 
 /// Orthographic views along 12 directions and eyes inside the model.
 fn more_views(positions: &[Vec3]) -> Vec<Projection> {
@@ -66,17 +65,12 @@ fn extraction(gpu: &Gpu) -> ContourExtraction {
 fn static_scans_match_brute_force() {
     let Some(gpu) = gpu() else { return };
     let pipes = extraction(&gpu);
-    let dir = std::env::var_os("SKINLET_ASSETS")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/assets")));
     let mut meshes: Vec<(String, Vec<Vec3>, Vec<[u32; 3]>)> = Vec::new();
     let (p, t) = skinlet::contour::evaluate::uv_sphere(24, 48);
     meshes.push(("uv sphere".into(), p, t));
-    for file in ["spot.obj", "stanford-bunny.obj", "kitten.obj", "bob_tri.obj"] {
+    let files = ["spot.obj", "stanford-bunny.obj", "kitten.obj", "bob_tri.obj"];
+    for (dir, file) in assets_dir().into_iter().flat_map(|d| files.map(|f| (d.clone(), f))) {
         let path = dir.join("static").join(file);
-        if !path.exists() && std::env::var("SKINLET_REQUIRE_ASSETS").is_err() {
-            continue;
-        }
         let asset = skinlet::import::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
         let (mesh, _, _) = skinlet::weld::weld(&asset.character().unwrap().mesh);
         meshes.push((file.into(), mesh.positions, mesh.triangles));

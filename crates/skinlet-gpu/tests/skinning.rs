@@ -17,7 +17,7 @@ use skinlet_gpu::{Gpu, GpuOptions};
 fn compute_skinning_matches_the_cpu_reference() {
     let Some(gpu) = gpu() else { return };
     eprintln!("adapter: {} ({:?}), mesh shaders: {}", gpu.info.name, gpu.info.backend, gpu.has_mesh_shaders());
-    if std::env::var("SKINLET_REQUIRE_GPU").is_ok_and(|v| v == "1") {
+    if common::required("SKINLET_REQUIRE_GPU") {
         // CI installs lavapipe from bookworm-backports precisely for its mesh shaders.
         assert!(gpu.has_mesh_shaders(), "{} has no mesh shaders", gpu.info.name);
     }

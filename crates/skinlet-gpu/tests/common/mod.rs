@@ -8,10 +8,15 @@ use skinlet_gpu::mesh::Pose;
 use skinlet_gpu::{Gpu, GpuOptions};
 use std::path::PathBuf;
 
+#[path = "../../../skinlet/tests/common/mod.rs"]
+mod shared;
+pub use shared::{assets_dir, required};
+
+/// The default device, or `None` with a note (a failure with `SKINLET_REQUIRE_GPU=1`).
 pub fn gpu() -> Option<Gpu> {
     match Gpu::new(GpuOptions::default()) {
         Ok(g) => Some(g),
-        Err(e) if std::env::var("SKINLET_REQUIRE_GPU").is_ok_and(|v| v == "1") => panic!("{e}"),
+        Err(e) if required("SKINLET_REQUIRE_GPU") => panic!("{e} (SKINLET_REQUIRE_GPU=1)"),
         Err(e) => {
             eprintln!("skipping: {e}");
             None
@@ -19,26 +24,19 @@ pub fn gpu() -> Option<Gpu> {
     }
 }
 
+/// The shared skinned characters and the morph-target test (when the assets are there: see
+/// [`assets_dir`]), then the demo character.
 pub fn assets() -> Vec<(String, Asset)> {
-    let dir = std::env::var_os("SKINLET_ASSETS")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/assets")));
     let mut out = Vec::new();
-    match std::fs::read_dir(dir.join("skinned")) {
-        Ok(entries) => {
-            let mut paths: Vec<PathBuf> = entries.flatten().map(|e| e.path()).collect();
-            paths.sort();
-            // The skinned characters, then the morph-target test.
-            paths.push(dir.join("morph/MorphStressTest.gltf"));
-            for p in paths.into_iter().filter(|p| p.extension().is_some_and(|e| e == "glb" || e == "gltf")) {
-                let asset = skinlet::import::load(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
-                out.push((p.file_name().unwrap().to_string_lossy().into_owned(), asset));
-            }
+    if let Some(dir) = assets_dir() {
+        let mut paths: Vec<PathBuf> =
+            std::fs::read_dir(dir.join("skinned")).unwrap().flatten().map(|e| e.path()).collect();
+        paths.sort();
+        paths.push(dir.join("morph/MorphStressTest.gltf"));
+        for p in paths.into_iter().filter(|p| p.extension().is_some_and(|e| e == "glb" || e == "gltf")) {
+            let asset = skinlet::import::load(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+            out.push((p.file_name().unwrap().to_string_lossy().into_owned(), asset));
         }
-        Err(e) if std::env::var("SKINLET_REQUIRE_ASSETS").is_ok_and(|v| v == "1") => {
-            panic!("{}: {e}", dir.display())
-        }
-        Err(e) => eprintln!("no shared assets ({}: {e}); the demo character only", dir.display()),
     }
     let demo = skinlet::demo::demo_character(&skinlet::demo::DemoParams::default());
     out.push(("@demo".into(), demo));

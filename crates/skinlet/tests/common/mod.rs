@@ -1,10 +1,18 @@
 //! Where the tests find the shared real assets: `$SKINLET_ASSETS`, else `../shared/assets`
 //! beside the workspace. Missing assets skip the real-asset checks with a note, unless
-//! `SKINLET_REQUIRE_ASSETS` is set (CI sets it), where they fail. Likewise the npm tools.
+//! `SKINLET_REQUIRE_ASSETS=1` (CI sets it), where they fail. Likewise the npm tools
+//! (`SKINLET_REQUIRE_TOOLS=1`) and, in the GPU tests, the device (`SKINLET_REQUIRE_GPU=1`):
+//! one rule for all three, [`required`]. Shared by the skinlet, skinlet-cli and skinlet-gpu
+//! tests.
 
 #![allow(dead_code)] // each test binary uses some of these
 
 use std::path::PathBuf;
+
+/// True when `var` is `1`: a missing prerequisite then fails the test instead of skipping it.
+pub fn required(var: &str) -> bool {
+    std::env::var(var).is_ok_and(|v| v == "1")
+}
 
 pub fn assets_dir() -> Option<PathBuf> {
     let dir = std::env::var_os("SKINLET_ASSETS")
@@ -13,11 +21,7 @@ pub fn assets_dir() -> Option<PathBuf> {
     if dir.join("skinned").is_dir() {
         return Some(dir);
     }
-    assert!(
-        std::env::var_os("SKINLET_REQUIRE_ASSETS").is_none(),
-        "no assets at {} but SKINLET_REQUIRE_ASSETS is set",
-        dir.display()
-    );
+    assert!(!required("SKINLET_REQUIRE_ASSETS"), "no assets at {} but SKINLET_REQUIRE_ASSETS=1", dir.display());
     eprintln!("note: no assets at {} (set SKINLET_ASSETS); skipping", dir.display());
     None
 }
@@ -31,8 +35,8 @@ pub fn tools_dir(package: &str) -> Option<PathBuf> {
         return Some(dir);
     }
     assert!(
-        std::env::var_os("SKINLET_REQUIRE_TOOLS").is_none(),
-        "{package} is missing from {} but SKINLET_REQUIRE_TOOLS is set (npm install --prefix tools)",
+        !required("SKINLET_REQUIRE_TOOLS"),
+        "{package} is missing from {} but SKINLET_REQUIRE_TOOLS=1 (npm install --prefix tools)",
         dir.display()
     );
     eprintln!("note: {package} is missing from {} (npm install --prefix tools); skipping", dir.display());
