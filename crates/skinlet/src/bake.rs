@@ -956,6 +956,13 @@ mod tests {
         }
     }
 
+    /// Where section `tag` starts in bake bytes (from the section table).
+    fn section_start(bytes: &[u8], tag: &[u8; 4]) -> usize {
+        let n = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+        let e = (0..n).map(|i| HEADER + i * ENTRY).find(|&e| &bytes[e..e + 4] == tag).expect("the section");
+        u64::from_le_bytes(bytes[e + 8..e + 16].try_into().unwrap()) as usize
+    }
+
     /// Everything `from_bytes` accepts goes through the run-time consumers without a panic or
     /// an error: the culler (and a cull), the overdraw lookup, joint boxes, skinning with
     /// morphs, the contour edges the patches index.
@@ -1028,20 +1035,15 @@ mod tests {
         let params = ClusterParams { k: 2, view_levels: 1, iterations: 1, ..ClusterParams::default() };
         add_overdraw(&mut b, &asset, &params, 2).unwrap();
         let bytes = to_bytes(&b);
-        let section = |bytes: &[u8], tag: &[u8; 4]| {
-            let n = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
-            let e = (0..n).map(|i| HEADER + i * ENTRY).find(|&e| &bytes[e..e + 4] == tag).unwrap();
-            u64::from_le_bytes(bytes[e + 8..e + 16].try_into().unwrap()) as usize
-        };
         // No keyframes: the lookup would select from an empty table.
         let mut no_keys = bytes.clone();
-        let at = section(&bytes, b"OVDR") + 4;
+        let at = section_start(&bytes, b"OVDR") + 4;
         no_keys[at..at + 4].copy_from_slice(&0u32.to_le_bytes());
         let e = from_bytes(&no_keys).unwrap_err().to_string();
         assert!(e.contains("OVDR") && e.contains("0 keyframes"), "{e}");
         // No joints: every meshlet's principal joint is out of range.
         let mut no_joints = bytes.clone();
-        let at = section(&bytes, b"SKIN");
+        let at = section_start(&bytes, b"SKIN");
         no_joints[at..at + 4].copy_from_slice(&0u32.to_le_bytes());
         assert!(from_bytes(&no_joints).is_err());
         // More buffers than a bake holds, and culler inputs that do not match.
@@ -1073,9 +1075,7 @@ mod tests {
         // The demo's face is in MRPH: a delta naming a weight that does not exist.
         assert!(!b.mesh.morphs.is_empty());
         let mut bytes = to_bytes(&b);
-        let n = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
-        let entry = (0..n).map(|i| HEADER + i * ENTRY).find(|&e| &bytes[e..e + 4] == b"MRPH").expect("a MRPH section");
-        let start = u64::from_le_bytes(bytes[entry + 8..entry + 16].try_into().unwrap()) as usize;
+        let start = section_start(&bytes, b"MRPH");
         let mo = &b.mesh.morphs;
         let first_delta = start + 8 + MORPH_WEIGHT_STRIDE * mo.weights.len() + 4 * mo.offsets.len();
         bytes[first_delta..first_delta + 4].copy_from_slice(&9u32.to_le_bytes());
