@@ -1,6 +1,14 @@
 //! `skinlet gpu-bench`: the paper's crowd scene (fig. 10) drawn on the GPU by each skinning
 //! pipeline (vertex, compute, mesh shader, mesh shader with common-influences slim meshlets)
 //! and each culling pipeline (none, frustum, backface, both), timed with GPU timestamps.
+//!
+//! After one untimed warm-up round over every configuration, each repeat measures every
+//! configuration once, forwards on even repeats and backwards on odd ones (A B C … C B A), so
+//! that warming, clocks and drift fall on all of them alike. A configuration's time is the
+//! median over repeats of its per-repeat median frame; the spread is the range over repeats;
+//! "vs none" is the median (and range) of per-repeat ratios against the same pipeline without
+//! culling. The CPU-side per-instance preparation of culling (`MeshletCuller::prepare`) is
+//! timed apart and not part of the GPU or wall times.
 
 use crate::RefineArgs;
 use anyhow::{Context, Result};
@@ -21,9 +29,12 @@ pub struct Args {
     gltf: Option<String>,
     #[arg(long, default_value_t = 64)]
     instances: usize,
-    /// Timed frames per configuration (after one untimed frame); the median is reported.
-    #[arg(long, default_value_t = 5)]
+    /// Timed frames per configuration and repeat.
+    #[arg(long, default_value_t = 3)]
     frames: usize,
+    /// Repeats: every configuration is measured once per repeat, in alternating order.
+    #[arg(long, default_value_t = 5)]
+    repeats: usize,
     /// Image width (the height follows the crowd camera's 16:9).
     #[arg(long, default_value_t = 1280)]
     width: u32,
@@ -46,19 +57,61 @@ struct InstancePose {
     weights: Vec<f32>,
 }
 
+/// One configuration: a skinning pipeline (with its mesh, culler and bake) and a culling.
+struct Config<'a> {
+    pipeline: &'static str,
+    skinning: Skinning,
+    mesh: &'a GpuMesh,
+    culler: &'a MeshletCuller,
+    baked: &'a skinlet::bake::Baked,
+    culling: &'static str,
+    tests: Option<Tests>,
+    path: Option<Culling>,
+}
+
+/// A median with the range it came from.
+#[derive(Clone, Copy)]
+struct Spread {
+    median: f64,
+    min: f64,
+    max: f64,
+}
+
+impl Spread {
+    fn of(v: &[f64]) -> Option<Spread> {
+        let median = crate::bench::median(v.to_vec())?;
+        Some(Spread {
+            median,
+            min: v.iter().copied().fold(f64::INFINITY, f64::min),
+            max: v.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        })
+    }
+
+    fn json(s: Option<Spread>) -> serde_json::Value {
+        s.map_or(serde_json::Value::Null, |s| json!({"median": s.median, "min": s.min, "max": s.max}))
+    }
+}
+
 /// One measured configuration.
 struct Row {
     pipeline: &'static str,
     culling: &'static str,
-    gpu_ms: Option<f64>,
-    wall_ms: f64,
+    gpu_ms: Option<Spread>,
+    wall_ms: Option<Spread>,
+    /// GPU time ÷ the same pipeline's without culling, minus one, in percent, per repeat.
+    vs_none_pct: Option<Spread>,
+    /// CPU milliseconds per frame preparing the culling of every instance.
+    prepare_ms: Option<f64>,
     culled_pct: Option<f64>,
     /// Triangles drawn per frame.
     triangles: u64,
 }
 
 pub fn command(file: &str, a: &Args) -> Result<()> {
-    anyhow::ensure!(a.instances >= 1 && a.frames >= 1, "--instances and --frames must be at least 1");
+    anyhow::ensure!(
+        a.instances >= 1 && a.frames >= 1 && a.repeats >= 1,
+        "--instances, --frames and --repeats must be at least 1"
+    );
     anyhow::ensure!((64..=8192).contains(&a.width), "--width must be between 64 and 8192");
     let (asset, character, baked) = crate::crowd::load(file, a.gltf.as_deref(), a.refine, a.json)?;
     let clips = crate::bake::clips_of(&baked, &asset, a.gltf.as_deref().unwrap_or(file))?;
@@ -113,73 +166,130 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         ("both", Some(Tests::Both)),
         ("both-by-class", Some(Tests::Both)),
     ];
-    let light = Vec3::new(0.4, 0.8, 0.6);
-    let mut rows = Vec::new();
-    let mut picture = None;
-    for &(name, skinning, gpu_mesh, culler, bake) in &pipelines {
+    let mut configs = Vec::new();
+    for &(pipeline, skinning, mesh, culler, baked) in &pipelines {
         for &(culling, tests) in &cullings {
             // Culling runs in task shaders (MS, MS-CI: one pipeline reading per-meshlet class
             // flags, or three by class) or a compute pass writing indirect draws (VS, CS).
             let task = matches!(skinning, Skinning::Mesh | Skinning::MeshSlim);
-            let culling_path = match (task, culling) {
+            let path = match (task, culling) {
                 (_, "none") => None,
                 (true, "both-by-class") => Some(Culling::TaskByClass),
                 (true, _) => Some(Culling::Task),
                 (false, "both-by-class") => continue,
                 (false, _) => Some(Culling::ComputeIndirect),
             };
-            let (mut gpu_ms, mut wall_ms, mut culled, mut triangles) = (Vec::new(), Vec::new(), 0usize, None);
-            for (f, instances) in frames.iter().enumerate() {
-                let prepared: Vec<JointFrame> = match tests {
-                    Some(tests) => instances
+            configs.push(Config { pipeline, skinning, mesh, culler, baked, culling, tests, path });
+        }
+    }
+    // The CPU side of culling, per culler and tests, timed apart: every instance's per-joint
+    // preparation, per frame (median over frames and repeats). Its results are what the
+    // GPU passes read; the CPU culler also counts what they cull.
+    let mut prepared: Vec<Vec<Vec<JointFrame>>> = Vec::new();
+    let mut prepare_ms = Vec::new();
+    let mut culled = Vec::new();
+    for c in &configs {
+        let Some(tests) = c.tests else {
+            prepared.push(Vec::new());
+            prepare_ms.push(None);
+            culled.push(None);
+            continue;
+        };
+        let mut times = Vec::new();
+        let mut by_frame = Vec::new();
+        for _ in 0..a.repeats {
+            by_frame = frames
+                .iter()
+                .map(|instances| {
+                    let started = std::time::Instant::now();
+                    let out: Vec<JointFrame> = instances
                         .iter()
                         .map(|i| {
                             let mut frame = JointFrame::default();
-                            culler.prepare(&i.joints, &scene.camera, tests, &mut frame);
+                            c.culler.prepare(&i.joints, &scene.camera, tests, &mut frame);
                             frame
                         })
-                        .collect(),
-                    None => Vec::new(),
-                };
-                if f > 0 {
-                    for frame in &prepared {
-                        let c = culler.cull(frame, &mut Vec::new(), &mut Vec::new());
-                        culled += c.meshlets - c.visible;
-                    }
-                }
-                let list: Vec<Instance> = (instances.iter().enumerate())
-                    .map(|(k, i)| Instance {
-                        pose: Pose { matrices: &i.skinning, morph_weights: &i.weights },
-                        frame: prepared.get(k),
-                    })
-                    .collect();
-                let how = match culling_path {
-                    Some(culling) => CrowdDraw::Culled { culler, culling, skinning, triangles: None },
-                    None => CrowdDraw::Plain(skinning),
-                };
-                let started = std::time::Instant::now();
-                let drawn = renderer.render_crowd(&gpu, gpu_mesh, &list, scene.camera.view_proj, light, how)?;
-                if f > 0 {
-                    wall_ms.push(started.elapsed().as_secs_f64() * 1e3);
-                    gpu_ms.extend(drawn.gpu_ms);
-                    triangles = drawn.triangles.map(|t| t as u64 + triangles.unwrap_or(0));
-                }
-                // Culling is conservative: every configuration draws this same picture.
-                if f == 1 && picture.is_none() {
-                    picture = Some(drawn.image);
-                }
+                        .collect();
+                    times.push(started.elapsed().as_secs_f64() * 1e3);
+                    out
+                })
+                .collect();
+        }
+        let count: usize = (by_frame[1..].iter().flatten())
+            .map(|f| {
+                let n = c.culler.cull(f, &mut Vec::new(), &mut Vec::new());
+                n.meshlets - n.visible
+            })
+            .sum();
+        culled.push(Some(100.0 * count as f64 / (a.frames * a.instances * c.baked.meshlets.len()) as f64));
+        prepare_ms.push(crate::bench::median(times));
+        prepared.push(by_frame);
+    }
+    let light = Vec3::new(0.4, 0.8, 0.6);
+    let draw = |k: usize, f: usize| {
+        let c = &configs[k];
+        let list: Vec<Instance> = (frames[f].iter().enumerate())
+            .map(|(i, p)| Instance {
+                pose: Pose { matrices: &p.skinning, morph_weights: &p.weights },
+                frame: prepared[k].get(f).map(|frames| &frames[i]),
+            })
+            .collect();
+        let how = match c.path {
+            Some(culling) => CrowdDraw::Culled { culler: c.culler, culling, skinning: c.skinning, triangles: None },
+            None => CrowdDraw::Plain(c.skinning),
+        };
+        let started = std::time::Instant::now();
+        let drawn = renderer.render_crowd(&gpu, c.mesh, &list, scene.camera.view_proj, light, how)?;
+        anyhow::Ok((drawn, started.elapsed().as_secs_f64() * 1e3))
+    };
+    // Warm-up: frame 0 of every configuration, untimed. Culling is conservative: every
+    // configuration draws the same picture, so the first one's is written.
+    let mut picture = None;
+    for k in 0..configs.len() {
+        let (drawn, _) = draw(k, 0)?;
+        picture.get_or_insert(drawn.image);
+    }
+    // Per configuration and repeat: median GPU and wall time over the timed frames.
+    let (mut gpu_ms, mut wall_ms) = (vec![Vec::new(); configs.len()], vec![Vec::new(); configs.len()]);
+    let mut triangles = vec![None; configs.len()];
+    for repeat in 0..a.repeats {
+        let order: Vec<usize> =
+            if repeat % 2 == 0 { (0..configs.len()).collect() } else { (0..configs.len()).rev().collect() };
+        for k in order {
+            let (mut g, mut w, mut t) = (Vec::new(), Vec::new(), 0u64);
+            for f in 1..=a.frames {
+                let (drawn, ms) = draw(k, f)?;
+                w.push(ms);
+                g.extend(drawn.gpu_ms);
+                t += drawn.triangles.map_or(total_triangles * a.instances as u64, u64::from);
             }
-            let tested = (a.frames * a.instances * bake.meshlets.len()) as f64;
-            rows.push(Row {
-                pipeline: name,
-                culling,
-                gpu_ms: crate::bench::median(gpu_ms),
-                wall_ms: crate::bench::median(wall_ms).unwrap_or(0.0),
-                culled_pct: tests.map(|_| 100.0 * culled as f64 / tested),
-                triangles: triangles.map_or(total_triangles * a.instances as u64, |t| t / a.frames as u64),
-            });
+            gpu_ms[k].extend(crate::bench::median(g));
+            wall_ms[k].extend(crate::bench::median(w));
+            triangles[k] = Some(t / a.frames as u64);
         }
     }
+    let rows: Vec<Row> = (0..configs.len())
+        .map(|k| {
+            let c = &configs[k];
+            let none = configs.iter().position(|b| b.culling == "none" && b.pipeline == c.pipeline);
+            let ratios: Vec<f64> = match none {
+                Some(n) if n != k && gpu_ms[n].len() == gpu_ms[k].len() => {
+                    gpu_ms[k].iter().zip(&gpu_ms[n]).map(|(t, b)| 100.0 * (t / b - 1.0)).collect()
+                }
+                _ => Vec::new(),
+            };
+            Row {
+                pipeline: c.pipeline,
+                culling: c.culling,
+                gpu_ms: Spread::of(&gpu_ms[k]),
+                wall_ms: Spread::of(&wall_ms[k]),
+                vs_none_pct: Spread::of(&ratios),
+                prepare_ms: prepare_ms[k],
+                culled_pct: culled[k],
+                triangles: triangles[k].unwrap_or(0),
+            }
+        })
+        .collect();
     if let (Some(out), Some(image)) = (&a.out, &picture) {
         crate::write_png(out, image.width, image.height, png::ColorType::Rgba, &image.rgba)?;
     }
@@ -188,12 +298,13 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         let rows: Vec<_> = rows
             .iter()
             .map(|r| {
-                json!({"pipeline": r.pipeline, "culling": r.culling, "gpu_ms": r.gpu_ms, "wall_ms": r.wall_ms,
-                    "culled_pct": r.culled_pct, "triangles_per_frame": r.triangles})
+                json!({"pipeline": r.pipeline, "culling": r.culling, "gpu_ms": Spread::json(r.gpu_ms),
+                    "wall_ms": Spread::json(r.wall_ms), "vs_none_pct": Spread::json(r.vs_none_pct),
+                    "cpu_prepare_ms": r.prepare_ms, "culled_pct": r.culled_pct, "triangles_per_frame": r.triangles})
             })
             .collect();
         let out = json!({"file": file, "adapter": gpu.info.name, "timestamps": gpu.has_timestamps(),
-            "instances": a.instances, "frames": a.frames, "width": a.width, "height": height,
+            "instances": a.instances, "frames": a.frames, "repeats": a.repeats, "width": a.width, "height": height,
             "meshlets": baked.meshlets.len(), "triangles_per_instance": total_triangles,
             "ci_meshlets": m.count, "ci_slim_meshlets": m.slim, "rows": rows});
         println!("{}", serde_json::to_string_pretty(&out)?);
@@ -201,27 +312,33 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     }
     println!(
         "{file}: crowd of {} instances ({} skin-aware meshlets, {} common-influences meshlets of which {} slim, \
-         {total_triangles} triangles each), {}x{height}, on {}",
+         {total_triangles} triangles each), {}x{height}, on {}; {} repeats of {} frames, alternating order",
         a.instances,
         baked.meshlets.len(),
         m.count,
         m.slim,
         a.width,
-        gpu.info.name
+        gpu.info.name,
+        a.repeats,
+        a.frames
     );
-    println!("  pipeline  culling         GPU ms/frame  wall ms/frame  meshlets culled  triangles drawn");
+    println!(
+        "  pipeline  culling        GPU ms/frame [range]    wall ms/frame  CPU prepare ms  meshlets culled  triangles drawn  GPU vs none [range]"
+    );
+    let range = |s: Option<Spread>, digits: usize| {
+        s.map_or("-".into(), |s| format!("{:.digits$} [{:.digits$}, {:.digits$}]", s.median, s.min, s.max))
+    };
     for r in &rows {
-        // GPU time against the same pipeline without culling.
-        let base = rows.iter().find(|b| b.culling == "none" && b.pipeline == r.pipeline).and_then(|b| b.gpu_ms);
-        let gpu_ms = r.gpu_ms.map_or("-".into(), |t| format!("{t:.3}"));
         let culled = r.culled_pct.map_or("-".into(), |c| format!("{c:.1}%"));
-        let saved = match (base, r.gpu_ms) {
-            (Some(b), Some(t)) if r.culling != "none" => format!("  ({:+.0}% vs none)", 100.0 * (t / b - 1.0)),
-            _ => String::new(),
-        };
+        let prepare = r.prepare_ms.map_or("-".into(), |t| format!("{t:.3}"));
+        let vs = r.vs_none_pct.map_or(String::new(), |s| format!("{:+.0}% [{:+.0}, {:+.0}]", s.median, s.min, s.max));
         println!(
-            "  {:<9} {:<13} {gpu_ms:>12}  {:>13.2}  {culled:>15}  {:>15}{saved}",
-            r.pipeline, r.culling, r.wall_ms, r.triangles
+            "  {:<9} {:<13} {:>22}  {:>15}  {prepare:>14}  {culled:>15}  {:>15}  {vs}",
+            r.pipeline,
+            r.culling,
+            range(r.gpu_ms, 3),
+            r.wall_ms.map_or("-".into(), |s| format!("{:.2}", s.median)),
+            r.triangles
         );
     }
     if rows.iter().all(|r| r.gpu_ms.is_none()) {

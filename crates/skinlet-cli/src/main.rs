@@ -244,8 +244,8 @@ enum Command {
     ///
     /// Samples every chosen clip at --samples evenly spaced times plus every key time and
     /// every key-interval midpoint, skins every vertex, and checks every vertex against its
-    /// meshlet's sphere and every triangle's normal against its cone, in world space as the
-    /// runtime culls. The bounds are computed afresh, or read from a bake file (--baked; its
+    /// meshlet's sphere and every triangle's normal against its cone, in the meshlet's joint
+    /// space as the runtime culls. The bounds are computed afresh, or read from a bake file (--baked; its
     /// clips are checked, and FILE must be the file it was baked from). Exits with status 1 on
     /// any violation beyond float rounding.
     Verify {
@@ -1063,7 +1063,7 @@ fn verify(
         let out = json!({
             "samples": r.samples, "vertex_checks": r.vertex_checks, "normal_checks": r.normal_checks,
             "violations": r.violations(), "vertex_violations": r.vertex_violations, "normal_violations": r.normal_violations,
-            "max_violation": r.max_violation, "mean_radius_ratio": r.mean_radius_ratio, "mean_angle_ratio": r.mean_angle_ratio,
+            "singular_vertex_checks": r.singular, "max_violation": r.max_violation, "mean_radius_ratio": r.mean_radius_ratio, "mean_angle_ratio": r.mean_angle_ratio,
         });
         println!("{}", serde_json::to_string_pretty(&out)?);
     } else {
@@ -1074,7 +1074,13 @@ fn verify(
             clips.len(),
             r.samples
         );
-        println!("  {} vertex checks, {} normal checks", r.vertex_checks, r.normal_checks);
+        println!(
+            "  {} vertex checks, {} normal checks, in each meshlet's joint space as the culler tests them",
+            r.vertex_checks, r.normal_checks
+        );
+        if r.singular > 0 {
+            println!("  {} vertex checks skipped: the joint's matrix had no inverse (a zero scale)", r.singular);
+        }
         println!(
             "  violations: {} (vertices {}, normals {})",
             r.violations(),

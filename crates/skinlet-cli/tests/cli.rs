@@ -484,6 +484,8 @@ fn render_writes_a_png_of_the_posed_character() {
         "6",
         "--frames",
         "1",
+        "--repeats",
+        "2",
         "--width",
         "160",
         "--budget",
@@ -497,10 +499,14 @@ fn render_writes_a_png_of_the_posed_character() {
     let rows = j["rows"].as_array().unwrap();
     assert!(rows.len() == 18 || (rows.len() == 8 && !needs_mesh), "{j}");
     for r in rows {
-        assert!(r["wall_ms"].as_f64().unwrap() > 0.0, "{r}");
-        assert_eq!(r["gpu_ms"].is_number(), j["timestamps"] == true, "{r}");
+        let wall = &r["wall_ms"];
+        assert!(wall["min"].as_f64().unwrap() > 0.0, "{r}");
+        assert!(wall["min"].as_f64() <= wall["median"].as_f64() && wall["median"].as_f64() <= wall["max"].as_f64());
+        assert_eq!(r["gpu_ms"].is_object(), j["timestamps"] == true, "{r}");
         let culled = r["culled_pct"].as_f64();
         assert_eq!(culled.is_some(), r["culling"] != "none", "{r}");
+        assert_eq!(r["cpu_prepare_ms"].is_number(), r["culling"] != "none", "{r}");
+        assert_eq!(r["vs_none_pct"].is_object(), r["culling"] != "none" && j["timestamps"] == true, "{r}");
     }
     let (code, _, err) = skinlet(&["render", "@demo:2000", "--size", "4", "-o", out.to_str().unwrap()]);
     assert_eq!(code, 2);

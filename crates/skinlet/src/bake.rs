@@ -593,13 +593,13 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
     let normals = if has_normals { (0..vertices).map(|_| s.vec3()).collect::<Result<Vec<_>>>()? } else { Vec::new() };
     let slots = vertices * stride;
     let joint_ids: Vec<u16> = s.bytes(2 * slots)?.chunks_exact(2).map(|c| u16::from_le_bytes([c[0], c[1]])).collect();
-    if let Some(bad) = joint_ids.iter().position(|&j| j as usize >= joints) {
-        return Err(s.err(format!("vertex {} uses joint {} of {joints}", bad / stride, joint_ids[bad])));
-    }
     s.align(4)?;
     let weights = (0..slots).map(|_| s.f32()).collect::<Result<Vec<_>>>()?;
     s.end()?;
     let influences = (stride > 0).then_some(Influences { stride, joints: joint_ids, weights });
+    if let Some(inf) = &influences {
+        inf.check(joints).map_err(|e| s.err(e))?;
+    }
 
     let mut s = section(3)?;
     let n = s.count("triangles", 12)?;

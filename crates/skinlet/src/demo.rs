@@ -126,7 +126,7 @@ pub fn demo_character(params: &DemoParams) -> Asset {
 fn face_targets(rig: &Rig, body: &SkinnedMesh) -> Vec<MorphTarget> {
     let inf = body.influences.as_ref().expect("the body is skinned");
     let (head, jaw) = (rig.id("head") as u16, rig.id("jaw") as u16);
-    let follows = |v: usize, j: u16| inf.of(v).next().is_some_and(|(first, _)| first == j);
+    let follows = |v: usize, j: u16| inf.strongest(v).is_some_and(|(strongest, _)| strongest == j);
     let n = body.positions.len();
     let normal = |v: usize| body.normals.get(v).copied().unwrap_or(Vec3::ZERO);
     let cheeks = (0..n).map(|v| if follows(v, head) { 0.04 * normal(v) } else { Vec3::ZERO }).collect();

@@ -121,8 +121,11 @@ pub struct Skin {
 }
 
 /// Per-vertex joint influences, `stride` (4 or 8, at most 8) slots per vertex. Within a vertex the
-/// non-zero weights come first, sorted by decreasing weight, and sum to 1; unused slots
-/// have weight 0 and joint 0. Joint numbers index [`Skin::joints`].
+/// non-zero weights come first and sum to 1; unused slots have weight 0 and joint 0. Joint
+/// numbers index [`Skin::joints`]. The order of the non-zero slots means nothing to skinning:
+/// the importer and the demo write them by decreasing weight, [`crate::meshlet::prepare`]
+/// sorts them by joint (the order a bake stores), and code that needs a vertex's strongest
+/// influence asks [`Influences::strongest`].
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Influences {
     pub stride: usize,
@@ -157,6 +160,51 @@ impl Influences {
                 self.weights[v * stride + k] = w;
             }
         }
+    }
+
+    /// Vertex `v`'s largest weight and its joint (the lower joint on a tie), whatever the
+    /// slot order; `None` for a vertex without influences.
+    pub fn strongest(&self, v: usize) -> Option<(u16, f32)> {
+        self.of(v).fold(None, |best, (j, w)| match best {
+            Some((bj, bw)) if bw > w || (bw == w && bj < j) => Some((bj, bw)),
+            _ => Some((j, w)),
+        })
+    }
+
+    /// Checks the layout: stride 4 or 8, as many weights as joints, every joint below
+    /// `joints`, weights finite and in [0, 1], non-zero ones first, each vertex's summing to 1
+    /// (within 1e-3).
+    pub fn check(&self, joints: usize) -> crate::Result<()> {
+        let bad = |what: String| Err(crate::Error::invalid("skin influences", what));
+        if !matches!(self.stride, 4 | 8)
+            || self.joints.len() != self.weights.len()
+            || !self.joints.len().is_multiple_of(self.stride)
+        {
+            return bad(format!(
+                "stride {} with {} joints and {} weights",
+                self.stride,
+                self.joints.len(),
+                self.weights.len()
+            ));
+        }
+        if let Some(i) = self.joints.iter().position(|&j| j as usize >= joints) {
+            return bad(format!("vertex {} uses joint {} of {joints}", i / self.stride, self.joints[i]));
+        }
+        for v in 0..self.vertex_count() {
+            let w = &self.weights[v * self.stride..(v + 1) * self.stride];
+            let used = self.count(v);
+            if let Some(x) = w.iter().find(|x| !(0.0..=1.0).contains(*x)) {
+                return bad(format!("vertex {v} has weight {x}"));
+            }
+            if w[used..].iter().any(|&x| x != 0.0) {
+                return bad(format!("vertex {v} has a non-zero weight after a zero one"));
+            }
+            let sum: f32 = w.iter().sum();
+            if (sum - 1.0).abs() > 1e-3 {
+                return bad(format!("vertex {v}'s weights sum to {sum}"));
+            }
+        }
+        Ok(())
     }
 
     /// Number of non-zero weights of vertex `v`.
@@ -474,6 +522,30 @@ impl Asset {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn strongest_influence_ignores_slot_order_and_checks_catch_bad_layouts() {
+        let inf = Influences {
+            stride: 4,
+            joints: vec![3, 1, 5, 0, 2, 4, 0, 0],
+            weights: vec![0.2, 0.5, 0.3, 0.0, 0.5, 0.5, 0.0, 0.0],
+        };
+        assert_eq!(inf.strongest(0), Some((1, 0.5)));
+        assert_eq!(inf.strongest(1), Some((2, 0.5)), "a tie goes to the lower joint");
+        let mut sorted = inf.clone();
+        sorted.sort_by_joint();
+        assert_eq!((sorted.strongest(0), sorted.strongest(1)), (inf.strongest(0), inf.strongest(1)));
+        assert!(inf.check(6).is_ok());
+        assert!(inf.check(5).unwrap_err().to_string().contains("joint 5 of 5"));
+        for (slot, w, what) in
+            [(7, 0.1, "after a zero"), (1, 0.4, "sum to"), (1, f32::NAN, "weight NaN"), (1, -0.5, "weight -0.5")]
+        {
+            let mut bad = inf.clone();
+            bad.weights[slot] = w;
+            let e = bad.check(6).unwrap_err().to_string();
+            assert!(e.contains(what), "{e}");
+        }
+    }
 
     #[test]
     fn sorting_influences_keeps_each_vertex_pairs() {

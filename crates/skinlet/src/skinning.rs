@@ -240,6 +240,68 @@ mod tests {
         assert!((on[0] + Vec3::X).length() < 1e-6);
     }
 
+    /// Three joints: a translation by (0, 2, 0), a 90° turn about z, a uniform scale by 2.
+    fn three_joints() -> [Affine3A; 3] {
+        [
+            Affine3A::from_translation(Vec3::new(0.0, 2.0, 0.0)),
+            Affine3A::from_rotation_z(std::f32::consts::FRAC_PI_2),
+            Affine3A::from_scale(Vec3::splat(2.0)),
+        ]
+    }
+
+    fn close(a: Vec3, b: Vec3) -> bool {
+        (a - b).length() < 1e-6
+    }
+
+    #[test]
+    fn three_influences_blend_as_computed_by_hand() {
+        // Weights 0.5, 0.3, 0.2 on the point (1, 0, 0): 0.5·(1, 2, 0) + 0.3·(0, 1, 0) +
+        // 0.2·(2, 0, 0) = (0.9, 1.3, 0). The blended linear part is L = 0.9·I_xy + 0.3·Rz
+        // (a turn by atan(1/3) times √0.9 in xy) and 1.2 along z, so the normal (0, 1, 0)
+        // turns like a vector: (−1, 3, 0)/√10; and (1, 0, 1)/√2 goes by L⁻ᵀ to (1, 1/3, 5/6),
+        // i.e. (6, 2, 5)/√65. The slots in any order give the same result.
+        let mats = three_joints();
+        let n = [Vec3::Y, Vec3::new(1.0, 0.0, 1.0).normalize()];
+        let want_n = [Vec3::new(-1.0, 3.0, 0.0) / 10f32.sqrt(), Vec3::new(6.0, 2.0, 5.0) / 65f32.sqrt()];
+        for (joints, weights) in [([0, 1, 2, 0], [0.5, 0.3, 0.2, 0.0]), ([2, 0, 1, 0], [0.2, 0.5, 0.3, 0.0])] {
+            let inf = Influences { stride: 4, joints: [joints; 2].concat(), weights: [weights; 2].concat() };
+            let (mut op, mut on) = ([Vec3::ZERO; 2], [Vec3::ZERO; 2]);
+            skin(&inf, &[Vec3::X; 2], &n, &mats, &mut op, &mut on).unwrap();
+            assert!(close(op[0], Vec3::new(0.9, 1.3, 0.0)) && close(op[1], op[0]), "{op:?}");
+            assert!(close(on[0], want_n[0]) && close(on[1], want_n[1]), "{on:?}");
+        }
+    }
+
+    #[test]
+    fn eight_influences_and_morphs_as_computed_by_hand() {
+        // Stride 8: eight joints translating by k·(1, 0, 0), k = 0..7, weights 1/8 each move
+        // a point by their mean, (3.5, 0, 0).
+        let mats: Vec<Affine3A> = (0..8).map(|k| Affine3A::from_translation(Vec3::X * k as f32)).collect();
+        let inf = Influences { stride: 8, joints: (0..8).rev().collect(), weights: vec![0.125; 8] };
+        let mut op = [Vec3::ZERO];
+        skin(&inf, &[Vec3::new(0.0, 1.0, 0.0)], &[], &mats, &mut op, &mut []).unwrap();
+        assert!(close(op[0], Vec3::new(3.5, 1.0, 0.0)), "{:?}", op[0]);
+
+        // Morphs first, then skinning: the point (1, 0, 0) with deltas (0, 0, 1) at weight
+        // 0.5 and (1, 0, 0) at weight 0.25 rests at (1.25, 0, 0.5); the three joints above
+        // at weights 0.5, 0.3, 0.2 take it to 0.5·(1.25, 2, 0.5) + 0.3·(0, 1.25, 0.5) +
+        // 0.2·(2.5, 0, 1) = (1.125, 1.375, 0.6).
+        let delta = |weight: u32, position: Vec3| crate::model::MorphDelta { weight, position, normal: Vec3::ZERO };
+        let weight = |target: u32| crate::model::MorphWeight { node: 0, target, default: 0.0 };
+        let mesh = SkinnedMesh {
+            positions: vec![Vec3::X],
+            influences: Some(Influences { stride: 4, joints: vec![0, 1, 2, 0], weights: vec![0.5, 0.3, 0.2, 0.0] }),
+            morphs: crate::model::Morphs {
+                weights: vec![weight(0), weight(1)],
+                offsets: vec![0, 2],
+                deltas: vec![delta(0, Vec3::Z), delta(1, Vec3::X)],
+            },
+            ..SkinnedMesh::default()
+        };
+        skin_mesh(&mesh, &[0.5, 0.25], &three_joints(), &mut op, &mut []).unwrap();
+        assert!(close(op[0], Vec3::new(1.125, 1.375, 0.6)), "{:?}", op[0]);
+    }
+
     #[test]
     fn serial_and_parallel_are_bit_identical() {
         let n = PARALLEL_MIN_VERTICES + 3 * CHUNK + 17;

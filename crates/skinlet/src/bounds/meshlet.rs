@@ -15,9 +15,9 @@
 //!   corner normals, and a cone of half-angle below 90° is convex. When a corner normal is 90°
 //!   or more away, the meshlet gets no useful cone (angle π: never backface-culled).
 //!
-//! At run time with the joint's global matrix `G` (linear part `A`): the sphere moves to
-//! `G·c` with radius `r·σ_max(A)`; normals move by `M = cof(A)` (for any `A`, also
-//! mirroring: `(A·u)×(A·v) = cof(A)(u×v)`), which can widen the cone: see [`world_cone`].
+//! At run time the bounds stay in the joint's bind space: the culler ([`crate::cull::meshlet`])
+//! moves the frustum planes and the eye there instead, which is exact for any joint matrix
+//! (shear, non-uniform and negative scale included); [`super::verify`] checks them there too.
 
 use super::cone::reference_axis;
 use super::refine::{Ctx, Refinement, refine};
@@ -27,8 +27,8 @@ use crate::Result;
 use crate::clip::Clip;
 use crate::meshlet::{Meshlet, Meshlets, stats::principal_joint};
 use crate::model::{Skeleton, Skin, SkinnedMesh};
-use glam::{DMat3, DMat4, DVec3, Vec3};
-use std::f64::consts::{FRAC_PI_2, PI};
+use glam::{DMat3, DVec3, Vec3};
+use std::f64::consts::PI;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MeshletBounds {
@@ -204,75 +204,10 @@ pub fn rest_bounds(skin: &Skin, mesh: &SkinnedMesh, meshlets: &Meshlets) -> Vec<
         .collect()
 }
 
-/// Upper bound of the largest singular value of a 3×3 matrix: square root of the largest
-/// Gershgorin row sum of `mᵀm` (exact for rotations with uniform scale).
-pub fn max_singular(m: &DMat3) -> f64 {
-    let ata = m.transpose() * *m;
-    (0..3).map(|i| (0..3).map(|j| ata.col(j)[i].abs()).sum::<f64>()).fold(0.0, f64::max).sqrt()
-}
-
-/// Lower bound of the smallest singular value (Gershgorin), 0 when it cannot bound it.
-pub fn min_singular(m: &DMat3) -> f64 {
-    let ata = m.transpose() * *m;
-    (0..3)
-        .map(|i| ata.col(i)[i] - (0..3).filter(|&j| j != i).map(|j| ata.col(j)[i].abs()).sum::<f64>())
-        .fold(f64::INFINITY, f64::min)
-        .max(0.0)
-        .sqrt()
-}
-
-/// Upper bound of the largest singular value of `m`'s 3×3 part.
-pub fn max_scale(m: &DMat4) -> f64 {
-    max_singular(&DMat3::from_mat4(*m))
-}
-
 /// The cofactor matrix `det(A)·A⁻ᵀ`, columns `b×c, c×a, a×b`: maps the cross product of two
 /// vectors to the cross product of their images, so face normals move by it.
 pub fn cofactor(a: &DMat3) -> DMat3 {
     DMat3::from_cols(a.y_axis.cross(a.z_axis), a.z_axis.cross(a.x_axis), a.x_axis.cross(a.y_axis))
-}
-
-/// World-space sphere (center, radius) for joint global matrix `g`.
-pub fn world_sphere(b: &MeshletBounds, g: &DMat4) -> (DVec3, f64) {
-    (g.transform_point3(b.center.as_dvec3()), b.radius as f64 * max_scale(g))
-}
-
-/// World-space normal cone (unit axis, half-angle) for joint global matrix `g`, or `None`
-/// when no useful cone exists. With `M = cof(A)`, `m = M·axis`, every unit `u` within `α` of
-/// the axis maps within `α'` of `m`, `tan α' ≤ sin α·σmax / (cos α·|m| − sin α·(σmax² − σmin²)/(2|m|))`:
-/// write `u = cos φ·axis + sin φ·w` (`w ⊥ axis`); `M·w` has at most `σmax` across `m` and,
-/// since `wᵀ(MᵀM − λI)axis = wᵀMᵀM·axis`, at least `−(σmax² − σmin²)/(2|m|)` along it.
-/// Exact (`α' = α`) for rotations with uniform scale.
-pub fn world_cone(b: &MeshletBounds, g: &DMat4) -> Option<(DVec3, f64)> {
-    let alpha = b.cone_angle as f64;
-    if alpha >= FRAC_PI_2 {
-        return None;
-    }
-    let m = cofactor(&DMat3::from_mat4(*g));
-    let axis = m * b.cone_axis.as_dvec3();
-    let len = axis.length();
-    if len <= 0.0 {
-        return None;
-    }
-    let (smax, smin) = (max_singular(&m), min_singular(&m));
-    let (s, c) = alpha.sin_cos();
-    let along = c * len - s * (smax * smax - smin * smin) / (2.0 * len);
-    if along <= 0.0 {
-        return None;
-    }
-    let widened = (s * smax).atan2(along);
-    (widened < FRAC_PI_2).then_some((axis / len, widened))
-}
-
-/// Conservative perspective backface test: true only if every triangle whose points lie in
-/// the sphere and whose normal lies in the cone faces away from the eye. Needs
-/// `angle(p − eye, axis) ≤ 90° − α` for all p in the sphere, which
-/// `(c − e)·a ≥ |c − e|·sin α + r·(1 + sin α)` implies.
-pub fn backfacing(center: DVec3, radius: f64, cone: Option<(DVec3, f64)>, eye: DVec3) -> bool {
-    let Some((axis, alpha)) = cone else { return false };
-    let d = center - eye;
-    let s = alpha.sin();
-    d.dot(axis) >= d.length() * s + radius * (1.0 + s)
 }
 
 /// Culling class of a meshlet (paper section 6, table 2).
@@ -313,87 +248,11 @@ pub fn classify(b: &MeshletBounds, s_r: f32, alpha_t: f32) -> Class {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::DQuat;
     use proptest::prelude::*;
 
     fn unit(v: [f64; 3]) -> DVec3 {
         let v = DVec3::from(v);
         if v.length() < 1e-3 { DVec3::X } else { v.normalize() }
-    }
-
-    /// A unit vector at angle `phi` from `axis`, turned by `turn` around it.
-    fn within(axis: DVec3, phi: f64, turn: f64) -> DVec3 {
-        let perp = axis.any_orthonormal_vector();
-        DQuat::from_axis_angle(axis, turn) * (DQuat::from_axis_angle(perp, phi) * axis)
-    }
-
-    fn bounds(axis: DVec3, angle: f64, radius: f64) -> MeshletBounds {
-        MeshletBounds {
-            joint: 0,
-            center: Vec3::ZERO,
-            radius: radius as f32,
-            rest_radius: radius as f32,
-            cone_axis: axis.as_vec3(),
-            cone_angle: angle as f32,
-            rest_cone_angle: angle as f32,
-        }
-    }
-
-    fn matrix(r: [f64; 3], angle: f64, scale: [f64; 3], shear: f64, t: [f64; 3]) -> DMat4 {
-        let mut m = DMat4::from_scale_rotation_translation(
-            DVec3::from(scale),
-            DQuat::from_axis_angle(unit(r), angle),
-            DVec3::from(t),
-        );
-        m.x_axis.y += shear;
-        m
-    }
-
-    proptest! {
-        #![proptest_config(ProptestConfig { cases: 2000, ..ProptestConfig::default() })]
-
-        /// Every normal of the joint-space cone, moved as face normals move (by cof(A)),
-        /// lies in the world cone; for rotation and uniform scale the cone keeps its angle.
-        #[test]
-        fn world_cone_contains_every_moved_normal(
-            a in any::<[f64; 3]>().prop_map(|v| v.map(|x| x % 1.0)), angle in 0.01f64..1.5,
-            r in any::<[f64; 3]>().prop_map(|v| v.map(|x| x % 1.0)), rot in -3.0f64..3.0,
-            scale in prop::array::uniform3(prop_oneof![0.2f64..3.0, -3.0f64..-0.2]), shear in -1.0f64..1.0,
-            phi in 0.0f64..1.0, turn in 0.0f64..6.3,
-        ) {
-            let axis = unit(a);
-            let g = matrix(r, rot, scale, shear, [0.0; 3]);
-            let b = bounds(axis, angle, 1.0);
-            let u = within(axis, phi * angle, turn);
-            let n = cofactor(&DMat3::from_mat4(g)) * u;
-            if let Some((wa, wangle)) = world_cone(&b, &g) {
-                let got = (n.dot(wa) / n.length()).clamp(-1.0, 1.0).acos();
-                prop_assert!(got <= wangle + 1e-9, "normal at {got} outside cone {wangle}");
-            }
-            let similar = matrix(r, rot, [scale[0]; 3], 0.0, [1.0, 2.0, 3.0]);
-            let (_, sangle) = world_cone(&b, &similar).unwrap();
-            prop_assert!((sangle - b.cone_angle as f64).abs() < 1e-6, "similarity changed the angle");
-        }
-
-        /// Whenever the test culls, every point of the sphere sees every normal of the cone
-        /// from behind (brute force over sampled points and normals).
-        #[test]
-        fn backface_test_never_culls_a_visible_normal(
-            a in any::<[f64; 3]>().prop_map(|v| v.map(|x| x % 1.0)), angle in 0.0f64..1.5,
-            c in prop::array::uniform3(-5.0f64..5.0), radius in 0.0f64..2.0,
-            eye in prop::array::uniform3(-20.0f64..20.0),
-            samples in prop::collection::vec((0.0f64..1.0, 0.0f64..6.3, prop::array::uniform3(-1.0f64..1.0)), 32),
-        ) {
-            let axis = unit(a);
-            let (center, eye) = (DVec3::from(c), DVec3::from(eye));
-            if backfacing(center, radius, Some((axis, angle)), eye) {
-                for (phi, turn, off) in samples {
-                    let n = within(axis, phi * angle, turn);
-                    let p = center + DVec3::from(off).clamp_length_max(1.0) * radius;
-                    prop_assert!((p - eye).dot(n) >= -1e-9, "culled, but a normal faces the eye");
-                }
-            }
-        }
     }
 
     proptest! {
@@ -424,30 +283,5 @@ mod tests {
                 }
             }
         }
-    }
-
-    #[test]
-    fn backface_test_culls_when_it_should() {
-        // A small meshlet facing away from a distant eye is culled; facing it, it is not.
-        let (center, eye) = (DVec3::ZERO, DVec3::new(0.0, 0.0, -10.0));
-        assert!(backfacing(center, 0.5, Some((DVec3::Z, 0.3)), eye));
-        assert!(!backfacing(center, 0.5, Some((-DVec3::Z, 0.3)), eye));
-        assert!(!backfacing(center, 0.5, None, eye));
-        // Eye inside the sphere: never culled.
-        assert!(!backfacing(center, 20.0, Some((DVec3::Z, 0.0)), eye));
-        // Eyes all around at distance 10: culled from behind only. The exact region is the cap
-        // within 90° − α − asin(r/d) of −axis; the test's is a bit smaller but not empty.
-        let dirs = 2000;
-        let culled = (0..dirs)
-            .filter(|&i| {
-                let z = 1.0 - 2.0 * (i as f64 + 0.5) / dirs as f64;
-                let phi = i as f64 * 2.399963;
-                let e = DVec3::new((1.0 - z * z).sqrt() * phi.cos(), (1.0 - z * z).sqrt() * phi.sin(), z) * 10.0;
-                backfacing(center, 0.5, Some((DVec3::Z, 0.3)), e)
-            })
-            .count();
-        let exact_cap = (1.0 - (FRAC_PI_2 - 0.3 - (0.05f64).asin()).cos()) / 2.0;
-        let share = culled as f64 / dirs as f64;
-        assert!(share > 0.5 * exact_cap && share <= exact_cap + 0.01, "culled {share}, exact {exact_cap}");
     }
 }

@@ -1,20 +1,28 @@
 //! Ground-truth check of meshlet bounds: dense sampling of every clip (uniform times plus
 //! every key time and every interval midpoint), reference skinning of every vertex with its
-//! morph targets applied ([`crate::skinning`]), then in world space, as the runtime culls: every meshlet vertex in
-//! its moved sphere ([`world_sphere`]) and every triangle's face normal in its moved cone
-//! ([`world_cone`]). Tolerances are float rounding of the f32 reference only: 1e-5 of the
-//! radius plus 1e-6 of the scene size for points; for normals the angle that f32 rounding of
-//! the triangle's vertices can cause (1e-6 rad plus 2δ·perimeter/|n|, δ = 2.4e-7 × the
-//! magnitudes skinning sums, |M|·|p| + |t|: moving each vertex by δ turns the face normal by
-//! at most that much).
+//! morph targets applied ([`crate::skinning`]), then each meshlet in its principal joint's
+//! bind space with the tests the culler ([`crate::cull::meshlet`]) relies on: every skinned
+//! vertex, moved back by the joint's inverse world matrix, inside the sphere, and every
+//! triangle's face normal built from those points inside the cone (when the cone is below
+//! 90°). The tolerance is the f32 rounding of the reference only: per vertex [`ROUNDING`] of
+//! the magnitudes skinning sums (|M|·|p| + |t|), stretched into joint space by |A⁻¹|, plus
+//! 1e-6 of the radius; for normals the angle such a move of the three vertices can cause
+//! (1e-9 rad plus 2δ·perimeter/|n|). A joint whose matrix has no inverse cannot be checked
+//! this way: its vertices are counted in [`VerifyReport::singular`] (the culler never
+//! backface-culls them).
 
-use super::meshlet::{MeshletBounds, key_intervals, rest_bounds, world_cone, world_sphere};
+use super::meshlet::{MeshletBounds, key_intervals, rest_bounds};
 use crate::clip::Clip;
 use crate::meshlet::Meshlets;
 use crate::model::{Skeleton, Skin, SkinnedMesh};
 use crate::pose::{Poser, skinning_matrices};
-use glam::{DMat3, DVec3, Vec3};
+use glam::{DMat3, Vec3};
 use rayon::prelude::*;
+use std::f64::consts::FRAC_PI_2;
+
+/// How far f32 skinning may move a reference vertex, relative to the magnitudes it sums:
+/// eight units of f32 rounding (2⁻²⁴ each).
+pub const ROUNDING: f64 = 8.0 / (1u32 << 24) as f64;
 
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct VerifyReport {
@@ -23,6 +31,8 @@ pub struct VerifyReport {
     pub normal_checks: usize,
     pub vertex_violations: usize,
     pub normal_violations: usize,
+    /// Vertex checks skipped because the joint's matrix had no inverse (a zero scale).
+    pub singular: usize,
     /// Largest excess beyond a bound: distance ÷ radius for points, angle ÷ cone angle for normals.
     pub max_violation: f64,
     /// Mean over meshlets of stored radius ÷ largest radius needed over the samples.
@@ -70,7 +80,7 @@ pub fn verify_bounds(
     let coned: Vec<f64> = bounds
         .iter()
         .zip(&s.needed_angle)
-        .filter(|(b, _)| (b.cone_angle as f64) < std::f64::consts::FRAC_PI_2)
+        .filter(|(b, _)| (b.cone_angle as f64) < FRAC_PI_2)
         .map(|(b, &need)| if need > 1e-9 { b.cone_angle as f64 / need } else { 1.0 })
         .collect();
     VerifyReport {
@@ -79,6 +89,7 @@ pub fn verify_bounds(
         normal_checks: s.normal_checks,
         vertex_violations: s.vertex_violations,
         normal_violations: s.normal_violations,
+        singular: s.singular,
         max_violation: s.worst,
         mean_radius_ratio: radius_ratio,
         mean_angle_ratio: if coned.is_empty() { 1.0 } else { coned.iter().sum::<f64>() / coned.len() as f64 },
@@ -106,7 +117,7 @@ pub fn sampled_bounds(
     let s = scan(skeleton, skin, &times, mesh, meshlets, &bounds);
     for ((b, r), a) in bounds.iter_mut().zip(s.needed_radius).zip(s.needed_angle) {
         b.radius = b.radius.max(r as f32);
-        if (b.cone_angle as f64) < std::f64::consts::FRAC_PI_2 {
+        if (b.cone_angle as f64) < FRAC_PI_2 {
             b.cone_angle = b.cone_angle.max(a as f32);
         }
     }
@@ -119,6 +130,7 @@ struct Scan {
     normal_checks: usize,
     vertex_violations: usize,
     normal_violations: usize,
+    singular: usize,
     worst: f64,
     /// Per meshlet: largest joint-space distance of a vertex from the center, and largest
     /// joint-space angle of a face normal from the cone axis.
@@ -133,6 +145,7 @@ impl Scan {
             normal_checks: 0,
             vertex_violations: 0,
             normal_violations: 0,
+            singular: 0,
             worst: 0.0,
             needed_radius: vec![0.0; n],
             needed_angle: vec![0.0; n],
@@ -144,6 +157,7 @@ impl Scan {
         self.normal_checks += o.normal_checks;
         self.vertex_violations += o.vertex_violations;
         self.normal_violations += o.normal_violations;
+        self.singular += o.singular;
         self.worst = self.worst.max(o.worst);
         self.needed_radius.iter_mut().zip(&o.needed_radius).for_each(|(a, b)| *a = a.max(*b));
         self.needed_angle.iter_mut().zip(&o.needed_angle).for_each(|(a, b)| *a = a.max(*b));
@@ -151,7 +165,8 @@ impl Scan {
     }
 }
 
-/// Skins the mesh at every time and checks every meshlet's vertices and face normals.
+/// Skins the mesh at every time and checks every meshlet's vertices and face normals in its
+/// principal joint's bind space, as the culler tests them.
 fn scan(
     skeleton: &Skeleton,
     skin: &Skin,
@@ -162,8 +177,6 @@ fn scan(
 ) -> Scan {
     let n = meshlets.len();
     let Some(inf) = &mesh.influences else { return Scan::new(n) };
-    let scene = mesh.positions.iter().map(|p| p.abs().max_element()).fold(1.0f32, f32::max) as f64;
-    let any_cone = bounds.iter().any(|b| (b.cone_angle as f64) < std::f64::consts::FRAC_PI_2);
     let per_time = |&(clip, t): &(&Clip, f32)| {
         let mut poser = Poser::default();
         let globals = poser.globals(skeleton, Some(clip), t).to_vec();
@@ -173,64 +186,71 @@ fn scan(
         let (morphed, _) = mesh.morphed(&weights);
         let mut p = vec![Vec3::ZERO; mesh.positions.len()];
         crate::skinning::skin_serial(inf, &morphed, &[], &mats, &mut p, &mut []).expect("validated mesh");
-        // Per vertex, the magnitudes skinning sums (|M|·|p| + |t|): f32 rounds relative to
-        // them, which exceed the result's when the joint's matrix nearly collapses.
-        let sums: Vec<f64> = if any_cone {
-            (0..p.len())
-                .map(|v| {
-                    let m = crate::skinning::blend_matrix(inf, v, &mats);
-                    let q = morphed[v].abs();
-                    (m.matrix3.x_axis.abs() * q.x
-                        + m.matrix3.y_axis.abs() * q.y
-                        + m.matrix3.z_axis.abs() * q.z
-                        + m.translation.abs())
-                    .max_element() as f64
-                })
-                .collect()
-        } else {
-            Vec::new()
-        };
+        // Per vertex, how far f32 rounding may have moved the reference: a few ulps of the
+        // magnitudes skinning sums (|M|·|p| + |t|), which exceed the result's when the blended
+        // matrix nearly collapses.
+        let rounding: Vec<f64> = (0..p.len())
+            .map(|v| {
+                let m = crate::skinning::blend_matrix(inf, v, &mats);
+                let q = morphed[v].abs();
+                let sum = m.matrix3.x_axis.abs() * q.x
+                    + m.matrix3.y_axis.abs() * q.y
+                    + m.matrix3.z_axis.abs() * q.z
+                    + m.translation.abs();
+                ROUNDING * sum.max_element() as f64
+            })
+            .collect();
         let mut out = Scan::new(n);
+        let mut q = Vec::new();
+        let mut err = Vec::new();
         for (i, (m, b)) in meshlets.meshlets.iter().zip(bounds).enumerate() {
             let g = globals[skin.joints[b.joint as usize] as usize];
-            let (center, radius) = world_sphere(b, &g);
-            let to_joint = g.inverse();
             let verts = meshlets.vertices_of(m);
-            for &v in verts {
-                let pv: DVec3 = p[v as usize].as_dvec3();
-                let d = pv.distance(center);
-                if d > radius * (1.0 + 1e-5) + 1e-6 * scene {
+            let a = DMat3::from_mat4(g);
+            let det = a.determinant();
+            if det == 0.0 || !det.is_finite() {
+                out.singular += verts.len();
+                continue;
+            }
+            // Into the joint's bind space, where the culler tests the sphere and the cone; the
+            // reference's rounding grows there by at most |A⁻¹| (Frobenius norm).
+            let to_joint = g.inverse();
+            let inv = DMat3::from_mat4(to_joint);
+            let stretch =
+                (inv.x_axis.length_squared() + inv.y_axis.length_squared() + inv.z_axis.length_squared()).sqrt();
+            q.clear();
+            q.extend(verts.iter().map(|&v| to_joint.transform_point3(p[v as usize].as_dvec3())));
+            err.clear();
+            err.extend(verts.iter().map(|&v| stretch * rounding[v as usize]));
+            let (center, radius) = (b.center.as_dvec3(), b.radius as f64);
+            for (qv, e) in q.iter().zip(&err) {
+                let d = qv.distance(center);
+                if d > radius * (1.0 + 1e-6) + e {
                     out.vertex_violations += 1;
                     out.worst = out.worst.max((d - radius) / radius.max(1e-12));
                 }
-                out.needed_radius[i] =
-                    out.needed_radius[i].max(to_joint.transform_point3(pv).distance(b.center.as_dvec3()));
+                out.needed_radius[i] = out.needed_radius[i].max(d);
                 out.vertex_checks += 1;
             }
-            // Face normals: world n = cof(A)·n_joint, so n_joint ∝ sign(det A)·Aᵀ·n.
-            let a = DMat3::from_mat4(g);
-            let back = a.transpose() * a.determinant().signum();
-            let cone = world_cone(b, &g);
+            // Face normals from the joint-space vertices: (A⁻¹u)×(A⁻¹v) = det(A)⁻¹·Aᵀ(u×v),
+            // the bind-space normal whose cone the culler tests (mirroring included).
+            let (axis, alpha) = (b.cone_axis.as_dvec3(), b.cone_angle as f64);
             for t in meshlets.triangles_of(m).chunks_exact(3) {
-                let [p1, p2, p3] = [0, 1, 2].map(|k| p[verts[t[k] as usize] as usize].as_dvec3());
-                let nw = (p2 - p1).cross(p3 - p1);
-                let len = nw.length();
+                let [i1, i2, i3] = [0, 1, 2].map(|k| t[k] as usize);
+                let (q1, q2, q3) = (q[i1], q[i2], q[i3]);
+                let nj = (q2 - q1).cross(q3 - q1);
+                let len = nj.length();
                 if len == 0.0 {
                     continue;
                 }
                 out.normal_checks += 1;
-                let nj = (back * nw).normalize_or_zero();
-                out.needed_angle[i] = out.needed_angle[i].max(nj.dot(b.cone_axis.as_dvec3()).clamp(-1.0, 1.0).acos());
-                if let Some((axis, alpha)) = cone {
-                    // Moving each vertex by δ turns the normal by at most 2δ·perimeter/|n|;
-                    // δ: a few f32 ulps of the magnitudes skinning summed.
-                    let perimeter = (p2 - p1).length() + (p3 - p1).length() + (p3 - p2).length();
-                    let magnitude =
-                        [0, 1, 2].map(|k| sums[verts[t[k] as usize] as usize]).into_iter().fold(0.0, f64::max);
-                    let delta = 2.4e-7 * magnitude;
-                    let tol = 1e-6 + 2.0 * delta * perimeter / len;
-                    let angle = (nw.dot(axis) / len).clamp(-1.0, 1.0).acos();
-                    if angle > alpha + tol {
+                let angle = (nj.dot(axis) / len).clamp(-1.0, 1.0).acos();
+                out.needed_angle[i] = out.needed_angle[i].max(angle);
+                if alpha < FRAC_PI_2 {
+                    // Moving each vertex by δ turns the normal by at most 2δ·perimeter/|n|.
+                    let perimeter = (q2 - q1).length() + (q3 - q1).length() + (q3 - q2).length();
+                    let delta = err[i1].max(err[i2]).max(err[i3]);
+                    if angle > alpha + 1e-9 + 2.0 * delta * perimeter / len {
                         out.normal_violations += 1;
                         out.worst = out.worst.max((angle - alpha) / alpha.max(1e-12));
                     }
@@ -240,4 +260,85 @@ fn scan(
         out
     };
     times.par_iter().map(per_time).reduce(|| Scan::new(n), Scan::merge)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bounds::meshlet::meshlet_bounds;
+    use crate::clip::{Channel, Interpolation};
+    use crate::meshlet::{Builder, MeshletLimits, build, prepare};
+    use crate::model::{Influences, Node, Trs};
+    use glam::{Mat4, Quat, Vec4};
+
+    /// A flat 4×4 grid in the bind-space plane x = 0, rigidly bound to a joint that stretches
+    /// x four times and shears it into y, under a root that turns about y over the clip.
+    fn stretched_patch() -> (Skeleton, Skin, Clip, SkinnedMesh) {
+        let stretch = Mat4::from_cols(Vec4::new(4.0, 0.8, 0.0, 0.0), Vec4::Y, Vec4::Z, Vec4::new(0.0, 1.0, 0.0, 1.0));
+        let skeleton = Skeleton::new(vec![
+            Node { name: "root".into(), parent: None, rest: Trs::IDENTITY, matrix: None },
+            Node { name: "stretched".into(), parent: Some(0), rest: Trs::IDENTITY, matrix: Some(stretch) },
+        ])
+        .unwrap();
+        let skin = Skin { name: "skin".into(), joints: vec![1], inverse_bind: vec![Mat4::IDENTITY] };
+        let turn = Channel {
+            node: 0,
+            interpolation: Interpolation::Linear,
+            times: vec![0.0, 1.0],
+            values: vec![Quat::IDENTITY, Quat::from_rotation_y(1.2)],
+        };
+        let clip = Clip { name: "turn".into(), rotations: vec![turn], start: 0.0, end: 1.0, ..Clip::default() };
+        let positions: Vec<Vec3> =
+            (0..16).map(|i| Vec3::new(0.0, (i % 4) as f32 * 0.3, (i / 4) as f32 * 0.3)).collect();
+        let triangles = (0..3)
+            .flat_map(|y| (0..3).map(move |x| y * 4 + x))
+            .flat_map(|i| [[i, i + 1, i + 5], [i, i + 5, i + 4]])
+            .collect();
+        let influences = Influences { stride: 4, joints: vec![0; 64], weights: [1.0, 0.0, 0.0, 0.0].repeat(16) };
+        let mesh = SkinnedMesh { positions, triangles, influences: Some(influences), ..SkinnedMesh::default() };
+        (skeleton, skin, clip, mesh)
+    }
+
+    /// Under strong non-uniform scale and shear, bounds that a world-space sphere (radius ×
+    /// the largest scale) would accept but the culler's joint-space sphere does not are caught,
+    /// and so is a cone that misses the bind-space normals.
+    #[test]
+    fn checks_in_the_culler_space_under_stretch_and_shear() {
+        let (skeleton, skin, clip, mesh) = stretched_patch();
+        let prepared = prepare(&mesh);
+        let meshlets = build(&prepared, Builder::SkinAware, MeshletLimits::NVIDIA).unwrap();
+        let bounds = meshlet_bounds(&skeleton, &skin, &[&clip], &prepared.mesh, &meshlets).unwrap();
+        let check =
+            |bounds: &[MeshletBounds]| verify_bounds(&skeleton, &skin, &[&clip], &prepared.mesh, &meshlets, bounds, 20);
+        let good = check(&bounds);
+        assert_eq!(good.violations(), 0, "{good:?}");
+        assert!(good.vertex_checks > 0 && good.normal_checks > 0 && good.singular == 0, "{good:?}");
+
+        // Half the radius: every skinned vertex is still within that radius × 4 (≤ the joint's
+        // largest scale) of the moved center, so a world-space check would pass.
+        let halved: Vec<MeshletBounds> =
+            bounds.iter().map(|b| MeshletBounds { radius: b.radius / 2.0, ..*b }).collect();
+        let mut poser = Poser::default();
+        for t in sample_times(&clip, 20) {
+            let g = poser.globals(&skeleton, Some(&clip), t)[1];
+            for (m, b) in meshlets.meshlets.iter().zip(&halved) {
+                let center = g.transform_point3(b.center.as_dvec3());
+                for &v in meshlets.vertices_of(m) {
+                    let p = g.transform_point3(prepared.mesh.positions[v as usize].as_dvec3());
+                    assert!(p.distance(center) <= b.radius as f64 * 4.0);
+                }
+            }
+        }
+        let r = check(&halved);
+        assert!(r.vertex_violations > 0 && r.normal_violations == 0, "{r:?}");
+
+        // The cone tilted by 0.2 rad and narrowed to 0.1 rad misses the (flat) normals.
+        let perp = bounds[0].cone_axis.any_orthonormal_vector();
+        let tilted: Vec<MeshletBounds> = bounds
+            .iter()
+            .map(|b| MeshletBounds { cone_axis: Quat::from_axis_angle(perp, 0.2) * b.cone_axis, cone_angle: 0.1, ..*b })
+            .collect();
+        let r = check(&tilted);
+        assert!(r.normal_violations > 0 && r.vertex_violations == 0, "{r:?}");
+    }
 }

@@ -11,9 +11,10 @@
 //!   largest singular value, which is looser under non-uniform scale).
 //! - Backface: face normals move by `cof(A)`, and `(A x)·(cof(A) n) = det(A)·(x·n)` for every
 //!   `A`, so a world triangle faces away from the eye `e` exactly when its bind-space normal
-//!   faces away from `e_j = G⁻¹ e` (sides swapped when `det A < 0`). The cone test of
-//!   [`crate::bounds::meshlet::backfacing`] in joint space is therefore exact, also under
-//!   shear, non-uniform and negative scale; orthographic cameras use the direction `A⁻¹ d`.
+//!   faces away from `e_j = G⁻¹ e` (sides swapped when `det A < 0`). The paper's cone test
+//!   (every point of the sphere sees the cone from behind: `(c − e)·a ≥ |c − e|·sin α +
+//!   r·(1 + sin α)`) in joint space is therefore exact, also under shear, non-uniform and
+//!   negative scale; orthographic cameras use the direction `A⁻¹ d`.
 //!   Singular joints (a zero scale) are never backface-culled.
 //!
 //! Per instance and frame, [`MeshletCuller::prepare`] first moves the box around every
@@ -747,5 +748,35 @@ mod tests {
         // A zero scale: no backface culling (the frustum test still works).
         let flat = Affine3A::from_scale(Vec3::new(1.0, 0.0, 1.0));
         assert_eq!(culled(b(-Vec3::Z, Vec3::ZERO), flat, &cam), 0);
+    }
+
+    #[test]
+    fn backface_test_culls_most_of_the_region_it_may() {
+        // Eyes all around a meshlet at distance 10, looking at it: culled from behind only.
+        // The exact region is the cap within 90° − α − asin(r/d) of −axis; the test's is a
+        // bit smaller but not much.
+        let b = MeshletBounds {
+            joint: 0,
+            center: Vec3::ZERO,
+            radius: 0.5,
+            rest_radius: 0.5,
+            cone_axis: Vec3::Z,
+            cone_angle: 0.3,
+            rest_cone_angle: 0.3,
+        };
+        let dirs = 2000;
+        let culled = (0..dirs)
+            .filter(|&i| {
+                let z = 1.0 - 2.0 * (i as f32 + 0.5) / dirs as f32;
+                let phi = i as f32 * 2.399963;
+                let e = Vec3::new((1.0 - z * z).sqrt() * phi.cos(), (1.0 - z * z).sqrt() * phi.sin(), z) * 10.0;
+                let up = if z.abs() > 0.9 { Vec3::X } else { Vec3::Z };
+                let cam = Camera::perspective(e, Vec3::ZERO, up, 1.0, 1.0, 0.1, 100.0);
+                culled(b, Affine3A::IDENTITY, &cam) == 2
+            })
+            .count();
+        let exact_cap = (1.0 - (std::f64::consts::FRAC_PI_2 - 0.3 - 0.05f64.asin()).cos()) / 2.0;
+        let share = culled as f64 / dirs as f64;
+        assert!(share > 0.8 * exact_cap && share <= exact_cap + 0.01, "culled {share}, exact {exact_cap}");
     }
 }

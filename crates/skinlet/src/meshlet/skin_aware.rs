@@ -45,7 +45,7 @@ pub fn partition_keys(mesh: &SkinnedMesh) -> Vec<u32> {
         .iter()
         .map(|t| {
             let j = principal_joint(mesh, t).map_or(0, |(j, _)| j);
-            let rigid = t.iter().all(|&v| inf.of(v as usize).next().is_some_and(|(vj, w)| vj == j && w >= RIGID));
+            let rigid = t.iter().all(|&v| inf.strongest(v as usize).is_some_and(|(vj, w)| vj == j && w >= RIGID));
             2 * j as u32 + rigid as u32
         })
         .collect()
