@@ -323,7 +323,14 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         a.frames
     );
     println!(
-        "  pipeline  culling        GPU ms/frame [range]    wall ms/frame  CPU prepare ms  meshlets culled  triangles drawn  GPU vs none [range]"
+        "  {:<9} {:<13} {:>22}  {:>15}  {:>14}  {:>15}  {:>15}  GPU vs none [range]",
+        "pipeline",
+        "culling",
+        "GPU ms/frame [range]",
+        "wall ms/frame",
+        "CPU prepare ms",
+        "meshlets culled",
+        "triangles drawn"
     );
     let range = |s: Option<Spread>, digits: usize| {
         s.map_or("-".into(), |s| format!("{:.digits$} [{:.digits$}, {:.digits$}]", s.median, s.min, s.max))
