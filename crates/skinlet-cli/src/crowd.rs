@@ -19,7 +19,7 @@ pub fn to_json(s: &CrowdStats, checked: bool) -> Value {
         "culled_total_pct": s.both_pct(), "triangles_saved_pct": s.triangles_saved_pct(),
         "skinning_saved_pct": s.skinning_saved_pct(), "mesh_aabb_culled_pct": s.whole_mesh_pct(),
         "ns_per_meshlet": s.ns_per_meshlet(),
-        "whole_mesh_looseness": WHOLE_MESH_BOUNDS.iter().zip(loose).map(|(n, l)| json!({"bound": n, "volume_ratio": l})).collect::<Vec<_>>(),
+        "whole_mesh_looseness": WHOLE_MESH_BOUNDS.iter().zip(loose).map(|(n, l)| json!({"bound": n, "diagonal_ratio": l})).collect::<Vec<_>>(),
         "checked_triangles": s.checked_triangles,
         "false_culls": if checked { json!(s.false_culls) } else { Value::Null },
     })

@@ -475,6 +475,46 @@ pub fn read(path: &Path) -> Result<Baked> {
     })
 }
 
+/// Runs every run-time consumer of a bake once, on the rest pose: the meshlet culler (built,
+/// prepared and culled for a camera), the overdraw lookup, joint boxes, skinning with morphs,
+/// and contour extraction with every bound set. Whatever [`from_bytes`] accepts must pass:
+/// the bake tests and the `bake` fuzz target (`fuzz/`) call it on corrupted files; an error
+/// names the consumer that refused.
+pub fn check_consumers(b: &Baked) -> Result<()> {
+    use crate::cull::{Camera, Projection};
+    let palette = b.palette();
+    let culler = crate::cull::meshlet::MeshletCuller::new(&b.bounds, &b.classes, palette.joints.len())?;
+    let camera = Camera::perspective(Vec3::new(0.0, 1.0, 4.0), Vec3::ZERO, Vec3::Y, 1.0, 1.0, 0.1, 100.0);
+    let joints = vec![glam::Affine3A::IDENTITY; palette.joints.len()];
+    let mut frame = crate::cull::meshlet::JointFrame::default();
+    culler.prepare(&joints, &camera, crate::cull::meshlet::Tests::Both, &mut frame);
+    culler.cull(&frame, &mut Vec::new(), &mut Vec::new());
+    if let Some(o) = &b.overdraw
+        && o.select(0, 0.0, Vec3::Z) >= o.buffers.len()
+    {
+        return Err(Error::invalid("overdraw lookup", "selected a buffer that does not exist"));
+    }
+    crate::cull::joint_aabb::JointBoxes::new(&b.mesh, &palette, crate::cull::joint_aabb::JointSpace::Joint, &[])?;
+    let mut weights = Vec::new();
+    b.mesh.morphs.weights_at(None, 0.0, &mut weights);
+    let mut posed = vec![Vec3::ZERO; b.mesh.positions.len()];
+    if b.mesh.influences.is_some() {
+        crate::skinning::skin_mesh(&b.mesh, &weights, &joints, &mut posed, &mut [])?;
+    }
+    if let Some(c) = &b.contours {
+        let edges = skinned_edges(&b.mesh, c.visible_only)?;
+        if edges.quads.len() != c.patches.patches.order.len() {
+            return Err(Error::invalid("contours", "the patches do not cover the mesh's edges"));
+        }
+        let globals = vec![glam::DMat4::IDENTITY; palette.joints.len()];
+        let eye = Projection::Perspective { eye: Vec3::new(0.0, 1.0, 4.0) };
+        for at in std::iter::once(None).chain((0..c.patches.clips.len()).map(|k| Some((k, 0.0)))) {
+            c.patches.extract(&posed, &edges, &globals, at, eye, &mut Vec::new());
+        }
+    }
+    Ok(())
+}
+
 /// A cursor over one section that names the section and byte in its errors.
 struct In<'a> {
     tag: &'static str,
@@ -963,39 +1003,6 @@ mod tests {
         u64::from_le_bytes(bytes[e + 8..e + 16].try_into().unwrap()) as usize
     }
 
-    /// Everything `from_bytes` accepts goes through the run-time consumers without a panic or
-    /// an error: the culler (and a cull), the overdraw lookup, joint boxes, skinning with
-    /// morphs, the contour edges the patches index.
-    fn consume(b: &Baked) {
-        let palette = b.palette();
-        let culler = crate::cull::meshlet::MeshletCuller::new(&b.bounds, &b.classes, palette.joints.len()).unwrap();
-        let camera = crate::cull::Camera::perspective(
-            glam::Vec3::new(0.0, 1.0, 4.0),
-            glam::Vec3::ZERO,
-            glam::Vec3::Y,
-            1.0,
-            1.0,
-            0.1,
-            100.0,
-        );
-        let joints = vec![glam::Affine3A::IDENTITY; palette.joints.len()];
-        let mut frame = crate::cull::meshlet::JointFrame::default();
-        culler.prepare(&joints, &camera, crate::cull::meshlet::Tests::Both, &mut frame);
-        culler.cull(&frame, &mut Vec::new(), &mut Vec::new());
-        if let Some(o) = &b.overdraw {
-            assert!(o.select(0, 0.0, glam::Vec3::Z) < o.buffers.len());
-        }
-        crate::cull::joint_aabb::JointBoxes::new(&b.mesh, &palette, crate::cull::joint_aabb::JointSpace::Joint, &[])
-            .unwrap();
-        let mut weights = Vec::new();
-        b.mesh.morphs.weights_at(None, 0.0, &mut weights);
-        let mut out = vec![glam::Vec3::ZERO; b.mesh.positions.len()];
-        crate::skinning::skin_mesh(&b.mesh, &weights, &joints, &mut out, &mut []).unwrap();
-        if let Some(c) = &b.contours {
-            assert_eq!(skinned_edges(&b.mesh, c.visible_only).unwrap().quads.len(), c.patches.patches.order.len());
-        }
-    }
-
     #[test]
     fn every_truncation_and_many_corruptions_give_errors_not_panics() {
         let asset = demo_character(&DemoParams { triangles: 2000, ..DemoParams::default() });
@@ -1006,7 +1013,7 @@ mod tests {
         let sp = SkinnedParams::new(crate::contour::skinned::SkinnedMethod::Animated, how);
         add_contours(&mut b, &asset, &sp, true).unwrap();
         let bytes = to_bytes(&b);
-        consume(&from_bytes(&bytes).unwrap());
+        check_consumers(&from_bytes(&bytes).unwrap()).unwrap();
         for cut in 0..bytes.len() {
             assert!(from_bytes(&bytes[..cut]).is_err(), "truncated at {cut} was accepted");
         }
@@ -1021,7 +1028,7 @@ mod tests {
             b[at] ^= 1 << (rng >> 60 & 7);
             // Many flips (e.g. in a float's low bits) are valid: those must run everywhere.
             if let Ok(back) = from_bytes(&b) {
-                consume(&back);
+                check_consumers(&back).unwrap();
                 accepted += 1;
             }
         }
