@@ -280,7 +280,7 @@ fn row_json(r: &MethodResult) -> serde_json::Value {
 pub fn write_svg(path: &Path, positions: &[glam::Vec3], edges: &Edges) -> Result<()> {
     let (center, size) = frame(positions);
     let eye = center + glam::Vec3::new(0.0, 0.25, 1.0).normalize() * (3.0 * size) as f32;
-    let camera = Camera::perspective(eye, center, glam::Vec3::Y, 0.45, 1.0, 0.01 * size as f32, 10.0 * size as f32);
+    let camera = Camera::perspective(eye, center, glam::Vec3::Y, 0.45, 1.0, 0.01 * size as f32, 10.0 * size as f32)?;
     let mut out = Vec::new();
     brute_force(positions, edges, Projection::Perspective { eye }, &mut out);
     let px = 800.0;

@@ -105,7 +105,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     );
     let mut summary = json!({});
     let colored = |gpu_mesh: &GpuMesh, colors: &[[u8; 4]]| {
-        renderer.render_colored(&gpu, gpu_mesh, pose, framing(&posed, FRONT, 1.0).view_proj, LIGHT, colors)
+        renderer.render_colored(&gpu, gpu_mesh, pose, framing(&posed, FRONT, 1.0)?.view_proj, LIGHT, colors)
     };
     let image = match a.view.as_str() {
         "meshlets" => {
@@ -121,7 +121,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len())?;
             let mut joints = Vec::new();
             skinlet::pose::joint_globals(skin, poser.globals(&asset.skeleton, clip, t), &mut joints);
-            let camera = framing(&posed, FRONT, 1.6);
+            let camera = framing(&posed, FRONT, 1.6)?;
             let mut frame = JointFrame::default();
             culler.prepare(&joints, &camera, Tests::Both, &mut frame);
             let mut flags = Vec::new();
@@ -139,7 +139,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             summary = json!({"meshlets": counts.meshlets, "kept": counts.visible, "frustum_culled": counts.frustum,
                 "backface_culled": counts.backface});
             let gpu_mesh = GpuMesh::new(&gpu, &baked.mesh, Some(&baked.meshlets))?;
-            let observer = framing(&posed, OBSERVER, 0.95).view_proj;
+            let observer = framing(&posed, OBSERVER, 0.95)?.view_proj;
             renderer.render_colored(&gpu, &gpu_mesh, pose, observer, LIGHT, &colors)?
         }
         "classes" => {
@@ -166,7 +166,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             let gpu_mesh = GpuMesh::new(&gpu, &baked.mesh, None)?;
             let shape = GpuContours::skinned(&gpu, &edges, patches)?;
             let extraction = ContourExtraction::new(&gpu)?;
-            let camera = framing(&posed, FRONT, 1.0);
+            let camera = framing(&posed, FRONT, 1.0)?;
             let globals = poser.globals(&asset.skeleton, clip, t);
             let inverses: Vec<DMat4> = skin.joints.iter().map(|&j| globals[j as usize].inverse()).collect();
             let at = baked_clip(&baked, clip).map(|c| (c, t));
@@ -224,7 +224,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                     (gpu_mesh, path)
                 }
             };
-            renderer.render(&gpu, &gpu_mesh, pose, framing(&posed, FRONT, 1.0).view_proj, LIGHT, path)?
+            renderer.render(&gpu, &gpu_mesh, pose, framing(&posed, FRONT, 1.0)?.view_proj, LIGHT, path)?
         }
     };
     crate::write_png(&a.out, image.width, image.height, png::ColorType::Rgba, &image.rgba)?;

@@ -915,8 +915,9 @@ fn fragment<'a>(
 
 /// A perspective camera that frames points `p` from direction `dir` (toward the eye), with a
 /// 40° vertical field of view and a square image, `zoom` times closer than a fit (1: the
-/// whole of `p` in view). Its `view_proj` is in wgpu's clip space (depth 0 to 1).
-pub fn framing(points: &[Vec3], dir: Vec3, zoom: f32) -> Camera {
+/// whole of `p` in view). Its `view_proj` is in wgpu's clip space (depth 0 to 1). Errors on
+/// points that are not finite.
+pub fn framing(points: &[Vec3], dir: Vec3, zoom: f32) -> Result<Camera> {
     let (lo, hi) = points.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), &p| (l.min(p), h.max(p)));
     let (center, radius) =
         if lo.x <= hi.x { ((lo + hi) / 2.0, ((hi - lo).length() / 2.0).max(1e-6)) } else { (Vec3::ZERO, 1.0) };
@@ -926,4 +927,5 @@ pub fn framing(points: &[Vec3], dir: Vec3, zoom: f32) -> Camera {
     let up = if dir.y.abs() > 0.99 { Vec3::Z } else { Vec3::Y };
     let near = (distance - radius).max(distance * 1e-3) * 0.5;
     Camera::perspective(center + dir * distance, center, up, fov, 1.0, near, distance + radius * 2.0)
+        .map_err(|e| GpuError::Invalid { location: "framing", message: e.to_string() })
 }

@@ -177,7 +177,7 @@ fn check_drawing(
     edges: &Edges,
     view: impl Fn(Projection) -> (ContourView, Tested),
 ) {
-    let camera = framing(positions, Vec3::new(0.3, 0.2, 1.0), 1.0);
+    let camera = framing(positions, Vec3::new(0.3, 0.2, 1.0), 1.0).unwrap();
     let light = Vec3::new(0.4, 0.8, 0.6);
     let plain = renderer.render(gpu, mesh, pose, camera.view_proj, light, Skinning::Compute).unwrap();
     let (v, cpu) = view(camera.projection);

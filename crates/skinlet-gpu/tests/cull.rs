@@ -24,7 +24,7 @@ fn gpu_culling_matches_the_cpu_on_the_crowd_scene() {
         let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len()).unwrap();
         for orthographic in [false, true] {
             let params = CrowdParams { instances: 24, frames: 3, orthographic, ..CrowdParams::default() };
-            let scene = crowd(&baked.mesh.positions, clips.len(), &params);
+            let scene = crowd(&baked.mesh.positions, clips.len(), &params).unwrap();
             let mut poser = Poser::default();
             for tests in [Tests::Both, Tests::Frustum, Tests::Backface] {
                 let mut frames = Vec::new();

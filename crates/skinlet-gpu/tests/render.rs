@@ -28,7 +28,7 @@ fn every_skinning_pipeline_draws_the_same_image() {
         let clip = asset.clips.first();
         let t = clip.map_or(0.0, |c| c.start + 0.4 * c.duration());
         let posed = Posed::new(&asset, skin, &mesh, clip, t);
-        let view_proj = framing(&posed.positions, Vec3::new(0.3, 0.2, 1.0), 1.0).view_proj;
+        let view_proj = framing(&posed.positions, Vec3::new(0.3, 0.2, 1.0), 1.0).unwrap().view_proj;
         let gpu_mesh = GpuMesh::new(&gpu, &mesh, Some(&meshlets)).unwrap();
         let light = Vec3::new(0.4, 0.8, 0.6);
         let by_vertex = renderer.render(&gpu, &gpu_mesh, posed.pose(), view_proj, light, Skinning::Vertex).unwrap();
@@ -70,7 +70,7 @@ fn a_pose_change_changes_the_image() {
     let (skin, mesh, clip) = (&character.palette, &character.mesh, &asset.clips[0]);
     let renderer = Renderer::new(&gpu, 128, 128).unwrap();
     let gpu_mesh = GpuMesh::new(&gpu, mesh, None).unwrap();
-    let view_proj = framing(&mesh.positions, Vec3::Z, 1.0).view_proj;
+    let view_proj = framing(&mesh.positions, Vec3::Z, 1.0).unwrap().view_proj;
     let mut images = Vec::new();
     for t in [0.2, 0.6] {
         let posed = Posed::new(&asset, skin, mesh, Some(clip), clip.start + t * clip.duration());
@@ -129,7 +129,7 @@ fn culled_drawing_gives_the_unculled_image() {
             let mesh_shaders = device.has_mesh_shaders();
             let gpu_mesh = GpuMesh::new(device, &baked.mesh, Some(&baked.meshlets)).unwrap();
             for (dir, zoom) in [(Vec3::new(0.3, 0.2, 1.0), 1.0), (Vec3::new(-1.0, 0.4, -0.5), 2.5)] {
-                let camera = framing(posed, dir, zoom);
+                let camera = framing(posed, dir, zoom).unwrap();
                 let mut frame = skinlet::cull::meshlet::JointFrame::default();
                 culler.prepare(&joints, &camera, skinlet::cull::meshlet::Tests::Both, &mut frame);
                 let mut visible = Vec::new();
@@ -188,7 +188,7 @@ fn crowd_draws_agree_and_are_timed() {
     let baked = common::bake(&demo, &demo.character().unwrap());
     let skin = &baked.palette();
     let params = skinlet::cull::crowd::CrowdParams { instances: 12, ..Default::default() };
-    let scene = skinlet::cull::crowd::crowd(&baked.mesh.positions, clips.len(), &params);
+    let scene = skinlet::cull::crowd::crowd(&baked.mesh.positions, clips.len(), &params).unwrap();
     let culler = skinlet::cull::meshlet::MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len()).unwrap();
     let mut poser = Poser::default();
     let (mut matrices, mut frames, mut expected) = (Vec::new(), Vec::new(), 0);

@@ -42,7 +42,8 @@ fn assets() -> Vec<(String, Asset)> {
 fn poses(asset: &Asset, character: &Character, n: usize) -> (Vec<Vec<Affine3A>>, Vec<Vec<Affine3A>>, Vec<Affine3A>) {
     let skin = &character.palette;
     let scene =
-        crowd(&character.mesh.positions, asset.clips.len(), &CrowdParams { instances: n, ..CrowdParams::default() });
+        crowd(&character.mesh.positions, asset.clips.len(), &CrowdParams { instances: n, ..CrowdParams::default() })
+            .unwrap();
     let mut poser = Poser::default();
     let (mut local, mut world, mut models) = (Vec::new(), Vec::new(), Vec::new());
     for p in &scene.placements {
@@ -70,7 +71,8 @@ fn meshlet_culling(c: &mut Criterion, name: &str, asset: &Asset, instances: usiz
     // One palette of world-space joint matrices for the whole crowd, as an engine keeps it.
     let joints = skin.joints.len();
     let world: Vec<Affine3A> = world.concat();
-    let scene = crowd(&baked.mesh.positions, clips.len(), &CrowdParams { instances, ..CrowdParams::default() });
+    let scene =
+        crowd(&baked.mesh.positions, clips.len(), &CrowdParams { instances, ..CrowdParams::default() }).unwrap();
     let mut group = c.benchmark_group("meshlets");
     group.throughput(Throughput::Elements((culler.len() * instances) as u64));
     group.sample_size(20);

@@ -484,7 +484,7 @@ pub fn check_consumers(b: &Baked) -> Result<()> {
     use crate::cull::{Camera, Projection};
     let palette = b.palette();
     let culler = crate::cull::meshlet::MeshletCuller::new(&b.bounds, &b.classes, palette.joints.len())?;
-    let camera = Camera::perspective(Vec3::new(0.0, 1.0, 4.0), Vec3::ZERO, Vec3::Y, 1.0, 1.0, 0.1, 100.0);
+    let camera = Camera::perspective(Vec3::new(0.0, 1.0, 4.0), Vec3::ZERO, Vec3::Y, 1.0, 1.0, 0.1, 100.0)?;
     let joints = vec![glam::Affine3A::IDENTITY; palette.joints.len()];
     let mut frame = crate::cull::meshlet::JointFrame::default();
     culler.prepare(&joints, &camera, crate::cull::meshlet::Tests::Both, &mut frame);

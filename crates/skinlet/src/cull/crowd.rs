@@ -100,13 +100,13 @@ pub fn posed_crowd(
     params: &CrowdParams,
 ) -> Result<Crowd> {
     let posed = crate::skinning::posed_positions(skeleton, skin, mesh, clips.first().copied(), None)?;
-    Ok(crowd(&posed, clips.len(), params))
+    crowd(&posed, clips.len(), params)
 }
 
 /// Lays out the scene for a character whose vertices (in scene space, posed) are `positions`:
 /// a camera at the origin looking down −z, three quarters of the instances on a grid that
 /// fills the view and spills past its sides, one quarter centered on the four side planes.
-pub fn crowd(positions: &[Vec3], clips: usize, params: &CrowdParams) -> Crowd {
+pub fn crowd(positions: &[Vec3], clips: usize, params: &CrowdParams) -> Result<Crowd> {
     let (lo, hi) = positions
         .iter()
         .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(l, h), p| (l.min(p.as_dvec3()), h.max(p.as_dvec3())));
@@ -115,7 +115,15 @@ pub fn crowd(positions: &[Vec3], clips: usize, params: &CrowdParams) -> Crowd {
     let (fov, aspect) = (50f64.to_radians(), 16.0 / 9.0);
     let camera = if params.orthographic {
         let h = 6.0 * size;
-        Camera::orthographic(Vec3::ZERO, Vec3::NEG_Z, Vec3::Y, (h * aspect) as f32, h as f32, 0.0, (80.0 * size) as f32)
+        Camera::orthographic(
+            Vec3::ZERO,
+            Vec3::NEG_Z,
+            Vec3::Y,
+            (h * aspect) as f32,
+            h as f32,
+            0.0,
+            (80.0 * size) as f32,
+        )?
     } else {
         Camera::perspective(
             Vec3::ZERO,
@@ -125,7 +133,7 @@ pub fn crowd(positions: &[Vec3], clips: usize, params: &CrowdParams) -> Crowd {
             aspect as f32,
             (0.05 * size) as f32,
             (80.0 * size) as f32,
-        )
+        )?
     };
     // Half extents of the view at depth z (> 0 in front of the camera).
     let half = |z: f64| {
@@ -166,7 +174,7 @@ pub fn crowd(positions: &[Vec3], clips: usize, params: &CrowdParams) -> Crowd {
         let clip = if clips == 0 { 0 } else { (rng.next() * clips as f64) as usize % clips };
         placements.push(Placement { model, clip, offset: rng.next() as f32 });
     }
-    Crowd { camera, placements }
+    Ok(Crowd { camera, placements })
 }
 
 /// The whole-mesh bounds compared: per-joint boxes in joint space, in mesh space (Bevy's

@@ -15,6 +15,7 @@ pub mod joint_aabb;
 pub mod meshlet;
 pub mod triangle;
 
+use crate::{Error, Result};
 use glam::{Mat4, Vec3, Vec4};
 
 /// A camera for culling.
@@ -37,14 +38,35 @@ pub enum Projection {
 }
 
 impl Camera {
-    /// A perspective camera at `eye` looking at `target` (`fov_y` in radians).
-    pub fn perspective(eye: Vec3, target: Vec3, up: Vec3, fov_y: f32, aspect: f32, near: f32, far: f32) -> Camera {
+    /// A perspective camera at `eye` looking at `target` (`fov_y` in radians). Errors unless
+    /// every value is finite, `0 < fov_y < π`, `aspect > 0`, `0 < near < far`, and `up` is
+    /// not along the view direction.
+    pub fn perspective(
+        eye: Vec3,
+        target: Vec3,
+        up: Vec3,
+        fov_y: f32,
+        aspect: f32,
+        near: f32,
+        far: f32,
+    ) -> Result<Camera> {
+        check_view(eye, target, up)?;
+        if !(fov_y > 0.0 && fov_y < std::f32::consts::PI && aspect > 0.0 && near > 0.0 && far > near && far.is_finite())
+        {
+            return Err(Error::invalid(
+                "perspective camera",
+                format!(
+                    "fov_y {fov_y}, aspect {aspect}, near {near}, far {far} (need 0 < fov_y < π, aspect > 0, 0 < near < far)"
+                ),
+            ));
+        }
         let view_proj = Mat4::perspective_rh(fov_y, aspect, near, far) * Mat4::look_at_rh(eye, target, up);
-        Camera { view_proj, planes: planes(&view_proj), projection: Projection::Perspective { eye } }
+        Camera::from_view_proj(view_proj, Projection::Perspective { eye })
     }
 
     /// An orthographic camera at `eye` looking at `target`, seeing `half_width` × `half_height`
-    /// around the view axis.
+    /// around the view axis. Errors unless every value is finite, both half sizes are
+    /// positive, `near < far`, and `up` is not along the view direction.
     pub fn orthographic(
         eye: Vec3,
         target: Vec3,
@@ -53,11 +75,40 @@ impl Camera {
         half_height: f32,
         near: f32,
         far: f32,
-    ) -> Camera {
+    ) -> Result<Camera> {
+        check_view(eye, target, up)?;
+        if !(half_width > 0.0 && half_height > 0.0 && far > near && near.is_finite() && far.is_finite())
+            || !(half_width.is_finite() && half_height.is_finite())
+        {
+            return Err(Error::invalid(
+                "orthographic camera",
+                format!(
+                    "half size {half_width} × {half_height}, near {near}, far {far} (need positive sizes, near < far)"
+                ),
+            ));
+        }
         let proj = Mat4::orthographic_rh(-half_width, half_width, -half_height, half_height, near, far);
         let view_proj = proj * Mat4::look_at_rh(eye, target, up);
-        let dir = (target - eye).normalize();
-        Camera { view_proj, planes: planes(&view_proj), projection: Projection::Orthographic { dir } }
+        Camera::from_view_proj(view_proj, Projection::Orthographic { dir: (target - eye).normalize() })
+    }
+
+    /// A camera from an engine's own view-projection matrix (glam conventions: clip volume
+    /// `-w ≤ x, y ≤ w`, `0 ≤ z ≤ w`) and what the backface test needs: the eye, or the unit
+    /// view direction. Errors when the matrix is not finite or a frustum plane is degenerate,
+    /// or the eye or direction is not finite (a direction must have unit length).
+    pub fn from_view_proj(view_proj: Mat4, projection: Projection) -> Result<Camera> {
+        let planes = planes(&view_proj);
+        if !view_proj.is_finite() || !planes.iter().all(|p| p.is_finite()) {
+            return Err(Error::invalid("camera", "the view-projection matrix is not finite or has a degenerate plane"));
+        }
+        let ok = match projection {
+            Projection::Perspective { eye } => eye.is_finite(),
+            Projection::Orthographic { dir } => dir.is_finite() && (dir.length() - 1.0).abs() < 1e-3,
+        };
+        if !ok {
+            return Err(Error::invalid("camera", format!("{projection:?}: need a finite eye or a unit direction")));
+        }
+        Ok(Camera { view_proj, planes, projection })
     }
 
     /// The world-space position the backface test measures from (the eye; for orthographic
@@ -68,6 +119,21 @@ impl Camera {
             Projection::Orthographic { .. } => None,
         }
     }
+}
+
+/// Eye, target and up of a view: finite, apart, and `up` not along the view direction.
+fn check_view(eye: Vec3, target: Vec3, up: Vec3) -> Result<()> {
+    let dir = target - eye;
+    if !(eye.is_finite() && target.is_finite() && up.is_finite())
+        || dir.length_squared() == 0.0
+        || dir.cross(up).length_squared() <= 1e-12 * dir.length_squared() * up.length_squared()
+    {
+        return Err(Error::invalid(
+            "camera",
+            format!("eye {eye}, target {target}, up {up}: need finite values, eye ≠ target, up not along the view"),
+        ));
+    }
+    Ok(())
 }
 
 /// The six planes of `view_proj`'s clip volume (`-w ≤ x, y ≤ w`, `0 ≤ z ≤ w`), normalized.
@@ -85,8 +151,8 @@ mod tests {
     fn planes_agree_with_clip_space() {
         // A point is inside every plane exactly when its clip coordinates are in the volume.
         let cams = [
-            Camera::perspective(Vec3::new(1.0, 2.0, 5.0), Vec3::ZERO, Vec3::Y, 1.0, 1.5, 0.1, 50.0),
-            Camera::orthographic(Vec3::new(-3.0, 1.0, 2.0), Vec3::X, Vec3::Y, 4.0, 3.0, 0.5, 20.0),
+            Camera::perspective(Vec3::new(1.0, 2.0, 5.0), Vec3::ZERO, Vec3::Y, 1.0, 1.5, 0.1, 50.0).unwrap(),
+            Camera::orthographic(Vec3::new(-3.0, 1.0, 2.0), Vec3::X, Vec3::Y, 4.0, 3.0, 0.5, 20.0).unwrap(),
         ];
         let mut s = 12345u32;
         let mut next = || {
@@ -108,5 +174,30 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn bad_cameras_are_errors() {
+        let (e, t) = (Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO);
+        for (fov, aspect, near, far) in [
+            (0.0, 1.0, 0.1, 10.0),
+            (1.0, 0.0, 0.1, 10.0),
+            (1.0, 1.0, 0.0, 10.0),
+            (1.0, 1.0, 2.0, 1.0),
+            (f32::NAN, 1.0, 0.1, 10.0),
+            (1.0, 1.0, 0.1, f32::INFINITY),
+        ] {
+            assert!(Camera::perspective(e, t, Vec3::Y, fov, aspect, near, far).is_err(), "{fov} {aspect} {near} {far}");
+        }
+        assert!(Camera::perspective(e, e, Vec3::Y, 1.0, 1.0, 0.1, 10.0).is_err(), "eye at the target");
+        assert!(Camera::perspective(e, t, Vec3::Z, 1.0, 1.0, 0.1, 10.0).is_err(), "up along the view");
+        assert!(Camera::orthographic(e, t, Vec3::Y, -1.0, 1.0, 0.1, 10.0).is_err());
+        assert!(Camera::orthographic(e, t, Vec3::Y, 1.0, 1.0, 5.0, 5.0).is_err());
+        assert!(Camera::from_view_proj(Mat4::NAN, Projection::Perspective { eye: e }).is_err());
+        assert!(
+            Camera::from_view_proj(Mat4::IDENTITY, Projection::Orthographic { dir: Vec3::new(0.0, 0.0, 2.0) }).is_err()
+        );
+        let cam = Camera::perspective(e, t, Vec3::Y, 1.0, 1.0, 0.1, 10.0).unwrap();
+        assert_eq!(Camera::from_view_proj(cam.view_proj, cam.projection).unwrap(), cam);
     }
 }
