@@ -4,14 +4,14 @@
 //! over several keys, non-uniform and negative scale), random soft weights and targets, and
 //! morph targets whose weights are animated in all three modes.
 
-use glam::{DVec3, Quat, Vec3};
+use glam::{DVec3, Quat};
 use proptest::prelude::*;
 use skinlet::bounds::vertex::{IntervalMotions, vertex_box};
 use skinlet::clip::{Channel, Clip, Interpolation};
 use skinlet::model::{Node, Skeleton, Trs};
 
 mod rig;
-use rig::{Rng, VERTICES, random_character};
+use rig::{Rng, random_character};
 
 /// `global(to)⁻¹ · global(from)` from the local transforms below the common ancestor.
 fn relative(skeleton: &Skeleton, locals: &[Trs], from: u32, to: u32) -> glam::DMat4 {
@@ -133,39 +133,14 @@ fn half_turn_between_keys_is_covered_both_ways() {
 
 /// The whole pipeline on random characters: a random triangle mesh over the character's
 /// vertices, skin-aware meshlets, spheres and cones over the clip (refined for a few rounds),
-/// and the dense world-space check of every vertex and face normal.
+/// and the dense check of every vertex and face normal in each meshlet's joint space.
 /// Returns whether some meshlet had a useful normal cone (so normals were really checked).
 fn check_meshlet_bounds(seed: u64) -> Result<Option<bool>, String> {
     use skinlet::bounds::refine::{Refinement, refine};
     use skinlet::bounds::verify::verify_bounds;
     use skinlet::meshlet::{Builder, MeshletLimits, build, prepare};
     let (skeleton, skin, clip, mut positions, mut inf) = random_character(seed);
-    let mut r = Rng(seed ^ 0x5EED);
-    let triangles: Vec<[u32; 3]> = if seed.is_multiple_of(2) {
-        // A gently bent 4×3 grid patch: narrow rest cones, so normal checks have teeth.
-        let (w, h) = (4, 3);
-        let main = r.below(skin.joints.len()) as u16;
-        for (i, p) in positions.iter_mut().enumerate() {
-            let (x, y) = ((i % w) as f32, (i / w) as f32);
-            *p = Vec3::new(x * 0.3, y * 0.3, 0.05 * x * x) + r.v3(0.02);
-            // Mostly one joint, some vertices with up to 5% on another: cones survive.
-            inf.joints[4 * i..4 * i + 4].copy_from_slice(&[main, (main + 1) % skin.joints.len() as u16, 0, 0]);
-            let second = if skin.joints.len() > 1 && r.u() < 0.3 { r.range(0.0, 0.05) } else { 0.0 };
-            inf.weights[4 * i..4 * i + 4].copy_from_slice(&[1.0 - second, second, 0.0, 0.0]);
-        }
-        (0..h - 1)
-            .flat_map(|y| (0..w - 1).map(move |x| (x, y)))
-            .flat_map(|(x, y)| {
-                let i = (y * w + x) as u32;
-                [[i, i + 1, i + w as u32 + 1], [i, i + w as u32 + 1, i + w as u32]]
-            })
-            .collect()
-    } else {
-        (0..20)
-            .map(|_| [r.below(VERTICES) as u32, r.below(VERTICES) as u32, r.below(VERTICES) as u32])
-            .filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
-            .collect()
-    };
+    let triangles = rig::random_triangles(seed, skin.joints.len(), &mut positions, &mut inf);
     if triangles.is_empty() {
         return Ok(None);
     }

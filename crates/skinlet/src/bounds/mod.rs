@@ -16,6 +16,7 @@
 //! against dense sampling. Tested on random hierarchies and clips and on the shared assets.
 
 pub mod cone;
+pub mod envelope;
 pub mod meshlet;
 pub mod motion;
 pub mod refine;

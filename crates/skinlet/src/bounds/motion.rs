@@ -49,8 +49,18 @@ pub enum RotationMotion {
     },
     /// One of these rotations (STEP keys).
     Set(Vec<DQuat>),
-    /// Within one of these interval matrices (CUBICSPLINE pieces).
-    Intervals(Vec<IntervalMat3>),
+    /// `normalize(q)` for `q` in one of these boxes of quaternion components (x, y, z, w),
+    /// whose rotation matrices lie in the matching interval matrices (CUBICSPLINE pieces).
+    Intervals {
+        quats: Vec<[(f64, f64); 4]>,
+        matrices: Vec<IntervalMat3>,
+    },
+    /// Every rotation within `angle` (radians, at most π) of `centre`: `R_δ · centre` with
+    /// `R_δ` any rotation by at most `angle` (a pose envelope's range of motion).
+    Cap {
+        centre: DQuat,
+        angle: f64,
+    },
 }
 
 /// The local transforms a node can take during the interval.
@@ -253,15 +263,15 @@ fn rotation_motion(seg: &Segment<Quat>, t1: f32, t2: f32) -> RotationMotion {
                 let g = |q: Quat| DVec4::from(q.as_dquat())[k];
                 hermite_coeffs(g(seg.v0), g(seg.out_tangent0), g(seg.v1), g(seg.in_tangent1), dt)
             });
-            let pieces = (0..CUBIC_PIECES)
+            let quats: Vec<[(f64, f64); 4]> = (0..CUBIC_PIECES)
                 .map(|i| {
                     let a = s1 + (s2 - s1) * i as f64 / CUBIC_PIECES as f64;
                     let b = s1 + (s2 - s1) * (i + 1) as f64 / CUBIC_PIECES as f64;
-                    let r: [(f64, f64); 4] = std::array::from_fn(|k| cubic_range(comps[k], a, b));
-                    quat_interval_matrix(r)
+                    std::array::from_fn(|k| cubic_range(comps[k], a, b))
                 })
                 .collect();
-            RotationMotion::Intervals(pieces)
+            let matrices = quats.iter().map(|r| quat_interval_matrix(*r)).collect();
+            RotationMotion::Intervals { quats, matrices }
         }
     }
 }
@@ -347,6 +357,27 @@ pub fn arc_extent(x: DVec3, axis: DVec3, angle: f64) -> Aabb {
     bx
 }
 
+/// Exact AABB of `{R·x : R a rotation by at most angle θ}`: the directions within θ of `x`'s
+/// on the sphere of radius `|x|` (a rotation by ω moves a direction by at most ω, and the
+/// turn about `x × v` reaches any `v` within θ). Per axis `k`, with `φ` the angle between
+/// `x` and `e_k`: from `|x|·cos(min(π, φ + θ))` to `|x|·cos(max(0, φ − θ))`, widened by
+/// a few ulps of `|x|` for the rounding of `acos` and `cos`.
+pub fn cap_extent(x: DVec3, angle: f64) -> Aabb {
+    let r = x.length();
+    if r == 0.0 {
+        return Aabb::point(x);
+    }
+    let u = x / r;
+    let e = 8.0 * f64::EPSILON * r;
+    let mut b = Aabb::point(DVec3::ZERO);
+    for k in 0..3 {
+        let phi = u[k].clamp(-1.0, 1.0).acos();
+        b.min[k] = (r * (phi + angle).min(PI).cos()).min(x[k]) - e;
+        b.max[k] = (r * (phi - angle).max(0.0).cos()).max(x[k]) + e;
+    }
+    b
+}
+
 fn rotate_box(q: DQuat, b: &Aabb) -> Aabb {
     b.corners().iter().fold(Aabb::EMPTY, |mut acc, &c| {
         acc.extend(q * c);
@@ -377,7 +408,14 @@ impl RotationMotion {
                 b.corners().iter().fold(Aabb::EMPTY, |acc, &c| acc.union(&arc_extent(*start * c, axis, *angle)))
             }
             RotationMotion::Set(qs) => qs.iter().fold(Aabb::EMPTY, |acc, q| acc.union(&rotate_box(*q, b))),
-            RotationMotion::Intervals(ms) => ms.iter().fold(Aabb::EMPTY, |acc, m| acc.union(&interval_mat_box(m, b))),
+            RotationMotion::Intervals { matrices, .. } => {
+                matrices.iter().fold(Aabb::EMPTY, |acc, m| acc.union(&interval_mat_box(m, b)))
+            }
+            // The AABB of R_δ·centre·B is that of its corners' images, so the union over R_δ is
+            // that of the corners' caps.
+            RotationMotion::Cap { centre, angle } => {
+                b.corners().iter().fold(Aabb::EMPTY, |acc, &c| acc.union(&cap_extent(*centre * c, *angle)))
+            }
         }
     }
 
@@ -391,9 +429,66 @@ impl RotationMotion {
                 b.corners().iter().fold(Aabb::EMPTY, |acc, &c| acc.union(&arc_extent(inv * c, axis, -*angle)))
             }
             RotationMotion::Set(qs) => qs.iter().fold(Aabb::EMPTY, |acc, q| acc.union(&rotate_box(q.conjugate(), b))),
-            RotationMotion::Intervals(ms) => ms
+            RotationMotion::Intervals { matrices, .. } => matrices
                 .iter()
                 .fold(Aabb::EMPTY, |acc, m| acc.union(&interval_mat_box(&(m.0.transpose(), m.1.transpose()), b))),
+            // (R_δ·C)⁻¹ = (C⁻¹·R_δ⁻¹·C)·C⁻¹, and the conjugate of a rotation by ω is one by ω.
+            RotationMotion::Cap { centre, angle } => {
+                let inv = centre.conjugate();
+                b.corners().iter().fold(Aabb::EMPTY, |acc, &c| acc.union(&cap_extent(inv * c, *angle)))
+            }
+        }
+    }
+
+    /// A lower bound of `|q·c|` over the unit quaternions `q` of these rotations: the cosine
+    /// of half the largest rotation angle between one of them and `c` (exact for fixed,
+    /// STEP and LINEAR motions). An arc `R_axis(φ)·start` has quaternions
+    /// `cos(φ/2)·start + sin(φ/2)·(axis ⊗ start)`, whose dot with `c` is a sinusoid in `φ/2`:
+    /// its smallest magnitude is at an end of the range unless it crosses zero. A CUBICSPLINE
+    /// piece's `normalize(q)` has `|q·c| ≥ min|q·c| / max|q|` over its box.
+    pub fn min_abs_dot(&self, c: DQuat) -> f64 {
+        match self {
+            RotationMotion::Fixed(q) => q.dot(c).abs(),
+            RotationMotion::Set(qs) => qs.iter().map(|q| q.dot(c).abs()).fold(1.0, f64::min),
+            RotationMotion::Arc { start, axis, angle } => {
+                let turned = DQuat::from_xyzw(axis.x, axis.y, axis.z, 0.0) * *start;
+                let (a, b) = (start.dot(c), turned.dot(c));
+                // a·cos ψ + b·sin ψ = ρ·cos(ψ − ψ0) for ψ between 0 and angle/2.
+                let (lo, hi) = if *angle >= 0.0 { (0.0, angle / 2.0) } else { (angle / 2.0, 0.0) };
+                let (rho, psi0) = (a.hypot(b), b.atan2(a));
+                // A zero at ψ0 + π/2 + kπ inside the range?
+                let first = ((lo - psi0 - PI / 2.0) / PI).ceil();
+                if psi0 + PI / 2.0 + first * PI <= hi {
+                    return 0.0;
+                }
+                (rho * (lo - psi0).cos()).abs().min((rho * (hi - psi0).cos()).abs())
+            }
+            RotationMotion::Intervals { quats, .. } => quats
+                .iter()
+                .map(|r| {
+                    let c = [c.x, c.y, c.z, c.w];
+                    let (mut lo, mut hi, mut len2) = (0.0, 0.0, 0.0);
+                    for k in 0..4 {
+                        let (p, q) = (r[k].0 * c[k], r[k].1 * c[k]);
+                        lo += p.min(q);
+                        hi += p.max(q);
+                        len2 += (r[k].0 * r[k].0).max(r[k].1 * r[k].1);
+                    }
+                    let dot = if lo > 0.0 {
+                        lo
+                    } else if hi < 0.0 {
+                        -hi
+                    } else {
+                        0.0
+                    };
+                    if len2 > 0.0 { (dot / len2.sqrt()).min(1.0) } else { 0.0 }
+                })
+                .fold(1.0, f64::min),
+            RotationMotion::Cap { centre, angle } => {
+                // Within angle/2 of centre on the quaternion sphere.
+                let d = centre.dot(c).abs().min(1.0).acos();
+                (d + angle / 2.0).min(PI / 2.0).cos().max(0.0)
+            }
         }
     }
 }
@@ -450,4 +545,91 @@ impl Motion {
             }
         }
     }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn unit(v: [f64; 3]) -> DVec3 {
+        let v = DVec3::from(v);
+        if v.length() < 1e-3 { DVec3::X } else { v.normalize() }
+    }
+
+    fn rotation(axis: [f64; 3], angle: f64) -> DQuat {
+        DQuat::from_axis_angle(unit(axis), angle)
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 2000, ..ProptestConfig::default() })]
+
+        /// Every rotation by at most θ inside the centre's cap moves every point of a box into
+        /// the cap motion's box, and back again with the inverse.
+        #[test]
+        fn caps_hold_every_rotation_within_them(
+            centre in (prop::array::uniform3(-1.0f64..1.0), -3.2f64..3.2),
+            angle in 0.0f64..3.2, turn in (prop::array::uniform3(-1.0f64..1.0), 0.0f64..1.0),
+            lo in prop::array::uniform3(-2.0f64..2.0), size in prop::array::uniform3(0.0f64..1.0),
+            pick in prop::array::uniform3(0.0f64..1.0),
+        ) {
+            let angle = angle.min(PI);
+            let c = rotation(centre.0, centre.1);
+            let r = rotation(turn.0, turn.1 * angle) * c;
+            let b = Aabb { min: DVec3::from(lo), max: DVec3::from(lo) + DVec3::from(size) };
+            let x = b.min + DVec3::from(pick) * DVec3::from(size);
+            let cap = RotationMotion::Cap { centre: c, angle };
+            let (fwd, back) = (cap.apply(&b), cap.apply_inverse(&b));
+            prop_assert!(fwd.inflated(1e-12).contains(r * x), "{fwd:?} misses {}", r * x);
+            prop_assert!(back.inflated(1e-12).contains(r.conjugate() * x), "{back:?} misses {}", r.conjugate() * x);
+            // |q·c| of a rotation inside is at least the bound of the cap around c itself.
+            prop_assert!(r.dot(c).abs() >= cap.min_abs_dot(c) - 1e-12);
+        }
+
+        /// `min_abs_dot` is a lower bound over a LINEAR arc and a CUBICSPLINE box, and exact for
+        /// the arc (dense samples come within 1e-4 of it).
+        #[test]
+        fn arc_and_box_dots_are_lower_bounds(
+            start in (prop::array::uniform3(-1.0f64..1.0), -3.2f64..3.2),
+            axis in prop::array::uniform3(-1.0f64..1.0), angle in -6.3f64..6.3,
+            c in (prop::array::uniform3(-1.0f64..1.0), -3.2f64..3.2),
+            lo in prop::array::uniform4(-1.0f64..1.0), size in prop::array::uniform4(0.0f64..0.5),
+            picks in prop::collection::vec(prop::array::uniform4(0.0f64..1.0), 16),
+        ) {
+            let (start, axis, c) = (rotation(start.0, start.1), unit(axis), rotation(c.0, c.1));
+            let arc = RotationMotion::Arc { start, axis, angle };
+            let bound = arc.min_abs_dot(c);
+            let sampled = (0..=20_000)
+                .map(|i| (DQuat::from_axis_angle(axis, angle * i as f64 / 20_000.0) * start).dot(c).abs())
+                .fold(1.0, f64::min);
+            prop_assert!(bound <= sampled + 1e-12 && sampled <= bound + 2e-4, "bound {bound}, sampled {sampled}");
+            let r: [(f64, f64); 4] = std::array::from_fn(|k| (lo[k], lo[k] + size[k]));
+            let boxed = RotationMotion::Intervals { quats: vec![r], matrices: vec![quat_interval_matrix(r)] };
+            let bound = boxed.min_abs_dot(c);
+            for p in picks {
+                let q = DVec4::from_array(std::array::from_fn(|k| r[k].0 + p[k] * size[k]));
+                if q.length() > 1e-9 {
+                    let q = q / q.length();
+                    let dot = q.dot(DVec4::new(c.x, c.y, c.z, c.w)).abs();
+                    prop_assert!(bound <= dot + 1e-12, "bound {bound} above {dot}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn cap_extent_is_exact_on_the_axes() {
+        // A quarter turn reaches the other axes exactly, half a turn everything.
+        let b = cap_extent(DVec3::X, FRAC_PI_2_F64);
+        assert!(
+            (b.min - DVec3::new(0.0, -1.0, -1.0)).length() < 1e-12 && (b.max - DVec3::ONE).length() < 1e-12,
+            "{b:?}"
+        );
+        let b = cap_extent(DVec3::X * 2.0, PI);
+        assert!((b.min + DVec3::splat(2.0)).length() < 1e-12 && (b.max - DVec3::splat(2.0)).length() < 1e-12, "{b:?}");
+        let b = cap_extent(DVec3::Y, 0.0);
+        assert!(b.contains(DVec3::Y) && (b.max - b.min).max_element() < 1e-14, "{b:?}");
+    }
+
+    const FRAC_PI_2_F64: f64 = std::f64::consts::FRAC_PI_2;
 }

@@ -14,8 +14,8 @@
 use super::meshlet::{MeshletBounds, key_intervals, rest_bounds};
 use crate::clip::Clip;
 use crate::meshlet::Meshlets;
-use crate::model::{Skeleton, Skin, SkinnedMesh};
-use crate::pose::{Poser, skinning_matrices};
+use crate::model::{Skeleton, Skin, SkinnedMesh, Trs};
+use crate::pose::{Poser, global_transforms, skinning_matrices};
 use glam::{DMat3, Vec3};
 use rayon::prelude::*;
 use std::f64::consts::FRAC_PI_2;
@@ -67,10 +67,49 @@ pub fn verify_bounds(
     bounds: &[MeshletBounds],
     uniform: usize,
 ) -> VerifyReport {
-    let times: Vec<(&Clip, f32)> =
-        clips.iter().flat_map(|c| sample_times(c, uniform).into_iter().map(move |t| (*c, t))).collect();
-    let s = scan(skeleton, skin, &times, mesh, meshlets, bounds);
-    let n = meshlets.len().max(1) as f64;
+    let times: Vec<PoseAt> =
+        clips.iter().flat_map(|c| sample_times(c, uniform).into_iter().map(move |t| PoseAt::Clip(c, t))).collect();
+    report(&times, &scan(skeleton, skin, &times, mesh, meshlets, bounds), bounds)
+}
+
+/// [`verify_bounds`] for poses given directly: every node's local transform (skeleton order)
+/// and the morph weights' values, e.g. poses inside a pose envelope, blended or perturbed.
+/// Errors when a pose has not one transform per node and one value per morph weight.
+pub fn verify_poses(
+    skeleton: &Skeleton,
+    skin: &Skin,
+    poses: &[(Vec<Trs>, Vec<f32>)],
+    mesh: &SkinnedMesh,
+    meshlets: &Meshlets,
+    bounds: &[MeshletBounds],
+) -> crate::Result<VerifyReport> {
+    if let Some(k) =
+        poses.iter().position(|(l, w)| l.len() != skeleton.nodes.len() || w.len() != mesh.morphs.weights.len())
+    {
+        return Err(crate::Error::invalid(
+            "verify",
+            format!(
+                "pose {k} has {} local transforms for {} nodes and {} morph weight values for {}",
+                poses[k].0.len(),
+                skeleton.nodes.len(),
+                poses[k].1.len(),
+                mesh.morphs.weights.len()
+            ),
+        ));
+    }
+    let poses: Vec<PoseAt> = poses.iter().map(|(l, w)| PoseAt::Locals(l, w)).collect();
+    Ok(report(&poses, &scan(skeleton, skin, &poses, mesh, meshlets, bounds), bounds))
+}
+
+/// A pose to check: a clip at a time, or local transforms and morph weights.
+#[derive(Clone, Copy)]
+enum PoseAt<'a> {
+    Clip(&'a Clip, f32),
+    Locals(&'a [Trs], &'a [f32]),
+}
+
+fn report(poses: &[PoseAt], s: &Scan, bounds: &[MeshletBounds]) -> VerifyReport {
+    let n = bounds.len().max(1) as f64;
     let radius_ratio = bounds
         .iter()
         .zip(&s.needed_radius)
@@ -84,7 +123,7 @@ pub fn verify_bounds(
         .map(|(b, &need)| if need > 1e-9 { b.cone_angle as f64 / need } else { 1.0 })
         .collect();
     VerifyReport {
-        samples: times.len(),
+        samples: poses.len(),
         vertex_checks: s.vertex_checks,
         normal_checks: s.normal_checks,
         vertex_violations: s.vertex_violations,
@@ -108,10 +147,11 @@ pub fn sampled_bounds(
     per_clip: usize,
 ) -> Vec<MeshletBounds> {
     let mut bounds = rest_bounds(skin, mesh, meshlets);
-    let times: Vec<(&Clip, f32)> = clips
+    let times: Vec<PoseAt> = clips
         .iter()
         .flat_map(|c| {
-            (0..per_clip).map(move |k| (*c, c.start + c.duration() * k as f32 / (per_clip - 1).max(1) as f32))
+            (0..per_clip)
+                .map(move |k| PoseAt::Clip(c, c.start + c.duration() * k as f32 / (per_clip - 1).max(1) as f32))
         })
         .collect();
     let s = scan(skeleton, skin, &times, mesh, meshlets, &bounds);
@@ -170,19 +210,26 @@ impl Scan {
 fn scan(
     skeleton: &Skeleton,
     skin: &Skin,
-    times: &[(&Clip, f32)],
+    poses: &[PoseAt],
     mesh: &SkinnedMesh,
     meshlets: &Meshlets,
     bounds: &[MeshletBounds],
 ) -> Scan {
     let n = meshlets.len();
     let Some(inf) = &mesh.influences else { return Scan::new(n) };
-    let per_time = |&(clip, t): &(&Clip, f32)| {
-        let mut poser = Poser::default();
-        let globals = poser.globals(skeleton, Some(clip), t).to_vec();
-        let (mut mats, mut weights) = (Vec::new(), Vec::new());
+    let per_time = |pose: &PoseAt| {
+        let (mut globals, mut mats, mut weights) = (Vec::new(), Vec::new(), Vec::new());
+        match *pose {
+            PoseAt::Clip(clip, t) => {
+                globals = Poser::default().globals(skeleton, Some(clip), t).to_vec();
+                mesh.morphs.weights_at(Some(clip), t, &mut weights);
+            }
+            PoseAt::Locals(locals, w) => {
+                global_transforms(skeleton, locals, &mut globals);
+                weights.extend_from_slice(w);
+            }
+        }
         skinning_matrices(skin, &globals, &mut mats);
-        mesh.morphs.weights_at(Some(clip), t, &mut weights);
         let (morphed, _) = mesh.morphed(&weights);
         let mut p = vec![Vec3::ZERO; mesh.positions.len()];
         crate::skinning::skin_serial(inf, &morphed, &[], &mats, &mut p, &mut []).expect("validated mesh");
@@ -259,7 +306,7 @@ fn scan(
         }
         out
     };
-    times.par_iter().map(per_time).reduce(|| Scan::new(n), Scan::merge)
+    poses.par_iter().map(per_time).reduce(|| Scan::new(n), Scan::merge)
 }
 
 #[cfg(test)]

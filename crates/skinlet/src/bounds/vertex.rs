@@ -41,13 +41,19 @@ impl IntervalMotions {
             .enumerate()
             .map(|(i, n)| node_motion(n, i as u32, clip, t1, t2))
             .collect::<Result<Vec<_>>>()?;
+        Ok(IntervalMotions { t1, t2, ..IntervalMotions::from_motions(skeleton, motions, weights) })
+    }
+
+    /// Motions given directly (one per skeleton node) with morph weight ranges, e.g. a pose
+    /// envelope's ([`super::envelope::Envelope::motions`]); `t1` and `t2` are 0.
+    pub fn from_motions(skeleton: &Skeleton, motions: Vec<Motion>, weights: Vec<(f64, f64)>) -> IntervalMotions {
         let mut depth = vec![0u32; skeleton.nodes.len()];
         for &i in &skeleton.order {
             if let Some(p) = skeleton.nodes[i as usize].parent {
                 depth[i as usize] = depth[p as usize] + 1;
             }
         }
-        Ok(IntervalMotions { t1, t2, motions, depth, weights })
+        IntervalMotions { t1: 0.0, t2: 0.0, motions, depth, weights }
     }
 
     /// Box of vertex `v` of `mesh` in mesh space over the interval: its position moved by

@@ -212,3 +212,33 @@ pub fn random_morphs(seed: u64, vertices: usize, node: u32, clip: &mut Clip) -> 
     }
     morphs
 }
+
+/// Triangles over a random character's vertices: for even seeds a gently bent 4×3 grid patch
+/// (positions and weights rewritten: mostly one joint, up to 5% on another, so that normal
+/// cones survive and normal checks have teeth), for odd seeds 20 random triangles.
+pub fn random_triangles(seed: u64, joints: usize, positions: &mut [Vec3], inf: &mut Influences) -> Vec<[u32; 3]> {
+    let mut r = Rng(seed ^ 0x5EED);
+    if seed.is_multiple_of(2) {
+        let (w, h) = (4, 3);
+        let main = r.below(joints) as u16;
+        for (i, p) in positions.iter_mut().enumerate() {
+            let (x, y) = ((i % w) as f32, (i / w) as f32);
+            *p = Vec3::new(x * 0.3, y * 0.3, 0.05 * x * x) + r.v3(0.02);
+            inf.joints[4 * i..4 * i + 4].copy_from_slice(&[main, (main + 1) % joints as u16, 0, 0]);
+            let second = if joints > 1 && r.u() < 0.3 { r.range(0.0, 0.05) } else { 0.0 };
+            inf.weights[4 * i..4 * i + 4].copy_from_slice(&[1.0 - second, second, 0.0, 0.0]);
+        }
+        (0..h - 1)
+            .flat_map(|y| (0..w - 1).map(move |x| (x, y)))
+            .flat_map(|(x, y)| {
+                let i = (y * w + x) as u32;
+                [[i, i + 1, i + w as u32 + 1], [i, i + w as u32 + 1, i + w as u32]]
+            })
+            .collect()
+    } else {
+        (0..20)
+            .map(|_| [r.below(VERTICES) as u32, r.below(VERTICES) as u32, r.below(VERTICES) as u32])
+            .filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
+            .collect()
+    }
+}

@@ -1,0 +1,279 @@
+//! Pose envelopes: bounds for the poses games make (crossfades, additive layers, IK, scripted
+//! joints), not only for clips played alone. The conservative-bounds paper (section 8) names
+//! IK and blending as open; a crossfade turns each joint along the arc between two clips'
+//! rotations, which neither clip visits, so the union of clip bounds does not hold for it.
+//!
+//! An envelope is, per node, a range of motion: every local rotation within `angle` of a
+//! centre rotation (a cap), and a box for the translation and one for the scale; plus a range
+//! per morph weight. Bounds computed for it ([`envelope_bounds`]) hold for every pose inside
+//! it, whatever produced the pose: the cap acts on boxes exactly ([`super::motion::cap_extent`])
+//! and everything downstream is the clip bounds' machinery ([`super::vertex`], the corner
+//! argument for cones). Blends stay inside: boxes and ranges are convex, and a cap of angle
+//! below 90° holds two rotations less than 90° apart, whose representatives on the quaternion
+//! sphere are then less than 45° apart, so shortest-path slerp and nlerp run along the arc
+//! between them, inside the cap. [`Envelope::admits`] is the run-time guard that checks a pose.
+//!
+//! [`Envelope::from_clips`] makes the smallest such envelope around every clip, between keys
+//! too (the exact largest angle from the centre over each LINEAR arc, a bound over each
+//! CUBICSPLINE piece; [`super::motion::RotationMotion::min_abs_dot`]), widened by a margin
+//! for additive layers and IK.
+
+use super::Aabb;
+use super::meshlet::{MeshletBounds, key_intervals, piece_extent, rest_bounds, round_up};
+use super::motion::{Motion, RotationMotion, node_motion};
+use super::refine::Ctx;
+use super::vertex::{IntervalMotions, clip_weight_ranges};
+use crate::clip::Clip;
+use crate::meshlet::Meshlets;
+use crate::model::{Skeleton, Skin, SkinnedMesh, Trs};
+use crate::{Error, Result};
+use glam::{DQuat, DVec3, Quat, Vec3};
+use rayon::prelude::*;
+use std::f64::consts::PI;
+
+/// How much wider than the guard admits a rotation cap is taken for the bounds (radians):
+/// the guard's f32 arithmetic then never admits a rotation the bounds do not cover.
+pub const GUARD_SLACK: f64 = 1e-5;
+
+/// Relative slack of boxes and ranges: the guard admits values this share of the range's
+/// magnitude outside it (an f32 blend of equal values can round by an ulp), and the bounds
+/// cover twice that.
+pub const BOX_SLACK: f64 = 1e-6;
+
+/// `[lo, hi]` widened by `k` × [`BOX_SLACK`] of the larger magnitude.
+fn widened(lo: f64, hi: f64, k: f64) -> (f64, f64) {
+    let s = k * BOX_SLACK * lo.abs().max(hi.abs());
+    (lo - s, hi + s)
+}
+
+/// One node's range of motion.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NodeRange {
+    /// The node (index into the skeleton's nodes).
+    pub node: u32,
+    /// Unit centre rotation.
+    pub centre: Quat,
+    /// Largest rotation angle from the centre that the bounds cover (radians, at most π).
+    pub angle: f32,
+    /// Translation and scale boxes (min, max).
+    pub translation: (Vec3, Vec3),
+    pub scale: (Vec3, Vec3),
+}
+
+/// A pose envelope: ranges of motion of the nodes that move the skin's joints, and of the
+/// morph weights. Nodes not listed keep their rest transform (glTF `matrix` nodes keep their
+/// matrix).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Envelope {
+    pub nodes: Vec<NodeRange>,
+    /// Per morph weight of the mesh (`Morphs::weights`), its range (min, max).
+    pub weights: Vec<(f32, f32)>,
+}
+
+fn down(x: f64) -> f32 {
+    -round_up(-x)
+}
+
+impl Envelope {
+    /// The envelope of `clips` (and the rest pose) for the joints of `skin` and the morph
+    /// weights of `mesh`: per node that is a joint or a joint's ancestor and not a `matrix`
+    /// node, the box of its translations and scales and the narrowest cap found around its
+    /// rotations, between keys included, widened by `margin` radians (rotations only) and by
+    /// [`GUARD_SLACK`]; per morph weight its range over the clips and its default.
+    pub fn from_clips(
+        skeleton: &Skeleton,
+        skin: &Skin,
+        mesh: &SkinnedMesh,
+        clips: &[&Clip],
+        margin: f64,
+    ) -> Result<Envelope> {
+        if !(0.0..=PI).contains(&margin) {
+            return Err(Error::invalid("pose envelope", format!("margin {margin} rad (need 0 to π)")));
+        }
+        let mut wanted = vec![false; skeleton.nodes.len()];
+        for &j in &skin.joints {
+            for n in skeleton.ancestry(j) {
+                wanted[n as usize] = true;
+            }
+        }
+        let intervals: Vec<(&Clip, f32, f32)> =
+            clips.iter().flat_map(|c| key_intervals(c).into_iter().map(move |(a, b)| (*c, a, b))).collect();
+        let nodes = (0..skeleton.nodes.len() as u32)
+            .filter(|&n| wanted[n as usize] && skeleton.nodes[n as usize].matrix.is_none())
+            .collect::<Vec<_>>()
+            .par_iter()
+            .map(|&n| {
+                let node = &skeleton.nodes[n as usize];
+                let mut motions = vec![node_motion(node, n, None, 0.0, 0.0)?];
+                for &(c, a, b) in &intervals {
+                    if c.animates(n) {
+                        motions.push(node_motion(node, n, Some(c), a, b)?);
+                    }
+                }
+                Ok(node_range(n, &motions, margin))
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let weights = clip_weight_ranges(&mesh.morphs, clips)?
+            .into_iter()
+            .zip(&mesh.morphs.weights)
+            .map(|((lo, hi), w)| (down(lo.min(w.default as f64)), round_up(hi.max(w.default as f64))))
+            .collect();
+        Ok(Envelope { nodes, weights })
+    }
+
+    /// Checks an envelope from outside (a file): nodes below `nodes` and listed once, unit
+    /// finite centres, angles in [0, π], ordered finite boxes, `weights` ranges, ordered.
+    pub fn check(&self, nodes: usize, weights: usize) -> Result<()> {
+        let bad = |what: String| Err(Error::invalid("pose envelope", what));
+        let mut seen = vec![false; nodes];
+        for r in &self.nodes {
+            let Some(s) = seen.get_mut(r.node as usize) else {
+                return bad(format!("node {} of {nodes}", r.node));
+            };
+            if std::mem::replace(s, true) {
+                return bad(format!("node {} listed twice", r.node));
+            }
+            let ordered = |(lo, hi): (Vec3, Vec3)| lo.is_finite() && hi.is_finite() && lo.cmple(hi).all();
+            let unit = r.centre.is_finite() && (r.centre.length() - 1.0).abs() < 1e-4;
+            if !(unit && (0.0..=std::f32::consts::PI).contains(&r.angle) && ordered(r.translation) && ordered(r.scale))
+            {
+                return bad(format!("node {}: {r:?} (need a unit centre, an angle in [0, π], ordered boxes)", r.node));
+            }
+        }
+        if self.weights.len() != weights {
+            return bad(format!("{} morph weight ranges for {weights} morph weights", self.weights.len()));
+        }
+        if let Some((k, w)) =
+            self.weights.iter().enumerate().find(|(_, w)| !(w.0.is_finite() && w.1.is_finite() && w.0 <= w.1))
+        {
+            return bad(format!("morph weight {k}: range {w:?}"));
+        }
+        Ok(())
+    }
+
+    /// The motions the envelope allows, as one "interval" for the vertex boxes: listed nodes
+    /// within their cap and boxes, the others at rest (or their matrix).
+    pub fn motions(&self, skeleton: &Skeleton) -> IntervalMotions {
+        let mut motions: Vec<Motion> = (skeleton.nodes.iter().enumerate())
+            .map(|(i, n)| node_motion(n, i as u32, None, 0.0, 0.0).expect("no clip: no key to span"))
+            .collect();
+        for r in &self.nodes {
+            let b = |(lo, hi): (Vec3, Vec3)| {
+                let w: [(f64, f64); 3] = std::array::from_fn(|k| widened(lo[k] as f64, hi[k] as f64, 2.0));
+                Aabb { min: DVec3::new(w[0].0, w[1].0, w[2].0), max: DVec3::new(w[0].1, w[1].1, w[2].1) }
+            };
+            motions[r.node as usize] = Motion::Trs {
+                translation: b(r.translation),
+                rotation: RotationMotion::Cap { centre: r.centre.as_dquat().normalize(), angle: r.angle as f64 },
+                scale: b(r.scale),
+            };
+        }
+        let weights = self.weights.iter().map(|&(lo, hi)| widened(lo as f64, hi as f64, 2.0)).collect();
+        IntervalMotions::from_motions(skeleton, motions, weights)
+    }
+
+    /// The run-time guard: whether a pose lies inside the envelope, so that bounds computed
+    /// for it hold. `locals`: every node's local transform (skeleton order); `weights`: the
+    /// morph weights' values. O(listed nodes), no allocation. Rotations are compared by the
+    /// vector part of `centre⁻¹·q` (accurate for small angles too) against an angle
+    /// [`GUARD_SLACK`] smaller than the bounds cover; boxes and ranges with half the
+    /// [`BOX_SLACK`] the bounds cover.
+    pub fn admits(&self, locals: &[Trs], weights: &[f32]) -> bool {
+        let within = |x: f32, lo: f32, hi: f32| {
+            let (lo, hi) = widened(lo as f64, hi as f64, 1.0);
+            (lo..=hi).contains(&(x as f64))
+        };
+        let inside = |x: Vec3, (lo, hi): (Vec3, Vec3)| (0..3).all(|k| within(x[k], lo[k], hi[k]));
+        self.nodes.iter().all(|r| {
+            let Some(l) = locals.get(r.node as usize) else { return false };
+            let rel = r.centre.conjugate() * l.rotation;
+            let v = Vec3::new(rel.x, rel.y, rel.z).length();
+            let half = (r.angle as f64 - GUARD_SLACK) / 2.0;
+            // atan2(|v|, |w|) ≤ half, without trigonometry on the rotation.
+            let rotation_ok =
+                half >= 0.0 && if half >= PI / 2.0 { true } else { (v as f64) <= half.tan() * (rel.w.abs() as f64) };
+            rotation_ok && inside(l.translation, r.translation) && inside(l.scale, r.scale)
+        }) && weights.len() == self.weights.len()
+            && weights.iter().zip(&self.weights).all(|(&w, r)| within(w, r.0, r.1))
+    }
+}
+
+/// The range of one node over its motions: boxes united, the cap's centre found by moving a
+/// sign-aligned mean of sample rotations towards the farthest sample, its angle the exact
+/// (or bounded) largest angle from the centre over every motion.
+fn node_range(node: u32, motions: &[Motion], margin: f64) -> NodeRange {
+    let (mut t, mut s) = (Aabb::EMPTY, Aabb::EMPTY);
+    let mut rotations = Vec::new();
+    let mut samples: Vec<DQuat> = Vec::new();
+    for m in motions {
+        let Motion::Trs { translation, rotation, scale } = m else { continue };
+        t = t.union(translation);
+        s = s.union(scale);
+        match rotation {
+            RotationMotion::Fixed(q) => samples.push(*q),
+            RotationMotion::Set(qs) => samples.extend(qs),
+            RotationMotion::Arc { start, axis, angle } => {
+                samples.extend([0.0, 0.5, 1.0].map(|f| DQuat::from_axis_angle(*axis, f * angle) * *start))
+            }
+            RotationMotion::Intervals { quats, .. } => samples.extend(quats.iter().filter_map(|r| {
+                let q = DQuat::from_xyzw(
+                    (r[0].0 + r[0].1) / 2.0,
+                    (r[1].0 + r[1].1) / 2.0,
+                    (r[2].0 + r[2].1) / 2.0,
+                    (r[3].0 + r[3].1) / 2.0,
+                );
+                (q.length() > 0.0).then(|| q.normalize())
+            })),
+            RotationMotion::Cap { centre, .. } => samples.push(*centre),
+        }
+        rotations.push(rotation);
+    }
+    let align = |q: DQuat, c: DQuat| if q.dot(c) < 0.0 { -q } else { q };
+    let first = samples.first().copied().unwrap_or(DQuat::IDENTITY);
+    let sum = samples.iter().fold(DQuat::from_xyzw(0.0, 0.0, 0.0, 0.0), |acc, &q| acc + align(q, first));
+    let mut centre = if sum.length() > 1e-12 { sum.normalize() } else { first };
+    for i in 0..32 {
+        let far = samples.iter().copied().min_by(|a, b| a.dot(centre).abs().total_cmp(&b.dot(centre).abs()));
+        let Some(far) = far else { break };
+        centre = (centre + (align(far, centre) - centre) * (1.0 / (i as f64 + 3.0))).normalize();
+    }
+    let centre32 = centre.as_quat().normalize();
+    let c = centre32.as_dquat().normalize();
+    let min_dot = rotations.iter().map(|r| r.min_abs_dot(c)).fold(1.0, f64::min);
+    let angle = (2.0 * min_dot.clamp(0.0, 1.0).acos() + margin + 2.0 * GUARD_SLACK).min(PI);
+    let f32_box = |b: Aabb| (b.min.to_array().map(down).into(), b.max.to_array().map(round_up).into());
+    NodeRange {
+        node,
+        centre: centre32,
+        angle: round_up(angle).min(std::f32::consts::PI),
+        translation: f32_box(t),
+        scale: f32_box(s),
+    }
+}
+
+/// Bounds of every meshlet for every pose inside `envelope`: the rest bounds (same joint,
+/// center and axis) with the radius and cone grown over the envelope's motions, as clip
+/// bounds grow over a key interval.
+pub fn envelope_bounds(
+    skeleton: &Skeleton,
+    skin: &Skin,
+    mesh: &SkinnedMesh,
+    meshlets: &Meshlets,
+    envelope: &Envelope,
+) -> Result<Vec<MeshletBounds>> {
+    if mesh.influences.is_none() {
+        return Err(Error::invalid("envelope bounds", "the mesh has no skin weights"));
+    }
+    mesh.morphs.check(mesh.positions.len())?;
+    envelope.check(skeleton.nodes.len(), mesh.morphs.weights.len())?;
+    let motions = envelope.motions(skeleton);
+    let ctx = Ctx { skeleton, skin, mesh, meshlets };
+    let mut bounds = rest_bounds(skin, mesh, meshlets);
+    bounds.par_iter_mut().zip(&meshlets.meshlets).for_each(|(b, m)| {
+        let (radius, min_cos) = piece_extent(&ctx, m, b, &motions, &mut Vec::new());
+        let min_cos = min_cos.min((b.rest_cone_angle as f64).cos());
+        b.radius = round_up(radius.max(b.radius as f64));
+        b.cone_angle = if min_cos > 0.0 { round_up(min_cos.min(1.0).acos()) } else { PI as f32 };
+    });
+    Ok(bounds)
+}

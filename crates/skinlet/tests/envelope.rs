@@ -1,0 +1,171 @@
+//! Pose envelopes on random rigs (rig/mod.rs: branching hierarchies with shear, clips in all
+//! three interpolation modes, non-uniform and negative scale, half with morph targets):
+//! envelopes made from the clips (with a random margin) and random envelopes; random poses
+//! inside them and blends of two such poses are admitted by the guard, and every vertex and
+//! face normal of them lies in its meshlet's envelope bounds, checked in the culler's space
+//! ([`skinlet::bounds::verify`]). Every sampled pose of the clips themselves is admitted by
+//! the envelope made from them, and poses outside are refused.
+
+mod rig;
+
+use glam::{Quat, Vec3};
+use proptest::prelude::*;
+use rig::{Rng, random_character, random_morphs, random_triangles};
+use skinlet::bounds::envelope::{Envelope, GUARD_SLACK, NodeRange, envelope_bounds};
+use skinlet::bounds::verify::verify_poses;
+use skinlet::meshlet::{Builder, MeshletLimits, build, prepare};
+use skinlet::model::{Skeleton, Trs};
+
+/// A random pose inside the envelope: per listed node a rotation within its angle (less the
+/// guard's slack) of the centre and a translation and scale inside the boxes; other nodes at
+/// rest; morph weights inside their ranges.
+fn pose_inside(r: &mut Rng, skeleton: &Skeleton, env: &Envelope) -> (Vec<Trs>, Vec<f32>) {
+    let mut locals: Vec<Trs> = skeleton.nodes.iter().map(|n| n.rest).collect();
+    // Half the poses on the envelope's boundary (the full angle, box corners), where the
+    // bounds are tightest.
+    let edge = r.u() < 0.5;
+    let mut u = |r: &mut Rng| if edge { (r.u() < 0.5) as u8 as f32 } else { r.u() };
+    let within = |r: &mut Rng, u: &mut dyn FnMut(&mut Rng) -> f32, (lo, hi): (Vec3, Vec3)| {
+        lo + (hi - lo) * Vec3::new(u(r), u(r), u(r))
+    };
+    for n in &env.nodes {
+        let angle = (n.angle - 2.0 * GUARD_SLACK as f32).max(0.0) * if edge { 1.0 } else { r.u() };
+        locals[n.node as usize] = Trs {
+            rotation: (Quat::from_axis_angle(r.axis(), angle) * n.centre).normalize(),
+            translation: within(r, &mut u, n.translation),
+            scale: within(r, &mut u, n.scale),
+        };
+    }
+    let weights = env.weights.iter().map(|&(lo, hi)| lo + (hi - lo) * u(r)).collect();
+    (locals, weights)
+}
+
+/// A random envelope around the rest pose: caps up to 80° (so blends stay inside), boxes up
+/// to 0.5 wide around the rest translation and scale (scales kept away from zero).
+fn random_envelope(r: &mut Rng, skeleton: &Skeleton, weights: usize) -> Envelope {
+    let nodes = (skeleton.nodes.iter().enumerate())
+        .filter(|(_, n)| n.matrix.is_none())
+        .map(|(i, n)| {
+            let around = |r: &mut Rng, v: Vec3| {
+                let (a, b) = (v - r.v3(0.25).abs(), v + r.v3(0.25).abs());
+                (a, b)
+            };
+            let mut scale = around(r, n.rest.scale);
+            // Keep each scale axis on one side of zero.
+            for k in 0..3 {
+                if scale.0[k] <= 0.0 && scale.1[k] >= 0.0 {
+                    (scale.0[k], scale.1[k]) =
+                        if n.rest.scale[k] > 0.0 { (0.3, scale.1[k].max(0.4)) } else { (scale.0[k].min(-0.4), -0.3) };
+                }
+            }
+            NodeRange {
+                node: i as u32,
+                centre: (Quat::from_axis_angle(r.axis(), r.range(0.0, 0.5)) * n.rest.rotation).normalize(),
+                angle: r.range(0.0, 1.4),
+                translation: around(r, n.rest.translation),
+                scale,
+            }
+        })
+        .collect();
+    Envelope { nodes, weights: (0..weights).map(|_| (r.range(-0.5, 0.2), r.range(0.3, 1.2))).collect() }
+}
+
+/// Blend of two poses: translation, scale and weights linearly, rotations by shortest-path
+/// slerp, as animation blending does.
+fn blend(a: &(Vec<Trs>, Vec<f32>), b: &(Vec<Trs>, Vec<f32>), f: f32) -> (Vec<Trs>, Vec<f32>) {
+    let locals =
+        a.0.iter()
+            .zip(&b.0)
+            .map(|(x, y)| Trs {
+                translation: x.translation.lerp(y.translation, f),
+                rotation: x.rotation.slerp(y.rotation, f),
+                scale: x.scale.lerp(y.scale, f),
+            })
+            .collect();
+    (locals, a.1.iter().zip(&b.1).map(|(x, y)| x + (y - x) * f).collect())
+}
+
+/// Returns the vertex checks made.
+fn check_envelope(seed: u64) -> Result<usize, String> {
+    let (skeleton, skin, mut clip, mut positions, mut inf) = random_character(seed);
+    let triangles = random_triangles(seed, skin.joints.len(), &mut positions, &mut inf);
+    if triangles.is_empty() {
+        return Ok(0);
+    }
+    let morphs = if seed % 4 < 2 { random_morphs(seed, positions.len(), 0, &mut clip) } else { Default::default() };
+    let mesh = skinlet::SkinnedMesh { positions, triangles, influences: Some(inf), morphs, ..Default::default() };
+    let prepared = prepare(&mesh);
+    let meshlets = build(&prepared, Builder::SkinAware, MeshletLimits { max_vertices: 8, max_triangles: 8 })
+        .map_err(|e| e.to_string())?;
+    let mut r = Rng(seed ^ 0xE7E1);
+    let from_clips = !seed.is_multiple_of(3);
+    let env = if from_clips {
+        let margin = if r.u() < 0.5 { 0.0 } else { r.range(0.0, 0.4) as f64 };
+        Envelope::from_clips(&skeleton, &skin, &prepared.mesh, &[&clip], margin).map_err(|e| e.to_string())?
+    } else {
+        random_envelope(&mut r, &skeleton, prepared.mesh.morphs.weights.len())
+    };
+    let bounds = envelope_bounds(&skeleton, &skin, &prepared.mesh, &meshlets, &env).map_err(|e| e.to_string())?;
+    let mut poses: Vec<(Vec<Trs>, Vec<f32>)> = (0..48).map(|_| pose_inside(&mut r, &skeleton, &env)).collect();
+    for p in &poses {
+        if !env.admits(&p.0, &p.1) {
+            return Err(format!("seed {seed}: the guard refused a pose inside"));
+        }
+    }
+    // Blends stay inside where every cap is below 90°.
+    if env.nodes.iter().all(|n| n.angle < std::f32::consts::FRAC_PI_2) {
+        for k in 0..8 {
+            let b = blend(&poses[k], &poses[k + 8], r.u());
+            if !env.admits(&b.0, &b.1) {
+                return Err(format!("seed {seed}: the guard refused a blend of two poses inside"));
+            }
+            poses.push(b);
+        }
+    }
+    let report =
+        verify_poses(&skeleton, &skin, &poses, &prepared.mesh, &meshlets, &bounds).map_err(|e| e.to_string())?;
+    if report.violations() > 0 {
+        return Err(format!("seed {seed}: {report:?}"));
+    }
+    // The clip's own poses are inside the envelope made from it.
+    if from_clips {
+        let mut locals = Vec::new();
+        let mut weights = Vec::new();
+        for k in 0..=40 {
+            let t = clip.start + clip.duration() * k as f32 / 40.0;
+            clip.sample_locals(&skeleton, t, &mut locals);
+            prepared.mesh.morphs.weights_at(Some(&clip), t, &mut weights);
+            if !env.admits(&locals, &weights) {
+                return Err(format!("seed {seed}: the guard refused the clip's pose at {t}"));
+            }
+        }
+    }
+    // Outside: one node turned past its cap, or moved out of its box.
+    if let Some(n) = env.nodes.iter().find(|n| n.angle < 3.0) {
+        let (mut locals, weights) = pose_inside(&mut r, &skeleton, &env);
+        locals[n.node as usize].rotation = (Quat::from_axis_angle(r.axis(), n.angle + 0.05) * n.centre).normalize();
+        if env.admits(&locals, &weights) {
+            return Err(format!("seed {seed}: the guard admitted a rotation outside node {}'s cap", n.node));
+        }
+        let (mut locals, weights) = pose_inside(&mut r, &skeleton, &env);
+        locals[n.node as usize].translation.x = n.translation.1.x + 0.01;
+        if env.admits(&locals, &weights) {
+            return Err(format!("seed {seed}: the guard admitted a translation outside node {}'s box", n.node));
+        }
+    }
+    Ok(report.vertex_checks)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 1000, ..ProptestConfig::default() })]
+    #[test]
+    fn envelope_bounds_hold_for_every_pose_inside(seed in any::<u64>()) {
+        check_envelope(seed).map_err(TestCaseError::fail)?;
+    }
+}
+
+#[test]
+fn envelopes_are_checked_often_enough_to_matter() {
+    let checks: usize = (0..60u64).map(|s| check_envelope(s).unwrap()).sum();
+    assert!(checks > 20_000, "only {checks} vertex checks");
+}
