@@ -169,3 +169,90 @@ fn envelopes_are_checked_often_enough_to_matter() {
     let checks: usize = (0..60u64).map(|s| check_envelope(s).unwrap()).sum();
     assert!(checks > 20_000, "only {checks} vertex checks");
 }
+
+/// Any pose (random rotations, translations, scales with negative and zero axes; matrix
+/// nodes keep their matrix) and random morph weights within the ranges the boxes were made
+/// for, seen by a random camera: every meshlet the any-pose boxes cull has every skinned
+/// vertex outside one frustum plane. Returns the meshlets culled.
+fn check_any_pose(seed: u64) -> Result<usize, String> {
+    use skinlet::cull::Camera;
+    use skinlet::cull::any_pose::AnyPoseBoxes;
+    let (skeleton, skin, mut clip, mut positions, mut inf) = random_character(seed);
+    let triangles = random_triangles(seed, skin.joints.len(), &mut positions, &mut inf);
+    let morphs = if seed % 4 < 2 { random_morphs(seed, positions.len(), 0, &mut clip) } else { Default::default() };
+    let mesh = skinlet::SkinnedMesh { positions, triangles, influences: Some(inf), morphs, ..Default::default() };
+    let prepared = prepare(&mesh);
+    let meshlets = build(&prepared, Builder::SkinAware, MeshletLimits { max_vertices: 8, max_triangles: 8 })
+        .map_err(|e| e.to_string())?;
+    let ranges =
+        skinlet::bounds::vertex::clip_weight_ranges(&prepared.mesh.morphs, &[&clip]).map_err(|e| e.to_string())?;
+    let boxes = AnyPoseBoxes::build(&skin, &prepared.mesh, &meshlets, &ranges).map_err(|e| e.to_string())?;
+    let mut r = Rng(seed ^ 0xA4E);
+    let mut culled = 0;
+    for _ in 0..8 {
+        let locals: Vec<Trs> = (0..skeleton.nodes.len())
+            .map(|_| {
+                let mut scale = r.scale();
+                if r.u() < 0.1 {
+                    scale.y = 0.0;
+                }
+                Trs { translation: r.v3(1.5), rotation: Quat::from_axis_angle(r.axis(), r.range(-3.1, 3.1)), scale }
+            })
+            .collect();
+        let weights: Vec<f32> = ranges.iter().map(|&(lo, hi)| r.range(lo as f32, hi as f32)).collect();
+        let mut globals = Vec::new();
+        skinlet::pose::global_transforms(&skeleton, &locals, &mut globals);
+        let (mut mats, mut joints) = (Vec::new(), Vec::new());
+        skinlet::pose::skinning_matrices(&skin, &globals, &mut mats);
+        skinlet::pose::joint_globals(&skin, &globals, &mut joints);
+        let mut p = vec![Vec3::ZERO; prepared.mesh.positions.len()];
+        skinlet::skinning::skin_mesh(&prepared.mesh, &weights, &mats, &mut p, &mut []).map_err(|e| e.to_string())?;
+        let scale = p.iter().map(|v| v.abs().max_element()).fold(1.0f32, f32::max) as f64;
+        for _ in 0..4 {
+            let eye = r.v3(6.0);
+            let Ok(cam) = Camera::perspective(
+                eye,
+                r.v3(2.0),
+                Vec3::Y,
+                r.range(0.3, 1.5),
+                r.range(0.5, 2.0),
+                0.1,
+                r.range(2.0, 30.0),
+            ) else {
+                continue;
+            };
+            let mut visible = Vec::new();
+            boxes.cull(&joints, &cam, &mut visible);
+            for (m, meshlet) in meshlets.meshlets.iter().enumerate() {
+                if visible.binary_search(&(m as u32)).is_ok() {
+                    continue;
+                }
+                culled += 1;
+                let verts = meshlets.vertices_of(meshlet);
+                let out = cam.planes.iter().any(|pl| {
+                    verts
+                        .iter()
+                        .all(|&v| pl.truncate().as_dvec3().dot(p[v as usize].as_dvec3()) + (pl.w as f64) < 1e-5 * scale)
+                });
+                if !out {
+                    return Err(format!("seed {seed}: meshlet {m} culled, but no plane has all its vertices outside"));
+                }
+            }
+        }
+    }
+    Ok(culled)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 500, ..ProptestConfig::default() })]
+    #[test]
+    fn any_pose_boxes_cull_only_what_is_outside(seed in any::<u64>()) {
+        check_any_pose(seed).map_err(TestCaseError::fail)?;
+    }
+}
+
+#[test]
+fn any_pose_boxes_cull_often_enough_to_matter() {
+    let culled: usize = (0..100u64).map(|s| check_any_pose(s).unwrap()).sum();
+    assert!(culled > 500, "only {culled} meshlets culled");
+}

@@ -9,6 +9,7 @@
 //! direction (orthographic) that backface tests need. Conventions are glam's right-handed
 //! ones with depth in [0, 1] (`Mat4::perspective_rh`, `Mat4::orthographic_rh`).
 
+pub mod any_pose;
 pub mod bevy_baseline;
 pub mod crowd;
 pub mod joint_aabb;
