@@ -14,8 +14,37 @@ use std::path::Path;
 
 /// Share of meshlets in each class, in percent: (both, frustum only, none).
 pub fn class_shares(b: &Baked) -> (f64, f64, f64) {
-    let pct = |c: Class| 100.0 * b.classes.iter().filter(|&&x| x == c).count() as f64 / b.classes.len().max(1) as f64;
+    shares(&b.classes)
+}
+
+fn shares(classes: &[Class]) -> (f64, f64, f64) {
+    let pct = |c: Class| 100.0 * classes.iter().filter(|&&x| x == c).count() as f64 / classes.len().max(1) as f64;
     (pct(Class::Both), pct(Class::FrustumOnly), pct(Class::None))
+}
+
+/// The pose envelope `--envelope SPEC` asks for: `clips[:MARGIN_DEG]` (around the baked clips,
+/// widened by the margin) or a joint-limits JSON file applied over the clips' envelope.
+pub fn envelope_of(spec: &str, asset: &Asset, baked: &Baked) -> Result<skinlet::bounds::envelope::Envelope> {
+    use skinlet::bounds::envelope::Envelope;
+    let clips = clips_of(baked, asset, "the source")?;
+    let from_clips = |margin_deg: f64| {
+        Envelope::from_clips(&asset.skeleton, &baked.palette(), &baked.mesh, &clips, margin_deg.to_radians())
+    };
+    if let Some(rest) = spec.strip_prefix("clips") {
+        let margin = match rest.strip_prefix(':') {
+            Some(m) => m
+                .parse::<f64>()
+                .ok()
+                .filter(|m| (0.0..=180.0).contains(m))
+                .with_context(|| format!("--envelope {spec}: the margin must be degrees from 0 to 180"))?,
+            None if rest.is_empty() => 0.0,
+            None => anyhow::bail!("--envelope {spec}: expected clips, clips:MARGIN_DEG or a .json file"),
+        };
+        return Ok(from_clips(margin)?);
+    }
+    let text = std::fs::read_to_string(spec)
+        .with_context(|| format!("--envelope {spec}: cannot read the joint-limits file"))?;
+    from_clips(0.0)?.with_limits(&asset.skeleton, &text).with_context(|| format!("--envelope {spec}"))
 }
 
 /// The clips `baked`'s bounds hold for, found by name in `asset` (loaded from `file`).
@@ -89,6 +118,7 @@ pub fn run(
     args: RefineArgs,
     overdraw: bool,
     contours: Option<&str>,
+    envelope: Option<&str>,
     json: bool,
 ) -> Result<()> {
     let builder = Builder::from_name(builder).context("unknown builder")?;
@@ -112,8 +142,17 @@ pub fn run(
     } else {
         None
     };
+    let envelope_s = if let Some(spec) = envelope {
+        let started = std::time::Instant::now();
+        let env = envelope_of(spec, &asset, &baked)?;
+        skinlet::bake::add_envelope(&mut baked, &asset, env)?;
+        Some(started.elapsed().as_secs_f64())
+    } else {
+        None
+    };
     skinlet::bake::write(out, &baked)?;
     let bytes = std::fs::metadata(out).map(|m| m.len()).unwrap_or(0);
+    let envelope_shares = baked.envelope.as_ref().map(|e| shares(&e.classes));
     let (both, frustum, none) = class_shares(&baked);
     let s = &baked.settings;
     let precompute_s = stats.precompute.as_secs_f64();
@@ -130,6 +169,10 @@ pub fn run(
             "vertex_influence_intervals": stats.work,
             "overdraw_buffers": baked.overdraw.as_ref().map(|o| o.buffers.len()), "overdraw_s": overdraw_s,
             "contour_patches": baked.contours.as_ref().map(|c| c.patches.patches.len()), "contours_s": contours_s,
+            "envelope_nodes": baked.envelope.as_ref().map(|e| e.envelope.nodes.len()), "envelope_s": envelope_s,
+            "envelope_both_pct": envelope_shares.map(|s| s.0), "envelope_frustum_only_pct": envelope_shares.map(|s| s.1),
+            "envelope_none_pct": envelope_shares.map(|s| s.2),
+            "any_pose_boxes": baked.envelope.as_ref().map(|e| e.any_pose.joints.len()),
         });
         println!("{}", serde_json::to_string_pretty(&summary)?);
         return Ok(());
@@ -183,6 +226,15 @@ pub fn run(
             o.keyframes.len(),
             o.lookup.polar,
             o.lookup.azimuth
+        );
+    }
+    if let (Some(e), Some(secs), Some((both, frustum, none))) = (&baked.envelope, envelope_s, envelope_shares) {
+        let widest = e.envelope.nodes.iter().map(|r| r.angle).fold(0.0f32, f32::max).to_degrees();
+        println!(
+            "  pose envelope over {} nodes (widest cap {widest:.0}°): {both:.1}% both, {frustum:.1}% frustum only, \
+             {none:.1}% none; {:.1} any-pose boxes per meshlet ({secs:.1} s)",
+            e.envelope.nodes.len(),
+            e.any_pose.joints.len() as f64 / baked.meshlets.len().max(1) as f64
         );
     }
     if s.stop == skinlet::bounds::refine::Stop::Budget {

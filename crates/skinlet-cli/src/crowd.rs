@@ -22,6 +22,8 @@ pub fn to_json(s: &CrowdStats, checked: bool) -> Value {
         "whole_mesh_looseness": WHOLE_MESH_BOUNDS.iter().zip(loose).map(|(n, l)| json!({"bound": n, "diagonal_ratio": l})).collect::<Vec<_>>(),
         "checked_triangles": s.checked_triangles,
         "false_culls": if checked { json!(s.false_culls) } else { Value::Null },
+        "envelope_frames": s.envelope_frames, "any_pose_frames": s.any_pose_frames,
+        "unculled_frames": s.unculled_frames, "guard_fallback_pct": s.guard_fallback_pct(),
     })
 }
 
@@ -45,6 +47,16 @@ pub fn print(s: &CrowdStats, verify: bool) {
     );
     let loose: Vec<String> = WHOLE_MESH_BOUNDS.iter().zip(s.looseness()).map(|(n, l)| format!("{n} {l:.2}")).collect();
     println!("  whole-mesh bound volume / exact box: {}", loose.join(", "));
+    if s.envelope_frames + s.any_pose_frames + s.unculled_frames > 0 {
+        println!(
+            "  guard: {} instance-frames inside the pose envelope, {} outside (any-pose boxes), {} not culled \
+             (morph weights outside): {:.1}% fell back",
+            s.envelope_frames,
+            s.any_pose_frames,
+            s.unculled_frames,
+            s.guard_fallback_pct()
+        );
+    }
     if verify {
         println!(
             "  brute force: {} culled triangles checked, {} visible after all",
@@ -89,11 +101,22 @@ pub fn command(
     gltf: Option<&str>,
     params: &CrowdParams,
     check: bool,
+    additive_deg: f32,
     args: RefineArgs,
     json: bool,
 ) -> Result<()> {
     anyhow::ensure!(params.instances >= 1 && params.frames >= 1, "--instances and --frames must be at least 1");
-    let (asset, _, baked) = load(file, gltf, args, json)?;
+    anyhow::ensure!((0.0..=180.0).contains(&additive_deg), "--additive-deg must be from 0 to 180");
+    let (asset, _, mut baked) = load(file, gltf, args, json)?;
+    if params.animation != skinlet::cull::crowd::Animation::Clips && baked.envelope.is_none() {
+        anyhow::ensure!(
+            gltf.is_none(),
+            "--animation {} needs a pose envelope: bake {file} with --envelope",
+            params.animation.name()
+        );
+        let env = crate::bake::envelope_of(&format!("clips:{additive_deg}"), &asset, &baked)?;
+        skinlet::bake::add_envelope(&mut baked, &asset, env)?;
+    }
     let clips: Vec<&Clip> = crate::bake::clips_of(&baked, &asset, gltf.unwrap_or(file))?;
     let palette = baked.palette();
     let scene = posed_crowd(&asset.skeleton, &palette, &baked.mesh, &clips, params)?;
@@ -102,7 +125,7 @@ pub fn command(
         println!("{}", serde_json::to_string_pretty(&to_json(&s, check))?);
     } else {
         let camera = if params.orthographic { "orthographic" } else { "perspective" };
-        println!("{file}: crowd scene ({camera} camera)");
+        println!("{file}: crowd scene ({camera} camera, {} animation)", params.animation.name());
         print(&s, check);
     }
     if s.false_culls > 0 {

@@ -236,6 +236,15 @@ enum Command {
         /// are always hidden.
         #[arg(long, value_parser = ["all", "visible"])]
         contours: Option<String>,
+        /// Also store bounds for poses that are not the clips played alone (crossfades,
+        /// additive layers, IK): a pose envelope, i.e. per joint a cap of rotations around a
+        /// centre and translation and scale boxes, with meshlet bounds for every pose inside
+        /// it, and any-pose boxes for the poses outside. `clips` makes the envelope around the
+        /// baked clips (between keys too), `clips:MARGIN_DEG` widens every cap by the margin
+        /// (for additive layers and IK), and a .json file of joint limits replaces the caps of
+        /// the joints it names (format: docs/FORMAT.md, `ENVL`).
+        #[arg(long, value_name = "clips[:MARGIN_DEG]|FILE.json")]
+        envelope: Option<String>,
         /// Print a JSON summary: meshlets, both_pct, frustum_only_pct, none_pct, precompute_s, ...
         #[arg(long)]
         json: bool,
@@ -301,6 +310,20 @@ enum Command {
         /// Check every culled triangle by brute force (reports false_culls).
         #[arg(long, alias = "verify")]
         check: bool,
+        /// How the instances are posed. `clips`: each plays its clip, culled with the clip
+        /// bounds. The others need a pose envelope (a glTF file is baked with
+        /// `--envelope clips:ADDITIVE_DEG`; a bake must have one) and cull each instance-frame
+        /// with the envelope bounds when the guard admits its pose, else with the any-pose
+        /// boxes (frustum only): `blend` crossfades random clip pairs with random weights,
+        /// `additive` turns every joint by a random rotation of up to --additive-deg, `ik`
+        /// sets two random joints, one inside its range of motion and in half the frames
+        /// one 20° beyond it.
+        #[arg(long, default_value = "clips", value_parser = ["clips", "blend", "additive", "ik"])]
+        animation: String,
+        /// Largest rotation of the additive layer, degrees (and the envelope margin when a
+        /// glTF file is baked here).
+        #[arg(long, default_value_t = 10.0)]
+        additive_deg: f32,
         #[command(flatten)]
         refine: RefineArgs,
         #[arg(long)]
@@ -432,21 +455,50 @@ fn main() {
         Command::Bounds { file, builder, clips, refine, json } => {
             bounds(&file, &builder, clips.as_deref(), refine, json)
         }
-        Command::Bake { file, out, builder, clips, refine, overdraw, contours, json } => {
-            bake::run(&file, &out, &builder, clips.as_deref(), refine, overdraw, contours.as_deref(), json)
-        }
+        Command::Bake { file, out, builder, clips, refine, overdraw, contours, envelope, json } => bake::run(
+            &file,
+            &out,
+            &builder,
+            clips.as_deref(),
+            refine,
+            overdraw,
+            contours.as_deref(),
+            envelope.as_deref(),
+            json,
+        ),
         Command::Verify { file, baked, builder, clips, refine, samples, json } => {
             verify(&file, baked.as_deref(), &builder, clips.as_deref(), refine, samples, json)
         }
-        Command::Cull { file, gltf, layout: _, instances, frames, seed, ortho, check, refine, json } => {
+        Command::Cull {
+            file,
+            gltf,
+            layout: _,
+            instances,
+            frames,
+            seed,
+            ortho,
+            check,
+            animation,
+            additive_deg,
+            refine,
+            json,
+        } => {
+            use skinlet::cull::crowd::Animation;
+            let animation = match animation.as_str() {
+                "blend" => Animation::Blend,
+                "additive" => Animation::Additive(additive_deg.to_radians()),
+                "ik" => Animation::Ik,
+                _ => Animation::Clips,
+            };
             let params = skinlet::cull::crowd::CrowdParams {
                 instances,
                 frames,
                 seed,
                 orthographic: ortho,
+                animation,
                 ..Default::default()
             };
-            crowd::command(&file, gltf.as_deref(), &params, check, refine, json)
+            crowd::command(&file, gltf.as_deref(), &params, check, additive_deg, refine, json)
         }
         Command::Overdraw { file, clips, k, lambda, max_keyframes, views, seed, order, heatmap, json } => {
             let order = if order == "distance" { PatchOrder::Distance } else { PatchOrder::Occlusion };

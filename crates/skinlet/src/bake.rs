@@ -12,6 +12,7 @@
 //! destination atomically (temporary file in the same folder, then rename). Readers skip
 //! sections with tags they do not know, so later versions can add sections.
 
+use crate::bounds::envelope::{Envelope, NodeRange, envelope_bounds};
 use crate::bounds::meshlet::{Class, MeshletBounds, classify};
 use crate::bounds::refine::{Progress, Refinement, Stop, refine_with_progress};
 use crate::character::{Character, PartKind};
@@ -19,6 +20,7 @@ use crate::clip::Clip;
 use crate::contour::bound::PatchBounds;
 use crate::contour::patches::Patches;
 use crate::contour::skinned::{ClipWindows, SkinnedParams, SkinnedPatches, skinned_edges};
+use crate::cull::any_pose::AnyPoseBoxes;
 use crate::meshlet::{
     Builder, MeshletLimits, Meshlets, PartRange, PreparedMesh, build, canonical, flat, prepare_parts,
 };
@@ -26,7 +28,7 @@ use crate::model::{Asset, Influences, MorphDelta, MorphWeight, Morphs, Skin, Ski
 use crate::overdraw::cluster::{ClusterParams, Framing, Lookup, Orders, cluster};
 use crate::overdraw::evaluate::keyframes;
 use crate::{Error, Result};
-use glam::{Mat4, Vec3};
+use glam::{Mat4, Quat, Vec3};
 use std::io::Write;
 use std::ops::Range;
 use std::path::Path;
@@ -82,6 +84,22 @@ pub struct Baked {
     pub overdraw: Option<Orders>,
     /// Contour patches of the mesh (optional section CONT).
     pub contours: Option<BakedContours>,
+    /// A pose envelope with its bounds, and the any-pose boxes (optional section ENVL).
+    pub envelope: Option<BakedEnvelope>,
+}
+
+/// Bounds for the poses games make: a pose envelope with meshlet bounds (and their classes)
+/// that hold for every pose inside it, and per-meshlet any-pose boxes for the poses outside
+/// (see [`crate::bounds::envelope`], [`crate::cull::any_pose`]). The any-pose boxes hold for
+/// any joint matrices with morph weights inside the envelope's ranges.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BakedEnvelope {
+    pub envelope: Envelope,
+    /// Name of each range's node (empty for unnamed nodes), in `envelope.nodes` order.
+    pub names: Vec<String>,
+    pub bounds: Vec<MeshletBounds>,
+    pub classes: Vec<Class>,
+    pub any_pose: AnyPoseBoxes,
 }
 
 /// Contour patches of a bake's mesh; their quads index the edges that
@@ -164,6 +182,7 @@ pub fn bake(
         bounds: refined.bounds,
         overdraw: None,
         contours: None,
+        envelope: None,
     };
     Ok((baked, stats))
 }
@@ -209,6 +228,18 @@ pub fn add_contours(baked: &mut Baked, asset: &Asset, params: &SkinnedParams, vi
     Ok(())
 }
 
+/// Adds a pose envelope to a bake: meshlet bounds for every pose inside it, classified with
+/// the bake's thresholds, and the any-pose boxes for morph weights inside its ranges.
+pub fn add_envelope(baked: &mut Baked, asset: &Asset, envelope: Envelope) -> Result<()> {
+    let palette = baked.palette();
+    let bounds = envelope_bounds(&asset.skeleton, &palette, &baked.mesh, &baked.meshlets, &envelope)?;
+    let classes = bounds.iter().map(|b| classify(b, baked.settings.s_r, baked.settings.alpha_t)).collect();
+    let any_pose = AnyPoseBoxes::build(&palette, &baked.mesh, &baked.meshlets, &envelope.weight_ranges())?;
+    let names = envelope.nodes.iter().map(|r| asset.skeleton.nodes[r.node as usize].name.clone()).collect();
+    baked.envelope = Some(BakedEnvelope { envelope, names, bounds, classes, any_pose });
+    Ok(())
+}
+
 impl Baked {
     /// The drivers as a skin (joints: their nodes): what the skinning matrices come from.
     pub fn palette(&self) -> Skin {
@@ -229,8 +260,11 @@ fn baked_clips<'a>(baked: &Baked, asset: &'a Asset) -> Result<Vec<&'a Clip>> {
         .collect()
 }
 
-/// Section tags: the seven required ones, then the optional overdraw orders and contours.
-const TAGS: [&[u8; 4]; 10] = [b"INFO", b"SKIN", b"VERT", b"TRIS", b"MLET", b"BNDS", b"PART", b"OVDR", b"CONT", b"MRPH"];
+/// Section tags: the seven required ones, then the optional overdraw orders, contours, morph
+/// targets and pose envelope.
+const TAGS: [&[u8; 4]; 11] =
+    [b"INFO", b"SKIN", b"VERT", b"TRIS", b"MLET", b"BNDS", b"PART", b"OVDR", b"CONT", b"MRPH", b"ENVL"];
+const NODE_RANGE_STRIDE: usize = 72;
 const MORPH_WEIGHT_STRIDE: usize = 12;
 const MORPH_DELTA_STRIDE: usize = 28;
 const PART_STRIDE: usize = 40;
@@ -278,6 +312,19 @@ impl Out {
     }
     fn f64(&mut self, x: f64) {
         self.0.extend_from_slice(&x.to_le_bytes());
+    }
+    /// Meshlet bounds with their classes, [`BOUNDS_STRIDE`] bytes each.
+    fn bounds(&mut self, bounds: &[MeshletBounds], classes: &[Class]) {
+        for (x, c) in bounds.iter().zip(classes) {
+            self.vec3(x.center);
+            self.f32(x.radius);
+            self.vec3(x.cone_axis);
+            self.f32(x.cone_angle);
+            self.f32(x.rest_radius);
+            self.f32(x.rest_cone_angle);
+            self.u32(x.joint as u32);
+            self.u32(class_code(*c));
+        }
     }
 }
 
@@ -336,16 +383,7 @@ pub fn to_bytes(b: &Baked) -> Vec<u8> {
     let mut bnds = Out::default();
     bnds.u32(b.bounds.len() as u32);
     bnds.0.resize(16, 0);
-    for (x, c) in b.bounds.iter().zip(&b.classes) {
-        bnds.vec3(x.center);
-        bnds.f32(x.radius);
-        bnds.vec3(x.cone_axis);
-        bnds.f32(x.cone_angle);
-        bnds.f32(x.rest_radius);
-        bnds.f32(x.rest_cone_angle);
-        bnds.u32(x.joint as u32);
-        bnds.u32(class_code(*c));
-    }
+    bnds.bounds(&b.bounds, &b.classes);
 
     let mut sections = vec![info.0, skin.0, vert.0, tris.0, flat::to_bytes(&b.meshlets), bnds.0, part.0];
     let mut tags: Vec<&[u8; 4]> = TAGS[..7].to_vec();
@@ -426,6 +464,37 @@ pub fn to_bytes(b: &Baked) -> Vec<u8> {
         }
         sections.push(ct.0);
     }
+    if let Some(e) = &b.envelope {
+        tags.push(TAGS[10]);
+        let (env, any) = (&e.envelope, &e.any_pose);
+        let mut ev = Out::default();
+        for x in [env.nodes.len(), env.weights.len(), e.bounds.len(), any.joints.len()] {
+            ev.u32(x as u32);
+        }
+        for r in &env.nodes {
+            ev.u32(r.node);
+            r.centre.to_array().iter().for_each(|&x| ev.f32(x));
+            ev.f32(r.angle);
+            for v in [r.translation.0, r.translation.1, r.scale.0, r.scale.1] {
+                ev.vec3(v);
+            }
+        }
+        for &(lo, hi) in &env.weights {
+            ev.f32(lo);
+            ev.f32(hi);
+        }
+        ev.0.resize(ev.0.len().next_multiple_of(16), 0);
+        ev.bounds(&e.bounds, &e.classes);
+        any.offsets.iter().for_each(|&o| ev.u32(o));
+        any.joints.iter().for_each(|&j| ev.u32(j as u32));
+        for (c, h) in any.center.iter().zip(&any.half) {
+            ev.vec3(*c);
+            ev.vec3(*h);
+        }
+        e.names.iter().for_each(|n| ev.str(n));
+        ev.0.resize(ev.0.len().next_multiple_of(4), 0);
+        sections.push(ev.0);
+    }
     let mut out = Vec::new();
     out.extend_from_slice(&MAGIC);
     out.extend_from_slice(&VERSION.to_le_bytes());
@@ -476,8 +545,9 @@ pub fn read(path: &Path) -> Result<Baked> {
 }
 
 /// Runs every run-time consumer of a bake once, on the rest pose: the meshlet culler (built,
-/// prepared and culled for a camera), the overdraw lookup, joint boxes, skinning with morphs,
-/// and contour extraction with every bound set. Whatever [`from_bytes`] accepts must pass:
+/// prepared and culled for a camera; also with the envelope bounds), the any-pose boxes and
+/// the envelope guard, the overdraw lookup, joint boxes, skinning with morphs, and contour
+/// extraction with every bound set. Whatever [`from_bytes`] accepts must pass:
 /// the bake tests and the `bake` fuzz target (`fuzz/`) call it on corrupted files; an error
 /// names the consumer that refused.
 pub fn check_consumers(b: &Baked) -> Result<()> {
@@ -500,6 +570,14 @@ pub fn check_consumers(b: &Baked) -> Result<()> {
     let mut posed = vec![Vec3::ZERO; b.mesh.positions.len()];
     if b.mesh.influences.is_some() {
         crate::skinning::skin_mesh(&b.mesh, &weights, &joints, &mut posed, &mut [])?;
+    }
+    if let Some(e) = &b.envelope {
+        let culler = crate::cull::meshlet::MeshletCuller::new(&e.bounds, &e.classes, palette.joints.len())?;
+        culler.prepare(&joints, &camera, crate::cull::meshlet::Tests::Both, &mut frame);
+        culler.cull(&frame, &mut Vec::new(), &mut Vec::new());
+        e.any_pose.cull(&joints, &camera, &mut Vec::new());
+        let rest: Vec<f32> = e.envelope.weights.iter().map(|w| w.0).collect();
+        e.envelope.admits(&[], &rest);
     }
     if let Some(c) = &b.contours {
         let edges = skinned_edges(&b.mesh, c.visible_only)?;
@@ -562,6 +640,33 @@ impl<'a> In<'a> {
     fn end(&self) -> Result<()> {
         if self.at == self.b.len() { Ok(()) } else { Err(self.err("unexpected bytes after the section's data")) }
     }
+    /// `n` meshlet bounds with their classes, principal joints below `joints`.
+    fn bounds(&mut self, n: usize, joints: usize) -> Result<(Vec<MeshletBounds>, Vec<Class>)> {
+        if n.saturating_mul(BOUNDS_STRIDE) > self.b.len() - self.at {
+            return Err(self.err(format!("{n} meshlet bounds do not fit in the section")));
+        }
+        let mut bounds = Vec::with_capacity(n);
+        let mut classes = Vec::with_capacity(n);
+        for i in 0..n {
+            let (center, radius, cone_axis, cone_angle) = (self.vec3()?, self.f32()?, self.vec3()?, self.f32()?);
+            let (rest_radius, rest_cone_angle, joint) = (self.f32()?, self.f32()?, self.u32()?);
+            if joint as usize >= joints {
+                return Err(self.err(format!("meshlet {i}'s principal joint {joint} is not one of {joints} joints")));
+            }
+            classes.push(match self.u32()? {
+                0 => Class::Both,
+                1 => Class::FrustumOnly,
+                2 => Class::None,
+                x => return Err(self.err(format!("meshlet {i} has unknown class {x}"))),
+            });
+            if radius < 0.0 || rest_radius < 0.0 || !(0.0..=std::f32::consts::PI).contains(&cone_angle) {
+                return Err(self.err(format!("meshlet {i} has a negative radius or a cone angle outside [0, π]")));
+            }
+            let joint = joint as u16;
+            bounds.push(MeshletBounds { joint, center, radius, rest_radius, cone_axis, cone_angle, rest_cone_angle });
+        }
+        Ok((bounds, classes))
+    }
 }
 
 /// Parses and checks bake file bytes.
@@ -575,7 +680,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
         return Err(Error::unsupported("bake header", format!("version {version}; this skinlet reads {VERSION}")));
     }
     let n = head.count("sections", ENTRY)?;
-    let mut found: [Option<&[u8]>; 10] = [None; 10];
+    let mut found: [Option<&[u8]>; 11] = [None; 11];
     for _ in 0..n {
         let tag: [u8; 4] = head.bytes(4)?.try_into().expect("4 bytes");
         head.u32()?;
@@ -666,31 +771,13 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
         return Err(s.err(format!("{n} bounds for {} meshlets", meshlets.len())));
     }
     s.align(16)?;
-    let mut bounds = Vec::with_capacity(n);
-    let mut classes = Vec::with_capacity(n);
-    for i in 0..n {
-        let (center, radius, cone_axis, cone_angle) = (s.vec3()?, s.f32()?, s.vec3()?, s.f32()?);
-        let (rest_radius, rest_cone_angle, joint) = (s.f32()?, s.f32()?, s.u32()?);
-        if joint as usize >= joints {
-            return Err(s.err(format!("meshlet {i}'s principal joint {joint} is not one of {joints} joints")));
-        }
-        classes.push(match s.u32()? {
-            0 => Class::Both,
-            1 => Class::FrustumOnly,
-            2 => Class::None,
-            x => return Err(s.err(format!("meshlet {i} has unknown class {x}"))),
-        });
-        let b =
-            MeshletBounds { joint: joint as u16, center, radius, rest_radius, cone_axis, cone_angle, rest_cone_angle };
-        if radius < 0.0 || rest_radius < 0.0 || !(0.0..=std::f32::consts::PI).contains(&cone_angle) {
-            return Err(s.err(format!("meshlet {i} has a negative radius or a cone angle outside [0, π]")));
-        }
-        bounds.push(b);
-    }
+    let (bounds, classes) = s.bounds(n, joints)?;
     s.end()?;
     let parts = read_parts(section(6)?, &mesh, &meshlets)?;
     let overdraw = if found[7].is_some() { Some(read_orders(section(7)?, &mesh, &parts, clips_len)?) } else { None };
     let contours = if found[8].is_some() { Some(read_contours(section(8)?, &mesh, joints)?) } else { None };
+    let envelope =
+        if found[10].is_some() { Some(read_envelope(section(10)?, &mesh, meshlets.len(), joints)?) } else { None };
     Ok(Baked {
         settings,
         joint_nodes,
@@ -703,7 +790,55 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
         classes,
         overdraw,
         contours,
+        envelope,
     })
+}
+
+/// The ENVL section: node ranges and morph weight ranges (checked like any [`Envelope`]),
+/// one envelope bound per meshlet, the any-pose boxes (checked against the meshlets and
+/// joints), then the nodes' names.
+fn read_envelope(mut s: In, mesh: &SkinnedMesh, meshlets: usize, joints: usize) -> Result<BakedEnvelope> {
+    let r = s.count("node ranges", NODE_RANGE_STRIDE)?;
+    let w = s.count("morph weight ranges", 8)?;
+    let m = s.count("envelope bounds", BOUNDS_STRIDE)?;
+    let b = s.count("any-pose boxes", 28)?;
+    if m != meshlets {
+        return Err(s.err(format!("{m} envelope bounds for {meshlets} meshlets")));
+    }
+    let mut nodes = Vec::with_capacity(r);
+    for _ in 0..r {
+        let node = s.u32()?;
+        let centre = Quat::from_xyzw(s.f32()?, s.f32()?, s.f32()?, s.f32()?);
+        let angle = s.f32()?;
+        let (t0, t1, s0, s1) = (s.vec3()?, s.vec3()?, s.vec3()?, s.vec3()?);
+        nodes.push(NodeRange { node, centre, angle, translation: (t0, t1), scale: (s0, s1) });
+    }
+    let weights = (0..w).map(|_| Ok((s.f32()?, s.f32()?))).collect::<Result<Vec<_>>>()?;
+    let envelope = Envelope { nodes, weights };
+    // Node indices are the source file's: any index is allowed (the guard refuses a pose
+    // without that node), each once.
+    let top = envelope.nodes.iter().map(|r| r.node as usize + 1).max().unwrap_or(0);
+    envelope.check(top, mesh.morphs.weights.len()).map_err(|e| s.err(e))?;
+    s.align(16)?;
+    let (bounds, classes) = s.bounds(m, joints)?;
+    if (m + 1 + b).saturating_mul(4) > s.b.len() - s.at {
+        return Err(s.err("the any-pose box offsets do not fit in the section"));
+    }
+    let offsets = (0..=m).map(|_| s.u32()).collect::<Result<Vec<_>>>()?;
+    let box_joints = (0..b)
+        .map(|_| s.u32().and_then(|j| u16::try_from(j).map_err(|_| s.err(format!("box joint {j}")))))
+        .collect::<Result<Vec<_>>>()?;
+    let (mut center, mut half) = (Vec::with_capacity(b), Vec::with_capacity(b));
+    for _ in 0..b {
+        center.push(s.vec3()?);
+        half.push(s.vec3()?);
+    }
+    let any_pose = AnyPoseBoxes { offsets, joints: box_joints, center, half };
+    any_pose.check(meshlets, joints).map_err(|e| s.err(e))?;
+    let names = (0..r).map(|_| s.str()).collect::<Result<Vec<_>>>()?;
+    s.align(4)?;
+    s.end()?;
+    Ok(BakedEnvelope { envelope, names, bounds, classes, any_pose })
 }
 
 /// The MRPH section: the morph weights, then per vertex its first delta (one more offset
@@ -1012,8 +1147,13 @@ mod tests {
         let how = crate::contour::skinned::refinement(None, 0);
         let sp = SkinnedParams::new(crate::contour::skinned::SkinnedMethod::Animated, how);
         add_contours(&mut b, &asset, &sp, true).unwrap();
+        let clips: Vec<_> = asset.clips.iter().collect();
+        let envelope = Envelope::from_clips(&asset.skeleton, &b.palette(), &b.mesh, &clips, 0.1).unwrap();
+        add_envelope(&mut b, &asset, envelope).unwrap();
         let bytes = to_bytes(&b);
-        check_consumers(&from_bytes(&bytes).unwrap()).unwrap();
+        let back = from_bytes(&bytes).unwrap();
+        assert_eq!(back, b, "every section round-trips");
+        check_consumers(&back).unwrap();
         for cut in 0..bytes.len() {
             assert!(from_bytes(&bytes[..cut]).is_err(), "truncated at {cut} was accepted");
         }

@@ -121,6 +121,75 @@ impl Envelope {
         Ok(Envelope { nodes, weights })
     }
 
+    /// This envelope with some nodes' ranges replaced by a joint-limits file (JSON):
+    ///
+    /// ```json
+    /// { "joints": { "LeftForeArm": { "angle_deg": 70, "centre": [0, 0, 0, 1],
+    ///                                "translation": [[0, 0.2, 0], [0, 0.3, 0]],
+    ///                                "scale": [[1, 1, 1], [1, 1, 1]] } } }
+    /// ```
+    ///
+    /// Each key names a node this envelope lists (a joint or a joint's ancestor); `angle_deg`
+    /// (0 to 180) is required, `centre` (a unit quaternion x, y, z, w) defaults to the node's
+    /// rest rotation, `translation` and `scale` (min and max corners) keep this envelope's
+    /// boxes when absent. The bounds cover the angle plus [`GUARD_SLACK`] twice, like clip
+    /// envelopes. Errors say which joint and field is wrong.
+    pub fn with_limits(mut self, skeleton: &Skeleton, json: &str) -> Result<Envelope> {
+        let bad = |what: String| Error::invalid("joint limits", what);
+        let doc: serde_json::Value = serde_json::from_str(json).map_err(|e| bad(e.to_string()))?;
+        let joints = doc.get("joints").and_then(|j| j.as_object()).ok_or_else(|| bad("no \"joints\" object".into()))?;
+        let floats = |v: &serde_json::Value, n: usize, what: &str| -> Result<Vec<f32>> {
+            let a =
+                v.as_array().filter(|a| a.len() == n).ok_or_else(|| bad(format!("{what}: expected {n} numbers")))?;
+            a.iter()
+                .map(|x| x.as_f64().filter(|x| x.is_finite()).map(|x| x as f32))
+                .collect::<Option<Vec<_>>>()
+                .ok_or_else(|| bad(format!("{what}: expected {n} finite numbers")))
+        };
+        let corners = |v: &serde_json::Value, what: &str| -> Result<(Vec3, Vec3)> {
+            let a = v.as_array().filter(|a| a.len() == 2).ok_or_else(|| bad(format!("{what}: expected [min, max]")))?;
+            let (lo, hi) = (Vec3::from_slice(&floats(&a[0], 3, what)?), Vec3::from_slice(&floats(&a[1], 3, what)?));
+            if !lo.cmple(hi).all() {
+                return Err(bad(format!("{what}: min {lo} above max {hi}")));
+            }
+            Ok((lo, hi))
+        };
+        for (name, limits) in joints {
+            let node = skeleton
+                .nodes
+                .iter()
+                .position(|n| &n.name == name)
+                .ok_or_else(|| bad(format!("no node named {name:?}")))?;
+            let range = self.nodes.iter_mut().find(|r| r.node as usize == node).ok_or_else(|| {
+                bad(format!("{name:?} does not move the skin (not a joint or a joint's ancestor), or is a matrix node"))
+            })?;
+            let field = |f: &str| format!("{name:?}.{f}");
+            let angle = limits
+                .get("angle_deg")
+                .and_then(|a| a.as_f64())
+                .filter(|a| (0.0..=180.0).contains(a))
+                .ok_or_else(|| bad(format!("{}: expected a number from 0 to 180", field("angle_deg"))))?;
+            range.angle = round_up((angle.to_radians() + 2.0 * GUARD_SLACK).min(PI));
+            range.centre = match limits.get("centre") {
+                Some(c) => {
+                    let q = Quat::from_slice(&floats(c, 4, &field("centre"))?);
+                    if (q.length() - 1.0).abs() > 1e-3 {
+                        return Err(bad(format!("{}: not a unit quaternion", field("centre"))));
+                    }
+                    q.normalize()
+                }
+                None => skeleton.nodes[node].rest.rotation.normalize(),
+            };
+            if let Some(t) = limits.get("translation") {
+                range.translation = corners(t, &field("translation"))?;
+            }
+            if let Some(sc) = limits.get("scale") {
+                range.scale = corners(sc, &field("scale"))?;
+            }
+        }
+        Ok(self)
+    }
+
     /// Checks an envelope from outside (a file): nodes below `nodes` and listed once, unit
     /// finite centres, angles in [0, π], ordered finite boxes, `weights` ranges, ordered.
     pub fn check(&self, nodes: usize, weights: usize) -> Result<()> {
@@ -168,8 +237,23 @@ impl Envelope {
                 scale: b(r.scale),
             };
         }
-        let weights = self.weights.iter().map(|&(lo, hi)| widened(lo as f64, hi as f64, 2.0)).collect();
-        IntervalMotions::from_motions(skeleton, motions, weights)
+        IntervalMotions::from_motions(skeleton, motions, self.weight_ranges())
+    }
+
+    /// The morph weight ranges bounds must cover: each range widened by twice
+    /// [`BOX_SLACK`], like the boxes.
+    pub fn weight_ranges(&self) -> Vec<(f64, f64)> {
+        self.weights.iter().map(|&(lo, hi)| widened(lo as f64, hi as f64, 2.0)).collect()
+    }
+
+    /// Whether the morph weights lie in the envelope's ranges (with the slack
+    /// [`Envelope::admits`] allows): the any-pose boxes hold for any joints then.
+    pub fn admits_weights(&self, weights: &[f32]) -> bool {
+        weights.len() == self.weights.len()
+            && weights.iter().zip(&self.weights).all(|(&w, r)| {
+                let (lo, hi) = widened(r.0 as f64, r.1 as f64, 1.0);
+                (lo..=hi).contains(&(w as f64))
+            })
     }
 
     /// The run-time guard: whether a pose lies inside the envelope, so that bounds computed
@@ -193,8 +277,7 @@ impl Envelope {
             let rotation_ok =
                 half >= 0.0 && if half >= PI / 2.0 { true } else { (v as f64) <= half.tan() * (rel.w.abs() as f64) };
             rotation_ok && inside(l.translation, r.translation) && inside(l.scale, r.scale)
-        }) && weights.len() == self.weights.len()
-            && weights.iter().zip(&self.weights).all(|(&w, r)| within(w, r.0, r.1))
+        }) && self.admits_weights(weights)
     }
 }
 

@@ -14,10 +14,11 @@ use super::{Camera, Projection};
 use crate::Result;
 use crate::bake::Baked;
 use crate::clip::Clip;
+use crate::model::Trs;
 use crate::model::{Skeleton, Skin};
-use crate::pose::{Poser, skinning_matrices};
+use crate::pose::{global_transforms, skinning_matrices};
 use crate::skinning;
-use glam::{Affine3A, DMat4, DQuat, DVec3, Vec3};
+use glam::{Affine3A, DMat4, DQuat, DVec3, Quat, Vec3};
 use rayon::prelude::*;
 use std::time::{Duration, Instant};
 
@@ -28,11 +29,40 @@ pub struct CrowdParams {
     pub fps: f32,
     pub seed: u64,
     pub orthographic: bool,
+    pub animation: Animation,
 }
 
 impl Default for CrowdParams {
     fn default() -> Self {
-        CrowdParams { instances: 64, frames: 30, fps: 30.0, seed: 1, orthographic: false }
+        CrowdParams { instances: 64, frames: 30, fps: 30.0, seed: 1, orthographic: false, animation: Animation::Clips }
+    }
+}
+
+/// How the instances are posed: what games do besides playing one clip.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Animation {
+    /// Each instance plays its clip; culling uses the clip bounds (the caller knows the pose
+    /// is clip C at time t).
+    Clips,
+    /// Each instance crossfades its clip with a second one, with its own random weight
+    /// (translations, scales and morph weights lerped, rotations slerped).
+    Blend,
+    /// Each instance plays its clip with an additive layer: every joint of the envelope
+    /// turned by a random rotation of up to this many radians.
+    Additive(f32),
+    /// Each instance plays its clip and two random joints of the envelope are set by "IK":
+    /// one within its range of motion, and in half the instance-frames one 20° beyond it.
+    Ik,
+}
+
+impl Animation {
+    pub fn name(self) -> &'static str {
+        match self {
+            Animation::Clips => "clips",
+            Animation::Blend => "blend",
+            Animation::Additive(_) => "additive",
+            Animation::Ik => "ik",
+        }
     }
 }
 
@@ -215,6 +245,12 @@ pub struct CrowdStats {
     /// With verification: culled triangles checked, and those that were visible after all.
     pub checked_triangles: usize,
     pub false_culls: usize,
+    /// Instance-frames culled with the envelope bounds (the guard admitted the pose), with
+    /// the any-pose boxes (it did not; frustum test only), and not culled at all (morph
+    /// weights outside the envelope's ranges). Clip bounds otherwise.
+    pub envelope_frames: usize,
+    pub any_pose_frames: usize,
+    pub unculled_frames: usize,
 }
 
 impl CrowdStats {
@@ -235,6 +271,9 @@ impl CrowdStats {
         self.cull_time += o.cull_time;
         self.checked_triangles += o.checked_triangles;
         self.false_culls += o.false_culls;
+        self.envelope_frames += o.envelope_frames;
+        self.any_pose_frames += o.any_pose_frames;
+        self.unculled_frames += o.unculled_frames;
     }
 
     fn pct(&self, n: usize, of: usize) -> f64 {
@@ -264,6 +303,10 @@ impl CrowdStats {
     pub fn looseness(&self) -> [f64; 4] {
         self.looseness_sum.map(|x| x / (self.frames * self.instances).max(1) as f64)
     }
+    /// Instance-frames the guard sent to a fallback (any-pose boxes or no culling).
+    pub fn guard_fallback_pct(&self) -> f64 {
+        self.pct(self.any_pose_frames + self.unculled_frames, self.frames * self.instances)
+    }
     pub fn ns_per_meshlet(&self) -> f64 {
         self.cull_time.as_secs_f64() * 1e9 / self.meshlets.max(1) as f64
     }
@@ -272,7 +315,10 @@ impl CrowdStats {
 /// Scratch space of one worker.
 #[derive(Default)]
 struct Scratch {
-    poser: Poser,
+    locals: Vec<Trs>,
+    other: Vec<Trs>,
+    other_weights: Vec<f32>,
+    globals: Vec<DMat4>,
     joint_to_world: Vec<Affine3A>,
     joint_to_model: Vec<Affine3A>,
     skinning: Vec<Affine3A>,
@@ -295,7 +341,17 @@ pub fn run(
     params: &CrowdParams,
     verify: bool,
 ) -> Result<CrowdStats> {
-    let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len())?;
+    let clip_culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len())?;
+    let envelope = match (params.animation, &baked.envelope) {
+        (Animation::Clips, _) => None,
+        (_, Some(e)) => Some((e, MeshletCuller::new(&e.bounds, &e.classes, skin.joints.len())?)),
+        (a, None) => {
+            return Err(crate::Error::invalid(
+                "crowd",
+                format!("{} animation needs a bake with a pose envelope (skinlet bake --envelope)", a.name()),
+            ));
+        }
+    };
     let boxes = JointBoxes::new(&baked.mesh, skin, JointSpace::Joint, clips)?;
     let mesh_boxes = JointBoxes::new(&baked.mesh, skin, JointSpace::Mesh, clips)?;
     let folded = boxes.fold_leaves(skeleton, skin, &baked.mesh, clips, 2)?;
@@ -307,10 +363,32 @@ pub fn run(
         let stats = crowd
             .placements
             .par_iter()
-            .map_init(Scratch::default, |s, pl| -> Result<CrowdStats> {
+            .enumerate()
+            .map_init(Scratch::default, |s, (i, pl)| -> Result<CrowdStats> {
                 let clip = clips.get(pl.clip).copied();
                 let t = pl.time(clip, f, params.fps);
-                let globals = s.poser.globals(skeleton, clip, t);
+                let mut rng = Rng(params.seed ^ (i as u64).wrapping_mul(0x9E37_79B9) ^ (f as u64) << 40);
+                pose(skeleton, clips, pl, (clip, t), f, params, baked, &mut rng, s);
+                global_transforms(skeleton, &s.locals, &mut s.globals);
+                let globals = &s.globals;
+                let mut st = CrowdStats::default();
+                // Which bounds hold for this pose: the clip's, the envelope's (the guard
+                // admits it), the any-pose boxes (morph weights still inside), or none.
+                let culler = match &envelope {
+                    None => Some(&clip_culler),
+                    Some((e, c)) if e.envelope.admits(&s.locals, &s.morph_weights) => {
+                        st.envelope_frames = 1;
+                        Some(c)
+                    }
+                    Some((e, _)) if e.envelope.admits_weights(&s.morph_weights) => {
+                        st.any_pose_frames = 1;
+                        None
+                    }
+                    Some(_) => {
+                        st.unculled_frames = 1;
+                        None
+                    }
+                };
                 s.joint_to_model.clear();
                 s.joint_to_world.clear();
                 for &j in &skin.joints {
@@ -319,26 +397,36 @@ pub fn run(
                     s.joint_to_world.push(Affine3A::from_mat4((pl.model * g).as_mat4()));
                 }
                 skinning_matrices(skin, globals, &mut s.skinning);
-                let mut st = CrowdStats {
-                    meshlets: culler.len(),
-                    triangles: per_meshlet_tris.iter().sum(),
-                    vertex_refs: per_meshlet_refs.iter().sum(),
-                    ..CrowdStats::default()
-                };
-                for tests in [Tests::Frustum, Tests::Backface] {
-                    s.visible.clear();
-                    culler.prepare(&s.joint_to_world, &crowd.camera, tests, &mut s.frame);
-                    let c = culler.cull(&s.frame, &mut s.flags, &mut s.visible);
-                    match tests {
-                        Tests::Frustum => st.culled_frustum_only = c.frustum,
-                        _ => st.culled_backface_only = c.backface,
-                    }
-                }
+                st.meshlets = meshlets.len();
+                st.triangles = per_meshlet_tris.iter().sum();
+                st.vertex_refs = per_meshlet_refs.iter().sum();
                 s.visible.clear();
-                let started = Instant::now();
-                culler.prepare(&s.joint_to_world, &crowd.camera, Tests::Both, &mut s.frame);
-                st.culled_both = culler.cull(&s.frame, &mut s.flags, &mut s.visible);
-                st.cull_time = started.elapsed();
+                if let Some(culler) = culler {
+                    for tests in [Tests::Frustum, Tests::Backface] {
+                        s.visible.clear();
+                        culler.prepare(&s.joint_to_world, &crowd.camera, tests, &mut s.frame);
+                        let c = culler.cull(&s.frame, &mut s.flags, &mut s.visible);
+                        match tests {
+                            Tests::Frustum => st.culled_frustum_only = c.frustum,
+                            _ => st.culled_backface_only = c.backface,
+                        }
+                    }
+                    s.visible.clear();
+                    let started = Instant::now();
+                    culler.prepare(&s.joint_to_world, &crowd.camera, Tests::Both, &mut s.frame);
+                    st.culled_both = culler.cull(&s.frame, &mut s.flags, &mut s.visible);
+                    st.cull_time = started.elapsed();
+                } else if st.any_pose_frames == 1 {
+                    let any = &envelope.as_ref().expect("any-pose frames have an envelope").0.any_pose;
+                    let started = Instant::now();
+                    st.culled_both = any.cull(&s.joint_to_world, &crowd.camera, &mut s.visible);
+                    st.cull_time = started.elapsed();
+                    st.culled_frustum_only = st.culled_both.frustum;
+                } else {
+                    s.visible.extend(0..meshlets.len() as u32);
+                    st.culled_both =
+                        CullCounts { meshlets: meshlets.len(), visible: meshlets.len(), ..Default::default() };
+                }
                 let mut kept = vec![false; meshlets.len()];
                 for &m in &s.visible {
                     kept[m as usize] = true;
@@ -352,7 +440,6 @@ pub fn run(
                 // Skin, move to world and clip space; per-triangle culling in kept meshlets.
                 let n = baked.mesh.positions.len();
                 s.skinned.resize(n, Vec3::ZERO);
-                baked.mesh.morphs.weights_at(clip, t, &mut s.morph_weights);
                 skinning::skin_mesh(&baked.mesh, &s.morph_weights, &s.skinning, &mut s.skinned, &mut [])?;
                 let model = Affine3A::from_mat4(pl.model.as_mat4());
                 s.world.clear();
@@ -361,7 +448,7 @@ pub fn run(
                 // Whole-mesh culling by the dynamic box, moved from entity to world space.
                 let mesh_box = mesh_boxes.update(&s.skinning);
                 if outside(&crowd.camera, &mesh_box.transformed(&model)) {
-                    st.whole_mesh_culled = culler.len();
+                    st.whole_mesh_culled = meshlets.len();
                 }
                 let exact = points_box(&s.skinned).diagonal().max(f32::MIN_POSITIVE);
                 let (sc, sr) = boxes.sphere(&s.joint_to_model);
@@ -381,6 +468,76 @@ pub fn run(
         }
     }
     Ok(total)
+}
+
+/// Poses instance `pl` at frame `frame` (its clip at time `at`) as `params.animation` says:
+/// every node's local transform into `s.locals`, the morph weights into `s.morph_weights`.
+#[allow(clippy::too_many_arguments)]
+fn pose(
+    skeleton: &Skeleton,
+    clips: &[&Clip],
+    pl: &Placement,
+    (clip, t): (Option<&Clip>, f32),
+    frame: usize,
+    params: &CrowdParams,
+    baked: &Baked,
+    rng: &mut Rng,
+    s: &mut Scratch,
+) {
+    let sample = |clip: Option<&Clip>, t: f32, locals: &mut Vec<Trs>, weights: &mut Vec<f32>| {
+        match clip {
+            Some(c) => c.sample_locals(skeleton, t, locals),
+            None => {
+                locals.clear();
+                locals.extend(skeleton.nodes.iter().map(|n| n.rest));
+            }
+        }
+        baked.mesh.morphs.weights_at(clip, t, weights);
+    };
+    sample(clip, t, &mut s.locals, &mut s.morph_weights);
+    let nodes = baked.envelope.as_ref().map_or(&[][..], |e| &e.envelope.nodes[..]);
+    let axis = |rng: &mut Rng| loop {
+        let v = Vec3::new(rng.next() as f32 * 2.0 - 1.0, rng.next() as f32 * 2.0 - 1.0, rng.next() as f32 * 2.0 - 1.0);
+        if v.length() > 0.1 && v.length() <= 1.0 {
+            break v.normalize();
+        }
+    };
+    match params.animation {
+        Animation::Clips => {}
+        Animation::Blend => {
+            // The instance's second clip and weight stay the same over the frames.
+            let mut fixed = Rng(params.seed ^ pl.offset.to_bits() as u64);
+            let other = clips.get((pl.clip + 1 + (fixed.next() * clips.len() as f64) as usize) % clips.len().max(1));
+            let w = fixed.next() as f32;
+            let t2 = pl.time(other.copied(), frame, params.fps);
+            sample(other.copied(), t2, &mut s.other, &mut s.other_weights);
+            for (a, b) in s.locals.iter_mut().zip(&s.other) {
+                a.translation = a.translation.lerp(b.translation, w);
+                a.rotation = a.rotation.slerp(b.rotation, w);
+                a.scale = a.scale.lerp(b.scale, w);
+            }
+            for (a, b) in s.morph_weights.iter_mut().zip(&s.other_weights) {
+                *a += (*b - *a) * w;
+            }
+        }
+        Animation::Additive(max) => {
+            for r in nodes {
+                let q = Quat::from_axis_angle(axis(rng), max * rng.next() as f32);
+                let l = &mut s.locals[r.node as usize];
+                l.rotation = (q * l.rotation).normalize();
+            }
+        }
+        Animation::Ik => {
+            if nodes.is_empty() {
+                return;
+            }
+            for beyond in [false, rng.next() < 0.5] {
+                let r = &nodes[(rng.next() * nodes.len() as f64) as usize % nodes.len()];
+                let angle = if beyond { r.angle + 20f32.to_radians() } else { r.angle * 0.99 * rng.next() as f32 };
+                s.locals[r.node as usize].rotation = (Quat::from_axis_angle(axis(rng), angle) * r.centre).normalize();
+            }
+        }
+    }
 }
 
 /// True when the box is entirely outside one of the camera's planes.
