@@ -577,7 +577,7 @@ pub fn check_consumers(b: &Baked) -> Result<()> {
         culler.cull(&frame, &mut Vec::new(), &mut Vec::new());
         e.any_pose.cull(&joints, &camera, &mut Vec::new());
         let rest: Vec<f32> = e.envelope.weights.iter().map(|w| w.0).collect();
-        e.envelope.admits(&[], &rest);
+        e.envelope.guard().admits(&[], &rest);
     }
     if let Some(c) = &b.contours {
         let edges = skinned_edges(&b.mesh, c.visible_only)?;

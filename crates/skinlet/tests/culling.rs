@@ -1,5 +1,6 @@
 //! Run-time culling guarantees: the crowd scene never culls a triangle that brute force finds
-//! visible (every shared asset and the demo, perspective and orthographic), and per-joint
+//! visible (every shared asset and the demo, perspective and orthographic; clips played
+//! alone, and crossfades, additive layers and IK with the pose envelope's guard), and per-joint
 //! boxes contain every skinned vertex at every sampled time (shared assets, morph targets
 //! included, random rigs with negative and zero scale and shear through non-uniform parent
 //! scale).
@@ -84,6 +85,50 @@ fn crowd_never_culls_a_visible_triangle() {
     check_crowd("demo", &d, &CrowdParams { orthographic: true, seed: 5, ..params });
     assert!(any_frustum || frustum > 0.0, "frustum culling never happened");
     assert!(any_backface || backface > 0.0, "backface culling never happened");
+}
+
+/// Games' poses: crossfades, additive layers and IK on every shared asset and the demo, baked
+/// with an envelope around the clips widened by 10°. Every culled triangle (envelope bounds
+/// where the guard admits the pose, any-pose boxes where it does not) is checked against the
+/// pose drawn; the guard must fire in IK mode (some joints set 20° beyond their range).
+#[test]
+fn game_poses_never_cull_a_visible_triangle() {
+    use skinlet::bounds::envelope::Envelope;
+    use skinlet::cull::crowd::Animation;
+    let d = demo::demo_character(&demo::DemoParams { triangles: 4000, ..Default::default() });
+    let mut assets = shared_assets();
+    assets.push(("demo".into(), d));
+    let (mut checked, mut fallbacks, mut admitted) = (0, 0, 0);
+    for (name, asset) in &assets {
+        let mut b = baked(asset);
+        let clips: Vec<&Clip> = asset.clips.iter().collect();
+        let skin = &b.palette();
+        let envelope = Envelope::from_clips(&asset.skeleton, skin, &b.mesh, &clips, 10f64.to_radians()).unwrap();
+        skinlet::bake::add_envelope(&mut b, asset, envelope).unwrap();
+        for animation in [Animation::Blend, Animation::Additive(10f32.to_radians()), Animation::Ik] {
+            let params = CrowdParams { instances: 16, frames: 3, animation, ..CrowdParams::default() };
+            let scene = posed_crowd(&asset.skeleton, skin, &b.mesh, &clips, &params).unwrap();
+            let stats = run(&b, &asset.skeleton, skin, &clips, &scene, &params, true).unwrap();
+            eprintln!(
+                "{name} {}: {} triangles checked, {} false culls; culled {:.1}%; guard: {} inside, {} any-pose, {} unculled",
+                animation.name(),
+                stats.checked_triangles,
+                stats.false_culls,
+                stats.both_pct(),
+                stats.envelope_frames,
+                stats.any_pose_frames,
+                stats.unculled_frames
+            );
+            assert_eq!(stats.false_culls, 0, "{name} {}: {stats:?}", animation.name());
+            checked += stats.checked_triangles;
+            admitted += stats.envelope_frames;
+            if animation == Animation::Ik {
+                fallbacks += stats.any_pose_frames + stats.unculled_frames;
+            }
+        }
+    }
+    assert!(checked > 0 && admitted > 0, "nothing culled with the envelope bounds");
+    assert!(fallbacks > 0, "the guard never fired on IK poses beyond the envelope");
 }
 
 /// Skins `mesh` at `times` of `clip` and checks that every vertex lies in the boxes' union

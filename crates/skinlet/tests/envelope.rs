@@ -106,9 +106,10 @@ fn check_envelope(seed: u64) -> Result<usize, String> {
         random_envelope(&mut r, &skeleton, prepared.mesh.morphs.weights.len())
     };
     let bounds = envelope_bounds(&skeleton, &skin, &prepared.mesh, &meshlets, &env).map_err(|e| e.to_string())?;
+    let guard = env.guard();
     let mut poses: Vec<(Vec<Trs>, Vec<f32>)> = (0..48).map(|_| pose_inside(&mut r, &skeleton, &env)).collect();
     for p in &poses {
-        if !env.admits(&p.0, &p.1) {
+        if !guard.admits(&p.0, &p.1) {
             return Err(format!("seed {seed}: the guard refused a pose inside"));
         }
     }
@@ -116,7 +117,7 @@ fn check_envelope(seed: u64) -> Result<usize, String> {
     if env.nodes.iter().all(|n| n.angle < std::f32::consts::FRAC_PI_2) {
         for k in 0..8 {
             let b = blend(&poses[k], &poses[k + 8], r.u());
-            if !env.admits(&b.0, &b.1) {
+            if !guard.admits(&b.0, &b.1) {
                 return Err(format!("seed {seed}: the guard refused a blend of two poses inside"));
             }
             poses.push(b);
@@ -135,7 +136,7 @@ fn check_envelope(seed: u64) -> Result<usize, String> {
             let t = clip.start + clip.duration() * k as f32 / 40.0;
             clip.sample_locals(&skeleton, t, &mut locals);
             prepared.mesh.morphs.weights_at(Some(&clip), t, &mut weights);
-            if !env.admits(&locals, &weights) {
+            if !guard.admits(&locals, &weights) {
                 return Err(format!("seed {seed}: the guard refused the clip's pose at {t}"));
             }
         }
@@ -144,12 +145,12 @@ fn check_envelope(seed: u64) -> Result<usize, String> {
     if let Some(n) = env.nodes.iter().find(|n| n.angle < 3.0) {
         let (mut locals, weights) = pose_inside(&mut r, &skeleton, &env);
         locals[n.node as usize].rotation = (Quat::from_axis_angle(r.axis(), n.angle + 0.05) * n.centre).normalize();
-        if env.admits(&locals, &weights) {
+        if guard.admits(&locals, &weights) {
             return Err(format!("seed {seed}: the guard admitted a rotation outside node {}'s cap", n.node));
         }
         let (mut locals, weights) = pose_inside(&mut r, &skeleton, &env);
         locals[n.node as usize].translation.x = n.translation.1.x + 0.01;
-        if env.admits(&locals, &weights) {
+        if guard.admits(&locals, &weights) {
             return Err(format!("seed {seed}: the guard admitted a translation outside node {}'s box", n.node));
         }
     }

@@ -11,7 +11,7 @@
 //! argument for cones). Blends stay inside: boxes and ranges are convex, and a cap of angle
 //! below 90° holds two rotations less than 90° apart, whose representatives on the quaternion
 //! sphere are then less than 45° apart, so shortest-path slerp and nlerp run along the arc
-//! between them, inside the cap. [`Envelope::admits`] is the run-time guard that checks a pose.
+//! between them, inside the cap. [`PoseGuard`] is the run-time guard that checks a pose.
 //!
 //! [`Envelope::from_clips`] makes the smallest such envelope around every clip, between keys
 //! too (the exact largest angle from the centre over each LINEAR arc, a bound over each
@@ -246,38 +246,71 @@ impl Envelope {
         self.weights.iter().map(|&(lo, hi)| widened(lo as f64, hi as f64, 2.0)).collect()
     }
 
-    /// Whether the morph weights lie in the envelope's ranges (with the slack
-    /// [`Envelope::admits`] allows): the any-pose boxes hold for any joints then.
-    pub fn admits_weights(&self, weights: &[f32]) -> bool {
-        weights.len() == self.weights.len()
-            && weights.iter().zip(&self.weights).all(|(&w, r)| {
-                let (lo, hi) = widened(r.0 as f64, r.1 as f64, 1.0);
-                (lo..=hi).contains(&(w as f64))
-            })
+    /// The run-time guard for this envelope ([`PoseGuard`]).
+    pub fn guard(&self) -> PoseGuard {
+        let widen = |(lo, hi): (Vec3, Vec3)| {
+            let w: [(f64, f64); 3] = std::array::from_fn(|k| widened(lo[k] as f64, hi[k] as f64, 1.0));
+            (
+                Vec3::new(w[0].0 as f32, w[1].0 as f32, w[2].0 as f32),
+                Vec3::new(w[0].1 as f32, w[1].1 as f32, w[2].1 as f32),
+            )
+        };
+        PoseGuard {
+            nodes: self.nodes.iter().map(|r| r.node).collect(),
+            centres: self.nodes.iter().map(|r| r.centre.conjugate()).collect(),
+            tan2: (self.nodes.iter())
+                .map(|r| {
+                    let half = (r.angle as f64 - GUARD_SLACK) / 2.0;
+                    if half < 0.0 { -1.0 } else { half.tan().powi(2) as f32 }
+                })
+                .collect(),
+            translation: self.nodes.iter().map(|r| widen(r.translation)).collect(),
+            scale: self.nodes.iter().map(|r| widen(r.scale)).collect(),
+            weights: (self.weights.iter())
+                .map(|&(lo, hi)| {
+                    let (lo, hi) = widened(lo as f64, hi as f64, 1.0);
+                    (lo as f32, hi as f32)
+                })
+                .collect(),
+        }
+    }
+}
+
+/// The run-time guard: whether a pose lies inside a pose envelope, so that bounds computed
+/// for it hold. Per listed node one quaternion product and two box tests, in f32, no
+/// allocation. A rotation `q` is compared by the vector part of `centre⁻¹·q` (accurate for
+/// small angles too, where a cosine is flat): `|v|² ≤ tan²(θ/2)·w²` for an angle
+/// [`GUARD_SLACK`] smaller than the bounds cover; boxes and ranges are widened by
+/// [`BOX_SLACK`], half what the bounds cover.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PoseGuard {
+    nodes: Vec<u32>,
+    centres: Vec<Quat>,
+    tan2: Vec<f32>,
+    translation: Vec<(Vec3, Vec3)>,
+    scale: Vec<(Vec3, Vec3)>,
+    weights: Vec<(f32, f32)>,
+}
+
+impl PoseGuard {
+    /// Whether a pose is inside: `locals` holds every node's local transform (skeleton
+    /// order), `weights` the morph weights' values. A pose without a listed node is not.
+    pub fn admits(&self, locals: &[Trs], weights: &[f32]) -> bool {
+        let inside = |x: Vec3, (lo, hi): (Vec3, Vec3)| x.cmpge(lo).all() && x.cmple(hi).all();
+        (0..self.nodes.len()).all(|i| {
+            let Some(l) = locals.get(self.nodes[i] as usize) else { return false };
+            let rel = self.centres[i] * l.rotation;
+            let v2 = rel.x * rel.x + rel.y * rel.y + rel.z * rel.z;
+            v2 <= self.tan2[i] * rel.w * rel.w
+                && inside(l.translation, self.translation[i])
+                && inside(l.scale, self.scale[i])
+        }) && self.admits_weights(weights)
     }
 
-    /// The run-time guard: whether a pose lies inside the envelope, so that bounds computed
-    /// for it hold. `locals`: every node's local transform (skeleton order); `weights`: the
-    /// morph weights' values. O(listed nodes), no allocation. Rotations are compared by the
-    /// vector part of `centre⁻¹·q` (accurate for small angles too) against an angle
-    /// [`GUARD_SLACK`] smaller than the bounds cover; boxes and ranges with half the
-    /// [`BOX_SLACK`] the bounds cover.
-    pub fn admits(&self, locals: &[Trs], weights: &[f32]) -> bool {
-        let within = |x: f32, lo: f32, hi: f32| {
-            let (lo, hi) = widened(lo as f64, hi as f64, 1.0);
-            (lo..=hi).contains(&(x as f64))
-        };
-        let inside = |x: Vec3, (lo, hi): (Vec3, Vec3)| (0..3).all(|k| within(x[k], lo[k], hi[k]));
-        self.nodes.iter().all(|r| {
-            let Some(l) = locals.get(r.node as usize) else { return false };
-            let rel = r.centre.conjugate() * l.rotation;
-            let v = Vec3::new(rel.x, rel.y, rel.z).length();
-            let half = (r.angle as f64 - GUARD_SLACK) / 2.0;
-            // atan2(|v|, |w|) ≤ half, without trigonometry on the rotation.
-            let rotation_ok =
-                half >= 0.0 && if half >= PI / 2.0 { true } else { (v as f64) <= half.tan() * (rel.w.abs() as f64) };
-            rotation_ok && inside(l.translation, r.translation) && inside(l.scale, r.scale)
-        }) && self.admits_weights(weights)
+    /// Whether the morph weights lie in the envelope's ranges: the any-pose boxes hold for
+    /// any joints then.
+    pub fn admits_weights(&self, weights: &[f32]) -> bool {
+        weights.len() == self.weights.len() && weights.iter().zip(&self.weights).all(|(w, r)| (r.0..=r.1).contains(w))
     }
 }
 

@@ -142,6 +142,19 @@ impl AnyPoseBoxes {
         counts
     }
 
+    /// Removes from `visible` (meshlet indices another test kept) the meshlets these boxes
+    /// cull, and returns how many. Both tests hold for a pose inside a pose envelope, so a
+    /// meshlet either culls stays culled: where the envelope's caps are wide, the boxes are
+    /// the tighter bound.
+    pub fn retain_visible(&self, joint_to_world: &[Affine3A], camera: &Camera, visible: &mut Vec<u32>) -> usize {
+        let before = visible.len();
+        visible.retain(|&m| {
+            let boxes = self.offsets.get(m as usize).zip(self.offsets.get(m as usize + 1));
+            !boxes.is_some_and(|(&a, &b)| a < b && self.outside(a as usize..b as usize, joint_to_world, &camera.planes))
+        });
+        before - visible.len()
+    }
+
     /// Whether all the boxes, moved by their joints, are outside one of the planes.
     fn outside(&self, boxes: std::ops::Range<usize>, joint_to_world: &[Affine3A], planes: &[Vec4; 6]) -> bool {
         let mut out = [true; 6];

@@ -251,6 +251,37 @@ pub struct CrowdStats {
     pub envelope_frames: usize,
     pub any_pose_frames: usize,
     pub unculled_frames: usize,
+    /// Each bound alone where it holds, for [`CULLING_METHODS`] in that order.
+    pub methods: [MethodStats; 4],
+    /// CPU time of the pose guard, and of computing the joint matrices from the local
+    /// transforms (global transforms and world matrices), summed over instance-frames.
+    pub guard_time: Duration,
+    pub matrices_time: Duration,
+}
+
+/// The bounds measured one by one: the clip bounds (where the pose is a clip's), the
+/// envelope bounds (where the guard admits it), the any-pose boxes, and the whole-mesh box
+/// from per-joint boxes (mesh space; any pose).
+pub const CULLING_METHODS: [&str; 4] =
+    ["clip bounds", "envelope bounds", "any-pose boxes", "whole-mesh per-joint boxes"];
+
+/// One bound's results over the instance-frames where it holds: meshlets tested, culled
+/// (both tests for meshlet bounds, the frustum for boxes), CPU time.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MethodStats {
+    pub meshlets: usize,
+    pub culled: usize,
+    pub time: Duration,
+}
+
+impl MethodStats {
+    /// Share culled, `None` where the bound never held.
+    pub fn culled_pct(&self) -> Option<f64> {
+        (self.meshlets > 0).then(|| 100.0 * self.culled as f64 / self.meshlets as f64)
+    }
+    pub fn ns_per_meshlet(&self) -> Option<f64> {
+        (self.meshlets > 0).then(|| self.time.as_secs_f64() * 1e9 / self.meshlets as f64)
+    }
 }
 
 impl CrowdStats {
@@ -274,6 +305,11 @@ impl CrowdStats {
         self.envelope_frames += o.envelope_frames;
         self.any_pose_frames += o.any_pose_frames;
         self.unculled_frames += o.unculled_frames;
+        for (a, b) in self.methods.iter_mut().zip(&o.methods) {
+            (a.meshlets, a.culled, a.time) = (a.meshlets + b.meshlets, a.culled + b.culled, a.time + b.time);
+        }
+        self.guard_time += o.guard_time;
+        self.matrices_time += o.matrices_time;
     }
 
     fn pct(&self, n: usize, of: usize) -> f64 {
@@ -344,7 +380,7 @@ pub fn run(
     let clip_culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len())?;
     let envelope = match (params.animation, &baked.envelope) {
         (Animation::Clips, _) => None,
-        (_, Some(e)) => Some((e, MeshletCuller::new(&e.bounds, &e.classes, skin.joints.len())?)),
+        (_, Some(e)) => Some((e.envelope.guard(), MeshletCuller::new(&e.bounds, &e.classes, skin.joints.len())?)),
         (a, None) => {
             return Err(crate::Error::invalid(
                 "crowd",
@@ -352,6 +388,8 @@ pub fn run(
             ));
         }
     };
+    // The any-pose boxes hold whenever the morph weights are inside the envelope's ranges.
+    let weights_guard = baked.envelope.as_ref().map(|e| e.envelope.guard());
     let boxes = JointBoxes::new(&baked.mesh, skin, JointSpace::Joint, clips)?;
     let mesh_boxes = JointBoxes::new(&baked.mesh, skin, JointSpace::Mesh, clips)?;
     let folded = boxes.fold_leaves(skeleton, skin, &baked.mesh, clips, 2)?;
@@ -369,18 +407,34 @@ pub fn run(
                 let t = pl.time(clip, f, params.fps);
                 let mut rng = Rng(params.seed ^ (i as u64).wrapping_mul(0x9E37_79B9) ^ (f as u64) << 40);
                 pose(skeleton, clips, pl, (clip, t), f, params, baked, &mut rng, s);
-                global_transforms(skeleton, &s.locals, &mut s.globals);
-                let globals = &s.globals;
                 let mut st = CrowdStats::default();
-                // Which bounds hold for this pose: the clip's, the envelope's (the guard
-                // admits it), the any-pose boxes (morph weights still inside), or none.
+                // The joint matrices a game computes from the pose (timed: the guard's cost
+                // is measured against it).
+                let started = Instant::now();
+                global_transforms(skeleton, &s.locals, &mut s.globals);
+                s.joint_to_model.clear();
+                s.joint_to_world.clear();
+                for &j in &skin.joints {
+                    let g = s.globals[j as usize];
+                    s.joint_to_model.push(Affine3A::from_mat4(g.as_mat4()));
+                    s.joint_to_world.push(Affine3A::from_mat4((pl.model * g).as_mat4()));
+                }
+                st.matrices_time = started.elapsed();
+                skinning_matrices(skin, &s.globals, &mut s.skinning);
+                // Which bounds hold for this pose: the clip's (the caller says it is clip C at
+                // time t), the envelope's (the guard admits it), the any-pose boxes (morph
+                // weights inside the envelope's ranges; also whenever the others hold).
+                let started = Instant::now();
+                let inside = envelope.as_ref().is_some_and(|(g, _)| g.admits(&s.locals, &s.morph_weights));
+                st.guard_time = started.elapsed();
+                let weights_inside = weights_guard.as_ref().is_some_and(|g| g.admits_weights(&s.morph_weights));
                 let culler = match &envelope {
                     None => Some(&clip_culler),
-                    Some((e, c)) if e.envelope.admits(&s.locals, &s.morph_weights) => {
+                    Some((_, c)) if inside => {
                         st.envelope_frames = 1;
                         Some(c)
                     }
-                    Some((e, _)) if e.envelope.admits_weights(&s.morph_weights) => {
+                    Some(_) if weights_inside => {
                         st.any_pose_frames = 1;
                         None
                     }
@@ -389,17 +443,32 @@ pub fn run(
                         None
                     }
                 };
-                s.joint_to_model.clear();
-                s.joint_to_world.clear();
-                for &j in &skin.joints {
-                    let g = globals[j as usize];
-                    s.joint_to_model.push(Affine3A::from_mat4(g.as_mat4()));
-                    s.joint_to_world.push(Affine3A::from_mat4((pl.model * g).as_mat4()));
-                }
-                skinning_matrices(skin, globals, &mut s.skinning);
+                let any_pose = baked.envelope.as_ref().filter(|_| weights_inside).map(|e| &e.any_pose);
                 st.meshlets = meshlets.len();
                 st.triangles = per_meshlet_tris.iter().sum();
                 st.vertex_refs = per_meshlet_refs.iter().sum();
+                // Each valid bound alone, timed (the table of docs/CULLING.md).
+                let n = meshlets.len();
+                let clip_bounds = envelope.is_none().then_some(&clip_culler);
+                let envelope_bounds = envelope.as_ref().filter(|_| inside).map(|(_, c)| c);
+                for (k, c) in [clip_bounds, envelope_bounds].into_iter().enumerate() {
+                    if let Some(c) = c {
+                        s.visible.clear();
+                        let started = Instant::now();
+                        c.prepare(&s.joint_to_world, &crowd.camera, Tests::Both, &mut s.frame);
+                        let counts = c.cull(&s.frame, &mut s.flags, &mut s.visible);
+                        st.methods[k] =
+                            MethodStats { meshlets: n, culled: n - counts.visible, time: started.elapsed() };
+                    }
+                }
+                if let Some(any) = any_pose {
+                    s.visible.clear();
+                    let started = Instant::now();
+                    let counts = any.cull(&s.joint_to_world, &crowd.camera, &mut s.visible);
+                    st.methods[2] = MethodStats { meshlets: n, culled: n - counts.visible, time: started.elapsed() };
+                }
+                // The three pipelines with the tightest valid bounds; with both tests, the
+                // any-pose boxes cull what they can of the rest.
                 s.visible.clear();
                 if let Some(culler) = culler {
                     for tests in [Tests::Frustum, Tests::Backface] {
@@ -415,17 +484,20 @@ pub fn run(
                     let started = Instant::now();
                     culler.prepare(&s.joint_to_world, &crowd.camera, Tests::Both, &mut s.frame);
                     st.culled_both = culler.cull(&s.frame, &mut s.flags, &mut s.visible);
+                    if let Some(any) = any_pose {
+                        let more = any.retain_visible(&s.joint_to_world, &crowd.camera, &mut s.visible);
+                        st.culled_both.frustum += more;
+                        st.culled_both.visible -= more;
+                    }
                     st.cull_time = started.elapsed();
-                } else if st.any_pose_frames == 1 {
-                    let any = &envelope.as_ref().expect("any-pose frames have an envelope").0.any_pose;
+                } else if let Some(any) = any_pose {
                     let started = Instant::now();
                     st.culled_both = any.cull(&s.joint_to_world, &crowd.camera, &mut s.visible);
                     st.cull_time = started.elapsed();
                     st.culled_frustum_only = st.culled_both.frustum;
                 } else {
-                    s.visible.extend(0..meshlets.len() as u32);
-                    st.culled_both =
-                        CullCounts { meshlets: meshlets.len(), visible: meshlets.len(), ..Default::default() };
+                    s.visible.extend(0..n as u32);
+                    st.culled_both = CullCounts { meshlets: n, visible: n, ..Default::default() };
                 }
                 let mut kept = vec![false; meshlets.len()];
                 for &m in &s.visible {
@@ -438,18 +510,19 @@ pub fn run(
                     }
                 }
                 // Skin, move to world and clip space; per-triangle culling in kept meshlets.
-                let n = baked.mesh.positions.len();
-                s.skinned.resize(n, Vec3::ZERO);
+                s.skinned.resize(baked.mesh.positions.len(), Vec3::ZERO);
                 skinning::skin_mesh(&baked.mesh, &s.morph_weights, &s.skinning, &mut s.skinned, &mut [])?;
                 let model = Affine3A::from_mat4(pl.model.as_mat4());
                 s.world.clear();
                 s.world.extend(s.skinned.iter().map(|&p| model.transform_point3(p)));
                 st.triangle_culling = cull_triangles(meshlets, &s.visible, &s.world, crowd.camera.projection, None);
                 // Whole-mesh culling by the dynamic box, moved from entity to world space.
+                let started = Instant::now();
                 let mesh_box = mesh_boxes.update(&s.skinning);
                 if outside(&crowd.camera, &mesh_box.transformed(&model)) {
                     st.whole_mesh_culled = meshlets.len();
                 }
+                st.methods[3] = MethodStats { meshlets: n, culled: st.whole_mesh_culled, time: started.elapsed() };
                 let exact = points_box(&s.skinned).diagonal().max(f32::MIN_POSITIVE);
                 let (sc, sr) = boxes.sphere(&s.joint_to_model);
                 let sphere = Box3 { min: sc - sr, max: sc + sr };
