@@ -261,6 +261,67 @@ fn crowd_draws_agree_and_are_timed() {
     }
 }
 
+#[test]
+fn game_poses_cull_on_the_gpu_as_on_the_cpu() {
+    // IK poses (some joints beyond their range of motion): per instance the CPU pose guard
+    // picks the envelope bounds, or a frame that culls nothing; the GPU culling passes draw
+    // exactly the CPU's visible meshlets and the same image as without culling.
+    use skinlet::cull::crowd::{Animation, CrowdParams, crowd, instance_pose};
+    use skinlet::cull::meshlet::{JointFrame, MeshletCuller, Tests};
+    let Some(gpu) = gpu() else { return };
+    let renderer = Renderer::new(&gpu, 320, 180).unwrap();
+    let demo = skinlet::demo::demo_character(&skinlet::demo::DemoParams { triangles: 4000, ..Default::default() });
+    let clips: Vec<&skinlet::clip::Clip> = demo.clips.iter().collect();
+    let mut baked = common::bake(&demo, &demo.character().unwrap());
+    let skin = &baked.palette();
+    let envelope =
+        skinlet::bounds::envelope::Envelope::from_clips(&demo.skeleton, skin, &baked.mesh, &clips, 0.2).unwrap();
+    skinlet::bake::add_envelope(&mut baked, &demo, envelope).unwrap();
+    let e = baked.envelope.as_ref().unwrap();
+    let (guard, culler) = (e.envelope.guard(), MeshletCuller::new(&e.bounds, &e.classes, skin.joints.len()).unwrap());
+    let params = CrowdParams { instances: 12, animation: Animation::Ik, seed: 3, ..Default::default() };
+    let scene = crowd(&baked.mesh.positions, clips.len(), &params).unwrap();
+    let (mut poses, mut frames, mut expected, mut refused) = (Vec::new(), Vec::new(), 0, 0);
+    let (mut locals, mut weights, mut globals) = (Vec::new(), Vec::new(), Vec::new());
+    for (i, pl) in scene.placements.iter().enumerate() {
+        instance_pose(&demo.skeleton, &clips, &baked, &params, i, pl, 0, &mut locals, &mut weights);
+        skinlet::pose::global_transforms(&demo.skeleton, &locals, &mut globals);
+        let (mut joints, mut skinning) = (Vec::new(), Vec::new());
+        pl.world_matrices(skin, &globals, &mut joints, &mut skinning);
+        let frame = if guard.admits(&locals, &weights) {
+            let mut frame = JointFrame::default();
+            culler.prepare(&joints, &scene.camera, Tests::Both, &mut frame);
+            frame
+        } else {
+            refused += 1;
+            JointFrame::keep_all(skin.joints.len())
+        };
+        let mut visible = Vec::new();
+        culler.cull(&frame, &mut Vec::new(), &mut visible);
+        expected += visible.iter().map(|&m| baked.meshlets.meshlets[m as usize].triangle_count as u32).sum::<u32>();
+        poses.push((skinning, weights.clone()));
+        frames.push(frame);
+    }
+    assert!(refused > 0 && refused < 12, "the guard refused {refused} of 12 instances");
+    let instances: Vec<Instance> = (poses.iter().zip(&frames))
+        .map(|((m, w), f)| Instance { pose: Pose { matrices: m, morph_weights: w }, frame: Some(f) })
+        .collect();
+    let mesh_gpu = GpuMesh::new(&gpu, &baked.mesh, Some(&baked.meshlets)).unwrap();
+    let (view_proj, light) = (scene.camera.view_proj, Vec3::new(0.4, 0.8, 0.6));
+    let draw = |how| renderer.render_crowd(&gpu, &mesh_gpu, &instances, view_proj, light, how).unwrap();
+    let reference = draw(CrowdDraw::Plain(Skinning::Vertex));
+    let all: u32 = 12 * baked.meshlets.meshlets.iter().map(|m| m.triangle_count as u32).sum::<u32>();
+    assert!(expected < all, "nothing culled");
+    let culled = draw(CrowdDraw::Culled {
+        culler: &culler,
+        culling: Culling::ComputeIndirect,
+        skinning: Skinning::Vertex,
+        triangles: None,
+    });
+    assert_eq!(culled.triangles, Some(expected), "triangles drawn");
+    assert_eq!(differing_pixels(&culled.image, &reference.image), 0, "culled and unculled images differ");
+}
+
 fn differing_pixels(a: &skinlet_gpu::render::Image, b: &skinlet_gpu::render::Image) -> usize {
     a.rgba.chunks(4).zip(b.rgba.chunks(4)).filter(|(x, y)| x != y).count()
 }

@@ -405,8 +405,7 @@ pub fn run(
             .map_init(Scratch::default, |s, (i, pl)| -> Result<CrowdStats> {
                 let clip = clips.get(pl.clip).copied();
                 let t = pl.time(clip, f, params.fps);
-                let mut rng = Rng(params.seed ^ (i as u64).wrapping_mul(0x9E37_79B9) ^ (f as u64) << 40);
-                pose(skeleton, clips, pl, (clip, t), f, params, baked, &mut rng, s);
+                pose(skeleton, clips, pl, (clip, t), f, params, baked, &mut instance_rng(params, i, f), s);
                 let mut st = CrowdStats::default();
                 // The joint matrices a game computes from the pose (timed: the guard's cost
                 // is measured against it).
@@ -541,6 +540,32 @@ pub fn run(
         }
     }
     Ok(total)
+}
+
+/// The pose of instance `i` (placement `pl`) at frame `frame` as `params.animation` says,
+/// as [`run`] draws it: every node's local transform into `locals`, the morph weights into
+/// `weights`. The additive and IK modes move the nodes of `baked`'s pose envelope.
+#[allow(clippy::too_many_arguments)]
+pub fn instance_pose(
+    skeleton: &Skeleton,
+    clips: &[&Clip],
+    baked: &Baked,
+    params: &CrowdParams,
+    i: usize,
+    pl: &Placement,
+    frame: usize,
+    locals: &mut Vec<Trs>,
+    weights: &mut Vec<f32>,
+) {
+    let clip = clips.get(pl.clip).copied();
+    let t = pl.time(clip, frame, params.fps);
+    let mut s = Scratch { locals: std::mem::take(locals), morph_weights: std::mem::take(weights), ..Scratch::default() };
+    pose(skeleton, clips, pl, (clip, t), frame, params, baked, &mut instance_rng(params, i, frame), &mut s);
+    (*locals, *weights) = (s.locals, s.morph_weights);
+}
+
+fn instance_rng(params: &CrowdParams, i: usize, frame: usize) -> Rng {
+    Rng(params.seed ^ (i as u64).wrapping_mul(0x9E37_79B9) ^ (frame as u64) << 40)
 }
 
 /// Poses instance `pl` at frame `frame` (its clip at time `at`) as `params.animation` says:

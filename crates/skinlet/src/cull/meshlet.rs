@@ -207,6 +207,23 @@ pub const GROUP_OUTSIDE: u32 = 1;
 pub const GROUP_STRADDLES: u32 = 2;
 
 impl JointFrame {
+    /// A frame that culls nothing (every group inside the frustum, no backface test): for an
+    /// instance whose pose no stored bound covers (the pose guard refused it), so that GPU
+    /// culling passes draw it whole.
+    pub fn keep_all(joints: usize) -> JointFrame {
+        JointFrame {
+            planes: vec![[[0.0; 4]; 6]; joints],
+            len: vec![[0.0; 6]; joints],
+            margin: vec![0.0; joints],
+            view: vec![Vec3::ZERO; joints],
+            sign: vec![0.0; joints],
+            backface_margin: vec![0.0; joints],
+            group: vec![Group::Inside; joints],
+            orthographic: false,
+            tests: Tests::Both,
+        }
+    }
+
     /// Per joint, the values the culling loop reads.
     pub fn records(&self) -> Vec<JointRecord> {
         (0..self.group.len())
