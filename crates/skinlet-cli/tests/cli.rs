@@ -339,6 +339,54 @@ fn cull_reports_table_one_columns_and_never_culls_visible_triangles() {
 }
 
 #[test]
+fn envelopes_bake_and_game_poses_cull_with_the_guard() {
+    let dir = std::env::temp_dir().join(format!("skinlet-envelope-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (plain, with) = (dir.join("plain.skinlet"), dir.join("envelope.skinlet"));
+    let (plain, with) = (plain.to_str().unwrap(), with.to_str().unwrap());
+    let j = json_of(&["bake", "@demo:2000", "-o", with, "--envelope", "clips:10", "--json"]);
+    assert!(j["envelope_nodes"].as_u64().unwrap() > 0 && j["any_pose_boxes"].as_u64().unwrap() > 0, "{j}");
+    let shares: f64 = ["envelope_both_pct", "envelope_frustum_only_pct", "envelope_none_pct"]
+        .iter()
+        .map(|k| j[k].as_f64().unwrap())
+        .sum();
+    assert!((shares - 100.0).abs() < 1e-6, "{j}");
+    // IK poses: the guard sends some instance-frames to the any-pose boxes; nothing visible
+    // is culled. The same from the bake file.
+    let args = ["--animation", "ik", "--instances", "8", "--frames", "3", "--check", "--json"];
+    let a = json_of(&[&["cull", "@demo:2000"][..], &args].concat());
+    let b = json_of(&[&["cull", with, "--gltf", "@demo:2000"][..], &args].concat());
+    for r in [&a, &b] {
+        assert_eq!(r["false_culls"], 0, "{r}");
+        let fallback = r["guard_fallback_pct"].as_f64().unwrap();
+        assert!(fallback > 0.0 && fallback < 100.0, "{r}");
+        assert_eq!(r["envelope_frames"].as_u64().unwrap() + r["any_pose_frames"].as_u64().unwrap(), 24, "{r}");
+    }
+    // A bake without an envelope cannot cull game poses; bad specs and limits say why.
+    let (code, _, err) = skinlet(&["bake", "@demo:2000", "-o", plain]);
+    assert_eq!(code, 0, "{err}");
+    let (code, _, err) = skinlet(&["cull", plain, "--gltf", "@demo:2000", "--animation", "blend"]);
+    assert_ne!(code, 0);
+    assert!(err.contains("--envelope"), "{err}");
+    let (code, _, err) = skinlet(&["bake", "@demo:2000", "-o", plain, "--envelope", "clips:abc"]);
+    assert_ne!(code, 0);
+    assert!(err.contains("margin"), "{err}");
+    let limits = dir.join("limits.json");
+    std::fs::write(&limits, r#"{"joints": {"head": {"angle_deg": 30}}}"#).unwrap();
+    let j = json_of(&["bake", "@demo:2000", "-o", plain, "--envelope", limits.to_str().unwrap(), "--json"]);
+    assert!(j["envelope_nodes"].as_u64().unwrap() > 0, "{j}");
+    std::fs::write(&limits, r#"{"joints": {"no such joint": {"angle_deg": 30}}}"#).unwrap();
+    let (code, _, err) = skinlet(&["bake", "@demo:2000", "-o", plain, "--envelope", limits.to_str().unwrap()]);
+    assert_ne!(code, 0);
+    assert!(err.contains("no such joint"), "{err}");
+    std::fs::write(&limits, r#"{"joints": {"head": {"angle_deg": 300}}}"#).unwrap();
+    let (code, _, err) = skinlet(&["bake", "@demo:2000", "-o", plain, "--envelope", limits.to_str().unwrap()]);
+    assert_ne!(code, 0);
+    assert!(err.contains("angle_deg"), "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
 fn bench_joint_aabb_measures_both_updates() {
     let rows = json_of(&["bench", "joint-aabb", "@demo:2000", "--instances", "20,50", "--seconds", "0.05", "--json"]);
     let rows = rows.as_array().unwrap();

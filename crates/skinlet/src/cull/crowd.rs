@@ -352,8 +352,7 @@ impl CrowdStats {
 #[derive(Default)]
 struct Scratch {
     locals: Vec<Trs>,
-    other: Vec<Trs>,
-    other_weights: Vec<f32>,
+    other: (Vec<Trs>, Vec<f32>),
     globals: Vec<DMat4>,
     joint_to_world: Vec<Affine3A>,
     joint_to_model: Vec<Affine3A>,
@@ -378,9 +377,10 @@ pub fn run(
     verify: bool,
 ) -> Result<CrowdStats> {
     let clip_culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len())?;
-    let envelope = match (params.animation, &baked.envelope) {
+    // Poses that are not clips are culled with the envelope bounds where the guard admits them.
+    let envelope_culler = match (params.animation, &baked.envelope) {
         (Animation::Clips, _) => None,
-        (_, Some(e)) => Some((e.envelope.guard(), MeshletCuller::new(&e.bounds, &e.classes, skin.joints.len())?)),
+        (_, Some(e)) => Some(MeshletCuller::new(&e.bounds, &e.classes, skin.joints.len())?),
         (a, None) => {
             return Err(crate::Error::invalid(
                 "crowd",
@@ -388,8 +388,7 @@ pub fn run(
             ));
         }
     };
-    // The any-pose boxes hold whenever the morph weights are inside the envelope's ranges.
-    let weights_guard = baked.envelope.as_ref().map(|e| e.envelope.guard());
+    let guard = baked.envelope.as_ref().map(|e| e.envelope.guard());
     let boxes = JointBoxes::new(&baked.mesh, skin, JointSpace::Joint, clips)?;
     let mesh_boxes = JointBoxes::new(&baked.mesh, skin, JointSpace::Mesh, clips)?;
     let folded = boxes.fold_leaves(skeleton, skin, &baked.mesh, clips, 2)?;
@@ -405,7 +404,9 @@ pub fn run(
             .map_init(Scratch::default, |s, (i, pl)| -> Result<CrowdStats> {
                 let clip = clips.get(pl.clip).copied();
                 let t = pl.time(clip, f, params.fps);
-                pose(skeleton, clips, pl, (clip, t), f, params, baked, &mut instance_rng(params, i, f), s);
+                let mut rng = instance_rng(params, i, f);
+                let pose_out = (&mut s.locals, &mut s.morph_weights);
+                pose(skeleton, clips, pl, (clip, t), f, params, baked, &mut rng, pose_out, &mut s.other);
                 let mut st = CrowdStats::default();
                 // The joint matrices a game computes from the pose (timed: the guard's cost
                 // is measured against it).
@@ -424,12 +425,14 @@ pub fn run(
                 // time t), the envelope's (the guard admits it), the any-pose boxes (morph
                 // weights inside the envelope's ranges; also whenever the others hold).
                 let started = Instant::now();
-                let inside = envelope.as_ref().is_some_and(|(g, _)| g.admits(&s.locals, &s.morph_weights));
+                let inside =
+                    envelope_culler.is_some() && guard.as_ref().is_some_and(|g| g.admits(&s.locals, &s.morph_weights));
                 st.guard_time = started.elapsed();
-                let weights_inside = weights_guard.as_ref().is_some_and(|g| g.admits_weights(&s.morph_weights));
-                let culler = match &envelope {
+                // The any-pose boxes hold whenever the morph weights are inside the envelope's ranges.
+                let weights_inside = guard.as_ref().is_some_and(|g| g.admits_weights(&s.morph_weights));
+                let culler = match &envelope_culler {
                     None => Some(&clip_culler),
-                    Some((_, c)) if inside => {
+                    Some(c) if inside => {
                         st.envelope_frames = 1;
                         Some(c)
                     }
@@ -448,8 +451,8 @@ pub fn run(
                 st.vertex_refs = per_meshlet_refs.iter().sum();
                 // Each valid bound alone, timed (the table of docs/CULLING.md).
                 let n = meshlets.len();
-                let clip_bounds = envelope.is_none().then_some(&clip_culler);
-                let envelope_bounds = envelope.as_ref().filter(|_| inside).map(|(_, c)| c);
+                let clip_bounds = envelope_culler.is_none().then_some(&clip_culler);
+                let envelope_bounds = envelope_culler.as_ref().filter(|_| inside);
                 for (k, c) in [clip_bounds, envelope_bounds].into_iter().enumerate() {
                     if let Some(c) = c {
                         s.visible.clear();
@@ -559,9 +562,8 @@ pub fn instance_pose(
 ) {
     let clip = clips.get(pl.clip).copied();
     let t = pl.time(clip, frame, params.fps);
-    let mut s = Scratch { locals: std::mem::take(locals), morph_weights: std::mem::take(weights), ..Scratch::default() };
-    pose(skeleton, clips, pl, (clip, t), frame, params, baked, &mut instance_rng(params, i, frame), &mut s);
-    (*locals, *weights) = (s.locals, s.morph_weights);
+    let mut rng = instance_rng(params, i, frame);
+    pose(skeleton, clips, pl, (clip, t), frame, params, baked, &mut rng, (locals, weights), &mut Default::default());
 }
 
 fn instance_rng(params: &CrowdParams, i: usize, frame: usize) -> Rng {
@@ -569,7 +571,8 @@ fn instance_rng(params: &CrowdParams, i: usize, frame: usize) -> Rng {
 }
 
 /// Poses instance `pl` at frame `frame` (its clip at time `at`) as `params.animation` says:
-/// every node's local transform into `s.locals`, the morph weights into `s.morph_weights`.
+/// every node's local transform into `locals`, the morph weights into `weights`; `other` is
+/// scratch space for a blend's second pose.
 #[allow(clippy::too_many_arguments)]
 fn pose(
     skeleton: &Skeleton,
@@ -580,7 +583,8 @@ fn pose(
     params: &CrowdParams,
     baked: &Baked,
     rng: &mut Rng,
-    s: &mut Scratch,
+    (locals, weights): (&mut Vec<Trs>, &mut Vec<f32>),
+    other: &mut (Vec<Trs>, Vec<f32>),
 ) {
     let sample = |clip: Option<&Clip>, t: f32, locals: &mut Vec<Trs>, weights: &mut Vec<f32>| {
         match clip {
@@ -592,7 +596,7 @@ fn pose(
         }
         baked.mesh.morphs.weights_at(clip, t, weights);
     };
-    sample(clip, t, &mut s.locals, &mut s.morph_weights);
+    sample(clip, t, locals, weights);
     let nodes = baked.envelope.as_ref().map_or(&[][..], |e| &e.envelope.nodes[..]);
     let axis = |rng: &mut Rng| loop {
         let v = Vec3::new(rng.next() as f32 * 2.0 - 1.0, rng.next() as f32 * 2.0 - 1.0, rng.next() as f32 * 2.0 - 1.0);
@@ -605,23 +609,23 @@ fn pose(
         Animation::Blend => {
             // The instance's second clip and weight stay the same over the frames.
             let mut fixed = Rng(params.seed ^ pl.offset.to_bits() as u64);
-            let other = clips.get((pl.clip + 1 + (fixed.next() * clips.len() as f64) as usize) % clips.len().max(1));
+            let second = clips.get((pl.clip + 1 + (fixed.next() * clips.len() as f64) as usize) % clips.len().max(1));
             let w = fixed.next() as f32;
-            let t2 = pl.time(other.copied(), frame, params.fps);
-            sample(other.copied(), t2, &mut s.other, &mut s.other_weights);
-            for (a, b) in s.locals.iter_mut().zip(&s.other) {
+            let t2 = pl.time(second.copied(), frame, params.fps);
+            sample(second.copied(), t2, &mut other.0, &mut other.1);
+            for (a, b) in locals.iter_mut().zip(&other.0) {
                 a.translation = a.translation.lerp(b.translation, w);
                 a.rotation = a.rotation.slerp(b.rotation, w);
                 a.scale = a.scale.lerp(b.scale, w);
             }
-            for (a, b) in s.morph_weights.iter_mut().zip(&s.other_weights) {
+            for (a, b) in weights.iter_mut().zip(&other.1) {
                 *a += (*b - *a) * w;
             }
         }
         Animation::Additive(max) => {
             for r in nodes {
                 let q = Quat::from_axis_angle(axis(rng), max * rng.next() as f32);
-                let l = &mut s.locals[r.node as usize];
+                let l = &mut locals[r.node as usize];
                 l.rotation = (q * l.rotation).normalize();
             }
         }
@@ -632,7 +636,7 @@ fn pose(
             for beyond in [false, rng.next() < 0.5] {
                 let r = &nodes[(rng.next() * nodes.len() as f64) as usize % nodes.len()];
                 let angle = if beyond { r.angle + 20f32.to_radians() } else { r.angle * 0.99 * rng.next() as f32 };
-                s.locals[r.node as usize].rotation = (Quat::from_axis_angle(axis(rng), angle) * r.centre).normalize();
+                locals[r.node as usize].rotation = (Quat::from_axis_angle(axis(rng), angle) * r.centre).normalize();
             }
         }
     }
