@@ -14,10 +14,10 @@ use crate::RefineArgs;
 use anyhow::{Context, Result};
 use glam::{Affine3A, Vec3};
 use serde_json::json;
-use skinlet::cull::crowd::{CrowdParams, posed_crowd};
+use skinlet::cull::crowd::{Animation, CrowdParams, instance_pose, posed_crowd};
 use skinlet::cull::meshlet::{JointFrame, MeshletCuller, Tests};
 use skinlet::meshlet::{Builder, MeshletLimits};
-use skinlet::pose::Poser;
+use skinlet::pose::global_transforms;
 use skinlet_gpu::mesh::{GpuMesh, Pose};
 use skinlet_gpu::render::{CrowdDraw, Culling, Instance, Renderer, Skinning};
 use skinlet_gpu::{Gpu, GpuOptions};
@@ -44,17 +44,28 @@ pub struct Args {
     /// Also write the crowd, drawn with culling, as a PNG.
     #[arg(short, long)]
     out: Option<std::path::PathBuf>,
+    /// How the instances are posed, as in `skinlet cull`: `clips` culls with the clip
+    /// bounds; `blend`, `additive` and `ik` with the pose envelope's bounds where the CPU pose
+    /// guard admits an instance's pose, and draw the others whole.
+    #[arg(long, default_value = "clips", value_parser = ["clips", "blend", "additive", "ik"])]
+    animation: String,
+    /// Largest rotation of the additive layer, degrees (and the envelope margin when a glTF
+    /// file is baked here).
+    #[arg(long, default_value_t = 10.0)]
+    additive_deg: f32,
     #[command(flatten)]
     refine: RefineArgs,
     #[arg(long)]
     json: bool,
 }
 
-/// One instance in one frame: world-space skinning and joint matrices, morph weights.
+/// One instance in one frame: world-space skinning and joint matrices, morph weights, and
+/// whether the bounds the culling uses hold for the pose (the pose guard's answer).
 struct InstancePose {
     skinning: Vec<Affine3A>,
     joints: Vec<Affine3A>,
     weights: Vec<f32>,
+    admitted: bool,
 }
 
 /// One configuration: a skinning pipeline (with its mesh, culler and bake) and a culling.
@@ -113,20 +124,42 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         "--instances, --frames and --repeats must be at least 1"
     );
     anyhow::ensure!((64..=8192).contains(&a.width), "--width must be between 64 and 8192");
-    let (asset, character, baked) = crate::crowd::load(file, a.gltf.as_deref(), a.refine, a.json)?;
+    anyhow::ensure!((0.0..=180.0).contains(&a.additive_deg), "--additive-deg must be from 0 to 180");
+    let animation = match a.animation.as_str() {
+        "blend" => Animation::Blend,
+        "additive" => Animation::Additive(a.additive_deg.to_radians()),
+        "ik" => Animation::Ik,
+        _ => Animation::Clips,
+    };
+    let (asset, character, mut baked) = crate::crowd::load(file, a.gltf.as_deref(), a.refine, a.json)?;
     let clips = crate::bake::clips_of(&baked, &asset, a.gltf.as_deref().unwrap_or(file))?;
+    let envelope_spec = format!("clips:{}", a.additive_deg);
+    if animation != Animation::Clips && baked.envelope.is_none() {
+        anyhow::ensure!(
+            a.gltf.is_none(),
+            "--animation {} needs a pose envelope: bake {file} with --envelope",
+            a.animation
+        );
+        let env = crate::bake::envelope_of(&envelope_spec, &asset, &baked)?;
+        skinlet::bake::add_envelope(&mut baked, &asset, env)?;
+    }
     let palette = baked.palette();
     let skin = &palette;
-    let params = CrowdParams { instances: a.instances, frames: a.frames + 1, ..CrowdParams::default() };
+    let params = CrowdParams { instances: a.instances, frames: a.frames + 1, animation, ..CrowdParams::default() };
     let scene = posed_crowd(&asset.skeleton, skin, &baked.mesh, &clips, &params)?;
     let gpu = Gpu::new(GpuOptions { software: a.software, ..GpuOptions::default() })?;
     let height = (a.width * 9 / 16).max(1);
     let renderer = Renderer::new(&gpu, a.width, height)?;
     let mesh = GpuMesh::new(&gpu, &baked.mesh, Some(&baked.meshlets))?;
-    let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len())?;
+    // The bounds the culling uses: the clip bounds for clips, else the envelope's.
+    let culler_of = |b: &skinlet::bake::Baked| match (&b.envelope, animation) {
+        (Some(e), a) if a != Animation::Clips => MeshletCuller::new(&e.bounds, &e.classes, skin.joints.len()),
+        _ => MeshletCuller::new(&b.bounds, &b.classes, skin.joints.len()),
+    };
+    let culler = culler_of(&baked)?;
     // MS-CI draws common-influences meshlets: baked too, over the same clips, for their bounds.
     let how = a.refine.refinement()?;
-    let (ci, _) = skinlet::bake::bake(
+    let (mut ci, _) = skinlet::bake::bake(
         &asset,
         &character,
         &clips,
@@ -135,23 +168,31 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         &how,
         &mut |_| {},
     )?;
+    if animation != Animation::Clips {
+        let env = crate::bake::envelope_of(&envelope_spec, &asset, &ci)?;
+        skinlet::bake::add_envelope(&mut ci, &asset, env)?;
+    }
     let ci_mesh = GpuMesh::new(&gpu, &ci.mesh, Some(&ci.meshlets))?;
-    let ci_culler = MeshletCuller::new(&ci.bounds, &ci.classes, skin.joints.len())?;
-    // Per frame and instance: world-space skinning matrices, joint matrices, morph weights.
-    let mut poser = Poser::default();
+    let ci_culler = culler_of(&ci)?;
+    // Per frame and instance: world-space skinning matrices, joint matrices, morph weights,
+    // the pose guard's answer (clips: always).
+    let guard = baked.envelope.as_ref().filter(|_| animation != Animation::Clips).map(|e| e.envelope.guard());
     let mut frames: Vec<Vec<InstancePose>> = Vec::new();
+    let (mut locals, mut weights, mut globals) = (Vec::new(), Vec::new(), Vec::new());
     for f in 0..params.frames {
         let mut instances = Vec::new();
-        for pl in &scene.placements {
-            let clip = clips.get(pl.clip).copied();
-            let t = pl.time(clip, f, params.fps);
-            let (mut joints, mut skinning, mut weights) = (Vec::new(), Vec::new(), Vec::new());
-            pl.world_matrices(skin, poser.globals(&asset.skeleton, clip, t), &mut joints, &mut skinning);
-            baked.mesh.morphs.weights_at(clip, t, &mut weights);
-            instances.push(InstancePose { skinning, joints, weights });
+        for (i, pl) in scene.placements.iter().enumerate() {
+            instance_pose(&asset.skeleton, &clips, &baked, &params, i, pl, f, &mut locals, &mut weights);
+            global_transforms(&asset.skeleton, &locals, &mut globals);
+            let (mut joints, mut skinning) = (Vec::new(), Vec::new());
+            pl.world_matrices(skin, &globals, &mut joints, &mut skinning);
+            let admitted = guard.as_ref().is_none_or(|g| g.admits(&locals, &weights));
+            instances.push(InstancePose { skinning, joints, weights: weights.clone(), admitted });
         }
         frames.push(instances);
     }
+    let timed = (frames[1..].iter().flatten()).count().max(1);
+    let fallback_pct = 100.0 * (frames[1..].iter().flatten()).filter(|i| !i.admitted).count() as f64 / timed as f64;
     let mut pipelines =
         vec![("VS", Skinning::Vertex, &mesh, &culler, &baked), ("CS", Skinning::Compute, &mesh, &culler, &baked)];
     if gpu.has_mesh_shaders() {
@@ -205,6 +246,10 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                     let out: Vec<JointFrame> = instances
                         .iter()
                         .map(|i| {
+                            // A pose the guard refused is drawn whole.
+                            if !i.admitted {
+                                return JointFrame::keep_all(skin.joints.len());
+                            }
                             let mut frame = JointFrame::default();
                             c.culler.prepare(&i.joints, &scene.camera, tests, &mut frame);
                             frame
@@ -304,6 +349,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             })
             .collect();
         let out = json!({"file": file, "adapter": gpu.info.name, "timestamps": gpu.has_timestamps(),
+            "animation": a.animation, "guard_fallback_pct": fallback_pct,
             "instances": a.instances, "frames": a.frames, "repeats": a.repeats, "width": a.width, "height": height,
             "meshlets": baked.meshlets.len(), "triangles_per_instance": total_triangles,
             "ci_meshlets": m.count, "ci_slim_meshlets": m.slim, "rows": rows});
@@ -322,6 +368,13 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         a.repeats,
         a.frames
     );
+    if animation != Animation::Clips {
+        println!(
+            "  {} animation: envelope bounds where the pose guard admits the pose; {fallback_pct:.1}% of instance-frames \
+             refused and drawn whole",
+            a.animation
+        );
+    }
     println!(
         "  {:<9} {:<13} {:>22}  {:>15}  {:>14}  {:>15}  {:>15}  GPU vs none [range]",
         "pipeline",

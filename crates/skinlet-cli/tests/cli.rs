@@ -556,6 +556,30 @@ fn render_writes_a_png_of_the_posed_character() {
         assert_eq!(r["cpu_prepare_ms"].is_number(), r["culling"] != "none", "{r}");
         assert_eq!(r["vs_none_pct"].is_object(), r["culling"] != "none" && j["timestamps"] == true, "{r}");
     }
+    // Game poses on the GPU: the same rows, some instance-frames refused by the guard.
+    let (code, stdout, err) = skinlet(&[
+        "gpu-bench",
+        "@demo:2000",
+        "--instances",
+        "6",
+        "--frames",
+        "1",
+        "--repeats",
+        "1",
+        "--width",
+        "160",
+        "--budget",
+        "0",
+        "--rounds",
+        "0",
+        "--animation",
+        "ik",
+        "--json",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let k: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(k["rows"].as_array().unwrap().len(), rows.len(), "{k}");
+    assert!(k["guard_fallback_pct"].as_f64().unwrap() > 0.0, "{k}");
     let (code, _, err) = skinlet(&["render", "@demo:2000", "--size", "4", "-o", out.to_str().unwrap()]);
     assert_eq!(code, 2);
     assert!(err.contains("--size"), "{err}");

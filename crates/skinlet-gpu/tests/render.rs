@@ -176,16 +176,22 @@ fn culled_drawing_gives_the_unculled_image() {
     assert!(culled_total > 0, "no meshlet was culled: the comparison would be vacuous");
 }
 
+/// A 320×180 renderer and the 4,000-triangle demo character, baked: the crowd tests' scene.
+fn crowd_setup(gpu: &Gpu) -> (Renderer, skinlet::Asset, skinlet::bake::Baked) {
+    let renderer = Renderer::new(gpu, 320, 180).unwrap();
+    let demo = skinlet::demo::demo_character(&skinlet::demo::DemoParams { triangles: 4000, ..Default::default() });
+    let baked = common::bake(&demo, &demo.character().unwrap());
+    (renderer, demo, baked)
+}
+
 #[test]
 fn crowd_draws_agree_and_are_timed() {
     // The gpu-bench scene: a crowd of instances in one render pass. Every pipeline, culled
     // or not, draws the same image; culled drawing draws exactly the triangles of the CPU's
     // visible meshlets; devices with timestamp queries (lavapipe has them) time the frame.
     let Some(gpu) = gpu() else { return };
-    let renderer = Renderer::new(&gpu, 320, 180).unwrap();
-    let demo = skinlet::demo::demo_character(&skinlet::demo::DemoParams { triangles: 4000, ..Default::default() });
+    let (renderer, demo, baked) = crowd_setup(&gpu);
     let clips: Vec<&skinlet::clip::Clip> = demo.clips.iter().collect();
-    let baked = common::bake(&demo, &demo.character().unwrap());
     let skin = &baked.palette();
     let params = skinlet::cull::crowd::CrowdParams { instances: 12, ..Default::default() };
     let scene = skinlet::cull::crowd::crowd(&baked.mesh.positions, clips.len(), &params).unwrap();
@@ -269,10 +275,8 @@ fn game_poses_cull_on_the_gpu_as_on_the_cpu() {
     use skinlet::cull::crowd::{Animation, CrowdParams, crowd, instance_pose};
     use skinlet::cull::meshlet::{JointFrame, MeshletCuller, Tests};
     let Some(gpu) = gpu() else { return };
-    let renderer = Renderer::new(&gpu, 320, 180).unwrap();
-    let demo = skinlet::demo::demo_character(&skinlet::demo::DemoParams { triangles: 4000, ..Default::default() });
+    let (renderer, demo, mut baked) = crowd_setup(&gpu);
     let clips: Vec<&skinlet::clip::Clip> = demo.clips.iter().collect();
-    let mut baked = common::bake(&demo, &demo.character().unwrap());
     let skin = &baked.palette();
     let envelope =
         skinlet::bounds::envelope::Envelope::from_clips(&demo.skeleton, skin, &baked.mesh, &clips, 0.2).unwrap();
