@@ -51,7 +51,7 @@ pub fn print(s: &CrowdStats, verify: bool) {
         s.ns_per_meshlet()
     );
     let loose: Vec<String> = WHOLE_MESH_BOUNDS.iter().zip(s.looseness()).map(|(n, l)| format!("{n} {l:.2}")).collect();
-    println!("  whole-mesh bound volume / exact box: {}", loose.join(", "));
+    println!("  whole-mesh bound diagonal / exact box diagonal: {}", loose.join(", "));
     if s.envelope_frames + s.any_pose_frames + s.unculled_frames > 0 {
         println!(
             "  guard: {} instance-frames inside the pose envelope, {} outside (any-pose boxes), {} not culled \

@@ -802,12 +802,21 @@ fn demo(triangles: usize, seed: u64, glb: Option<&Path>, json: bool) -> Result<(
     let crowd_params = skinlet::cull::crowd::CrowdParams { instances: 16, frames: 10, ..Default::default() };
     let scene = skinlet::cull::crowd::posed_crowd(&asset.skeleton, skin, &baked.mesh, &all, &crowd_params)?;
     let crowd_stats = skinlet::cull::crowd::run(&baked, &asset.skeleton, skin, &all, &scene, &crowd_params, true)?;
+    // Game poses: the same crowd with IK on top of the clips, culled with a pose envelope
+    // (the clips widened by 10°) where the guard admits the pose, else the any-pose boxes.
+    let mut with_envelope = baked.clone();
+    let envelope = bake::envelope_of("clips:10", &asset, &with_envelope)?;
+    skinlet::bake::add_envelope(&mut with_envelope, &asset, envelope)?;
+    let ik_params =
+        skinlet::cull::crowd::CrowdParams { animation: skinlet::cull::crowd::Animation::Ik, ..crowd_params };
+    let ik_stats = skinlet::cull::crowd::run(&with_envelope, &asset.skeleton, skin, &all, &scene, &ik_params, true)?;
     if json {
         let out = json!({
             "meshlets": meshlets.len(), "both_pct": both, "frustum_only_pct": frustum, "none_pct": none,
             "precompute_s": precompute_s, "refine_rounds": baked.settings.rounds, "bake_bytes": bake_bytes,
             "verify_samples": check.samples, "violations": check.violations(),
             "crowd": crowd::to_json(&crowd_stats, true),
+            "ik_crowd": crowd::to_json(&ik_stats, true),
             "seed": seed,
             "vertices": s.vertices,
             "triangles": s.triangles,
@@ -875,6 +884,8 @@ fn demo(triangles: usize, seed: u64, glb: Option<&Path>, json: bool) -> Result<(
     );
     println!("  crowd scene (CPU culling with the baked bounds):");
     crowd::print(&crowd_stats, true);
+    println!("  the same crowd with IK on top (pose envelope: the clips widened by 10°):");
+    crowd::print(&ik_stats, true);
     println!(
         "  next: `skinlet inspect @demo`, `skinlet meshlets @demo`, `skinlet bounds @demo`, `skinlet bake @demo -o demo.skinlet`, `skinlet verify @demo --baked demo.skinlet`, `skinlet cull demo.skinlet --gltf @demo`"
     );

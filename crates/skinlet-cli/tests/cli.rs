@@ -185,6 +185,11 @@ fn demo_runs_and_describes_the_character() {
     for m in ["STEP", "LINEAR", "CUBICSPLINE"] {
         assert!(modes.iter().any(|x| x == m), "demo lacks a {m} clip");
     }
+    for crowd in ["crowd", "ik_crowd"] {
+        assert_eq!(j[crowd]["false_culls"], 0, "{crowd}: {}", j[crowd]);
+        assert!(j[crowd]["checked_triangles"].as_u64().unwrap() > 0, "{crowd}: {}", j[crowd]);
+    }
+    assert!(j["ik_crowd"]["guard_fallback_pct"].as_f64().unwrap() > 0.0, "{}", j["ik_crowd"]);
     let (code, out, _) = skinlet(&["demo", "--triangles", "2000"]);
     assert_eq!(code, 0);
     assert!(out.contains("joints") && out.contains("walk"), "{out}");
