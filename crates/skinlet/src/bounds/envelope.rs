@@ -221,7 +221,8 @@ impl Envelope {
     }
 
     /// The motions the envelope allows, as one "interval" for the vertex boxes: listed nodes
-    /// within their cap and boxes, the others at rest (or their matrix).
+    /// within their cap and boxes, the others at rest (or their matrix); nodes the skeleton
+    /// does not have are ignored ([`Envelope::check`] refuses them).
     pub fn motions(&self, skeleton: &Skeleton) -> IntervalMotions {
         let mut motions: Vec<Motion> = (skeleton.nodes.iter().enumerate())
             .map(|(i, n)| node_motion(n, i as u32, None, 0.0, 0.0).expect("no clip: no key to span"))
@@ -231,7 +232,8 @@ impl Envelope {
                 let w: [(f64, f64); 3] = std::array::from_fn(|k| widened(lo[k] as f64, hi[k] as f64, 2.0));
                 Aabb { min: DVec3::new(w[0].0, w[1].0, w[2].0), max: DVec3::new(w[0].1, w[1].1, w[2].1) }
             };
-            motions[r.node as usize] = Motion::Trs {
+            let Some(m) = motions.get_mut(r.node as usize) else { continue };
+            *m = Motion::Trs {
                 translation: b(r.translation),
                 rotation: RotationMotion::Cap { centre: r.centre.as_dquat().normalize(), angle: r.angle as f64 },
                 scale: b(r.scale),

@@ -46,7 +46,7 @@ impl IntervalMotions {
 
     /// Motions given directly (one per skeleton node) with morph weight ranges, e.g. a pose
     /// envelope's ([`super::envelope::Envelope::motions`]); `t1` and `t2` are 0.
-    pub fn from_motions(skeleton: &Skeleton, motions: Vec<Motion>, weights: Vec<(f64, f64)>) -> IntervalMotions {
+    pub(crate) fn from_motions(skeleton: &Skeleton, motions: Vec<Motion>, weights: Vec<(f64, f64)>) -> IntervalMotions {
         let mut depth = vec![0u32; skeleton.nodes.len()];
         for &i in &skeleton.order {
             if let Some(p) = skeleton.nodes[i as usize].parent {

@@ -127,12 +127,13 @@ impl AnyPoseBoxes {
     /// Frustum-culls every meshlet for joint world matrices `joint_to_world` (one per skin
     /// joint: model × the joint's global matrix): appends the indices of the meshlets that
     /// may be visible to `visible` and returns the counts (culled ones count as frustum).
-    /// Missing matrices leave their meshlets visible.
+    /// Missing matrices, or boxes [`AnyPoseBoxes::check`] would refuse, leave their meshlets
+    /// visible.
     pub fn cull(&self, joint_to_world: &[Affine3A], camera: &Camera, visible: &mut Vec<u32>) -> CullCounts {
         let mut counts = CullCounts { meshlets: self.len(), ..CullCounts::default() };
         for m in 0..self.len() {
             let boxes = self.offsets[m] as usize..self.offsets[m + 1] as usize;
-            if !boxes.is_empty() && self.outside(boxes, joint_to_world, &camera.planes) {
+            if boxes.start < boxes.end && self.outside(boxes, joint_to_world, &camera.planes) {
                 counts.frustum += 1;
             } else {
                 visible.push(m as u32);
@@ -159,8 +160,12 @@ impl AnyPoseBoxes {
     fn outside(&self, boxes: std::ops::Range<usize>, joint_to_world: &[Affine3A], planes: &[Vec4; 6]) -> bool {
         let mut out = [true; 6];
         for i in boxes {
-            let Some(g) = joint_to_world.get(self.joints[i] as usize) else { return false };
-            let (c, h) = (Vec3A::from(self.center[i]), Vec3A::from(self.half[i]));
+            // Data that `check` would refuse (or missing matrices) culls nothing.
+            let (Some(&j), Some(&c), Some(&h)) = (self.joints.get(i), self.center.get(i), self.half.get(i)) else {
+                return false;
+            };
+            let Some(g) = joint_to_world.get(j as usize) else { return false };
+            let (c, h) = (Vec3A::from(c), Vec3A::from(h));
             let a = &g.matrix3;
             let center = a.x_axis * c.x + a.y_axis * c.y + a.z_axis * c.z + g.translation;
             let half = a.x_axis.abs() * h.x + a.y_axis.abs() * h.y + a.z_axis.abs() * h.z;

@@ -609,7 +609,10 @@ fn pose(
         Animation::Blend => {
             // The instance's second clip and weight stay the same over the frames.
             let mut fixed = Rng(params.seed ^ pl.offset.to_bits() as u64);
-            let second = clips.get((pl.clip + 1 + (fixed.next() * clips.len() as f64) as usize) % clips.len().max(1));
+            // Another clip where there is one.
+            let n = clips.len().max(1);
+            let second =
+                clips.get((pl.clip + 1 + (fixed.next() * (n - 1) as f64) as usize % n.saturating_sub(1).max(1)) % n);
             let w = fixed.next() as f32;
             let t2 = pl.time(second.copied(), frame, params.fps);
             sample(second.copied(), t2, &mut other.0, &mut other.1);
@@ -625,8 +628,9 @@ fn pose(
         Animation::Additive(max) => {
             for r in nodes {
                 let q = Quat::from_axis_angle(axis(rng), max * rng.next() as f32);
-                let l = &mut locals[r.node as usize];
-                l.rotation = (q * l.rotation).normalize();
+                if let Some(l) = locals.get_mut(r.node as usize) {
+                    l.rotation = (q * l.rotation).normalize();
+                }
             }
         }
         Animation::Ik => {
@@ -636,7 +640,9 @@ fn pose(
             for beyond in [false, rng.next() < 0.5] {
                 let r = &nodes[(rng.next() * nodes.len() as f64) as usize % nodes.len()];
                 let angle = if beyond { r.angle + 20f32.to_radians() } else { r.angle * 0.99 * rng.next() as f32 };
-                locals[r.node as usize].rotation = (Quat::from_axis_angle(axis(rng), angle) * r.centre).normalize();
+                if let Some(l) = locals.get_mut(r.node as usize) {
+                    l.rotation = (Quat::from_axis_angle(axis(rng), angle) * r.centre).normalize();
+                }
             }
         }
     }
