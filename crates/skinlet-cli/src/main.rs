@@ -254,7 +254,8 @@ enum Command {
     /// Samples every chosen clip at --samples evenly spaced times plus every key time and
     /// every key-interval midpoint, skins every vertex, and checks every vertex against its
     /// meshlet's sphere and every triangle's normal against its cone, in the meshlet's joint
-    /// space as the runtime culls. The bounds are computed afresh, or read from a bake file (--baked; its
+    /// space as the runtime culls. A bake's pose envelope (`bake --envelope`) is checked at
+    /// --samples poses inside it, half on its boundary. The bounds are computed afresh, or read from a bake file (--baked; its
     /// clips are checked, and FILE must be the file it was baked from). Exits with status 1 on
     /// any violation beyond float rounding.
     Verify {
@@ -1122,11 +1123,23 @@ fn verify(
         bounds,
         samples.max(2),
     );
+    // A bake's pose envelope: its bounds at as many poses inside it, half on its boundary.
+    let envelope = match &b.envelope {
+        Some(e) => {
+            let poses = e.envelope.sample_poses(&asset.skeleton, samples.max(2), 1);
+            let meshlets = &b.meshlets;
+            Some(skinlet::bounds::verify::verify_poses(&asset.skeleton, skin, &poses, &b.mesh, meshlets, &e.bounds)?)
+        }
+        None => None,
+    };
+    let violations = r.violations() + envelope.map_or(0, |e| e.violations());
     if json {
         let out = json!({
             "samples": r.samples, "vertex_checks": r.vertex_checks, "normal_checks": r.normal_checks,
             "violations": r.violations(), "vertex_violations": r.vertex_violations, "normal_violations": r.normal_violations,
             "singular_vertex_checks": r.singular, "max_violation": r.max_violation, "mean_radius_ratio": r.mean_radius_ratio, "mean_angle_ratio": r.mean_angle_ratio,
+            "envelope": envelope.map(|e| json!({"poses": e.samples, "vertex_checks": e.vertex_checks,
+                "normal_checks": e.normal_checks, "violations": e.violations(), "mean_radius_ratio": e.mean_radius_ratio})),
         });
         println!("{}", serde_json::to_string_pretty(&out)?);
     } else {
@@ -1154,8 +1167,17 @@ fn verify(
             "  tightness: stored radius / needed radius {:.4}, stored angle / needed angle {:.4} (means over meshlets)",
             r.mean_radius_ratio, r.mean_angle_ratio
         );
+        if let Some(e) = envelope {
+            println!(
+                "  pose envelope: {} poses inside it (half on its boundary), {} vertex and {} normal checks, {} violations",
+                e.samples,
+                e.vertex_checks,
+                e.normal_checks,
+                e.violations()
+            );
+        }
     }
-    if r.violations() > 0 {
+    if violations > 0 {
         std::process::exit(1);
     }
     Ok(())

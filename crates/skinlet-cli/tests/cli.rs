@@ -356,6 +356,10 @@ fn envelopes_bake_and_game_poses_cull_with_the_guard() {
         .map(|k| j[k].as_f64().unwrap())
         .sum();
     assert!((shares - 100.0).abs() < 1e-6, "{j}");
+    // verify checks the envelope bounds at poses inside the envelope too.
+    let v = json_of(&["verify", "@demo:2000", "--baked", with, "--samples", "20", "--json"]);
+    assert_eq!(v["envelope"]["violations"], 0, "{v}");
+    assert!(v["envelope"]["vertex_checks"].as_u64().unwrap() > 0, "{v}");
     // IK poses: the guard sends some instance-frames to the any-pose boxes; nothing visible
     // is culled. The same from the bake file.
     let args = ["--animation", "ik", "--instances", "8", "--frames", "3", "--check", "--json"];

@@ -49,6 +49,37 @@ fn spheres_hold_on_every_asset_and_clip_and_sampling_misses() {
     assert!(baseline_misses > 0, "the sampled baseline should miss somewhere");
 }
 
+/// Pose envelopes around every shared asset's clips (widened by 10°): the envelope bounds hold
+/// at 200 poses inside, half on the envelope's boundary.
+#[test]
+fn envelope_bounds_hold_on_every_asset() {
+    use skinlet::bounds::envelope::{Envelope, envelope_bounds};
+    let Some(dir) = assets_dir() else { return };
+    let mut files: Vec<_> = std::fs::read_dir(dir.join("skinned")).unwrap().map(|e| e.unwrap().path()).collect();
+    files.sort();
+    files.push(dir.join("morph/MorphStressTest.gltf"));
+    for path in files {
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        let asset = skinlet::import::load(&path).unwrap();
+        let character = asset.character().unwrap();
+        let skin = &character.palette;
+        let prepared = skinlet::bake::prepare_character(&character).unwrap();
+        let meshlets = build(&prepared, Builder::SkinAware, MeshletLimits::NVIDIA).unwrap();
+        let clips: Vec<_> = asset.clips.iter().collect();
+        let env = Envelope::from_clips(&asset.skeleton, skin, &prepared.mesh, &clips, 10f64.to_radians()).unwrap();
+        let bounds = envelope_bounds(&asset.skeleton, skin, &prepared.mesh, &meshlets, &env).unwrap();
+        let poses = env.sample_poses(&asset.skeleton, 200, 7);
+        let guard = env.guard();
+        assert!(poses.iter().all(|(l, w)| guard.admits(l, w)), "{name}: the guard refused a sampled pose");
+        let report =
+            skinlet::bounds::verify::verify_poses(&asset.skeleton, skin, &poses, &prepared.mesh, &meshlets, &bounds)
+                .unwrap();
+        eprintln!("{name}: {} envelope nodes, {report:?}", env.nodes.len());
+        assert_eq!(report.violations(), 0, "{name}: {report:?}");
+        assert!(report.vertex_checks > 0);
+    }
+}
+
 /// Issue target: on Xbot.glb over all clips, at s_r = 3 and α_T = 20°, at least 85% of the
 /// skin-aware meshlets are "both", more than with meshoptimizer's builder.
 #[test]

@@ -11,34 +11,10 @@ mod rig;
 use glam::{Quat, Vec3};
 use proptest::prelude::*;
 use rig::{Rng, random_character, random_morphs, random_triangles};
-use skinlet::bounds::envelope::{Envelope, GUARD_SLACK, NodeRange, envelope_bounds};
+use skinlet::bounds::envelope::{Envelope, NodeRange, envelope_bounds};
 use skinlet::bounds::verify::verify_poses;
 use skinlet::meshlet::{Builder, MeshletLimits, build, prepare};
 use skinlet::model::{Skeleton, Trs};
-
-/// A random pose inside the envelope: per listed node a rotation within its angle (less the
-/// guard's slack) of the centre and a translation and scale inside the boxes; other nodes at
-/// rest; morph weights inside their ranges.
-fn pose_inside(r: &mut Rng, skeleton: &Skeleton, env: &Envelope) -> (Vec<Trs>, Vec<f32>) {
-    let mut locals: Vec<Trs> = skeleton.nodes.iter().map(|n| n.rest).collect();
-    // Half the poses on the envelope's boundary (the full angle, box corners), where the
-    // bounds are tightest.
-    let edge = r.u() < 0.5;
-    let mut u = |r: &mut Rng| if edge { (r.u() < 0.5) as u8 as f32 } else { r.u() };
-    let within = |r: &mut Rng, u: &mut dyn FnMut(&mut Rng) -> f32, (lo, hi): (Vec3, Vec3)| {
-        lo + (hi - lo) * Vec3::new(u(r), u(r), u(r))
-    };
-    for n in &env.nodes {
-        let angle = (n.angle - 2.0 * GUARD_SLACK as f32).max(0.0) * if edge { 1.0 } else { r.u() };
-        locals[n.node as usize] = Trs {
-            rotation: (Quat::from_axis_angle(r.axis(), angle) * n.centre).normalize(),
-            translation: within(r, &mut u, n.translation),
-            scale: within(r, &mut u, n.scale),
-        };
-    }
-    let weights = env.weights.iter().map(|&(lo, hi)| lo + (hi - lo) * u(r)).collect();
-    (locals, weights)
-}
 
 /// A random envelope around the rest pose: caps up to 80° (so blends stay inside), boxes up
 /// to 0.5 wide around the rest translation and scale (scales kept away from zero).
@@ -107,7 +83,8 @@ fn check_envelope(seed: u64) -> Result<usize, String> {
     };
     let bounds = envelope_bounds(&skeleton, &skin, &prepared.mesh, &meshlets, &env).map_err(|e| e.to_string())?;
     let guard = env.guard();
-    let mut poses: Vec<(Vec<Trs>, Vec<f32>)> = (0..48).map(|_| pose_inside(&mut r, &skeleton, &env)).collect();
+    // Half of them on the envelope's boundary (`Envelope::sample_poses`).
+    let mut poses = env.sample_poses(&skeleton, 48, seed);
     for p in &poses {
         if !guard.admits(&p.0, &p.1) {
             return Err(format!("seed {seed}: the guard refused a pose inside"));
@@ -143,12 +120,12 @@ fn check_envelope(seed: u64) -> Result<usize, String> {
     }
     // Outside: one node turned past its cap, or moved out of its box.
     if let Some(n) = env.nodes.iter().find(|n| n.angle < 3.0) {
-        let (mut locals, weights) = pose_inside(&mut r, &skeleton, &env);
+        let (mut locals, weights) = env.sample_poses(&skeleton, 1, seed ^ 1).remove(0);
         locals[n.node as usize].rotation = (Quat::from_axis_angle(r.axis(), n.angle + 0.05) * n.centre).normalize();
         if guard.admits(&locals, &weights) {
             return Err(format!("seed {seed}: the guard admitted a rotation outside node {}'s cap", n.node));
         }
-        let (mut locals, weights) = pose_inside(&mut r, &skeleton, &env);
+        let (mut locals, weights) = env.sample_poses(&skeleton, 2, seed ^ 2).remove(1);
         locals[n.node as usize].translation.x = n.translation.1.x + 0.01;
         if guard.admits(&locals, &weights) {
             return Err(format!("seed {seed}: the guard admitted a translation outside node {}'s box", n.node));

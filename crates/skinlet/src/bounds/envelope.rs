@@ -248,6 +248,47 @@ impl Envelope {
         self.weights.iter().map(|&(lo, hi)| widened(lo as f64, hi as f64, 2.0)).collect()
     }
 
+    /// `count` poses inside the envelope, deterministic for `seed`, for checking bounds: every
+    /// node's local transform (listed nodes within their cap, less the guard's slack, and
+    /// boxes; the others at rest) and the morph weights. Every other pose lies on the
+    /// envelope's boundary (the full angle, box corners, range ends), where bounds are
+    /// tightest; the rest anywhere inside.
+    pub fn sample_poses(&self, skeleton: &Skeleton, count: usize, seed: u64) -> Vec<(Vec<Trs>, Vec<f32>)> {
+        let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+        let mut u = move || {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        (0..count)
+            .map(|k| {
+                let edge = k % 2 == 0;
+                let t = |u: &mut dyn FnMut() -> f32| if edge { (u() < 0.5) as u8 as f32 } else { u() };
+                let mut locals: Vec<Trs> = skeleton.nodes.iter().map(|n| n.rest).collect();
+                for r in &self.nodes {
+                    let axis = loop {
+                        let v = Vec3::new(u() * 2.0 - 1.0, u() * 2.0 - 1.0, u() * 2.0 - 1.0);
+                        if v.length() > 0.1 && v.length() <= 1.0 {
+                            break v.normalize();
+                        }
+                    };
+                    let angle = (r.angle - 2.0 * GUARD_SLACK as f32).max(0.0) * if edge { 1.0 } else { u() };
+                    let mut within =
+                        |(lo, hi): (Vec3, Vec3)| lo + (hi - lo) * Vec3::new(t(&mut u), t(&mut u), t(&mut u));
+                    let (translation, scale) = (within(r.translation), within(r.scale));
+                    if let Some(l) = locals.get_mut(r.node as usize) {
+                        *l = Trs {
+                            rotation: (Quat::from_axis_angle(axis, angle) * r.centre).normalize(),
+                            translation,
+                            scale,
+                        };
+                    }
+                }
+                let weights = self.weights.iter().map(|&(lo, hi)| lo + (hi - lo) * t(&mut u)).collect();
+                (locals, weights)
+            })
+            .collect()
+    }
+
     /// The run-time guard for this envelope ([`PoseGuard`]).
     pub fn guard(&self) -> PoseGuard {
         let widen = |(lo, hi): (Vec3, Vec3)| {
