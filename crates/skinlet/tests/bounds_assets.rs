@@ -9,40 +9,54 @@ use common::assets_dir;
 use skinlet::bounds::meshlet::{Class, classify};
 use skinlet::bounds::refine::{Refinement, Stop, refine};
 use skinlet::bounds::verify::{sampled_bounds, verify_bounds};
-use skinlet::meshlet::{Builder, MeshletLimits, build};
+use skinlet::meshlet::{Builder, MeshletLimits, Meshlets, PreparedMesh, build};
 
 /// Refinement until nothing improves (what `skinlet bake` does within its budget).
 const CONVERGE: Refinement = Refinement { max_rounds: usize::MAX, ..Refinement::NONE };
 
-#[test]
-fn spheres_hold_on_every_asset_and_clip_and_sampling_misses() {
-    let Some(dir) = assets_dir() else { return };
+/// Every shared skinned asset and the morph-target test: name, asset, character, prepared
+/// mesh and its skin-aware meshlets.
+fn shared_characters() -> Vec<(String, skinlet::Asset, skinlet::Character, PreparedMesh, Meshlets)> {
+    let Some(dir) = assets_dir() else { return Vec::new() };
     let mut files: Vec<_> = std::fs::read_dir(dir.join("skinned")).unwrap().map(|e| e.unwrap().path()).collect();
     files.sort();
     files.push(dir.join("morph/MorphStressTest.gltf"));
+    files
+        .iter()
+        .map(|path| {
+            let asset = skinlet::import::load(path).unwrap();
+            let character = asset.character().unwrap();
+            let prepared = skinlet::bake::prepare_character(&character).unwrap();
+            let meshlets = build(&prepared, Builder::SkinAware, MeshletLimits::NVIDIA).unwrap();
+            (path.file_name().unwrap().to_string_lossy().into_owned(), asset, character, prepared, meshlets)
+        })
+        .collect()
+}
+
+#[test]
+fn spheres_hold_on_every_asset_and_clip_and_sampling_misses() {
+    let characters = shared_characters();
+    if characters.is_empty() {
+        return;
+    }
     let mut baseline_misses = 0;
-    for path in files {
-        let name = path.file_name().unwrap().to_string_lossy().into_owned();
-        let asset = skinlet::import::load(&path).unwrap();
-        let character = asset.character().unwrap();
+    for (name, asset, character, prepared, meshlets) in &characters {
         let skin = &character.palette;
-        let prepared = skinlet::bake::prepare_character(&character).unwrap();
-        let meshlets = build(&prepared, Builder::SkinAware, MeshletLimits::NVIDIA).unwrap();
         let all: Vec<_> = asset.clips.iter().collect();
         let mut sets: Vec<(String, Vec<_>)> = all.iter().map(|c| (format!("clip {:?}", c.name), vec![*c])).collect();
         sets.push(("all clips".into(), all.clone()));
         for (label, clips) in &sets {
-            let refined = refine(&asset.skeleton, skin, clips, &prepared.mesh, &meshlets, &CONVERGE).unwrap();
+            let refined = refine(&asset.skeleton, skin, clips, &prepared.mesh, meshlets, &CONVERGE).unwrap();
             assert_eq!(refined.stop, Stop::Converged);
             let bounds = refined.bounds;
-            let report = verify_bounds(&asset.skeleton, skin, clips, &prepared.mesh, &meshlets, &bounds, 200);
+            let report = verify_bounds(&asset.skeleton, skin, clips, &prepared.mesh, meshlets, &bounds, 200);
             let coned = bounds.iter().filter(|b| b.cone_angle < std::f32::consts::FRAC_PI_2).count();
             eprintln!("{name} {label}: {coned}/{} meshlets with a cone, {report:?}", bounds.len());
             assert_eq!(report.violations(), 0, "{name} {label}: {report:?}");
             assert!(report.mean_radius_ratio >= 1.0 - 1e-5, "{name} {label}: a radius below what samples need");
         }
-        let sampled = sampled_bounds(&asset.skeleton, skin, &all, &prepared.mesh, &meshlets, 10);
-        let report = verify_bounds(&asset.skeleton, skin, &all, &prepared.mesh, &meshlets, &sampled, 200);
+        let sampled = sampled_bounds(&asset.skeleton, skin, &all, &prepared.mesh, meshlets, 10);
+        let report = verify_bounds(&asset.skeleton, skin, &all, &prepared.mesh, meshlets, &sampled, 200);
         eprintln!("{name} sampled baseline (10 samples per clip): {report:?}");
         baseline_misses += report.violations();
     }
@@ -54,25 +68,16 @@ fn spheres_hold_on_every_asset_and_clip_and_sampling_misses() {
 #[test]
 fn envelope_bounds_hold_on_every_asset() {
     use skinlet::bounds::envelope::{Envelope, envelope_bounds};
-    let Some(dir) = assets_dir() else { return };
-    let mut files: Vec<_> = std::fs::read_dir(dir.join("skinned")).unwrap().map(|e| e.unwrap().path()).collect();
-    files.sort();
-    files.push(dir.join("morph/MorphStressTest.gltf"));
-    for path in files {
-        let name = path.file_name().unwrap().to_string_lossy().into_owned();
-        let asset = skinlet::import::load(&path).unwrap();
-        let character = asset.character().unwrap();
+    for (name, asset, character, prepared, meshlets) in &shared_characters() {
         let skin = &character.palette;
-        let prepared = skinlet::bake::prepare_character(&character).unwrap();
-        let meshlets = build(&prepared, Builder::SkinAware, MeshletLimits::NVIDIA).unwrap();
         let clips: Vec<_> = asset.clips.iter().collect();
         let env = Envelope::from_clips(&asset.skeleton, skin, &prepared.mesh, &clips, 10f64.to_radians()).unwrap();
-        let bounds = envelope_bounds(&asset.skeleton, skin, &prepared.mesh, &meshlets, &env).unwrap();
+        let bounds = envelope_bounds(&asset.skeleton, skin, &prepared.mesh, meshlets, &env).unwrap();
         let poses = env.sample_poses(&asset.skeleton, 200, 7);
         let guard = env.guard();
         assert!(poses.iter().all(|(l, w)| guard.admits(l, w)), "{name}: the guard refused a sampled pose");
         let report =
-            skinlet::bounds::verify::verify_poses(&asset.skeleton, skin, &poses, &prepared.mesh, &meshlets, &bounds)
+            skinlet::bounds::verify::verify_poses(&asset.skeleton, skin, &poses, &prepared.mesh, meshlets, &bounds)
                 .unwrap();
         eprintln!("{name}: {} envelope nodes, {report:?}", env.nodes.len());
         assert_eq!(report.violations(), 0, "{name}: {report:?}");
