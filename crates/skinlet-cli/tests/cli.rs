@@ -534,23 +534,13 @@ fn render_writes_a_png_of_the_posed_character() {
         }
     }
     // gpu-bench: every pipeline and culling row, GPU-timed where timestamps exist.
-    let (code, stdout, err) = skinlet(&[
-        "gpu-bench",
-        "@demo:2000",
-        "--instances",
-        "6",
-        "--frames",
-        "1",
-        "--repeats",
-        "2",
-        "--width",
-        "160",
-        "--budget",
-        "0",
-        "--rounds",
-        "0",
-        "--json",
-    ]);
+    let gpu_bench = |repeats: &str, extra: &[&str]| {
+        let mut args = vec!["gpu-bench", "@demo:2000", "--instances", "6", "--frames", "1", "--repeats", repeats];
+        args.extend(["--width", "160", "--budget", "0", "--rounds", "0", "--json"]);
+        args.extend(extra);
+        skinlet(&args)
+    };
+    let (code, stdout, err) = gpu_bench("2", &[]);
     assert_eq!(code, 0, "{err}");
     let j: serde_json::Value = serde_json::from_str(&stdout).unwrap();
     let rows = j["rows"].as_array().unwrap();
@@ -566,25 +556,7 @@ fn render_writes_a_png_of_the_posed_character() {
         assert_eq!(r["vs_none_pct"].is_object(), r["culling"] != "none" && j["timestamps"] == true, "{r}");
     }
     // Game poses on the GPU: the same rows, some instance-frames refused by the guard.
-    let (code, stdout, err) = skinlet(&[
-        "gpu-bench",
-        "@demo:2000",
-        "--instances",
-        "6",
-        "--frames",
-        "1",
-        "--repeats",
-        "1",
-        "--width",
-        "160",
-        "--budget",
-        "0",
-        "--rounds",
-        "0",
-        "--animation",
-        "ik",
-        "--json",
-    ]);
+    let (code, stdout, err) = gpu_bench("1", &["--animation", "ik"]);
     assert_eq!(code, 0, "{err}");
     let k: serde_json::Value = serde_json::from_str(&stdout).unwrap();
     assert_eq!(k["rows"].as_array().unwrap().len(), rows.len(), "{k}");

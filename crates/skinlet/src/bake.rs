@@ -551,14 +551,19 @@ pub fn read(path: &Path) -> Result<Baked> {
 /// the bake tests and the `bake` fuzz target (`fuzz/`) call it on corrupted files; an error
 /// names the consumer that refused.
 pub fn check_consumers(b: &Baked) -> Result<()> {
+    use crate::cull::meshlet::{JointFrame, MeshletCuller, Tests};
     use crate::cull::{Camera, Projection};
     let palette = b.palette();
-    let culler = crate::cull::meshlet::MeshletCuller::new(&b.bounds, &b.classes, palette.joints.len())?;
     let camera = Camera::perspective(Vec3::new(0.0, 1.0, 4.0), Vec3::ZERO, Vec3::Y, 1.0, 1.0, 0.1, 100.0)?;
     let joints = vec![glam::Affine3A::IDENTITY; palette.joints.len()];
-    let mut frame = crate::cull::meshlet::JointFrame::default();
-    culler.prepare(&joints, &camera, crate::cull::meshlet::Tests::Both, &mut frame);
-    culler.cull(&frame, &mut Vec::new(), &mut Vec::new());
+    let cull = |bounds: &[MeshletBounds], classes: &[Class]| -> Result<()> {
+        let culler = MeshletCuller::new(bounds, classes, palette.joints.len())?;
+        let mut frame = JointFrame::default();
+        culler.prepare(&joints, &camera, Tests::Both, &mut frame);
+        culler.cull(&frame, &mut Vec::new(), &mut Vec::new());
+        Ok(())
+    };
+    cull(&b.bounds, &b.classes)?;
     if let Some(o) = &b.overdraw
         && o.select(0, 0.0, Vec3::Z) >= o.buffers.len()
     {
@@ -572,9 +577,7 @@ pub fn check_consumers(b: &Baked) -> Result<()> {
         crate::skinning::skin_mesh(&b.mesh, &weights, &joints, &mut posed, &mut [])?;
     }
     if let Some(e) = &b.envelope {
-        let culler = crate::cull::meshlet::MeshletCuller::new(&e.bounds, &e.classes, palette.joints.len())?;
-        culler.prepare(&joints, &camera, crate::cull::meshlet::Tests::Both, &mut frame);
-        culler.cull(&frame, &mut Vec::new(), &mut Vec::new());
+        cull(&e.bounds, &e.classes)?;
         e.any_pose.cull(&joints, &camera, &mut Vec::new());
         let rest: Vec<f32> = e.envelope.weights.iter().map(|w| w.0).collect();
         e.envelope.guard().admits(&[], &rest);

@@ -449,29 +449,20 @@ pub fn run(
                 st.meshlets = meshlets.len();
                 st.triangles = per_meshlet_tris.iter().sum();
                 st.vertex_refs = per_meshlet_refs.iter().sum();
-                // Each valid bound alone, timed (the table of docs/CULLING.md).
+                // The three pipelines with the tightest valid bounds; with both tests, the
+                // any-pose boxes cull what they can of the rest. Each valid bound alone is timed
+                // too (the table of docs/CULLING.md): the meshlet bounds within the "both" run,
+                // the any-pose boxes over every meshlet.
                 let n = meshlets.len();
-                let clip_bounds = envelope_culler.is_none().then_some(&clip_culler);
-                let envelope_bounds = envelope_culler.as_ref().filter(|_| inside);
-                for (k, c) in [clip_bounds, envelope_bounds].into_iter().enumerate() {
-                    if let Some(c) = c {
-                        s.visible.clear();
-                        let started = Instant::now();
-                        c.prepare(&s.joint_to_world, &crowd.camera, Tests::Both, &mut s.frame);
-                        let counts = c.cull(&s.frame, &mut s.flags, &mut s.visible);
-                        st.methods[k] =
-                            MethodStats { meshlets: n, culled: n - counts.visible, time: started.elapsed() };
-                    }
-                }
+                let alone = |counts: CullCounts, time| MethodStats { meshlets: n, culled: n - counts.visible, time };
+                let mut any_alone = None;
                 if let Some(any) = any_pose {
                     s.visible.clear();
                     let started = Instant::now();
                     let counts = any.cull(&s.joint_to_world, &crowd.camera, &mut s.visible);
-                    st.methods[2] = MethodStats { meshlets: n, culled: n - counts.visible, time: started.elapsed() };
+                    st.methods[2] = alone(counts, started.elapsed());
+                    any_alone = Some(counts);
                 }
-                // The three pipelines with the tightest valid bounds; with both tests, the
-                // any-pose boxes cull what they can of the rest.
-                s.visible.clear();
                 if let Some(culler) = culler {
                     for tests in [Tests::Frustum, Tests::Backface] {
                         s.visible.clear();
@@ -486,18 +477,21 @@ pub fn run(
                     let started = Instant::now();
                     culler.prepare(&s.joint_to_world, &crowd.camera, Tests::Both, &mut s.frame);
                     st.culled_both = culler.cull(&s.frame, &mut s.flags, &mut s.visible);
+                    // Clip bounds without an envelope culler, envelope bounds with one.
+                    st.methods[envelope_culler.is_some() as usize] = alone(st.culled_both, started.elapsed());
                     if let Some(any) = any_pose {
                         let more = any.retain_visible(&s.joint_to_world, &crowd.camera, &mut s.visible);
                         st.culled_both.frustum += more;
                         st.culled_both.visible -= more;
                     }
                     st.cull_time = started.elapsed();
-                } else if let Some(any) = any_pose {
-                    let started = Instant::now();
-                    st.culled_both = any.cull(&s.joint_to_world, &crowd.camera, &mut s.visible);
-                    st.cull_time = started.elapsed();
-                    st.culled_frustum_only = st.culled_both.frustum;
+                } else if let Some(counts) = any_alone {
+                    // The guard refused the pose: the any-pose boxes alone (already in `visible`).
+                    st.culled_both = counts;
+                    st.cull_time = st.methods[2].time;
+                    st.culled_frustum_only = counts.frustum;
                 } else {
+                    s.visible.clear();
                     s.visible.extend(0..n as u32);
                     st.culled_both = CullCounts { meshlets: n, visible: n, ..Default::default() };
                 }
