@@ -65,7 +65,10 @@ struct InstancePose {
     skinning: Vec<Affine3A>,
     joints: Vec<Affine3A>,
     weights: Vec<f32>,
+    /// The pose guard admits the pose (clips: always).
     admitted: bool,
+    /// The any-pose boxes hold (morph weights inside the envelope's ranges; never for clips).
+    boxes: bool,
 }
 
 /// One configuration: a skinning pipeline (with its mesh, culler and bake) and a culling.
@@ -151,9 +154,12 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let height = (a.width * 9 / 16).max(1);
     let renderer = Renderer::new(&gpu, a.width, height)?;
     let mesh = GpuMesh::new(&gpu, &baked.mesh, Some(&baked.meshlets))?;
-    // The bounds the culling uses: the clip bounds for clips, else the envelope's.
+    // The bounds the culling uses: the clip bounds for clips, else the envelope's and the
+    // any-pose boxes.
     let culler_of = |b: &skinlet::bake::Baked| match (&b.envelope, animation) {
-        (Some(e), a) if a != Animation::Clips => MeshletCuller::new(&e.bounds, &e.classes, skin.joints.len()),
+        (Some(e), a) if a != Animation::Clips => {
+            MeshletCuller::new(&e.bounds, &e.classes, skin.joints.len())?.with_any_pose(&e.any_pose)
+        }
         _ => MeshletCuller::new(&b.bounds, &b.classes, skin.joints.len()),
     };
     let culler = culler_of(&baked)?;
@@ -187,7 +193,8 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             let (mut joints, mut skinning) = (Vec::new(), Vec::new());
             pl.world_matrices(skin, &globals, &mut joints, &mut skinning);
             let admitted = guard.as_ref().is_none_or(|g| g.admits(&locals, &weights));
-            instances.push(InstancePose { skinning, joints, weights: weights.clone(), admitted });
+            let boxes = guard.as_ref().is_some_and(|g| g.admits_weights(&weights));
+            instances.push(InstancePose { skinning, joints, weights: weights.clone(), admitted, boxes });
         }
         frames.push(instances);
     }
@@ -246,12 +253,19 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                     let out: Vec<JointFrame> = instances
                         .iter()
                         .map(|i| {
-                            // A pose the guard refused is drawn whole.
-                            if !i.admitted {
-                                return JointFrame::keep_all(skin.joints.len());
-                            }
+                            // A pose the guard refused gets the any-pose boxes alone, or is
+                            // drawn whole when its morph weights leave their ranges.
                             let mut frame = JointFrame::default();
-                            c.culler.prepare(&i.joints, &scene.camera, tests, &mut frame);
+                            match (i.admitted, i.boxes) {
+                                (true, true) => {
+                                    c.culler.prepare_with_boxes(&i.joints, &scene.camera, tests, &mut frame)
+                                }
+                                (true, false) => c.culler.prepare(&i.joints, &scene.camera, tests, &mut frame),
+                                (false, true) => {
+                                    c.culler.prepare_boxes_only(&i.joints, &scene.camera, tests, &mut frame)
+                                }
+                                (false, false) => frame = JointFrame::keep_all(skin.joints.len()),
+                            }
                             frame
                         })
                         .collect();

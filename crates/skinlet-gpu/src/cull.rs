@@ -1,12 +1,13 @@
 //! Per-meshlet culling on the GPU (conservative-bounds paper, section 6), as a compute pass:
 //! the path for adapters without mesh shaders, and the per-meshlet test a task shader runs.
 //!
-//! The per-joint values of each instance come from the CPU ([`MeshletCuller::prepare`]:
-//! joint-space planes, the eye in joint space, the group tests), and `shaders/cull.wgsl`
-//! runs [`MeshletCuller::cull`]'s per-meshlet loop operation for operation, one invocation
-//! per (instance, meshlet), so the visible set is the CPU's exactly (tests/cull.rs, on the
-//! crowd scene). Survivors are compacted per instance with an atomic counter (their order
-//! varies; the set does not).
+//! The per-joint values of each instance come from the CPU (the culler's `prepare`
+//! methods: joint-space planes, the eye in joint space, the group tests, whether the
+//! any-pose boxes are tested), and `shaders/cull.wgsl` runs [`MeshletCuller::cull`]'s
+//! per-meshlet loop operation for operation, any-pose boxes included, one invocation per
+//! (instance, meshlet), so the visible set is the CPU's exactly (tests/cull.rs, on the crowd
+//! scene; tests/render.rs, on game poses). Survivors are compacted per instance with an
+//! atomic counter (their order varies; the set does not).
 
 use crate::mesh::entry;
 use crate::skinning::buffer_entry;
@@ -24,12 +25,14 @@ pub struct ComputeCulling {
     draws_layout: wgpu::BindGroupLayout,
 }
 
-/// What the culling passes read: parameters, slots, joint records (see cull_common.wgsl).
+/// What the culling passes read: parameters, slots, joint records, any-pose boxes (see
+/// cull_common.wgsl).
 pub(crate) struct CullInput {
     /// `CullParams`: slots, joints, instances, test flags, first slot, padding.
     pub params: [u32; 8],
     pub slots: Vec<u32>,
     pub records: Vec<f32>,
+    pub boxes: Vec<u32>,
     /// Slot ranges (first, count) of the task pipelines compiled with both tests, the
     /// frustum test only and none (paper section 6's classes); all slots in the first
     /// unless packed by class.
@@ -69,17 +72,20 @@ impl CullInput {
             params: [culler.len() as u32, culler.joints() as u32, frames.len() as u32, flags, 0, 0, 0, 0],
             slots: pack_slots(&slots),
             records: pack_records(frames),
+            boxes: pack_boxes(culler),
             ranges,
         }
     }
 
-    /// The parameters (all slots), slots and joint records as bind group entries 0, 1, 2.
-    pub fn buffers(&self, gpu: &Gpu) -> [wgpu::Buffer; 3] {
+    /// The parameters (all slots), slots, joint records and any-pose boxes (bind group
+    /// entries 0, 1, 2 and, in cull.wgsl 7, in task_cull.wgsl 6).
+    pub fn buffers(&self, gpu: &Gpu) -> [wgpu::Buffer; 4] {
         let storage = wgpu::BufferUsages::STORAGE;
         [
             gpu.buffer("culling params", &self.params, wgpu::BufferUsages::UNIFORM),
             gpu.buffer("cull slots", &self.slots, storage),
             gpu.buffer("joint records", &self.records, storage),
+            gpu.buffer("any-pose boxes", &self.boxes, storage),
         ]
     }
 
@@ -105,17 +111,18 @@ impl ComputeCulling {
                 buffer_entry(2, stage, read),
                 buffer_entry(3, stage, write),
             ];
+            let boxes = buffer_entry(7, stage, read);
             let (pipeline, layout) = gpu.compute_pipeline(
                 "culling",
                 source(),
                 "cull",
-                &[&head[..], &[buffer_entry(4, stage, write)]].concat(),
+                &[&head[..], &[buffer_entry(4, stage, write), boxes]].concat(),
             );
             let (draws_pipeline, draws_layout) = gpu.compute_pipeline(
                 "culling to draws",
                 source(),
                 "cull_draws",
-                &[&head[..], &[buffer_entry(5, stage, read), buffer_entry(6, stage, write)]].concat(),
+                &[&head[..], &[buffer_entry(5, stage, read), buffer_entry(6, stage, write), boxes]].concat(),
             );
             ComputeCulling { pipeline, layout, draws_pipeline, draws_layout }
         })
@@ -128,7 +135,7 @@ impl ComputeCulling {
         &self,
         gpu: &Gpu,
         encoder: &mut wgpu::CommandEncoder,
-        input: &[wgpu::Buffer; 3],
+        input: &[wgpu::Buffer; 4],
         meshlets: &crate::mesh::GpuMeshlets,
         counts: &wgpu::Buffer,
         commands: &wgpu::Buffer,
@@ -143,6 +150,7 @@ impl ComputeCulling {
                 entry(3, counts),
                 entry(5, &meshlets.draws),
                 entry(6, commands),
+                entry(7, &input[3]),
             ],
         );
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
@@ -184,7 +192,7 @@ impl ComputeCulling {
         let visible_size = (4 * total) as u64;
         let (counts, visible) = gpu.checked("GPU culling", || {
             let out = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
-            let [params, slot_buffer, record_buffer] = input.buffers(gpu);
+            let [params, slot_buffer, record_buffer, boxes] = input.buffers(gpu);
             let counts = gpu.buffer("cull counts", &vec![0u32; 3 * frames.len()], out);
             let visible = gpu.buffer("visible meshlets", &vec![0u32; total], out);
             let bind = gpu.bind_group(
@@ -196,6 +204,7 @@ impl ComputeCulling {
                     entry(2, &record_buffer),
                     entry(3, &counts),
                     entry(4, &visible),
+                    entry(7, &boxes),
                 ],
             );
             let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
@@ -259,8 +268,28 @@ pub(crate) fn pack_records(frames: &[JointFrame]) -> Vec<f32> {
             out.extend(r.len);
             out.push(r.margin);
             out.extend(r.view.to_array());
-            out.extend([r.sign, r.backface_margin, f32::from_bits(r.group), 0.0, 0.0, 0.0]);
+            out.extend([r.sign, r.backface_margin, f32::from_bits(r.group)]);
+            out.extend(r.box_margin);
+            out.push(r.any_pose as u32 as f32);
         }
+    }
+    out
+}
+
+/// The culler's any-pose boxes as `any_pose_boxes` in cull_common.wgsl: per meshlet
+/// (original index) the first word of its boxes and, after the last, the end; then the
+/// boxes, 8 words each. One zero word without boxes (frames then never test them).
+fn pack_boxes(culler: &MeshletCuller) -> Vec<u32> {
+    let (offsets, boxes) = culler.any_pose_boxes();
+    if boxes.is_empty() {
+        return vec![0];
+    }
+    let start = offsets.len() as u32;
+    let mut out: Vec<u32> = offsets.iter().map(|&o| start + 8 * o).collect();
+    for b in boxes {
+        out.push(b.joint);
+        out.extend(b.center.iter().chain(&b.half).map(|f| f.to_bits()));
+        out.push(b.magnitude.to_bits());
     }
     out
 }

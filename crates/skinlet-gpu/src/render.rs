@@ -68,7 +68,7 @@ struct MeshPath {
     meshlet_layout: wgpu::BindGroupLayout,
     pipeline: wgpu::RenderPipeline,
     /// Task-shader culling then mesh-shader skinning of the survivors, and its culling data
-    /// layout (parameters, slots, joint records).
+    /// layout (parameters, slots, joint records, any-pose boxes).
     cull_layout: wgpu::BindGroupLayout,
     /// Compiled with both tests, the frustum test only, none (`CLASS_TESTS` 3, 1, 0).
     culled_pipelines: [wgpu::RenderPipeline; 3],
@@ -231,6 +231,7 @@ impl Renderer {
                         buffer_entry(2, wgpu::ShaderStages::TASK, read),
                         buffer_entry(4, stage, wgpu::BufferBindingType::Storage { read_only: false }),
                         buffer_entry(5, stage, wgpu::BufferBindingType::Uniform),
+                        buffer_entry(6, wgpu::ShaderStages::TASK, read),
                     ],
                 );
                 // Survivors compacted by subgroup operations where the device has them.
@@ -658,7 +659,7 @@ impl Renderer {
                                 Culling::TaskByClass => CullInput::by_class(culler, frames),
                                 _ => CullInput::new(culler, frames),
                             };
-                            let [_, slots, records] = input.buffers(gpu);
+                            let [_, slots, records, boxes] = input.buffers(gpu);
                             for (k, &(_, count)) in input.ranges.iter().enumerate().filter(|(_, r)| r.1 > 0) {
                                 let params = input.range_params(gpu, k);
                                 let entries = [
@@ -667,6 +668,7 @@ impl Renderer {
                                     entry(2, &records),
                                     entry(4, counter),
                                     entry(5, triangle_cull),
+                                    entry(6, &boxes),
                                 ];
                                 let group3 = gpu.bind_group("task culling", &path.cull_layout, &entries);
                                 // One task workgroup per 32 slots (task_cull.wgsl).

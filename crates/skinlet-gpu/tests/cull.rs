@@ -1,11 +1,13 @@
 //! GPU meshlet culling returns exactly the CPU culling's visible set: the crowd scene of every
 //! shared skinned asset and the demo character, perspective and orthographic, each culling
-//! pipeline (both tests, frustum only, backface only), several frames.
+//! pipeline (both tests, frustum only, backface only), several frames, each instance-frame
+//! with the bounds, the bounds and the any-pose boxes, or the boxes alone.
 
 mod common;
 use common::{assets, bake, gpu};
 use glam::Affine3A;
 use skinlet::clip::Clip;
+use skinlet::cull::any_pose::AnyPoseBoxes;
 use skinlet::cull::crowd::{CrowdParams, crowd};
 use skinlet::cull::meshlet::{JointFrame, MeshletCuller, Tests};
 use skinlet::pose::Poser;
@@ -15,13 +17,18 @@ use skinlet_gpu::cull::ComputeCulling;
 fn gpu_culling_matches_the_cpu_on_the_crowd_scene() {
     let Some(gpu) = gpu() else { return };
     let culling = ComputeCulling::new(&gpu).unwrap();
-    let mut checked = (0usize, 0usize);
+    let mut checked = (0usize, 0usize, 0usize);
     for (name, asset) in assets() {
         let character = asset.character().unwrap();
         let clips: Vec<&Clip> = asset.clips.iter().collect();
         let baked = bake(&asset, &character);
         let skin = &character.palette;
-        let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len()).unwrap();
+        let ranges = skinlet::bounds::vertex::clip_weight_ranges(&baked.mesh.morphs, &clips).unwrap();
+        let boxes = AnyPoseBoxes::build(skin, &baked.mesh, &baked.meshlets, &ranges).unwrap();
+        let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len())
+            .unwrap()
+            .with_any_pose(&boxes)
+            .unwrap();
         for orthographic in [false, true] {
             let params = CrowdParams { instances: 24, frames: 3, orthographic, ..CrowdParams::default() };
             let scene = crowd(&baked.mesh.positions, clips.len(), &params).unwrap();
@@ -29,8 +36,9 @@ fn gpu_culling_matches_the_cpu_on_the_crowd_scene() {
             for tests in [Tests::Both, Tests::Frustum, Tests::Backface] {
                 let mut frames = Vec::new();
                 let mut cpu = Vec::new();
+                let mut boxes_only = Vec::new();
                 for f in 0..params.frames {
-                    for p in &scene.placements {
+                    for (k, p) in scene.placements.iter().enumerate() {
                         let clip = clips.get(p.clip).copied();
                         let t = clip.map_or(0.0, |c| c.start + (p.offset + f as f32 * 0.1).fract() * c.duration());
                         let g = poser.globals(&asset.skeleton, clip, t);
@@ -40,7 +48,12 @@ fn gpu_culling_matches_the_cpu_on_the_crowd_scene() {
                             .map(|&j| Affine3A::from_mat4((p.model * g[j as usize]).as_mat4()))
                             .collect();
                         let mut frame = JointFrame::default();
-                        culler.prepare(&world, &scene.camera, tests, &mut frame);
+                        let prepare = [MeshletCuller::prepare, MeshletCuller::prepare_with_boxes][k % 2];
+                        boxes_only.push(k % 3 == 0);
+                        match k % 3 {
+                            0 => culler.prepare_boxes_only(&world, &scene.camera, tests, &mut frame),
+                            _ => prepare(&culler, &world, &scene.camera, tests, &mut frame),
+                        }
                         let (mut flags, mut visible) = (Vec::new(), Vec::new());
                         let counts = culler.cull(&frame, &mut flags, &mut visible);
                         visible.sort_unstable();
@@ -56,10 +69,16 @@ fn gpu_culling_matches_the_cpu_on_the_crowd_scene() {
                     assert_eq!(&counts, cpu_counts, "{name} {tests:?} ortho {orthographic}: instance-frame {i}");
                     checked.0 += counts.meshlets;
                     checked.1 += counts.meshlets - counts.visible;
+                    if boxes_only[i] {
+                        checked.2 += counts.frustum;
+                    }
                 }
             }
         }
     }
-    eprintln!("{} meshlet tests, {} culled, every one as on the CPU", checked.0, checked.1);
-    assert!(checked.1 > 0, "nothing was culled: the comparison would be vacuous");
+    eprintln!(
+        "{} meshlet tests, {} culled ({} by the any-pose boxes alone), every one as on the CPU",
+        checked.0, checked.1, checked.2
+    );
+    assert!(checked.1 > 0 && checked.2 > 0, "nothing was culled: the comparison would be vacuous");
 }

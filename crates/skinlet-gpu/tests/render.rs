@@ -270,8 +270,9 @@ fn crowd_draws_agree_and_are_timed() {
 #[test]
 fn game_poses_cull_on_the_gpu_as_on_the_cpu() {
     // IK poses (some joints beyond their range of motion): per instance the CPU pose guard
-    // picks the envelope bounds, or a frame that culls nothing; the GPU culling passes draw
-    // exactly the CPU's visible meshlets and the same image as without culling.
+    // picks the envelope bounds (with the any-pose boxes), or the any-pose boxes alone; the
+    // GPU culling passes draw exactly the CPU's visible meshlets and the same image as
+    // without culling.
     use skinlet::cull::crowd::{Animation, CrowdParams, crowd, instance_pose};
     use skinlet::cull::meshlet::{JointFrame, MeshletCuller, Tests};
     let Some(gpu) = gpu() else { return };
@@ -282,31 +283,36 @@ fn game_poses_cull_on_the_gpu_as_on_the_cpu() {
         skinlet::bounds::envelope::Envelope::from_clips(&demo.skeleton, skin, &baked.mesh, &clips, 0.2).unwrap();
     skinlet::bake::add_envelope(&mut baked, &demo, envelope).unwrap();
     let e = baked.envelope.as_ref().unwrap();
-    let (guard, culler) = (e.envelope.guard(), MeshletCuller::new(&e.bounds, &e.classes, skin.joints.len()).unwrap());
+    let culler = MeshletCuller::new(&e.bounds, &e.classes, skin.joints.len()).unwrap();
+    let (guard, culler) = (e.envelope.guard(), culler.with_any_pose(&e.any_pose).unwrap());
     let params = CrowdParams { instances: 12, animation: Animation::Ik, seed: 3, ..Default::default() };
     let scene = crowd(&baked.mesh.positions, clips.len(), &params).unwrap();
-    let (mut poses, mut frames, mut expected, mut refused) = (Vec::new(), Vec::new(), 0, 0);
+    let (mut poses, mut frames, mut expected, mut refused, mut culled_refused) = (Vec::new(), Vec::new(), 0, 0, 0);
     let (mut locals, mut weights, mut globals) = (Vec::new(), Vec::new(), Vec::new());
     for (i, pl) in scene.placements.iter().enumerate() {
         instance_pose(&demo.skeleton, &clips, &baked, &params, i, pl, 0, &mut locals, &mut weights);
         skinlet::pose::global_transforms(&demo.skeleton, &locals, &mut globals);
         let (mut joints, mut skinning) = (Vec::new(), Vec::new());
         pl.world_matrices(skin, &globals, &mut joints, &mut skinning);
-        let frame = if guard.admits(&locals, &weights) {
-            let mut frame = JointFrame::default();
-            culler.prepare(&joints, &scene.camera, Tests::Both, &mut frame);
-            frame
+        let mut frame = JointFrame::default();
+        let admitted = guard.admits(&locals, &weights);
+        if admitted {
+            culler.prepare_with_boxes(&joints, &scene.camera, Tests::Both, &mut frame);
         } else {
-            refused += 1;
-            JointFrame::keep_all(skin.joints.len())
-        };
+            culler.prepare_boxes_only(&joints, &scene.camera, Tests::Both, &mut frame);
+        }
         let mut visible = Vec::new();
-        culler.cull(&frame, &mut Vec::new(), &mut visible);
+        let counts = culler.cull(&frame, &mut Vec::new(), &mut visible);
+        if !admitted {
+            refused += 1;
+            culled_refused += counts.frustum;
+        }
         expected += visible.iter().map(|&m| baked.meshlets.meshlets[m as usize].triangle_count as u32).sum::<u32>();
         poses.push((skinning, weights.clone()));
         frames.push(frame);
     }
     assert!(refused > 0 && refused < 12, "the guard refused {refused} of 12 instances");
+    assert!(culled_refused > 0, "the any-pose boxes culled nothing of the refused instances");
     let instances: Vec<Instance> = (poses.iter().zip(&frames))
         .map(|((m, w), f)| Instance { pose: Pose { matrices: m, morph_weights: w }, frame: Some(f) })
         .collect();
@@ -316,14 +322,18 @@ fn game_poses_cull_on_the_gpu_as_on_the_cpu() {
     let reference = draw(CrowdDraw::Plain(Skinning::Vertex));
     let all: u32 = 12 * baked.meshlets.meshlets.iter().map(|m| m.triangle_count as u32).sum::<u32>();
     assert!(expected < all, "nothing culled");
-    let culled = draw(CrowdDraw::Culled {
-        culler: &culler,
-        culling: Culling::ComputeIndirect,
-        skinning: Skinning::Vertex,
-        triangles: None,
-    });
-    assert_eq!(culled.triangles, Some(expected), "triangles drawn");
-    assert_eq!(differing_pixels(&culled.image, &reference.image), 0, "culled and unculled images differ");
+    let mut paths = vec![(Culling::ComputeIndirect, Skinning::Vertex, reference)];
+    if gpu.has_mesh_shaders() {
+        let mesh_reference = draw(CrowdDraw::Plain(Skinning::Mesh));
+        paths.push((Culling::Task, Skinning::Mesh, mesh_reference.clone()));
+        paths.push((Culling::TaskByClass, Skinning::Mesh, mesh_reference));
+    }
+    for (culling, skinning, reference) in paths {
+        let culled = draw(CrowdDraw::Culled { culler: &culler, culling, skinning, triangles: None });
+        assert_eq!(culled.triangles, Some(expected), "{culling:?}: triangles drawn");
+        let n = differing_pixels(&culled.image, &reference.image);
+        assert_eq!(n, 0, "{culling:?}: culled and unculled images differ");
+    }
 }
 
 fn differing_pixels(a: &skinlet_gpu::render::Image, b: &skinlet_gpu::render::Image) -> usize {

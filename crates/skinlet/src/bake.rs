@@ -556,14 +556,19 @@ pub fn check_consumers(b: &Baked) -> Result<()> {
     let palette = b.palette();
     let camera = Camera::perspective(Vec3::new(0.0, 1.0, 4.0), Vec3::ZERO, Vec3::Y, 1.0, 1.0, 0.1, 100.0)?;
     let joints = vec![glam::Affine3A::IDENTITY; palette.joints.len()];
-    let cull = |bounds: &[MeshletBounds], classes: &[Class]| -> Result<()> {
-        let culler = MeshletCuller::new(bounds, classes, palette.joints.len())?;
+    let cull = |bounds: &[MeshletBounds], classes: &[Class], boxes: Option<&AnyPoseBoxes>| -> Result<()> {
+        let mut culler = MeshletCuller::new(bounds, classes, palette.joints.len())?;
+        if let Some(boxes) = boxes {
+            culler = culler.with_any_pose(boxes)?;
+        }
         let mut frame = JointFrame::default();
-        culler.prepare(&joints, &camera, Tests::Both, &mut frame);
+        culler.prepare_with_boxes(&joints, &camera, Tests::Both, &mut frame);
+        culler.cull(&frame, &mut Vec::new(), &mut Vec::new());
+        culler.prepare_boxes_only(&joints, &camera, Tests::Both, &mut frame);
         culler.cull(&frame, &mut Vec::new(), &mut Vec::new());
         Ok(())
     };
-    cull(&b.bounds, &b.classes)?;
+    cull(&b.bounds, &b.classes, None)?;
     if let Some(o) = &b.overdraw
         && o.select(0, 0.0, Vec3::Z) >= o.buffers.len()
     {
@@ -577,8 +582,7 @@ pub fn check_consumers(b: &Baked) -> Result<()> {
         crate::skinning::skin_mesh(&b.mesh, &weights, &joints, &mut posed, &mut [])?;
     }
     if let Some(e) = &b.envelope {
-        cull(&e.bounds, &e.classes)?;
-        e.any_pose.cull(&joints, &camera, &mut Vec::new());
+        cull(&e.bounds, &e.classes, Some(&e.any_pose))?;
         let rest: Vec<f32> = e.envelope.weights.iter().map(|w| w.0).collect();
         e.envelope.guard().admits(&[], &rest);
     }

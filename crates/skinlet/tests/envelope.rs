@@ -153,8 +153,10 @@ fn envelopes_are_checked_often_enough_to_matter() {
 /// for, seen by a random camera: every meshlet the any-pose boxes cull has every skinned
 /// vertex outside one frustum plane. Returns the meshlets culled.
 fn check_any_pose(seed: u64) -> Result<usize, String> {
+    use skinlet::bounds::meshlet::{Class, MeshletBounds};
     use skinlet::cull::Camera;
     use skinlet::cull::any_pose::AnyPoseBoxes;
+    use skinlet::cull::meshlet::{JointFrame, MeshletCuller, Tests};
     let (skeleton, skin, mut clip, mut positions, mut inf) = random_character(seed);
     let triangles = random_triangles(seed, skin.joints.len(), &mut positions, &mut inf);
     let morphs = if seed % 4 < 2 { random_morphs(seed, positions.len(), 0, &mut clip) } else { Default::default() };
@@ -165,6 +167,21 @@ fn check_any_pose(seed: u64) -> Result<usize, String> {
     let ranges =
         skinlet::bounds::vertex::clip_weight_ranges(&prepared.mesh.morphs, &[&clip]).map_err(|e| e.to_string())?;
     let boxes = AnyPoseBoxes::build(&skin, &prepared.mesh, &meshlets, &ranges).map_err(|e| e.to_string())?;
+    // A culler whose bounds never cull (class "none"), holding the boxes.
+    let none = MeshletBounds {
+        joint: 0,
+        center: Vec3::ZERO,
+        radius: 0.0,
+        rest_radius: 0.0,
+        cone_axis: Vec3::Z,
+        cone_angle: 4.0,
+        rest_cone_angle: 4.0,
+    };
+    let n = meshlets.meshlets.len();
+    let culler = MeshletCuller::new(&vec![none; n], &vec![Class::None; n], skin.joints.len())
+        .and_then(|c| c.with_any_pose(&boxes))
+        .map_err(|e| e.to_string())?;
+    let mut frame = JointFrame::default();
     let mut r = Rng(seed ^ 0xA4E);
     let mut culled = 0;
     for _ in 0..8 {
@@ -200,7 +217,9 @@ fn check_any_pose(seed: u64) -> Result<usize, String> {
                 continue;
             };
             let mut visible = Vec::new();
-            boxes.cull(&joints, &cam, &mut visible);
+            culler.prepare_boxes_only(&joints, &cam, Tests::Both, &mut frame);
+            culler.cull(&frame, &mut Vec::new(), &mut visible);
+            visible.sort_unstable();
             for (m, meshlet) in meshlets.meshlets.iter().enumerate() {
                 if visible.binary_search(&(m as u32)).is_ok() {
                     continue;

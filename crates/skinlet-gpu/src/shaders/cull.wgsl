@@ -15,6 +15,8 @@
 // Per instance and meshlet, DrawIndexedIndirectArgs: index count, instance count, first
 // index, base vertex, first instance.
 @group(0) @binding(6) var<storage, read_write> commands: array<u32>;
+// The culler's any-pose boxes (cull_common.wgsl).
+@group(0) @binding(7) var<storage, read> any_pose_boxes: array<u32>;
 
 // What testing one (instance, slot) gave: the meshlet, its category (0 visible, 1 culled by
 // the frustum, 2 culled as back-facing only) and how many of that category the instance had

@@ -32,8 +32,47 @@ struct Slot {
 
 // Per instance and joint, 40 floats: 6 planes (24), their normal lengths (6), the frustum
 // margin, the view (3), sign, the backface margin, the group (as bits: 0 inside, 1 outside,
-// 2 straddles), padding.
+// 2 straddles), the any-pose box margin (scale, offset), 1 when the any-pose boxes are tested
+// (then the planes are set for every joint), else 0.
 const RECORD: u32 = 40u;
+
+// `any_pose_boxes` (declared by the including module): per meshlet (original index) the
+// first word of its boxes, and after the last meshlet the end; then the boxes, 8 words each:
+// joint, center (3), half extents (3), magnitude. MeshletCuller::boxes_outside, operation
+// for operation: whether every box, moved by its joint, is beyond one and the same plane.
+fn boxes_outside(id: u32, instance: u32) -> bool {
+    let lo = any_pose_boxes[id];
+    let hi = any_pose_boxes[id + 1u];
+    var out = 63u;
+    for (var b = lo; b < hi; b += 8u) {
+        let joint = any_pose_boxes[b];
+        if joint >= cull_params.joints {
+            return false;
+        }
+        let base = (instance * cull_params.joints + joint) * RECORD;
+        let cx = bitcast<f32>(any_pose_boxes[b + 1u]);
+        let cy = bitcast<f32>(any_pose_boxes[b + 2u]);
+        let cz = bitcast<f32>(any_pose_boxes[b + 3u]);
+        let hx = bitcast<f32>(any_pose_boxes[b + 4u]);
+        let hy = bitcast<f32>(any_pose_boxes[b + 5u]);
+        let hz = bitcast<f32>(any_pose_boxes[b + 6u]);
+        let margin = joint_records[base + 37u] * bitcast<f32>(any_pose_boxes[b + 7u]) + joint_records[base + 38u];
+        for (var k = 0u; k < 6u; k++) {
+            let p = base + 4u * k;
+            let n0 = joint_records[p];
+            let n1 = joint_records[p + 1u];
+            let n2 = joint_records[p + 2u];
+            let d = n0 * cx + n1 * cy + n2 * cz + joint_records[p + 3u] + (abs(n0) * hx + abs(n1) * hy + abs(n2) * hz);
+            if !(d + margin < 0.0) {
+                out &= ~(1u << k);
+            }
+        }
+        if out == 0u {
+            return false;
+        }
+    }
+    return lo < hi && out != 0u;
+}
 
 // 0: visible; bit 0: outside the frustum; 2: back-facing (and not outside).
 fn meshlet_flag(s: Slot, instance: u32) -> u32 {
@@ -69,6 +108,10 @@ fn meshlet_flag(s: Slot, instance: u32) -> u32 {
             away = (lhs >= 0.0) && (lhs * lhs >= (dx * dx + dy * dy + dz * dz) * s.sin * s.sin);
         }
         flag |= select(0u, 2u, away);
+    }
+    // The any-pose boxes, on what the bounds keep (whatever the class pipeline's tests).
+    if flag == 0u && (cull_params.flags & 1u) != 0u && joint_records[base + 39u] != 0.0 && boxes_outside(s.id, instance) {
+        flag = 1u;
     }
     return flag;
 }

@@ -6,6 +6,8 @@
 @group(3) @binding(0) var<uniform> cull_params: CullParams;
 @group(3) @binding(1) var<storage, read> slots: array<Slot>;
 @group(3) @binding(2) var<storage, read> joint_records: array<f32>;
+// The culler's any-pose boxes (cull_common.wgsl).
+@group(3) @binding(6) var<storage, read> any_pose_boxes: array<u32>;
 
 struct TaskPayload {
     ids: array<u32, 32>,

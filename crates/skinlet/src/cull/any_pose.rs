@@ -9,21 +9,20 @@
 //! keeps a bone list per cluster for the same reason. No backface test: no normal bound
 //! holds for every pose.
 //!
-//! It is the fallback when a pose leaves the pose envelope ([`crate::bounds::envelope`]).
-//! Cost per meshlet grows with its joint count, which skin-aware meshlets keep small. Each
-//! box moves with Arvo's method (center by the matrix, half extents by its absolute values)
-//! in f32; the plane test carries a margin of 1e-5 of the magnitudes involved, far above the
-//! rounding, so a meshlet culled here is culled in exact arithmetic too.
+//! It is the fallback when a pose leaves the pose envelope ([`crate::bounds::envelope`]),
+//! and culls what the envelope's bounds keep where its caps are wide. Cost per meshlet
+//! grows with its joint count, which skin-aware meshlets keep small. This module builds and
+//! checks the boxes; [`super::meshlet::MeshletCuller::with_any_pose`] lays them out for
+//! culling, where each box is tested exactly against the frustum planes moved into its
+//! joint's space (f32, with a rounding margin far above the rounding).
 
-use super::Camera;
-use super::meshlet::CullCounts;
 use crate::bounds::Aabb;
 use crate::bounds::meshlet::round_up;
 use crate::bounds::vertex::morph_box;
 use crate::meshlet::Meshlets;
 use crate::model::{Skin, SkinnedMesh};
 use crate::{Error, Result};
-use glam::{Affine3A, Vec3, Vec3A, Vec4};
+use glam::Vec3;
 
 /// Per meshlet, a box per influencing joint, in that joint's bind space.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -122,67 +121,5 @@ impl AnyPoseBoxes {
 
     pub fn is_empty(&self) -> bool {
         self.len() == 0
-    }
-
-    /// Frustum-culls every meshlet for joint world matrices `joint_to_world` (one per skin
-    /// joint: model × the joint's global matrix): appends the indices of the meshlets that
-    /// may be visible to `visible` and returns the counts (culled ones count as frustum).
-    /// Missing matrices, or boxes [`AnyPoseBoxes::check`] would refuse, leave their meshlets
-    /// visible.
-    pub fn cull(&self, joint_to_world: &[Affine3A], camera: &Camera, visible: &mut Vec<u32>) -> CullCounts {
-        let mut counts = CullCounts { meshlets: self.len(), ..CullCounts::default() };
-        for m in 0..self.len() {
-            let boxes = self.offsets[m] as usize..self.offsets[m + 1] as usize;
-            if boxes.start < boxes.end && self.outside(boxes, joint_to_world, &camera.planes) {
-                counts.frustum += 1;
-            } else {
-                visible.push(m as u32);
-                counts.visible += 1;
-            }
-        }
-        counts
-    }
-
-    /// Removes from `visible` (meshlet indices another test kept) the meshlets these boxes
-    /// cull, and returns how many. Both tests hold for a pose inside a pose envelope, so a
-    /// meshlet either culls stays culled: where the envelope's caps are wide, the boxes are
-    /// the tighter bound.
-    pub fn retain_visible(&self, joint_to_world: &[Affine3A], camera: &Camera, visible: &mut Vec<u32>) -> usize {
-        let before = visible.len();
-        visible.retain(|&m| {
-            let boxes = self.offsets.get(m as usize).zip(self.offsets.get(m as usize + 1));
-            !boxes.is_some_and(|(&a, &b)| a < b && self.outside(a as usize..b as usize, joint_to_world, &camera.planes))
-        });
-        before - visible.len()
-    }
-
-    /// Whether all the boxes, moved by their joints, are outside one of the planes.
-    fn outside(&self, boxes: std::ops::Range<usize>, joint_to_world: &[Affine3A], planes: &[Vec4; 6]) -> bool {
-        let mut out = [true; 6];
-        for i in boxes {
-            // Data that `check` would refuse (or missing matrices) culls nothing.
-            let (Some(&j), Some(&c), Some(&h)) = (self.joints.get(i), self.center.get(i), self.half.get(i)) else {
-                return false;
-            };
-            let Some(g) = joint_to_world.get(j as usize) else { return false };
-            let (c, h) = (Vec3A::from(c), Vec3A::from(h));
-            let a = &g.matrix3;
-            let center = a.x_axis * c.x + a.y_axis * c.y + a.z_axis * c.z + g.translation;
-            let half = a.x_axis.abs() * h.x + a.y_axis.abs() * h.y + a.z_axis.abs() * h.z;
-            // The magnitudes the f32 transform summed, for the rounding margin.
-            let c_abs = c.abs() + h;
-            let magnitude =
-                a.x_axis.abs() * c_abs.x + a.y_axis.abs() * c_abs.y + a.z_axis.abs() * c_abs.z + g.translation.abs();
-            for (k, p) in planes.iter().enumerate() {
-                let n = Vec3A::from(p.truncate());
-                let d = n.dot(center) + p.w + n.abs().dot(half);
-                let margin = 1e-5 * (n.abs().dot(magnitude) + p.w.abs());
-                out[k] &= d + margin < 0.0;
-            }
-            if !out.contains(&true) {
-                return false;
-            }
-        }
-        out.contains(&true)
     }
 }

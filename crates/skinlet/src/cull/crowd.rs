@@ -348,6 +348,9 @@ impl CrowdStats {
     }
 }
 
+/// One of the culler's `prepare` methods.
+type Prepare = fn(&MeshletCuller, &[Affine3A], &Camera, Tests, &mut JointFrame);
+
 /// Scratch space of one worker.
 #[derive(Default)]
 struct Scratch {
@@ -376,11 +379,19 @@ pub fn run(
     params: &CrowdParams,
     verify: bool,
 ) -> Result<CrowdStats> {
-    let clip_culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len())?;
+    // Every culler also holds the any-pose boxes where the bake has them.
+    let culler = |bounds, classes| -> Result<MeshletCuller> {
+        let c = MeshletCuller::new(bounds, classes, skin.joints.len())?;
+        Ok(match &baked.envelope {
+            Some(e) => c.with_any_pose(&e.any_pose)?,
+            None => c,
+        })
+    };
+    let clip_culler = culler(&baked.bounds, &baked.classes)?;
     // Poses that are not clips are culled with the envelope bounds where the guard admits them.
     let envelope_culler = match (params.animation, &baked.envelope) {
         (Animation::Clips, _) => None,
-        (_, Some(e)) => Some(MeshletCuller::new(&e.bounds, &e.classes, skin.joints.len())?),
+        (_, Some(e)) => Some(culler(&e.bounds, &e.classes)?),
         (a, None) => {
             return Err(crate::Error::invalid(
                 "crowd",
@@ -428,72 +439,56 @@ pub fn run(
                 let inside =
                     envelope_culler.is_some() && guard.as_ref().is_some_and(|g| g.admits(&s.locals, &s.morph_weights));
                 st.guard_time = started.elapsed();
-                // The any-pose boxes hold whenever the morph weights are inside the envelope's ranges.
                 let weights_inside = guard.as_ref().is_some_and(|g| g.admits_weights(&s.morph_weights));
-                let culler = match &envelope_culler {
-                    None => Some(&clip_culler),
-                    Some(c) if inside => {
-                        st.envelope_frames = 1;
-                        Some(c)
-                    }
-                    Some(_) if weights_inside => {
-                        st.any_pose_frames = 1;
-                        None
-                    }
-                    Some(_) => {
-                        st.unculled_frames = 1;
-                        None
-                    }
-                };
-                let any_pose = baked.envelope.as_ref().filter(|_| weights_inside).map(|e| &e.any_pose);
+                let culler = envelope_culler.as_ref().unwrap_or(&clip_culler);
+                let bounds_hold = envelope_culler.is_none() || inside;
+                // The any-pose boxes hold whenever the morph weights are inside their ranges.
+                let boxes_hold = weights_inside && !culler.any_pose_boxes().1.is_empty();
+                match (bounds_hold, boxes_hold) {
+                    (true, _) if envelope_culler.is_some() => st.envelope_frames = 1,
+                    (true, _) => {}
+                    (false, true) => st.any_pose_frames = 1,
+                    (false, false) => st.unculled_frames = 1,
+                }
                 st.meshlets = meshlets.len();
                 st.triangles = per_meshlet_tris.iter().sum();
                 st.vertex_refs = per_meshlet_refs.iter().sum();
-                // The three pipelines with the tightest valid bounds; with both tests, the
-                // any-pose boxes cull what they can of the rest. Each valid bound alone is timed
-                // too (the table of docs/CULLING.md): the meshlet bounds within the "both" run,
-                // the any-pose boxes over every meshlet.
+                // Each valid bound alone, timed (the table of docs/CULLING.md), then the three
+                // pipelines with the tightest valid bounds; with both tests, the any-pose boxes
+                // cull what they can of the rest.
                 let n = meshlets.len();
-                let alone = |counts: CullCounts, time| MethodStats { meshlets: n, culled: n - counts.visible, time };
-                let mut any_alone = None;
-                if let Some(any) = any_pose {
+                let mut run = |prepare: Prepare, tests| {
                     s.visible.clear();
                     let started = Instant::now();
-                    let counts = any.cull(&s.joint_to_world, &crowd.camera, &mut s.visible);
-                    st.methods[2] = alone(counts, started.elapsed());
-                    any_alone = Some(counts);
+                    prepare(culler, &s.joint_to_world, &crowd.camera, tests, &mut s.frame);
+                    let counts = culler.cull(&s.frame, &mut s.flags, &mut s.visible);
+                    (counts, started.elapsed())
+                };
+                let alone =
+                    |(counts, time): (CullCounts, _)| MethodStats { meshlets: n, culled: n - counts.visible, time };
+                if boxes_hold {
+                    st.methods[2] = alone(run(MeshletCuller::prepare_boxes_only, Tests::Both));
                 }
-                if let Some(culler) = culler {
-                    for tests in [Tests::Frustum, Tests::Backface] {
-                        s.visible.clear();
-                        culler.prepare(&s.joint_to_world, &crowd.camera, tests, &mut s.frame);
-                        let c = culler.cull(&s.frame, &mut s.flags, &mut s.visible);
-                        match tests {
-                            Tests::Frustum => st.culled_frustum_only = c.frustum,
-                            _ => st.culled_backface_only = c.backface,
-                        }
-                    }
-                    s.visible.clear();
-                    let started = Instant::now();
-                    culler.prepare(&s.joint_to_world, &crowd.camera, Tests::Both, &mut s.frame);
-                    st.culled_both = culler.cull(&s.frame, &mut s.flags, &mut s.visible);
+                if bounds_hold {
+                    st.culled_frustum_only = run(MeshletCuller::prepare, Tests::Frustum).0.frustum;
+                    st.culled_backface_only = run(MeshletCuller::prepare, Tests::Backface).0.backface;
                     // Clip bounds without an envelope culler, envelope bounds with one.
-                    st.methods[envelope_culler.is_some() as usize] = alone(st.culled_both, started.elapsed());
-                    if let Some(any) = any_pose {
-                        let more = any.retain_visible(&s.joint_to_world, &crowd.camera, &mut s.visible);
-                        st.culled_both.frustum += more;
-                        st.culled_both.visible -= more;
-                    }
-                    st.cull_time = started.elapsed();
-                } else if let Some(counts) = any_alone {
-                    // The guard refused the pose: the any-pose boxes alone (already in `visible`).
-                    st.culled_both = counts;
-                    st.cull_time = st.methods[2].time;
-                    st.culled_frustum_only = counts.frustum;
+                    st.methods[envelope_culler.is_some() as usize] = alone(run(MeshletCuller::prepare, Tests::Both));
+                }
+                if bounds_hold || boxes_hold {
+                    let best: Prepare = match (bounds_hold, boxes_hold) {
+                        (true, true) => MeshletCuller::prepare_with_boxes,
+                        (true, false) => MeshletCuller::prepare,
+                        _ => MeshletCuller::prepare_boxes_only,
+                    };
+                    (st.culled_both, st.cull_time) = run(best, Tests::Both);
                 } else {
                     s.visible.clear();
                     s.visible.extend(0..n as u32);
                     st.culled_both = CullCounts { meshlets: n, visible: n, ..Default::default() };
+                }
+                if !bounds_hold {
+                    st.culled_frustum_only = st.culled_both.frustum;
                 }
                 let mut kept = vec![false; meshlets.len()];
                 for &m in &s.visible {

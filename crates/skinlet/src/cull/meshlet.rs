@@ -27,7 +27,16 @@
 //! 1e-5 of the magnitudes involved (1e-6 × the condition number more for the eye moved by
 //! `A⁻¹`), far above f32 rounding, so a meshlet culled here is culled in exact arithmetic
 //! too; the crowd scene checks this triangle by triangle against reference skinning.
+//!
+//! A culler may also hold the any-pose boxes of [`super::any_pose`] (one box per meshlet and
+//! influencing joint, in that joint's bind space): [`MeshletCuller::prepare_with_boxes`]
+//! adds their test to the bounds', [`MeshletCuller::prepare_boxes_only`] runs it alone for a
+//! pose no stored bound covers. A box moved by `G` lies beyond a plane `(n, w)` exactly when
+//! `n_j·c + w_j + |n_j|·h < 0` with the plane in joint space (`|n_j|` componentwise), so the
+//! test reuses the joint-space planes and needs no per-box transform; the GPU passes read
+//! the same planes and run it operation for operation.
 
+use super::any_pose::AnyPoseBoxes;
 use super::joint_aabb::{JointBoxes, JointSpace};
 use super::{Camera, Projection};
 use crate::bounds::Aabb as DAabb;
@@ -80,6 +89,22 @@ pub struct MeshletCuller {
     /// Per joint, the box around its group sphere (joint space): moved by the joint matrices
     /// ([`JointBoxes::update`]), their union bounds the whole instance's cullable meshlets.
     instance: JointBoxes,
+    /// Any-pose boxes of meshlet `m` (original index): `box_offsets[m]..box_offsets[m + 1]`
+    /// (empty without boxes).
+    box_offsets: Vec<u32>,
+    boxes: Vec<PoseBox>,
+}
+
+/// One any-pose box as the culling loop reads it (8 words, also the GPU layout): its joint,
+/// center and half extents in the joint's bind space, and `magnitude` = Σ (|cᵢ| + hᵢ),
+/// which scales the rounding margin.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[repr(C)]
+pub struct PoseBox {
+    pub joint: u32,
+    pub center: [f32; 3],
+    pub half: [f32; 3],
+    pub magnitude: f32,
 }
 
 /// Joint world matrices from what a renderer usually holds: the instance's model matrix and
@@ -168,6 +193,10 @@ pub struct JointFrame {
     sign: Vec<f32>,
     backface_margin: Vec<f32>,
     group: Vec<Group>,
+    /// With `any_pose`: per joint, the any-pose box margin `scale · magnitude + offset` as
+    /// `[scale, offset]`, and planes set for every joint (not only straddling ones).
+    box_margin: Vec<[f32; 2]>,
+    any_pose: bool,
     orthographic: bool,
     tests: Tests,
 }
@@ -200,6 +229,10 @@ pub struct JointRecord {
     pub backface_margin: f32,
     /// [`GROUP_INSIDE`], [`GROUP_OUTSIDE`] or [`GROUP_STRADDLES`].
     pub group: u32,
+    /// Whether the any-pose boxes are tested (then `planes` are set for every joint), and
+    /// their margin `[scale, offset]` (see [`PoseBox`]).
+    pub any_pose: bool,
+    pub box_margin: [f32; 2],
 }
 
 pub const GROUP_INSIDE: u32 = 0;
@@ -207,21 +240,32 @@ pub const GROUP_OUTSIDE: u32 = 1;
 pub const GROUP_STRADDLES: u32 = 2;
 
 impl JointFrame {
-    /// A frame that culls nothing (every group inside the frustum, no backface test): for an
-    /// instance whose pose no stored bound covers (the pose guard refused it), so that GPU
-    /// culling passes draw it whole.
+    /// A frame that culls nothing (every group inside the frustum, no backface test, no
+    /// boxes): for an instance whose pose nothing the culler holds covers (morph weights out
+    /// of the boxes' ranges), so that GPU culling passes draw it whole.
     pub fn keep_all(joints: usize) -> JointFrame {
-        JointFrame {
-            planes: vec![[[0.0; 4]; 6]; joints],
-            len: vec![[0.0; 6]; joints],
-            margin: vec![0.0; joints],
-            view: vec![Vec3::ZERO; joints],
-            sign: vec![0.0; joints],
-            backface_margin: vec![0.0; joints],
-            group: vec![Group::Inside; joints],
-            orthographic: false,
-            tests: Tests::Both,
-        }
+        let mut frame = JointFrame::default();
+        frame.reset(joints, false, Tests::Both);
+        frame
+    }
+
+    /// Sizes the frame for `joints` joints with every group inside and no backface test;
+    /// planes, lengths, margins, views and backface margins keep stale values, which nothing
+    /// reads until they are set.
+    fn reset(&mut self, joints: usize, orthographic: bool, tests: Tests) {
+        self.planes.resize(joints, [[0.0; 4]; 6]);
+        self.len.resize(joints, [0.0; 6]);
+        self.margin.resize(joints, 0.0);
+        self.view.resize(joints, Vec3::ZERO);
+        self.backface_margin.resize(joints, 0.0);
+        self.box_margin.resize(joints, [0.0; 2]);
+        self.sign.clear();
+        self.sign.resize(joints, 0.0);
+        self.group.clear();
+        self.group.resize(joints, Group::Inside);
+        self.any_pose = false;
+        self.orthographic = orthographic;
+        self.tests = tests;
     }
 
     /// Per joint, the values the culling loop reads.
@@ -239,8 +283,15 @@ impl JointFrame {
                     Group::Outside => GROUP_OUTSIDE,
                     Group::Straddles => GROUP_STRADDLES,
                 },
+                any_pose: self.any_pose,
+                box_margin: self.box_margin[j],
             })
             .collect()
+    }
+
+    /// Whether the any-pose boxes are tested.
+    pub fn any_pose(&self) -> bool {
+        self.any_pose
     }
 
     /// Joints prepared.
@@ -372,23 +423,12 @@ impl MeshletCuller {
     /// joints are prepared at once, one per SIMD lane.
     pub fn prepare(&self, joint_to_world: &[Affine3A], camera: &Camera, tests: Tests, frame: &mut JointFrame) {
         let n = joint_to_world.len().min(self.joints());
-        // Planes, lengths, margins, views and backface margins are read only for joints
-        // whose group straddles the frustum or whose sign is set below, so they need no reset.
-        frame.planes.resize(n, [[0.0; 4]; 6]);
-        frame.len.resize(n, [0.0; 6]);
-        frame.margin.resize(n, 0.0);
-        frame.view.resize(n, Vec3::ZERO);
-        frame.backface_margin.resize(n, 0.0);
-        frame.sign.clear();
-        frame.sign.resize(n, 0.0);
-        frame.orthographic = matches!(camera.projection, Projection::Orthographic { .. });
-        frame.tests = tests;
+        frame.reset(n, matches!(camera.projection, Projection::Orthographic { .. }), tests);
         let (do_frustum, do_back) = (tests != Tests::Backface, tests != Tests::Frustum);
         // The whole instance first: when the box around every group sphere is outside a plane
         // or inside all six, no group needs its own frustum test (and outside, no eye).
         let whole = if do_frustum { self.instance_side(&joint_to_world[..n], camera) } else { Group::Inside };
-        frame.group.clear();
-        frame.group.resize(n, whole);
+        frame.group.fill(whole);
         if whole == Group::Outside {
             return;
         }
@@ -491,6 +531,116 @@ impl MeshletCuller {
         }
     }
 
+    /// [`MeshletCuller::prepare`], and the any-pose boxes tested too (in [`MeshletCuller::cull`],
+    /// on the meshlets the bounds keep): for a pose the bounds hold for, with morph weights
+    /// inside the ranges the boxes were built for. Without boxes, the same as `prepare`.
+    pub fn prepare_with_boxes(
+        &self,
+        joint_to_world: &[Affine3A],
+        camera: &Camera,
+        tests: Tests,
+        frame: &mut JointFrame,
+    ) {
+        self.prepare(joint_to_world, camera, tests, frame);
+        self.box_planes(joint_to_world, camera, frame);
+    }
+
+    /// Only the any-pose boxes (frustum test): for a pose the bounds do not hold for (the pose
+    /// guard refused it), with morph weights inside the boxes' ranges. Without boxes, or with
+    /// [`Tests::Backface`], the frame culls nothing.
+    pub fn prepare_boxes_only(
+        &self,
+        joint_to_world: &[Affine3A],
+        camera: &Camera,
+        tests: Tests,
+        frame: &mut JointFrame,
+    ) {
+        let n = joint_to_world.len().min(self.joints());
+        frame.reset(n, matches!(camera.projection, Projection::Orthographic { .. }), tests);
+        self.box_planes(joint_to_world, camera, frame);
+    }
+
+    /// Joint-space planes of every joint and the box margins, for the any-pose boxes. The
+    /// planes are computed as `prepare` computes them (the same f32 operations, so a joint
+    /// whose group straddles gets the same values). Margin: `n_j` and `w_j` carry f32
+    /// errors below 3 ulps of `|A|ᵀ|n|` and `|t|·|n| + |w|`, the box test below 8 ulps of
+    /// `|n_j|·(|c| + h) + |w_j|`; 1e-5 of `s·Σ(|cᵢ| + hᵢ) + u` (`s`: the largest entry of
+    /// `|A|ᵀ|n|`, `u`: the largest `|t|·|n| + |w|`, over the planes) covers both many times.
+    /// A joint matrix that is not finite gets NaN planes, which cull nothing.
+    fn box_planes(&self, joint_to_world: &[Affine3A], camera: &Camera, frame: &mut JointFrame) {
+        if self.boxes.is_empty() {
+            return;
+        }
+        let n = frame.joints();
+        for (j, g) in joint_to_world[..n].iter().enumerate() {
+            let (a, t) = (&g.matrix3, g.translation);
+            let (mut s, mut u) = (0.0f32, 0.0f32);
+            for (k, p) in camera.planes.iter().enumerate() {
+                let dot = |v: Vec3A| v.x * p.x + v.y * p.y + v.z * p.z;
+                let plane = [dot(a.x_axis), dot(a.y_axis), dot(a.z_axis), dot(t) + p.w];
+                frame.planes[j][k] = if g.is_finite() { plane } else { [f32::NAN; 4] };
+                let pa = p.truncate().abs();
+                s = s
+                    .max(a.x_axis.abs().dot(pa.into()))
+                    .max(a.y_axis.abs().dot(pa.into()))
+                    .max(a.z_axis.abs().dot(pa.into()));
+                u = u.max(t.abs().dot(pa.into()) + p.w.abs());
+            }
+            frame.box_margin[j] = [1e-5 * s, 1e-5 * u];
+        }
+        frame.any_pose = true;
+    }
+
+    /// Whether every any-pose box of meshlet `id`, moved by its joint, is beyond one and the
+    /// same plane of `frame`. A meshlet without boxes, or with a box of a joint the frame
+    /// lacks, is kept.
+    fn boxes_outside(&self, frame: &JointFrame, id: usize) -> bool {
+        let (Some(&lo), Some(&hi)) = (self.box_offsets.get(id), self.box_offsets.get(id + 1)) else { return false };
+        let mut out = 0b11_1111u32;
+        for b in &self.boxes[lo as usize..hi as usize] {
+            let j = b.joint as usize;
+            let (Some(p), Some(&[scale, offset])) = (frame.planes.get(j), frame.box_margin.get(j)) else {
+                return false;
+            };
+            let ([cx, cy, cz], [hx, hy, hz]) = (b.center, b.half);
+            let margin = scale * b.magnitude + offset;
+            for (k, p) in p.iter().enumerate() {
+                let d =
+                    p[0] * cx + p[1] * cy + p[2] * cz + p[3] + (p[0].abs() * hx + p[1].abs() * hy + p[2].abs() * hz);
+                out &= !(((d + margin < 0.0) as u32 ^ 1) << k);
+            }
+            if out == 0 {
+                return false;
+            }
+        }
+        lo < hi && out != 0
+    }
+
+    /// The any-pose boxes as the culling loop reads them: per meshlet (original index) the
+    /// range of its boxes, `offsets[m]..offsets[m + 1]`, and the boxes (both empty without
+    /// boxes).
+    pub fn any_pose_boxes(&self) -> (&[u32], &[PoseBox]) {
+        (&self.box_offsets, &self.boxes)
+    }
+
+    /// The culler with `boxes` (built for the same meshlets and joints) tested by frames
+    /// prepared with [`MeshletCuller::prepare_with_boxes`] or
+    /// [`MeshletCuller::prepare_boxes_only`]. Errors when [`AnyPoseBoxes::check`] refuses
+    /// them for this culler's meshlets and joints.
+    pub fn with_any_pose(mut self, boxes: &AnyPoseBoxes) -> crate::Result<MeshletCuller> {
+        boxes.check(self.len(), self.joints())?;
+        self.box_offsets = boxes.offsets.clone();
+        self.boxes = (boxes.joints.iter().zip(&boxes.center).zip(&boxes.half))
+            .map(|((&joint, &c), &h)| PoseBox {
+                joint: joint as u32,
+                center: c.to_array(),
+                half: h.to_array(),
+                magnitude: (c.abs() + h).element_sum() * (1.0 + 1e-6),
+            })
+            .collect();
+        Ok(self)
+    }
+
     /// Where the box around all group spheres, moved by the joint matrices, lies relative to
     /// the frustum (with a rounding margin of 1e-5 of the magnitudes involved).
     fn instance_side(&self, joint_to_world: &[Affine3A], camera: &Camera) -> Group {
@@ -532,8 +682,9 @@ impl MeshletCuller {
     }
 
     /// Culls every meshlet of one instance: appends the original indices of the visible ones
-    /// to `visible` and returns the counts. `frame` comes from [`MeshletCuller::prepare`].
-    /// `flags` is scratch space (one byte per meshlet), reused across calls.
+    /// to `visible` and returns the counts (meshlets the any-pose boxes cull count as
+    /// frustum-culled). `frame` comes from one of the `prepare` methods. `flags` is scratch
+    /// space (one byte per meshlet), reused across calls.
     pub fn cull(&self, frame: &JointFrame, flags: &mut Vec<u8>, visible: &mut Vec<u32>) -> CullCounts {
         flags.clear();
         flags.resize(self.len(), 0);
@@ -553,6 +704,13 @@ impl MeshletCuller {
                     (true, Group::Straddles) => self.frustum_and_backface(frame, j, lo, f, back),
                     _ if back => self.backface(frame, j, lo, f),
                     _ => {}
+                }
+            }
+        }
+        if frame.any_pose && do_frustum && !self.boxes.is_empty() {
+            for (f, &id) in flags.iter_mut().zip(&self.ids) {
+                if *f == 0 && self.boxes_outside(frame, id as usize) {
+                    *f = 1;
                 }
             }
         }
@@ -623,7 +781,7 @@ impl MeshletCuller {
 mod tests {
     use super::*;
     use crate::bounds::meshlet::cofactor;
-    use glam::{DMat3, DQuat, DVec3, DVec4};
+    use glam::{DMat3, DMat4, DQuat, DVec3, DVec4};
     use proptest::prelude::*;
 
     fn unit(v: [f64; 3]) -> DVec3 {
@@ -685,12 +843,7 @@ mod tests {
             let g = joint(r, rot, scale, shear, t);
             let Some(cam) = camera(ortho, eye, target) else { return Ok(()) };
             let flags = culled(b, g, &cam);
-            let gd = glam::DMat4::from_cols(
-                DVec4::from((Vec3::from(g.matrix3.x_axis).as_dvec3(), 0.0)),
-                DVec4::from((Vec3::from(g.matrix3.y_axis).as_dvec3(), 0.0)),
-                DVec4::from((Vec3::from(g.matrix3.z_axis).as_dvec3(), 0.0)),
-                DVec4::from((Vec3::from(g.translation).as_dvec3(), 1.0)),
-            );
+            let gd = dmat(&g);
             let a3 = DMat3::from_mat4(gd);
             let center = DVec3::from(c);
             let mut points: Vec<DVec3> = samples.iter().map(|(d, _, _)| center + unit(*d) * radius).collect();
@@ -718,6 +871,72 @@ mod tests {
                     prop_assert!(facing >= -1e-9 * nw.length(), "backface-culled, but a normal faces the eye");
                 }
             }
+        }
+    }
+
+    /// The f32 joint matrix in f64.
+    fn dmat(g: &Affine3A) -> DMat4 {
+        DMat4::from_cols(
+            DVec4::from((Vec3::from(g.matrix3.x_axis).as_dvec3(), 0.0)),
+            DVec4::from((Vec3::from(g.matrix3.y_axis).as_dvec3(), 0.0)),
+            DVec4::from((Vec3::from(g.matrix3.z_axis).as_dvec3(), 0.0)),
+            DVec4::from((Vec3::from(g.translation).as_dvec3(), 1.0)),
+        )
+    }
+
+    /// One meshlet with one any-pose box (and bounds that never cull) for joint `g`.
+    fn box_culled(c: Vec3, h: Vec3, g: Affine3A, cam: &Camera) -> bool {
+        let b = MeshletBounds {
+            joint: 0,
+            center: Vec3::ZERO,
+            radius: 0.0,
+            rest_radius: 0.0,
+            cone_axis: Vec3::Z,
+            cone_angle: 4.0,
+            rest_cone_angle: 4.0,
+        };
+        let boxes = AnyPoseBoxes { offsets: vec![0, 1], joints: vec![0], center: vec![c], half: vec![h] };
+        let culler = MeshletCuller::new(&[b], &[Class::None], 1).unwrap().with_any_pose(&boxes).unwrap();
+        let mut frame = JointFrame::default();
+        culler.prepare_boxes_only(&[g], cam, Tests::Both, &mut frame);
+        let mut visible = Vec::new();
+        culler.cull(&frame, &mut Vec::new(), &mut visible);
+        visible.is_empty()
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 3000, ..ProptestConfig::default() })]
+
+        /// Whatever the joint matrix and camera: a box the any-pose test culls has its eight
+        /// moved corners (f64) outside one plane; and a box whose moved corners are all well
+        /// outside one plane (1e-3 of the magnitudes) is culled: the test is exact up to its
+        /// rounding margin, not Arvo's looser world box.
+        #[test]
+        fn any_pose_box_test_is_exact(
+            c in prop::array::uniform3(-2.0f64..2.0), h in prop::array::uniform3(0.0f64..1.0),
+            r in prop::array::uniform3(-1.0f64..1.0), rot in -3.1f64..3.1,
+            scale in prop::array::uniform3(prop_oneof![0.3f64..3.0, -3.0f64..-0.3, -0.01f64..0.01]),
+            shear in -1.0f64..1.0, t in prop::array::uniform3(-6.0f64..6.0),
+            ortho in any::<bool>(), eye in prop::array::uniform3(-12.0f64..12.0),
+            target in prop::array::uniform3(-3.0f64..3.0),
+        ) {
+            let g = joint(r, rot, scale, shear, t);
+            let Some(cam) = camera(ortho, eye, target) else { return Ok(()) };
+            let (c, h) = (DVec3::from(c).as_vec3(), DVec3::from(h).as_vec3());
+            let gd = dmat(&g);
+            let corners: Vec<DVec3> = (0..8)
+                .map(|i| {
+                    let s = DVec3::new([-1.0, 1.0][i & 1], [-1.0, 1.0][(i >> 1) & 1], [-1.0, 1.0][i >> 2]);
+                    gd.transform_point3(c.as_dvec3() + s * h.as_dvec3())
+                })
+                .collect();
+            let scale = corners.iter().map(|p| p.abs().max_element()).fold(1.0, f64::max);
+            let beyond = |by: f64| cam.planes.iter().any(|p| {
+                corners.iter().all(|q| p.truncate().as_dvec3().dot(*q) + p.w as f64 <= by)
+            });
+            let culled = box_culled(c, h, g, &cam);
+            prop_assert!(!culled || beyond(1e-9 * scale), "culled, but a corner of the moved box is inside");
+            prop_assert!(culled || !beyond(-1e-3 * scale), "kept, but every corner is well outside one plane");
         }
     }
 
