@@ -154,7 +154,7 @@ fn joint_aabb(file: Option<&str>, instances: &str, seconds: f64, json: bool) -> 
         let w = Workload::new(&asset, n, 1)?;
         let (skin, mesh) = (&w.character.palette, &w.character.mesh);
         let clips: Vec<&Clip> = asset.clips.iter().collect();
-        let folded = w.boxes.fold_leaves(&asset.skeleton, skin, mesh, &clips, 2)?;
+        let folded = skinlet::cull::joint_aabb::fold_leaves(&w.boxes, &asset.skeleton, skin, mesh, &clips, 2)?;
         let (mut bevy_out, mut ours_out, mut folded_out) =
             (Vec::with_capacity(n), vec![Box3::EMPTY; n], vec![Box3::EMPTY; n]);
         let mut bevy = || w.bevy.update(false, &mut bevy_out);

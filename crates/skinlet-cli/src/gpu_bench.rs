@@ -15,12 +15,12 @@ use anyhow::{Context, Result};
 use glam::{Affine3A, Vec3};
 use serde_json::json;
 use skinlet::cull::crowd::{Animation, CrowdParams, instance_pose, posed_crowd};
-use skinlet::cull::meshlet::{JointFrame, MeshletCuller, Tests};
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::global_transforms;
 use skinlet_gpu::mesh::{GpuMesh, Pose};
 use skinlet_gpu::render::{CrowdDraw, Culling, Instance, Renderer, Skinning};
 use skinlet_gpu::{Gpu, GpuOptions};
+use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller, Tests};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -182,7 +182,8 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let ci_culler = culler_of(&ci)?;
     // Per frame and instance: world-space skinning matrices, joint matrices, morph weights,
     // the pose guard's answer (clips: always).
-    let guard = baked.envelope.as_ref().filter(|_| animation != Animation::Clips).map(|e| e.envelope.guard());
+    let guard =
+        baked.envelope.as_ref().filter(|_| animation != Animation::Clips).map(|e| e.envelope.guard()).transpose()?;
     let mut frames: Vec<Vec<InstancePose>> = Vec::new();
     let (mut locals, mut weights, mut globals) = (Vec::new(), Vec::new(), Vec::new());
     for f in 0..params.frames {
@@ -264,7 +265,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                                 (false, true) => {
                                     c.culler.prepare_boxes_only(&i.joints, &scene.camera, tests, &mut frame)
                                 }
-                                (false, false) => frame = JointFrame::keep_all(skin.joints.len()),
+                                (false, false) => frame.set_keep_all(skin.joints.len()),
                             }
                             frame
                         })

@@ -3,7 +3,7 @@
 use crate::{prepared_character, select_clips};
 use anyhow::Result;
 use serde_json::json;
-use skinlet::overdraw::cluster::{ClusterParams, Lookup, cluster};
+use skinlet::overdraw::cluster::{ClusterParams, cluster, lookup};
 use skinlet::overdraw::evaluate::{EvalParams, evaluate, keyframes};
 use skinlet::overdraw::measure::Raster;
 use std::path::Path;
@@ -18,7 +18,7 @@ fn heatmap(
     params: &ClusterParams,
 ) -> Result<(f64, f64)> {
     let c = cluster(keyframes, original, params);
-    let lookup = Lookup::new(&c, 37, 72);
+    let lookup = lookup(&c, 37, 72);
     let eye = c.framing.eye(glam::Vec3::new(0.0, 0.25, 1.0).normalize(), 3.0);
     let ours = &c.buffers[lookup.get(0, (eye - c.framing.center).normalize()) as usize];
     let size = 256;

@@ -7,7 +7,6 @@ use skinlet::bounds::meshlet::Class;
 use skinlet::bounds::refine::Refinement;
 use skinlet::clip::Clip;
 use skinlet::contour::skinned::{SkinnedMethod, SkinnedParams, refinement, skinned_edges};
-use skinlet::cull::meshlet::{JointFrame, MeshletCuller, Tests};
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::model::SkinnedMesh;
 use skinlet::overdraw::cluster::ClusterParams;
@@ -16,6 +15,7 @@ use skinlet_gpu::contours::{ContourExtraction, ContourView, GpuContours};
 use skinlet_gpu::mesh::{GpuMesh, Pose};
 use skinlet_gpu::render::{Image, Renderer, Skinning, framing};
 use skinlet_gpu::{Gpu, GpuOptions};
+use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller, Tests};
 
 /// The default view direction (toward the eye) and the culled view's observer direction.
 const FRONT: Vec3 = Vec3::new(0.3, 0.2, 1.0);

@@ -12,7 +12,7 @@
 use crate::mesh::entry;
 use crate::skinning::buffer_entry;
 use crate::{Gpu, GpuError, Result};
-use skinlet::cull::meshlet::{CullCounts, CullSlot, JointFrame, MeshletCuller, Tests};
+use skinlet_runtime::meshlet_cull::{CullCounts, CullSlot, JointFrame, MeshletCuller, Tests};
 
 /// Floats per joint record in `cull.wgsl`.
 const RECORD: usize = 40;

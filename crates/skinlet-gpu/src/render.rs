@@ -12,9 +12,9 @@ use crate::mesh::{GpuMesh, Pose, entry};
 use crate::skinning::{ComputeSkinning, buffer_entry, mesh_bindings, mesh_entries};
 use crate::{Gpu, GpuError, Result};
 use glam::{Mat4, Vec3};
-use skinlet::cull::meshlet::{JointFrame, MeshletCuller};
 use skinlet::cull::{Camera, Projection};
 use skinlet::overdraw::measure::Overdraw;
+use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller};
 
 /// How skinned vertices reach the rasterizer.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

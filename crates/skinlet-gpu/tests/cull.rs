@@ -7,11 +7,10 @@ mod common;
 use common::{assets, bake, gpu};
 use glam::Affine3A;
 use skinlet::clip::Clip;
-use skinlet::cull::any_pose::AnyPoseBoxes;
 use skinlet::cull::crowd::{CrowdParams, crowd};
-use skinlet::cull::meshlet::{JointFrame, MeshletCuller, Tests};
 use skinlet::pose::Poser;
 use skinlet_gpu::cull::ComputeCulling;
+use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller, Tests};
 
 #[test]
 fn gpu_culling_matches_the_cpu_on_the_crowd_scene() {
@@ -24,7 +23,7 @@ fn gpu_culling_matches_the_cpu_on_the_crowd_scene() {
         let baked = bake(&asset, &character);
         let skin = &character.palette;
         let ranges = skinlet::bounds::vertex::clip_weight_ranges(&baked.mesh.morphs, &clips).unwrap();
-        let boxes = AnyPoseBoxes::build(skin, &baked.mesh, &baked.meshlets, &ranges).unwrap();
+        let boxes = skinlet::cull::any_pose::build(skin, &baked.mesh, &baked.meshlets, &ranges).unwrap();
         let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len())
             .unwrap()
             .with_any_pose(&boxes)

@@ -117,7 +117,8 @@ fn culled_drawing_gives_the_unculled_image() {
         let baked = common::bake(&asset, &character);
         let skin = &character.palette;
         let culler =
-            skinlet::cull::meshlet::MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len()).unwrap();
+            skinlet_runtime::meshlet_cull::MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len())
+                .unwrap();
         let clip = clips.first().copied();
         let t = clip.map_or(0.0, |c| c.start + 0.6 * c.duration());
         let mut poser = Poser::default();
@@ -130,8 +131,8 @@ fn culled_drawing_gives_the_unculled_image() {
             let gpu_mesh = GpuMesh::new(device, &baked.mesh, Some(&baked.meshlets)).unwrap();
             for (dir, zoom) in [(Vec3::new(0.3, 0.2, 1.0), 1.0), (Vec3::new(-1.0, 0.4, -0.5), 2.5)] {
                 let camera = framing(posed, dir, zoom).unwrap();
-                let mut frame = skinlet::cull::meshlet::JointFrame::default();
-                culler.prepare(&joints, &camera, skinlet::cull::meshlet::Tests::Both, &mut frame);
+                let mut frame = skinlet_runtime::meshlet_cull::JointFrame::default();
+                culler.prepare(&joints, &camera, skinlet_runtime::meshlet_cull::Tests::Both, &mut frame);
                 let mut visible = Vec::new();
                 let counts = culler.cull(&frame, &mut Vec::new(), &mut visible);
                 culled_total += counts.meshlets - counts.visible;
@@ -195,7 +196,8 @@ fn crowd_draws_agree_and_are_timed() {
     let skin = &baked.palette();
     let params = skinlet::cull::crowd::CrowdParams { instances: 12, ..Default::default() };
     let scene = skinlet::cull::crowd::crowd(&baked.mesh.positions, clips.len(), &params).unwrap();
-    let culler = skinlet::cull::meshlet::MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len()).unwrap();
+    let culler =
+        skinlet_runtime::meshlet_cull::MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len()).unwrap();
     let mut poser = Poser::default();
     let (mut matrices, mut frames, mut expected) = (Vec::new(), Vec::new(), 0);
     for pl in &scene.placements {
@@ -206,8 +208,8 @@ fn crowd_draws_agree_and_are_timed() {
         pl.world_matrices(skin, globals, &mut joints, &mut skinning);
         baked.mesh.morphs.weights_at(Some(clip), t, &mut weights);
         matrices.push((skinning, weights));
-        let mut frame = skinlet::cull::meshlet::JointFrame::default();
-        culler.prepare(&joints, &scene.camera, skinlet::cull::meshlet::Tests::Both, &mut frame);
+        let mut frame = skinlet_runtime::meshlet_cull::JointFrame::default();
+        culler.prepare(&joints, &scene.camera, skinlet_runtime::meshlet_cull::Tests::Both, &mut frame);
         let mut visible = Vec::new();
         culler.cull(&frame, &mut Vec::new(), &mut visible);
         expected += visible.iter().map(|&m| baked.meshlets.meshlets[m as usize].triangle_count as u32).sum::<u32>();
@@ -274,7 +276,7 @@ fn game_poses_cull_on_the_gpu_as_on_the_cpu() {
     // GPU culling passes draw exactly the CPU's visible meshlets and the same image as
     // without culling.
     use skinlet::cull::crowd::{Animation, CrowdParams, crowd, instance_pose};
-    use skinlet::cull::meshlet::{JointFrame, MeshletCuller, Tests};
+    use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller, Tests};
     let Some(gpu) = gpu() else { return };
     let (renderer, demo, mut baked) = crowd_setup(&gpu);
     let clips: Vec<&skinlet::clip::Clip> = demo.clips.iter().collect();
@@ -284,7 +286,7 @@ fn game_poses_cull_on_the_gpu_as_on_the_cpu() {
     skinlet::bake::add_envelope(&mut baked, &demo, envelope).unwrap();
     let e = baked.envelope.as_ref().unwrap();
     let culler = MeshletCuller::new(&e.bounds, &e.classes, skin.joints.len()).unwrap();
-    let (guard, culler) = (e.envelope.guard(), culler.with_any_pose(&e.any_pose).unwrap());
+    let (guard, culler) = (e.envelope.guard().unwrap(), culler.with_any_pose(&e.any_pose).unwrap());
     let params = CrowdParams { instances: 12, animation: Animation::Ik, seed: 3, ..Default::default() };
     let scene = crowd(&baked.mesh.positions, clips.len(), &params).unwrap();
     let (mut poses, mut frames, mut expected, mut refused, mut culled_refused) = (Vec::new(), Vec::new(), 0, 0, 0);

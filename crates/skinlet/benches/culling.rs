@@ -20,10 +20,10 @@ use skinlet::clip::Clip;
 use skinlet::cull::bevy_baseline::Workload;
 use skinlet::cull::crowd::{CrowdParams, crowd};
 use skinlet::cull::joint_aabb::Box3;
-use skinlet::cull::meshlet::{JointFrame, MeshletCuller, Tests};
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::Poser;
 use skinlet::{Asset, Character};
+use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller, Tests};
 use std::hint::black_box;
 use std::path::PathBuf;
 
@@ -119,7 +119,7 @@ fn joint_aabbs(c: &mut Criterion, name: &str, asset: &Asset, instances: usize) {
     // Leaf joints folded twice into their ancestors (conservative for the asset's clips).
     let (skin, mesh) = (&w.character.palette, &w.character.mesh);
     let clips: Vec<&Clip> = asset.clips.iter().collect();
-    let folded = w.boxes.fold_leaves(&asset.skeleton, skin, mesh, &clips, 2).unwrap();
+    let folded = skinlet::cull::joint_aabb::fold_leaves(&w.boxes, &asset.skeleton, skin, mesh, &clips, 2).unwrap();
     group.bench_function(format!("{name}-{instances}/skinlet-folded"), |b| {
         b.iter(|| {
             folded.update_all(&w.palette, w.stride, &mut boxes).unwrap();

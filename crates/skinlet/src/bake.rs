@@ -29,12 +29,12 @@ use crate::overdraw::cluster::{ClusterParams, Framing, Lookup, Orders, cluster};
 use crate::overdraw::evaluate::keyframes;
 use crate::{Error, Result};
 use glam::{Mat4, Quat, Vec3};
+use skinlet_runtime::bake_view::{BakeView, BakedBounds, check_bounds};
 use std::io::Write;
 use std::ops::Range;
 use std::path::Path;
 
-pub const MAGIC: [u8; 8] = *b"SKINLET\0";
-pub const VERSION: u32 = 3;
+pub use skinlet_runtime::bake_view::{MAGIC, VERSION};
 
 /// How a bake was made (enough to reproduce it from the same source file).
 #[derive(Clone, Debug, PartialEq)]
@@ -208,7 +208,7 @@ pub fn add_overdraw(baked: &mut Baked, asset: &Asset, params: &ClusterParams, ma
         return Err(Error::invalid("bake", "overdraw orders need at least one clip"));
     }
     let c = cluster(&positions, &baked.mesh.triangles, params);
-    let mut orders = Orders::new(&c, keys, params.lambda);
+    let mut orders = crate::overdraw::cluster::orders(&c, keys, params.lambda);
     let part_of = |t: &[u32; 3]| baked.parts.partition_point(|p| p.vertices.end <= t[0]);
     for buffer in &mut orders.buffers {
         buffer.sort_by_key(part_of);
@@ -234,7 +234,7 @@ pub fn add_envelope(baked: &mut Baked, asset: &Asset, envelope: Envelope) -> Res
     let palette = baked.palette();
     let bounds = envelope_bounds(&asset.skeleton, &palette, &baked.mesh, &baked.meshlets, &envelope)?;
     let classes = bounds.iter().map(|b| classify(b, baked.settings.s_r, baked.settings.alpha_t)).collect();
-    let any_pose = AnyPoseBoxes::build(&palette, &baked.mesh, &baked.meshlets, &envelope.weight_ranges())?;
+    let any_pose = crate::cull::any_pose::build(&palette, &baked.mesh, &baked.meshlets, &envelope.weight_ranges())?;
     let names = envelope.nodes.iter().map(|r| asset.skeleton.nodes[r.node as usize].name.clone()).collect();
     baked.envelope = Some(BakedEnvelope { envelope, names, bounds, classes, any_pose });
     Ok(())
@@ -551,8 +551,8 @@ pub fn read(path: &Path) -> Result<Baked> {
 /// the bake tests and the `bake` fuzz target (`fuzz/`) call it on corrupted files; an error
 /// names the consumer that refused.
 pub fn check_consumers(b: &Baked) -> Result<()> {
-    use crate::cull::meshlet::{JointFrame, MeshletCuller, Tests};
     use crate::cull::{Camera, Projection};
+    use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller, Tests};
     let palette = b.palette();
     let camera = Camera::perspective(Vec3::new(0.0, 1.0, 4.0), Vec3::ZERO, Vec3::Y, 1.0, 1.0, 0.1, 100.0)?;
     let joints = vec![glam::Affine3A::IDENTITY; palette.joints.len()];
@@ -574,7 +574,7 @@ pub fn check_consumers(b: &Baked) -> Result<()> {
     {
         return Err(Error::invalid("overdraw lookup", "selected a buffer that does not exist"));
     }
-    crate::cull::joint_aabb::JointBoxes::new(&b.mesh, &palette, crate::cull::joint_aabb::JointSpace::Joint, &[])?;
+    crate::cull::joint_aabb::joint_boxes(&b.mesh, &palette, crate::cull::joint_aabb::JointSpace::Joint, &[])?;
     let mut weights = Vec::new();
     b.mesh.morphs.weights_at(None, 0.0, &mut weights);
     let mut posed = vec![Vec3::ZERO; b.mesh.positions.len()];
@@ -584,7 +584,7 @@ pub fn check_consumers(b: &Baked) -> Result<()> {
     if let Some(e) = &b.envelope {
         cull(&e.bounds, &e.classes, Some(&e.any_pose))?;
         let rest: Vec<f32> = e.envelope.weights.iter().map(|w| w.0).collect();
-        e.envelope.guard().admits(&[], &rest);
+        e.envelope.guard()?.admits(&[], &rest);
     }
     if let Some(c) = &b.contours {
         let edges = skinned_edges(&b.mesh, c.visible_only)?;
@@ -647,65 +647,36 @@ impl<'a> In<'a> {
     fn end(&self) -> Result<()> {
         if self.at == self.b.len() { Ok(()) } else { Err(self.err("unexpected bytes after the section's data")) }
     }
-    /// `n` meshlet bounds with their classes, principal joints below `joints`.
+    /// `n` meshlet bounds with their classes, checked like `BNDS`'s
+    /// ([`skinlet_runtime::bake_view::check_bounds`]).
     fn bounds(&mut self, n: usize, joints: usize) -> Result<(Vec<MeshletBounds>, Vec<Class>)> {
         if n.saturating_mul(BOUNDS_STRIDE) > self.b.len() - self.at {
             return Err(self.err(format!("{n} meshlet bounds do not fit in the section")));
         }
-        let mut bounds = Vec::with_capacity(n);
-        let mut classes = Vec::with_capacity(n);
-        for i in 0..n {
-            let (center, radius, cone_axis, cone_angle) = (self.vec3()?, self.f32()?, self.vec3()?, self.f32()?);
-            let (rest_radius, rest_cone_angle, joint) = (self.f32()?, self.f32()?, self.u32()?);
-            if joint as usize >= joints {
-                return Err(self.err(format!("meshlet {i}'s principal joint {joint} is not one of {joints} joints")));
-            }
-            classes.push(match self.u32()? {
-                0 => Class::Both,
-                1 => Class::FrustumOnly,
-                2 => Class::None,
-                x => return Err(self.err(format!("meshlet {i} has unknown class {x}"))),
-            });
-            if radius < 0.0 || rest_radius < 0.0 || !(0.0..=std::f32::consts::PI).contains(&cone_angle) {
-                return Err(self.err(format!("meshlet {i} has a negative radius or a cone angle outside [0, π]")));
-            }
-            let joint = joint as u16;
-            bounds.push(MeshletBounds { joint, center, radius, rest_radius, cone_axis, cone_angle, rest_cone_angle });
-        }
-        Ok((bounds, classes))
+        let at = self.at;
+        let records: Vec<BakedBounds> = bytemuck::pod_collect_to_vec(self.bytes(n * BOUNDS_STRIDE)?);
+        check_bounds(&records, joints, &format!("bake section {}", self.tag))
+            .map_err(|e| Error::invalid(format!("bake section {}", self.tag), format!("byte {at}: {e}")))?;
+        Ok(records.iter().map(|r| (r.bounds(), r.class())).unzip())
     }
 }
 
 /// Parses and checks bake file bytes.
 pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
-    let mut head = In { tag: "header", b: bytes, at: 0 };
-    if head.bytes(8)? != MAGIC {
-        return Err(Error::invalid("bake header", "not a skinlet bake file (wrong magic bytes)"));
-    }
-    let version = head.u32()?;
-    if version != VERSION {
-        return Err(Error::unsupported("bake header", format!("version {version}; this skinlet reads {VERSION}")));
-    }
-    let n = head.count("sections", ENTRY)?;
-    let mut found: [Option<&[u8]>; 11] = [None; 11];
-    for _ in 0..n {
-        let tag: [u8; 4] = head.bytes(4)?.try_into().expect("4 bytes");
-        head.u32()?;
-        let offset = u64::from_le_bytes(head.bytes(8)?.try_into().expect("8 bytes"));
-        let len = u64::from_le_bytes(head.bytes(8)?.try_into().expect("8 bytes"));
-        let body = usize::try_from(offset)
-            .ok()
-            .zip(usize::try_from(len).ok())
-            .and_then(|(o, l)| bytes.get(o..o.checked_add(l)?))
-            .ok_or_else(|| head.err(format!("section {} lies outside the file", String::from_utf8_lossy(&tag))))?;
-        if let Some(i) = TAGS.iter().position(|t| **t == tag) {
-            found[i] = Some(body);
-        }
-    }
+    // The view needs 4-byte aligned bytes; a slice that is not (only a caller's sub-slice
+    // can be) is read from an aligned copy.
+    let copy: Vec<u32>;
+    let bytes = if (bytes.as_ptr() as usize).is_multiple_of(4) {
+        bytes
+    } else {
+        copy = bytemuck::pod_collect_to_vec(&[bytes, &[0; 3][..(4 - bytes.len() % 4) % 4]].concat());
+        &bytemuck::cast_slice::<u32, u8>(&copy)[..bytes.len()]
+    };
+    let view = BakeView::new(bytes)?;
+    let found: Vec<Option<&[u8]>> = TAGS.iter().map(|t| view.section(t)).collect();
     let section = |i: usize| -> Result<In> {
         let tag = std::str::from_utf8(TAGS[i]).expect("ASCII tags");
-        let b = found[i].ok_or_else(|| Error::invalid("bake file", format!("section {tag} is missing")))?;
-        Ok(In { tag, b, at: 0 })
+        Ok(In { tag, b: view.required(TAGS[i])?, at: 0 })
     };
 
     let mut s = section(0)?;
@@ -772,14 +743,8 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
     let meshlets = flat::from_bytes(s.b).map_err(|e| s.err(e))?;
     meshlets.validate(&mesh.triangles, limits).map_err(|e| s.err(e))?;
 
-    let mut s = section(5)?;
-    let n = s.count("meshlet bounds", BOUNDS_STRIDE)?;
-    if n != meshlets.len() {
-        return Err(s.err(format!("{n} bounds for {} meshlets", meshlets.len())));
-    }
-    s.align(16)?;
-    let (bounds, classes) = s.bounds(n, joints)?;
-    s.end()?;
+    let (bounds, classes): (Vec<MeshletBounds>, Vec<Class>) =
+        view.meshlet_bounds()?.iter().map(|r| (r.bounds(), r.class())).unzip();
     let parts = read_parts(section(6)?, &mesh, &meshlets)?;
     let overdraw = if found[7].is_some() { Some(read_orders(section(7)?, &mesh, &parts, clips_len)?) } else { None };
     let contours = if found[8].is_some() { Some(read_contours(section(8)?, &mesh, joints)?) } else { None };
@@ -1138,6 +1103,32 @@ mod tests {
         }
     }
 
+    #[test]
+    fn the_runtime_view_reads_what_the_baker_wrote() {
+        // The zero-copy view of skinlet-runtime hands out the bake's own bytes as the bounds,
+        // matrices and nodes read gives, and builds the same culler; from a misaligned start
+        // the view refuses and read goes through an aligned copy.
+        use skinlet_runtime::meshlet_cull::MeshletCuller;
+        let b = baked();
+        let bytes = to_bytes(&b);
+        let view = BakeView::new(&bytes).unwrap();
+        let records = view.meshlet_bounds().unwrap();
+        assert_eq!(records.len(), b.bounds.len());
+        for ((r, want), class) in records.iter().zip(&b.bounds).zip(&b.classes) {
+            assert_eq!((r.bounds(), r.class()), (*want, *class));
+        }
+        assert!(std::ptr::eq(records.as_ptr().cast::<u8>(), &bytes[section_start(&bytes, b"BNDS") + 16]), "zero-copy");
+        let ibm: Vec<glam::Mat4> = view.inverse_bind().unwrap().iter().map(glam::Mat4::from_cols_array).collect();
+        assert_eq!(ibm, b.inverse_bind);
+        assert_eq!(view.joint_nodes().unwrap(), &b.joint_nodes[..]);
+        let culler = MeshletCuller::new(&b.bounds, &b.classes, b.inverse_bind.len()).unwrap();
+        assert_eq!(view.culler().unwrap().slots(), culler.slots());
+        let mut shifted = vec![0u8; bytes.len() + 1];
+        shifted[1..].copy_from_slice(&bytes);
+        assert!(BakeView::new(&shifted[1..]).unwrap_err().to_string().contains("aligned"));
+        assert_eq!(from_bytes(&shifted[1..]).unwrap(), b);
+    }
+
     /// Where section `tag` starts in bake bytes (from the section table).
     fn section_start(bytes: &[u8], tag: &[u8; 4]) -> usize {
         let n = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
@@ -1203,9 +1194,9 @@ mod tests {
         // More buffers than a bake holds, and culler inputs that do not match.
         let many = ClusterParams { k: 256, ..params };
         assert!(add_overdraw(&mut b, &asset, &many, 2).unwrap_err().to_string().contains("256 overdraw buffers"));
-        let culler = crate::cull::meshlet::MeshletCuller::new(&b.bounds, &b.classes[1..], b.joint_nodes.len());
+        let culler = skinlet_runtime::meshlet_cull::MeshletCuller::new(&b.bounds, &b.classes[1..], b.joint_nodes.len());
         assert!(culler.is_err());
-        assert!(crate::cull::meshlet::MeshletCuller::new(&b.bounds, &b.classes, 0).is_err());
+        assert!(skinlet_runtime::meshlet_cull::MeshletCuller::new(&b.bounds, &b.classes, 0).is_err());
     }
 
     #[test]

@@ -27,6 +27,15 @@ pub enum Error {
     Unsupported { location: String, message: String },
 }
 
+impl From<skinlet_runtime::Error> for Error {
+    fn from(e: skinlet_runtime::Error) -> Self {
+        match e {
+            skinlet_runtime::Error::Invalid { location, message } => Error::Invalid { location, message },
+            skinlet_runtime::Error::Unsupported { location, message } => Error::Unsupported { location, message },
+        }
+    }
+}
+
 impl Error {
     pub(crate) fn invalid(location: impl Into<String>, message: impl Into<String>) -> Self {
         Error::Invalid { location: location.into(), message: message.into() }

@@ -39,5 +39,10 @@ pub mod summary;
 pub mod weld;
 
 pub use character::{Character, Part, PartKind};
+
+/// The README's Rust examples, compiled as doc-tests so they cannot rot.
+#[cfg(doctest)]
+#[doc = include_str!("../../../README.md")]
+struct ReadmeExamples;
 pub use error::{Error, Result};
 pub use model::{Asset, Influences, Instance, Mesh, Node, Skeleton, Skin, SkinnedMesh, Trs};

@@ -4,38 +4,10 @@
 //! Node indices are the glTF node indices of the source file, so every report and JSON
 //! output can be matched against the file. Clips live in [`crate::clip`].
 
-use glam::{Mat4, Quat, Vec3};
+use glam::{Mat4, Vec3};
 
 /// A local transform as glTF stores it: `T * R * S`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Trs {
-    pub translation: Vec3,
-    pub rotation: Quat,
-    pub scale: Vec3,
-}
-
-impl Trs {
-    pub const IDENTITY: Trs = Trs { translation: Vec3::ZERO, rotation: Quat::IDENTITY, scale: Vec3::ONE };
-
-    pub fn to_mat4(&self) -> Mat4 {
-        Mat4::from_scale_rotation_translation(self.scale, self.rotation, self.translation)
-    }
-
-    /// `T * R * S` in double precision (used by the reference pose).
-    pub fn to_dmat4(&self) -> glam::DMat4 {
-        glam::DMat4::from_scale_rotation_translation(
-            self.scale.as_dvec3(),
-            self.rotation.as_dquat().normalize(),
-            self.translation.as_dvec3(),
-        )
-    }
-}
-
-impl Default for Trs {
-    fn default() -> Self {
-        Trs::IDENTITY
-    }
-}
+pub use skinlet_runtime::Trs;
 
 /// One node of the scene hierarchy: a joint, or any node above or beside joints.
 #[derive(Clone, Debug, PartialEq)]

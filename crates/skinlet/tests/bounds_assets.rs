@@ -74,7 +74,7 @@ fn envelope_bounds_hold_on_every_asset() {
         let env = Envelope::from_clips(&asset.skeleton, skin, &prepared.mesh, &clips, 10f64.to_radians()).unwrap();
         let bounds = envelope_bounds(&asset.skeleton, skin, &prepared.mesh, meshlets, &env).unwrap();
         let poses = env.sample_poses(&asset.skeleton, 200, 7);
-        let guard = env.guard();
+        let guard = env.guard().unwrap();
         assert!(poses.iter().all(|(l, w)| guard.admits(l, w)), "{name}: the guard refused a sampled pose");
         let report =
             skinlet::bounds::verify::verify_poses(&asset.skeleton, skin, &poses, &prepared.mesh, meshlets, &bounds)

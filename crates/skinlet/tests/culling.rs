@@ -14,7 +14,7 @@ use skinlet::bake::{Baked, bake};
 use skinlet::bounds::refine::Refinement;
 use skinlet::clip::Clip;
 use skinlet::cull::crowd::{CrowdParams, posed_crowd, run};
-use skinlet::cull::joint_aabb::{Box3, JointBoxes, JointSpace};
+use skinlet::cull::joint_aabb::{Box3, JointBoxes, JointSpace, fold_leaves, joint_boxes};
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::model::{Skeleton, Skin, SkinnedMesh};
 use skinlet::pose::Poser;
@@ -142,8 +142,8 @@ fn check_boxes(
     folded: Option<&JointBoxes>,
 ) -> usize {
     let clips: Vec<&Clip> = clip.into_iter().collect();
-    let in_mesh = JointBoxes::new(mesh, skin, JointSpace::Mesh, &clips).unwrap();
-    let in_joint = JointBoxes::new(mesh, skin, JointSpace::Joint, &clips).unwrap();
+    let in_mesh = joint_boxes(mesh, skin, JointSpace::Mesh, &clips).unwrap();
+    let in_joint = joint_boxes(mesh, skin, JointSpace::Joint, &clips).unwrap();
     let mut weights = Vec::new();
     let mut poser = Poser::default();
     let (mut skinning, mut skinned) = (Vec::new(), vec![Vec3::ZERO; mesh.positions.len()]);
@@ -188,8 +188,8 @@ fn joint_boxes_contain_every_skinned_vertex_on_shared_assets() {
         let skin = &character.palette;
         let mesh = character.mesh.clone();
         let clips: Vec<&Clip> = asset.clips.iter().collect();
-        let in_joint = JointBoxes::new(&mesh, skin, JointSpace::Joint, &clips).unwrap();
-        let folded = in_joint.fold_leaves(&asset.skeleton, skin, &mesh, &clips, 2).unwrap();
+        let in_joint = joint_boxes(&mesh, skin, JointSpace::Joint, &clips).unwrap();
+        let folded = fold_leaves(&in_joint, &asset.skeleton, skin, &mesh, &clips, 2).unwrap();
         let mut checked = 0;
         for clip in &clips {
             checked +=
@@ -216,10 +216,8 @@ fn joint_boxes_contain_every_skinned_vertex_on_random_rigs() {
             ch.values[k].y = 0.0;
         }
         let mesh = SkinnedMesh { positions, influences: Some(inf), ..SkinnedMesh::default() };
-        let folded = JointBoxes::new(&mesh, &skin, JointSpace::Joint, &[&clip])
-            .unwrap()
-            .fold_leaves(&skeleton, &skin, &mesh, &[&clip], 1)
-            .ok();
+        let boxes = joint_boxes(&mesh, &skin, JointSpace::Joint, &[&clip]).unwrap();
+        let folded = fold_leaves(&boxes, &skeleton, &skin, &mesh, &[&clip], 1).ok();
         checked += check_boxes(&format!("seed {seed}"), &skeleton, &skin, &mesh, Some(&clip), folded.as_ref());
         checked += check_boxes(&format!("seed {seed} rest"), &skeleton, &skin, &mesh, None, None);
     }

@@ -82,7 +82,7 @@ fn check_envelope(seed: u64) -> Result<usize, String> {
         random_envelope(&mut r, &skeleton, prepared.mesh.morphs.weights.len())
     };
     let bounds = envelope_bounds(&skeleton, &skin, &prepared.mesh, &meshlets, &env).map_err(|e| e.to_string())?;
-    let guard = env.guard();
+    let guard = env.guard().unwrap();
     // Half of them on the envelope's boundary (`Envelope::sample_poses`).
     let mut poses = env.sample_poses(&skeleton, 48, seed);
     for p in &poses {
@@ -155,8 +155,7 @@ fn envelopes_are_checked_often_enough_to_matter() {
 fn check_any_pose(seed: u64) -> Result<usize, String> {
     use skinlet::bounds::meshlet::{Class, MeshletBounds};
     use skinlet::cull::Camera;
-    use skinlet::cull::any_pose::AnyPoseBoxes;
-    use skinlet::cull::meshlet::{JointFrame, MeshletCuller, Tests};
+    use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller, Tests};
     let (skeleton, skin, mut clip, mut positions, mut inf) = random_character(seed);
     let triangles = random_triangles(seed, skin.joints.len(), &mut positions, &mut inf);
     let morphs = if seed % 4 < 2 { random_morphs(seed, positions.len(), 0, &mut clip) } else { Default::default() };
@@ -166,7 +165,7 @@ fn check_any_pose(seed: u64) -> Result<usize, String> {
         .map_err(|e| e.to_string())?;
     let ranges =
         skinlet::bounds::vertex::clip_weight_ranges(&prepared.mesh.morphs, &[&clip]).map_err(|e| e.to_string())?;
-    let boxes = AnyPoseBoxes::build(&skin, &prepared.mesh, &meshlets, &ranges).map_err(|e| e.to_string())?;
+    let boxes = skinlet::cull::any_pose::build(&skin, &prepared.mesh, &meshlets, &ranges).map_err(|e| e.to_string())?;
     // A culler whose bounds never cull (class "none"), holding the boxes.
     let none = MeshletBounds {
         joint: 0,

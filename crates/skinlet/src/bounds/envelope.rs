@@ -31,34 +31,7 @@ use glam::{DQuat, DVec3, Quat, Vec3};
 use rayon::prelude::*;
 use std::f64::consts::PI;
 
-/// How much wider than the guard admits a rotation cap is taken for the bounds (radians):
-/// the guard's f32 arithmetic then never admits a rotation the bounds do not cover.
-pub const GUARD_SLACK: f64 = 1e-5;
-
-/// Relative slack of boxes and ranges: the guard admits values this share of the range's
-/// magnitude outside it (an f32 blend of equal values can round by an ulp), and the bounds
-/// cover twice that.
-pub const BOX_SLACK: f64 = 1e-6;
-
-/// `[lo, hi]` widened by `k` × [`BOX_SLACK`] of the larger magnitude.
-fn widened(lo: f64, hi: f64, k: f64) -> (f64, f64) {
-    let s = k * BOX_SLACK * lo.abs().max(hi.abs());
-    (lo - s, hi + s)
-}
-
-/// One node's range of motion.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct NodeRange {
-    /// The node (index into the skeleton's nodes).
-    pub node: u32,
-    /// Unit centre rotation.
-    pub centre: Quat,
-    /// Largest rotation angle from the centre that the bounds cover (radians, at most π).
-    pub angle: f32,
-    /// Translation and scale boxes (min, max).
-    pub translation: (Vec3, Vec3),
-    pub scale: (Vec3, Vec3),
-}
+pub use skinlet_runtime::pose_guard::{BOX_SLACK, GUARD_SLACK, NodeRange, PoseGuard, widened};
 
 /// A pose envelope: ranges of motion of the nodes that move the skin's joints, and of the
 /// morph weights. Nodes not listed keep their rest transform (glTF `matrix` nodes keep their
@@ -193,31 +166,7 @@ impl Envelope {
     /// Checks an envelope from outside (a file): nodes below `nodes` and listed once, unit
     /// finite centres, angles in [0, π], ordered finite boxes, `weights` ranges, ordered.
     pub fn check(&self, nodes: usize, weights: usize) -> Result<()> {
-        let bad = |what: String| Err(Error::invalid("pose envelope", what));
-        let mut seen = vec![false; nodes];
-        for r in &self.nodes {
-            let Some(s) = seen.get_mut(r.node as usize) else {
-                return bad(format!("node {} of {nodes}", r.node));
-            };
-            if std::mem::replace(s, true) {
-                return bad(format!("node {} listed twice", r.node));
-            }
-            let ordered = |(lo, hi): (Vec3, Vec3)| lo.is_finite() && hi.is_finite() && lo.cmple(hi).all();
-            let unit = r.centre.is_finite() && (r.centre.length() - 1.0).abs() < 1e-4;
-            if !(unit && (0.0..=std::f32::consts::PI).contains(&r.angle) && ordered(r.translation) && ordered(r.scale))
-            {
-                return bad(format!("node {}: {r:?} (need a unit centre, an angle in [0, π], ordered boxes)", r.node));
-            }
-        }
-        if self.weights.len() != weights {
-            return bad(format!("{} morph weight ranges for {weights} morph weights", self.weights.len()));
-        }
-        if let Some((k, w)) =
-            self.weights.iter().enumerate().find(|(_, w)| !(w.0.is_finite() && w.1.is_finite() && w.0 <= w.1))
-        {
-            return bad(format!("morph weight {k}: range {w:?}"));
-        }
-        Ok(())
+        Ok(skinlet_runtime::pose_guard::check_ranges(&self.nodes, &self.weights, Some(nodes), weights)?)
     }
 
     /// The motions the envelope allows, as one "interval" for the vertex boxes: listed nodes
@@ -289,71 +238,10 @@ impl Envelope {
             .collect()
     }
 
-    /// The run-time guard for this envelope ([`PoseGuard`]).
-    pub fn guard(&self) -> PoseGuard {
-        let widen = |(lo, hi): (Vec3, Vec3)| {
-            let w: [(f64, f64); 3] = std::array::from_fn(|k| widened(lo[k] as f64, hi[k] as f64, 1.0));
-            (
-                Vec3::new(w[0].0 as f32, w[1].0 as f32, w[2].0 as f32),
-                Vec3::new(w[0].1 as f32, w[1].1 as f32, w[2].1 as f32),
-            )
-        };
-        PoseGuard {
-            nodes: self.nodes.iter().map(|r| r.node).collect(),
-            centres: self.nodes.iter().map(|r| r.centre.conjugate()).collect(),
-            tan2: (self.nodes.iter())
-                .map(|r| {
-                    let half = (r.angle as f64 - GUARD_SLACK) / 2.0;
-                    if half < 0.0 { -1.0 } else { half.tan().powi(2) as f32 }
-                })
-                .collect(),
-            translation: self.nodes.iter().map(|r| widen(r.translation)).collect(),
-            scale: self.nodes.iter().map(|r| widen(r.scale)).collect(),
-            weights: (self.weights.iter())
-                .map(|&(lo, hi)| {
-                    let (lo, hi) = widened(lo as f64, hi as f64, 1.0);
-                    (lo as f32, hi as f32)
-                })
-                .collect(),
-        }
-    }
-}
-
-/// The run-time guard: whether a pose lies inside a pose envelope, so that bounds computed
-/// for it hold. Per listed node one quaternion product and two box tests, in f32, no
-/// allocation. A rotation `q` is compared by the vector part of `centre⁻¹·q` (accurate for
-/// small angles too, where a cosine is flat): `|v|² ≤ tan²(θ/2)·w²` for an angle
-/// [`GUARD_SLACK`] smaller than the bounds cover; boxes and ranges are widened by
-/// [`BOX_SLACK`], half what the bounds cover.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct PoseGuard {
-    nodes: Vec<u32>,
-    centres: Vec<Quat>,
-    tan2: Vec<f32>,
-    translation: Vec<(Vec3, Vec3)>,
-    scale: Vec<(Vec3, Vec3)>,
-    weights: Vec<(f32, f32)>,
-}
-
-impl PoseGuard {
-    /// Whether a pose is inside: `locals` holds every node's local transform (skeleton
-    /// order), `weights` the morph weights' values. A pose without a listed node is not.
-    pub fn admits(&self, locals: &[Trs], weights: &[f32]) -> bool {
-        let inside = |x: Vec3, (lo, hi): (Vec3, Vec3)| x.cmpge(lo).all() && x.cmple(hi).all();
-        (0..self.nodes.len()).all(|i| {
-            let Some(l) = locals.get(self.nodes[i] as usize) else { return false };
-            let rel = self.centres[i] * l.rotation;
-            let v2 = rel.x * rel.x + rel.y * rel.y + rel.z * rel.z;
-            v2 <= self.tan2[i] * rel.w * rel.w
-                && inside(l.translation, self.translation[i])
-                && inside(l.scale, self.scale[i])
-        }) && self.admits_weights(weights)
-    }
-
-    /// Whether the morph weights lie in the envelope's ranges: the any-pose boxes hold for
-    /// any joints then.
-    pub fn admits_weights(&self, weights: &[f32]) -> bool {
-        weights.len() == self.weights.len() && weights.iter().zip(&self.weights).all(|(w, r)| (r.0..=r.1).contains(w))
+    /// The run-time guard for this envelope ([`PoseGuard`]). Errors where
+    /// [`skinlet_runtime::pose_guard::check_ranges`] refuses the ranges.
+    pub fn guard(&self) -> Result<PoseGuard> {
+        Ok(PoseGuard::new(&self.nodes, &self.weights)?)
     }
 }
 

@@ -15,7 +15,7 @@
 //!   corner normals, and a cone of half-angle below 90° is convex. When a corner normal is 90°
 //!   or more away, the meshlet gets no useful cone (angle π: never backface-culled).
 //!
-//! At run time the bounds stay in the joint's bind space: the culler ([`crate::cull::meshlet`])
+//! At run time the bounds stay in the joint's bind space: the culler (`skinlet_runtime::meshlet_cull`)
 //! moves the frustum planes and the eye there instead, which is exact for any joint matrix
 //! (shear, non-uniform and negative scale included); [`super::verify`] checks them there too.
 
@@ -27,26 +27,9 @@ use crate::Result;
 use crate::clip::Clip;
 use crate::meshlet::{Meshlet, Meshlets, stats::principal_joint};
 use crate::model::{Skeleton, Skin, SkinnedMesh};
-use glam::{DMat3, DVec3, Vec3};
+use glam::{DMat3, DVec3};
+pub use skinlet_runtime::meshlet_bounds::{Class, MeshletBounds};
 use std::f64::consts::PI;
-
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct MeshletBounds {
-    /// Principal joint (index into the skin's joints).
-    pub joint: u16,
-    /// Sphere center in the joint's bind space.
-    pub center: Vec3,
-    /// Radius that holds over every interval of the clips the bounds were computed for.
-    pub radius: f32,
-    /// Radius of the rest-pose sphere.
-    pub rest_radius: f32,
-    /// Normal cone axis (unit, joint space).
-    pub cone_axis: Vec3,
-    /// Normal cone half-angle in radians; ≥ π/2 means no useful cone.
-    pub cone_angle: f32,
-    /// Half-angle of the rest-pose normals alone.
-    pub rest_cone_angle: f32,
-}
 
 /// The key intervals of a clip: consecutive distinct key times (one degenerate interval for a
 /// single key). Outside them every channel is constant, so they cover all times.
@@ -208,27 +191,6 @@ pub fn rest_bounds(skin: &Skin, mesh: &SkinnedMesh, meshlets: &Meshlets) -> Vec<
 /// vectors to the cross product of their images, so face normals move by it.
 pub fn cofactor(a: &DMat3) -> DMat3 {
     DMat3::from_cols(a.y_axis.cross(a.z_axis), a.z_axis.cross(a.x_axis), a.x_axis.cross(a.y_axis))
-}
-
-/// Culling class of a meshlet (paper section 6, table 2).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Class {
-    /// Frustum- and backface-cullable.
-    Both,
-    /// Frustum-cullable only.
-    FrustumOnly,
-    /// Drawn without culling code.
-    None,
-}
-
-impl Class {
-    pub fn name(self) -> &'static str {
-        match self {
-            Class::Both => "both",
-            Class::FrustumOnly => "frustum-only",
-            Class::None => "none",
-        }
-    }
 }
 
 /// Classifies with constant thresholds: the radius may grow at most `s_r` times the rest

@@ -25,9 +25,8 @@ pub mod vertex;
 
 use glam::DVec3;
 
-/// Relative inflation of vertex boxes before they extend a sphere, covering the f32
-/// rounding of the reference skinning (samples are computed in f32; bounds in f64).
-pub const INFLATE: f64 = 2e-6;
+/// Relative margin for f32 rounding (of stored boxes and of skinning itself).
+pub use skinlet_runtime::joint_boxes::INFLATE;
 
 /// An axis-aligned box in f64. Empty boxes have `min > max`.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -1,7 +1,7 @@
 //! Ground-truth check of meshlet bounds: dense sampling of every clip (uniform times plus
 //! every key time and every interval midpoint), reference skinning of every vertex with its
 //! morph targets applied ([`crate::skinning`]), then each meshlet in its principal joint's
-//! bind space with the tests the culler ([`crate::cull::meshlet`]) relies on: every skinned
+//! bind space with the tests the culler ([`skinlet_runtime::meshlet_cull`]) relies on: every skinned
 //! vertex, moved back by the joint's inverse world matrix, inside the sphere, and every
 //! triangle's face normal built from those points inside the cone (when the cone is below
 //! 90°). The tolerance is the f32 rounding of the reference only: per vertex [`ROUNDING`] of

@@ -15,7 +15,7 @@
 //! array for all instances, no matrix product and no lookup.
 
 use super::crowd::{CrowdParams, posed_crowd};
-use super::joint_aabb::{Box3, JointBoxes, JointSpace};
+use super::joint_aabb::{Box3, JointBoxes, JointSpace, joint_boxes};
 use crate::model::Asset;
 use crate::pose::Poser;
 use crate::{Character, Result};
@@ -133,8 +133,8 @@ impl Workload {
         let character = asset.character()?;
         let (skin, mesh) = (&character.palette, &character.mesh);
         let clips: Vec<&crate::clip::Clip> = asset.clips.iter().collect();
-        let boxes = JointBoxes::new(mesh, skin, JointSpace::Joint, &clips)?;
-        let mesh_boxes = JointBoxes::new(mesh, skin, JointSpace::Mesh, &clips)?;
+        let boxes = joint_boxes(mesh, skin, JointSpace::Joint, &clips)?;
+        let mesh_boxes = joint_boxes(mesh, skin, JointSpace::Mesh, &clips)?;
         let scene = posed_crowd(
             &asset.skeleton,
             skin,

@@ -7,8 +7,7 @@
 //! by brute force on the reference-skinned mesh: outside one frustum plane, back-facing, or
 //! degenerate, within the f32 rounding of the skinned positions. Deterministic for a seed.
 
-use super::joint_aabb::{Box3, JointBoxes, JointSpace, points_box};
-use super::meshlet::{CullCounts, JointFrame, MeshletCuller, Tests};
+use super::joint_aabb::{Box3, JointSpace, fold_leaves, joint_boxes, points_box};
 use super::triangle::{TriangleCounts, cull_triangles, facing};
 use super::{Camera, Projection};
 use crate::Result;
@@ -20,6 +19,7 @@ use crate::pose::{global_transforms, skinning_matrices};
 use crate::skinning;
 use glam::{Affine3A, DMat4, DQuat, DVec3, Quat, Vec3};
 use rayon::prelude::*;
+use skinlet_runtime::meshlet_cull::{CullCounts, JointFrame, MeshletCuller, Tests};
 use std::time::{Duration, Instant};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -399,10 +399,10 @@ pub fn run(
             ));
         }
     };
-    let guard = baked.envelope.as_ref().map(|e| e.envelope.guard());
-    let boxes = JointBoxes::new(&baked.mesh, skin, JointSpace::Joint, clips)?;
-    let mesh_boxes = JointBoxes::new(&baked.mesh, skin, JointSpace::Mesh, clips)?;
-    let folded = boxes.fold_leaves(skeleton, skin, &baked.mesh, clips, 2)?;
+    let guard = baked.envelope.as_ref().map(|e| e.envelope.guard()).transpose()?;
+    let boxes = joint_boxes(&baked.mesh, skin, JointSpace::Joint, clips)?;
+    let mesh_boxes = joint_boxes(&baked.mesh, skin, JointSpace::Mesh, clips)?;
+    let folded = fold_leaves(&boxes, skeleton, skin, &baked.mesh, clips, 2)?;
     let meshlets = &baked.meshlets;
     let per_meshlet_refs: Vec<usize> = meshlets.meshlets.iter().map(|m| m.vertex_count as usize).collect();
     let per_meshlet_tris: Vec<usize> = meshlets.meshlets.iter().map(|m| m.triangle_count as usize).collect();

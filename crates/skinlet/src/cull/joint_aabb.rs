@@ -1,427 +1,124 @@
-//! Whole-mesh bounds of a skinned mesh from per-joint boxes (the approach of Bevy's
-//! "per-joint skinned bounds" pull request, `per-joint-skinned-bounds-bevy-pr.txt`).
+//! Building whole-mesh per-joint boxes (the approach of Bevy's "per-joint skinned bounds"
+//! pull request, `per-joint-skinned-bounds-bevy-pr.txt`), whose run-time update is
+//! [`skinlet_runtime::joint_boxes`]: each joint gets the box of the bind-pose vertices with a
+//! nonzero weight on it, in mesh space or in the joint's own space ([`JointSpace`]).
 //!
-//! Each joint gets the box of the bind-pose vertices with a nonzero weight on it, in mesh
-//! space or in the joint's own space ([`JointSpace`]). Every frame, each box is moved by its
-//! joint's matrix with Arvo's method (center by the matrix, half extents by its absolute
-//! values) and the union taken. Guarantee: a skinned vertex `Σ wⱼ Mⱼ pⱼ` (weights ≥ 0,
-//! summing to 1) is a convex combination of points of the moved boxes, so it lies in their
-//! union's box: whatever the joint matrices (shear, negative or zero scale).
-//!
-//! Beyond the pull request: [`JointBoxes::fold_leaves`] folds leaf joints (fingers, face)
-//! into an ancestor's box, which the PR suggests but which is unsafe as it describes it
-//! (the folded vertices do not move with the ancestor); here the folded box is the
-//! conservative box of those vertices in the ancestor's space over every key interval of
-//! the given clips ([`crate::bounds::vertex`]), so it stays a guarantee for those clips.
-//! [`JointBoxes::sphere`] gives a whole-mesh sphere, and [`Policy`] lists the choices users
-//! asked for in the PR's discussion.
+//! Beyond the pull request: [`fold_leaves`] folds leaf joints (fingers, face) into an
+//! ancestor's box, which the PR suggests but which is unsafe as it describes it (the folded
+//! vertices do not move with the ancestor); here the folded box is the conservative box of
+//! those vertices in the ancestor's space over every key interval of the given clips
+//! ([`crate::bounds::vertex`]), so it stays a guarantee for those clips.
 
+use crate::bounds::Aabb as DAabb;
 use crate::bounds::meshlet::key_intervals;
 use crate::bounds::vertex::{IntervalMotions, clip_weight_ranges, morph_box};
-use crate::bounds::{Aabb as DAabb, INFLATE};
 use crate::clip::Clip;
 use crate::model::{Skeleton, Skin, SkinnedMesh};
 use crate::{Error, Result};
-use glam::{Affine3A, Vec3, Vec3A};
+pub use skinlet_runtime::joint_boxes::{Box3, JointBoxes, JointSpace, Policy, points_box};
 
-/// The space the per-joint boxes are stored in, and so which matrices move them.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum JointSpace {
-    /// Bind-pose mesh space: moved by skinning matrices `global × inverse_bind` (Bevy's
-    /// choice: needs only the mesh).
-    Mesh,
-    /// Each joint's bind space: moved by the joints' global matrices (bevy_mod_skinned_aabb's
-    /// choice). Tighter only where joint frames follow the limbs; on most shared assets mesh
-    /// space was as tight or tighter (docs/CULLING.md), and folding needs this space.
-    Joint,
+/// Boxes of the vertices with a nonzero weight on each joint. A vertex that morph targets
+/// move counts with its box over every weight value of `clips` (no clip: the default
+/// weights; see [`crate::bounds::vertex::clip_weight_ranges`]), so the boxes hold for
+/// those clips. Errors when the mesh has no skin weights or a joint index has no inverse
+/// bind matrix.
+pub fn joint_boxes(mesh: &SkinnedMesh, skin: &Skin, space: JointSpace, clips: &[&Clip]) -> Result<JointBoxes> {
+    let inf = mesh.influences.as_ref().ok_or_else(|| Error::invalid("joint boxes", "the mesh has no skin weights"))?;
+    mesh.morphs.check(mesh.positions.len())?;
+    let ranges = clip_weight_ranges(&mesh.morphs, clips)?;
+    let mut boxes = vec![DAabb::EMPTY; skin.joints.len()];
+    for v in 0..mesh.positions.len() {
+        let rest = morph_box(mesh, v, &ranges);
+        for (j, _) in inf.of(v) {
+            let ibm = skin.inverse_bind.get(j as usize).ok_or_else(|| {
+                Error::invalid("joint boxes", format!("vertex {v} uses joint {j} of {}", skin.joints.len()))
+            })?;
+            let q = match space {
+                JointSpace::Mesh => rest,
+                JointSpace::Joint => rest.transformed(&ibm.as_dmat4()),
+            };
+            boxes[j as usize] = boxes[j as usize].union(&q);
+        }
+    }
+    Ok(JointBoxes::from_boxes(space, &extents(&boxes)))
 }
 
-/// What an engine does with a skinned mesh's box (the choices asked for in the PR).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Policy {
-    /// Per-joint boxes updated every frame (the default).
-    Dynamic,
-    /// The bind-pose box, never updated (wrong as soon as the mesh moves away from it).
-    BindPose,
-    /// A box given by the artist, in entity space.
-    Fixed { min: Vec3, max: Vec3 },
-    /// A box given by the artist in a joint's space (Unity's root-bone bounds, any joint).
-    FixedJointRelative { joint: u16, min: Vec3, max: Vec3 },
-    /// Never culled.
-    NoCulling,
-}
-
-impl Policy {
-    /// The entity-space box for one frame, `None` for [`Policy::NoCulling`]. `dynamic` are
-    /// the mesh's joint boxes, moved by `skinning` (skinning matrices) or `joint_globals`
-    /// (joint global matrices) as their space requires; `bind_pose` is the bind-pose box.
-    pub fn entity_box(
-        &self,
-        dynamic: &JointBoxes,
-        skinning: &[Affine3A],
-        joint_globals: &[Affine3A],
-        bind_pose: Box3,
-    ) -> Option<Box3> {
-        match *self {
-            Policy::Dynamic => Some(match dynamic.space {
-                JointSpace::Mesh => dynamic.update(skinning),
-                JointSpace::Joint => dynamic.update(joint_globals),
-            }),
-            Policy::BindPose => Some(bind_pose),
-            Policy::Fixed { min, max } => Some(Box3 { min, max }),
-            Policy::FixedJointRelative { joint, min, max } => {
-                let m = joint_globals.get(joint as usize)?;
-                Some(Box3 { min, max }.transformed(m))
-            }
-            Policy::NoCulling => None,
-        }
+/// Folds leaf joints into ancestors, `levels` times (a leaf: a skin joint with no skin
+/// joint below it that still has a box). The folded vertices' boxes are carried into the
+/// ancestor's space conservatively over every key interval of `clips`, so the result is
+/// a guarantee for those clips (not for other animation). Joint space only.
+pub fn fold_leaves(
+    boxes_in: &JointBoxes,
+    skeleton: &Skeleton,
+    skin: &Skin,
+    mesh: &SkinnedMesh,
+    clips: &[&Clip],
+    levels: usize,
+) -> Result<JointBoxes> {
+    if boxes_in.space != JointSpace::Joint {
+        return Err(Error::unsupported("joint boxes", "folding needs boxes in joint space"));
     }
-}
-
-/// An axis-aligned box in f32 (min, max).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Box3 {
-    pub min: Vec3,
-    pub max: Vec3,
-}
-
-impl Box3 {
-    pub const EMPTY: Box3 = Box3 { min: Vec3::INFINITY, max: Vec3::NEG_INFINITY };
-
-    pub fn contains(&self, p: Vec3) -> bool {
-        p.cmpge(self.min).all() && p.cmple(self.max).all()
-    }
-
-    pub fn diagonal(&self) -> f32 {
-        (self.max - self.min).max(Vec3::ZERO).length()
-    }
-
-    /// Arvo's transform of the box (center and half extents) by `m`.
-    pub fn transformed(&self, m: &Affine3A) -> Box3 {
-        let (c, h) = (Vec3A::from((self.min + self.max) / 2.0), Vec3A::from((self.max - self.min) / 2.0));
-        let (c, h) = arvo(m, c, h);
-        Box3 { min: (c - h).into(), max: (c + h).into() }
-    }
-}
-
-#[inline]
-fn arvo(m: &Affine3A, c: Vec3A, h: Vec3A) -> (Vec3A, Vec3A) {
-    let a = &m.matrix3;
-    let center = a.x_axis * c.x + a.y_axis * c.y + a.z_axis * c.z + m.translation;
-    let half = a.x_axis.abs() * h.x + a.y_axis.abs() * h.y + a.z_axis.abs() * h.z;
-    (center, half)
-}
-
-/// Per-joint boxes of one skinned mesh.
-#[derive(Clone, Debug, PartialEq)]
-pub struct JointBoxes {
-    pub space: JointSpace,
-    /// Skin joint of each box (joints without vertices have none).
-    pub joints: Vec<u16>,
-    pub center: Vec<Vec3A>,
-    pub half: Vec<Vec3A>,
-    /// The same boxes two by two, centers and half extents splatted for [`wide::update`].
-    pairs: Vec<wide::Pair>,
-    /// One more than the largest joint index: the matrices `update` needs.
-    needs: usize,
-}
-
-impl Default for JointBoxes {
-    /// No boxes (joint space).
-    fn default() -> JointBoxes {
-        JointBoxes::from_boxes(JointSpace::Joint, &[])
-    }
-}
-
-impl JointBoxes {
-    /// Boxes of the vertices with a nonzero weight on each joint. A vertex that morph targets
-    /// move counts with its box over every weight value of `clips` (no clip: the default
-    /// weights; see [`crate::bounds::vertex::clip_weight_ranges`]), so the boxes hold for
-    /// those clips. Errors when the mesh has no skin weights or a joint index has no inverse
-    /// bind matrix.
-    pub fn new(mesh: &SkinnedMesh, skin: &Skin, space: JointSpace, clips: &[&Clip]) -> Result<JointBoxes> {
-        let inf =
-            mesh.influences.as_ref().ok_or_else(|| Error::invalid("joint boxes", "the mesh has no skin weights"))?;
-        mesh.morphs.check(mesh.positions.len())?;
-        let ranges = clip_weight_ranges(&mesh.morphs, clips)?;
-        let mut boxes = vec![DAabb::EMPTY; skin.joints.len()];
-        for v in 0..mesh.positions.len() {
-            let rest = morph_box(mesh, v, &ranges);
-            for (j, _) in inf.of(v) {
-                let ibm = skin.inverse_bind.get(j as usize).ok_or_else(|| {
-                    Error::invalid("joint boxes", format!("vertex {v} uses joint {j} of {}", skin.joints.len()))
-                })?;
-                let q = match space {
-                    JointSpace::Mesh => rest,
-                    JointSpace::Joint => rest.transformed(&ibm.as_dmat4()),
-                };
-                boxes[j as usize] = boxes[j as usize].union(&q);
-            }
-        }
-        Ok(Self::from_boxes(space, &boxes))
-    }
-
-    pub(crate) fn from_boxes(space: JointSpace, boxes: &[DAabb]) -> JointBoxes {
-        let mut out =
-            JointBoxes { space, joints: Vec::new(), center: Vec::new(), half: Vec::new(), pairs: Vec::new(), needs: 0 };
-        for (j, b) in boxes.iter().enumerate() {
-            if b.min.cmple(b.max).all() {
-                // Stored in f32: round outward by a relative margin far above f32 rounding.
-                let b = b.inflated(INFLATE);
-                out.joints.push(j as u16);
-                out.center.push(((b.min + b.max) / 2.0).as_vec3a());
-                out.half.push(((b.max - b.min) / 2.0 * (1.0 + 1e-6)).as_vec3a());
-            }
-        }
-        out.needs = out.joints.iter().map(|&j| j as usize + 1).max().unwrap_or(0);
-        out.pairs = wide::pairs(&out.joints, &out.center, &out.half);
-        out
-    }
-
-    /// The entity-space box for this frame. `matrices[j]`, per skin joint: the skinning
-    /// matrix (space [`JointSpace::Mesh`]) or the joint's global matrix ([`JointSpace::Joint`]),
-    /// both relative to the entity. Returns [`Box3::EMPTY`] when there are no boxes, and the
-    /// infinite box (never culled) when `matrices` has fewer entries than the skin's joints.
-    pub fn update(&self, matrices: &[Affine3A]) -> Box3 {
-        let mut out = [Box3::EMPTY];
-        match self.update_all(matrices, matrices.len(), &mut out) {
-            Ok(()) => out[0],
-            Err(_) => Box3 { min: Vec3::NEG_INFINITY, max: Vec3::INFINITY },
-        }
-    }
-
-    /// [`JointBoxes::update`] for many instances of the mesh at once: instance `i`'s matrices
-    /// are `palette[i * stride..(i + 1) * stride]` (an engine's joint matrix palette), its box
-    /// goes to `out[i]`. Errors when `stride` does not reach every joint with a box or the
-    /// palette does not hold `out.len()` instances.
-    ///
-    /// Where the CPU has AVX2 and FMA (checked at run time) two boxes are moved per 256-bit
-    /// register; elsewhere one per 128-bit register. Both round to nearest in f32, so their
-    /// results differ by an ulp or so, far inside the boxes' outward rounding margin.
-    pub fn update_all(&self, palette: &[Affine3A], stride: usize, out: &mut [Box3]) -> Result<()> {
-        if stride < self.needs || palette.len() != stride * out.len() {
-            return Err(Error::invalid(
-                "joint boxes",
-                format!(
-                    "{} matrices for {} instances of stride {stride} (the boxes use {} joints)",
-                    palette.len(),
-                    out.len(),
-                    self.needs
-                ),
-            ));
-        }
-        if self.joints.is_empty() {
-            out.fill(Box3::EMPTY);
-            return Ok(());
-        }
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
-            // SAFETY: the features are present, and every joint in `pairs` is below `needs`,
-            // so below `stride`: each instance's slice holds it.
-            unsafe { wide::update_all(&self.pairs, palette, stride, out) };
-            return Ok(());
-        }
-        for (m, b) in palette.chunks_exact(stride).zip(out) {
-            *b = self.update_narrow(m);
-        }
-        Ok(())
-    }
-
-    /// One instance's box, one joint box at a time (also the reference for the wide path).
-    fn update_narrow(&self, matrices: &[Affine3A]) -> Box3 {
-        let (mut lo, mut hi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
-        for ((&j, &c), &h) in self.joints.iter().zip(&self.center).zip(&self.half) {
-            let (c, h) = arvo(&matrices[j as usize], c, h);
-            lo = lo.min(c - h);
-            hi = hi.max(c + h);
-        }
-        Box3 { min: lo.into(), max: hi.into() }
-    }
-
-    /// A whole-mesh sphere (center, radius) enclosing every moved joint box: each box's
-    /// bounding sphere, moved with its radius scaled by the largest column norm times √3
-    /// (a bound on the matrix's largest singular value), then one sphere around them all.
-    pub fn sphere(&self, matrices: &[Affine3A]) -> (Vec3, f32) {
-        let mut spheres = self.joints.iter().zip(&self.center).zip(&self.half).map(|((&j, &c), &h)| {
-            let m = &matrices[j as usize];
-            let a = &m.matrix3;
-            let scale = a.x_axis.length().max(a.y_axis.length()).max(a.z_axis.length()) * 3f32.sqrt();
-            (m.transform_point3a(c), h.length() * scale * (1.0 + 1e-5))
-        });
-        let Some(first) = spheres.next() else { return (Vec3::ZERO, 0.0) };
-        // Ritter-style growth: enlarge the sphere just enough for each next one.
-        let (mut c, mut r) = first;
-        for (sc, sr) in spheres {
-            let d = (sc - c).length();
-            if d + r <= sr {
-                (c, r) = (sc, sr);
-            } else if d + sr > r {
-                let nr = (r + d + sr) / 2.0;
-                if d > 0.0 {
-                    c += (sc - c) * ((nr - r) / d);
+    let inf = mesh.influences.as_ref().ok_or_else(|| Error::invalid("joint boxes", "the mesh has no skin weights"))?;
+    mesh.morphs.check(mesh.positions.len())?;
+    let n = skin.joints.len();
+    // Nearest ancestor joint of each joint (skin order), through non-joint nodes.
+    let slot_of_node = |node: u32| skin.joints.iter().position(|&x| x == node);
+    let parent: Vec<Option<usize>> = (0..n)
+        .map(|j| {
+            let mut p = skeleton.nodes[skin.joints[j] as usize].parent;
+            while let Some(node) = p {
+                if let Some(s) = slot_of_node(node) {
+                    return Some(s);
                 }
-                r = nr;
+                p = skeleton.nodes[node as usize].parent;
+            }
+            None
+        })
+        .collect();
+    let mut target: Vec<usize> = (0..n).collect();
+    let mut alive: Vec<bool> = (0..n).map(|j| boxes_in.joints.contains(&(j as u16))).collect();
+    for _ in 0..levels {
+        let has_child: Vec<bool> = (0..n).map(|j| (0..n).any(|k| alive[k] && parent[k] == Some(j))).collect();
+        let leaves: Vec<usize> = (0..n).filter(|&j| alive[j] && !has_child[j] && parent[j].is_some()).collect();
+        for j in leaves {
+            alive[j] = false;
+            let p = parent[j].expect("leaves have a parent");
+            alive[p] = true;
+            for t in target.iter_mut().filter(|t| **t == j) {
+                *t = p;
             }
         }
-        (c.into(), r * (1.0 + 1e-6))
     }
-
-    /// Folds leaf joints into ancestors, `levels` times (a leaf: a skin joint with no skin
-    /// joint below it that still has a box). The folded vertices' boxes are carried into the
-    /// ancestor's space conservatively over every key interval of `clips`, so the result is
-    /// a guarantee for those clips (not for other animation). Joint space only.
-    pub fn fold_leaves(
-        &self,
-        skeleton: &Skeleton,
-        skin: &Skin,
-        mesh: &SkinnedMesh,
-        clips: &[&Clip],
-        levels: usize,
-    ) -> Result<JointBoxes> {
-        if self.space != JointSpace::Joint {
-            return Err(Error::unsupported("joint boxes", "folding needs boxes in joint space"));
+    let mut boxes = vec![DAabb::EMPTY; n];
+    let mut motions = Vec::new();
+    for c in clips {
+        for (a, b) in key_intervals(c) {
+            motions.push(IntervalMotions::new(skeleton, &mesh.morphs, Some(c), a, b)?);
         }
-        let inf =
-            mesh.influences.as_ref().ok_or_else(|| Error::invalid("joint boxes", "the mesh has no skin weights"))?;
-        mesh.morphs.check(mesh.positions.len())?;
-        let n = skin.joints.len();
-        // Nearest ancestor joint of each joint (skin order), through non-joint nodes.
-        let slot_of_node = |node: u32| skin.joints.iter().position(|&x| x == node);
-        let parent: Vec<Option<usize>> = (0..n)
-            .map(|j| {
-                let mut p = skeleton.nodes[skin.joints[j] as usize].parent;
-                while let Some(node) = p {
-                    if let Some(s) = slot_of_node(node) {
-                        return Some(s);
-                    }
-                    p = skeleton.nodes[node as usize].parent;
-                }
-                None
-            })
-            .collect();
-        let mut target: Vec<usize> = (0..n).collect();
-        let mut alive: Vec<bool> = (0..n).map(|j| self.joints.contains(&(j as u16))).collect();
-        for _ in 0..levels {
-            let has_child: Vec<bool> = (0..n).map(|j| (0..n).any(|k| alive[k] && parent[k] == Some(j))).collect();
-            let leaves: Vec<usize> = (0..n).filter(|&j| alive[j] && !has_child[j] && parent[j].is_some()).collect();
-            for j in leaves {
-                alive[j] = false;
-                let p = parent[j].expect("leaves have a parent");
-                alive[p] = true;
-                for t in target.iter_mut().filter(|t| **t == j) {
-                    *t = p;
-                }
-            }
-        }
-        let mut boxes = vec![DAabb::EMPTY; n];
-        let mut motions = Vec::new();
-        for c in clips {
-            for (a, b) in key_intervals(c) {
-                motions.push(IntervalMotions::new(skeleton, &mesh.morphs, Some(c), a, b)?);
-            }
-        }
-        if motions.is_empty() {
-            motions.push(IntervalMotions::new(skeleton, &mesh.morphs, None, 0.0, 0.0)?);
-        }
-        for v in 0..mesh.positions.len() {
-            for (j, _) in inf.of(v) {
-                let (j, t) = (j as usize, target[j as usize]);
-                let ibm = skin.inverse_bind[j].as_dmat4();
-                for mo in &motions {
-                    let q = mo.rest_box(mesh, v).transformed(&ibm);
-                    let carried = if t == j { q } else { mo.carry(skeleton, skin.joints[j], skin.joints[t], q) };
-                    boxes[t] = boxes[t].union(&carried);
-                }
-            }
-        }
-        if boxes.iter().any(|b| !b.is_finite() && b.min.cmple(b.max).all()) {
-            return Err(Error::unsupported(
-                "joint boxes",
-                "a folded joint's motion is unbounded (a scale through zero)",
-            ));
-        }
-        Ok(Self::from_boxes(JointSpace::Joint, &boxes))
     }
+    if motions.is_empty() {
+        motions.push(IntervalMotions::new(skeleton, &mesh.morphs, None, 0.0, 0.0)?);
+    }
+    for v in 0..mesh.positions.len() {
+        for (j, _) in inf.of(v) {
+            let (j, t) = (j as usize, target[j as usize]);
+            let ibm = skin.inverse_bind[j].as_dmat4();
+            for mo in &motions {
+                let q = mo.rest_box(mesh, v).transformed(&ibm);
+                let carried = if t == j { q } else { mo.carry(skeleton, skin.joints[j], skin.joints[t], q) };
+                boxes[t] = boxes[t].union(&carried);
+            }
+        }
+    }
+    if boxes.iter().any(|b| !b.is_finite() && b.min.cmple(b.max).all()) {
+        return Err(Error::unsupported("joint boxes", "a folded joint's motion is unbounded (a scale through zero)"));
+    }
+    Ok(JointBoxes::from_boxes(JointSpace::Joint, &extents(&boxes)))
 }
 
-/// Arvo's update two boxes per AVX register (x86-64 with AVX2 and FMA).
-#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
-mod wide {
-    use super::Box3;
-    use glam::{Affine3A, Vec3A};
-
-    /// Two boxes: their joints, then per box axis the center coordinate and the half extent,
-    /// each repeated over the box's four lanes (first box in lanes 0–3, second in 4–7).
-    #[derive(Clone, Debug, PartialEq)]
-    #[repr(C, align(32))]
-    pub(super) struct Pair {
-        center: [[f32; 8]; 3],
-        half: [[f32; 8]; 3],
-        joints: [u32; 2],
-    }
-
-    /// Boxes paired in order; an odd last box is paired with itself.
-    pub(super) fn pairs(joints: &[u16], center: &[Vec3A], half: &[Vec3A]) -> Vec<Pair> {
-        (0..joints.len().div_ceil(2))
-            .map(|p| {
-                let (a, b) = (2 * p, (2 * p + 1).min(joints.len() - 1));
-                let splat = |v: [Vec3A; 2], axis: usize| {
-                    let mut out = [v[0][axis]; 8];
-                    out[4..].fill(v[1][axis]);
-                    out
-                };
-                Pair {
-                    center: [0, 1, 2].map(|k| splat([center[a], center[b]], k)),
-                    half: [0, 1, 2].map(|k| splat([half[a], half[b]], k)),
-                    joints: [joints[a] as u32, joints[b] as u32],
-                }
-            })
-            .collect()
-    }
-
-    /// The union box of the moved boxes of each instance (see `JointBoxes::update_all`).
-    ///
-    /// # Safety
-    /// The CPU must have AVX2 and FMA, every joint in `pairs` must be below `stride`, and
-    /// `palette` must hold `out.len()` instances of `stride` matrices.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn update_all(pairs: &[Pair], palette: &[Affine3A], stride: usize, out: &mut [Box3]) {
-        use std::arch::x86_64::*;
-        let abs = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fff_ffff));
-        for (i, b) in out.iter_mut().enumerate() {
-            let (mut lo, mut hi) = (_mm256_set1_ps(f32::INFINITY), _mm256_set1_ps(f32::NEG_INFINITY));
-            // SAFETY: instance i's matrices are in `palette` and every joint is below `stride`
-            // (the caller's promise); an Affine3A is 16 f32: three columns then the
-            // translation, each padded to four lanes.
-            unsafe {
-                let m = palette.as_ptr().add(i * stride).cast::<f32>();
-                for p in pairs {
-                    let (a, b) = (m.add(16 * p.joints[0] as usize), m.add(16 * p.joints[1] as usize));
-                    let column = |k: usize| _mm256_loadu2_m128(b.add(4 * k), a.add(4 * k));
-                    let (x, y, z, t) = (column(0), column(1), column(2), column(3));
-                    let c = |k: usize| _mm256_load_ps(p.center[k].as_ptr());
-                    let h = |k: usize| _mm256_load_ps(p.half[k].as_ptr());
-                    let center = _mm256_fmadd_ps(z, c(2), _mm256_fmadd_ps(y, c(1), _mm256_fmadd_ps(x, c(0), t)));
-                    let half = _mm256_fmadd_ps(
-                        _mm256_and_ps(z, abs),
-                        h(2),
-                        _mm256_fmadd_ps(_mm256_and_ps(y, abs), h(1), _mm256_mul_ps(_mm256_and_ps(x, abs), h(0))),
-                    );
-                    lo = _mm256_min_ps(lo, _mm256_sub_ps(center, half));
-                    hi = _mm256_max_ps(hi, _mm256_add_ps(center, half));
-                }
-            }
-            let lo = _mm_min_ps(_mm256_castps256_ps128(lo), _mm256_extractf128_ps::<1>(lo));
-            let hi = _mm_max_ps(_mm256_castps256_ps128(hi), _mm256_extractf128_ps::<1>(hi));
-            *b = Box3 { min: Vec3A::from(lo).into(), max: Vec3A::from(hi).into() };
-        }
-    }
-}
-
-/// The exact box of points (for measuring how loose a bound is).
-pub fn points_box(points: &[Vec3]) -> Box3 {
-    points.iter().fold(Box3::EMPTY, |b, &p| Box3 { min: b.min.min(p), max: b.max.max(p) })
+/// f64 boxes as the `(min, max)` extents [`JointBoxes::from_boxes`] takes.
+fn extents(boxes: &[DAabb]) -> Vec<(glam::DVec3, glam::DVec3)> {
+    boxes.iter().map(|b| (b.min, b.max)).collect()
 }
 
 #[cfg(test)]
@@ -429,13 +126,14 @@ mod tests {
     use super::*;
     use crate::demo::{DemoParams, demo_character};
     use crate::pose::{Poser, skinning_matrices};
+    use glam::Vec3;
 
     #[test]
     fn policies_give_what_they_promise() {
         let asset = demo_character(&DemoParams { triangles: 2000, ..DemoParams::default() });
         let character = asset.character().unwrap();
         let (skin, mesh) = (&character.palette, character.mesh.clone());
-        let dynamic = JointBoxes::new(&mesh, skin, JointSpace::Mesh, &asset.clips.iter().collect::<Vec<_>>()).unwrap();
+        let dynamic = joint_boxes(&mesh, skin, JointSpace::Mesh, &asset.clips.iter().collect::<Vec<_>>()).unwrap();
         let bind_pose = points_box(&mesh.positions);
         let mut poser = Poser::default();
         let clip = &asset.clips[0];
@@ -466,42 +164,5 @@ mod tests {
         let rel = box_of(Policy::FixedJointRelative { joint: 3, min, max }).unwrap();
         assert!(rel.contains(Vec3::from(joint_globals[3].translation)));
         assert_eq!(box_of(Policy::NoCulling), None);
-    }
-
-    #[test]
-    fn wide_and_narrow_updates_agree() {
-        let asset = demo_character(&DemoParams { triangles: 2000, ..DemoParams::default() });
-        let character = asset.character().unwrap();
-        let (skin, mesh) = (&character.palette, character.mesh.clone());
-        let boxes = JointBoxes::new(&mesh, skin, JointSpace::Joint, &asset.clips.iter().collect::<Vec<_>>()).unwrap();
-        let mut poser = Poser::default();
-        let clip = &asset.clips[0];
-        // Odd and even box counts (the wide path pairs an odd last box with itself).
-        for keep in [boxes.joints.len(), boxes.joints.len() - 1, 1] {
-            let b = JointBoxes::from_boxes(
-                JointSpace::Joint,
-                &(0..skin.joints.len())
-                    .map(|j| match boxes.joints.iter().position(|&x| x as usize == j).filter(|&i| i < keep) {
-                        Some(i) => DAabb {
-                            min: (boxes.center[i] - boxes.half[i]).as_dvec3(),
-                            max: (boxes.center[i] + boxes.half[i]).as_dvec3(),
-                        },
-                        None => DAabb::EMPTY,
-                    })
-                    .collect::<Vec<_>>(),
-            );
-            for k in 0..8 {
-                let g = poser.globals(&asset.skeleton, Some(clip), clip.start + k as f32 / 8.0 * clip.duration());
-                let mut m = Vec::new();
-                crate::pose::joint_globals(skin, g, &mut m);
-                let (fast, slow) = (b.update(&m), b.update_narrow(&m));
-                let tol = 1e-5 * (slow.max - slow.min).abs().max_element().max(1.0);
-                assert!(
-                    (fast.min - slow.min).abs().max_element() <= tol
-                        && (fast.max - slow.max).abs().max_element() <= tol
-                );
-            }
-            assert_eq!(b.update(&[]).max, Vec3::INFINITY, "too few matrices: never culled");
-        }
     }
 }

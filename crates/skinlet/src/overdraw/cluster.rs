@@ -22,8 +22,9 @@ use super::measure::{Fragments, Raster};
 use super::occlusion::Occlusion;
 use super::tipsify::{patches, tipsify};
 use super::viewpoints::icosphere;
-use glam::{Mat4, Vec3};
+use glam::Vec3;
 use rayon::prelude::*;
+pub use skinlet_runtime::overdraw_orders::{Framing, Lookup, Orders, direction};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ClusterParams {
@@ -70,38 +71,6 @@ impl Default for ClusterParams {
             cache_bytes: 1 << 30,
             order: PatchOrder::default(),
         }
-    }
-}
-
-/// Where viewpoints sit: on the sphere of `3 × radius` around `center`, looking at it.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Framing {
-    pub center: Vec3,
-    pub radius: f32,
-}
-
-impl Framing {
-    /// The bounding sphere (box center, farthest point) of every keyframe's positions.
-    pub fn of(keyframes: &[Vec<Vec3>]) -> Framing {
-        let all = keyframes.iter().flatten();
-        let (lo, hi) = all.clone().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), &p| (l.min(p), h.max(p)));
-        let center = if lo.x <= hi.x { (lo + hi) / 2.0 } else { Vec3::ZERO };
-        let radius = all.map(|p| p.distance(center)).fold(0.0f32, f32::max).max(1e-6);
-        Framing { center, radius }
-    }
-
-    /// The eye for a unit direction `dir` at `distance` radii.
-    pub fn eye(&self, dir: Vec3, distance: f32) -> Vec3 {
-        self.center + dir * self.radius * distance
-    }
-
-    /// A perspective view-projection from `eye` that frames the bounding sphere.
-    pub fn view_proj(&self, eye: Vec3) -> Mat4 {
-        let d = eye.distance(self.center).max(self.radius * 1.01);
-        let fov = 2.0 * (self.radius / d).clamp(-1.0, 1.0).asin() * 1.05;
-        let up = if (eye - self.center).normalize_or_zero().y.abs() > 0.99 { Vec3::Z } else { Vec3::Y };
-        Mat4::perspective_rh(fov, 1.0, (d - self.radius) * 0.5, d + self.radius * 2.0)
-            * Mat4::look_at_rh(eye, self.center, up)
     }
 }
 
@@ -338,88 +307,31 @@ pub fn cluster(keyframes: &[Vec<Vec3>], triangles: &[[u32; 3]], params: &Cluster
     Clustering { buffers, views, assignment, node_overdraw, framing, iterations }
 }
 
-/// The run-time table (section 3.3): for each keyframe and each (polar, azimuth) cell, the
-/// buffer of the nearest stored viewpoint.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Lookup {
-    pub keyframes: usize,
-    pub polar: usize,
-    pub azimuth: usize,
-    pub table: Vec<u8>,
-}
-
-impl Lookup {
-    /// Builds the table from a clustering with `polar` × `azimuth` cells per keyframe.
-    pub fn new(c: &Clustering, polar: usize, azimuth: usize) -> Lookup {
-        let keyframes = c.assignment.len() / c.views.len().max(1);
-        let mut table = Vec::with_capacity(keyframes * polar * azimuth);
-        for f in 0..keyframes {
-            for i in 0..polar {
-                for j in 0..azimuth {
-                    let d = direction(
-                        i as f32 * std::f32::consts::PI / (polar - 1).max(1) as f32,
-                        j as f32 * std::f32::consts::TAU / azimuth as f32,
-                    );
-                    let nearest = (0..c.views.len())
-                        .max_by(|&a, &b| c.views[a].dot(d).total_cmp(&c.views[b].dot(d)))
-                        .unwrap_or(0);
-                    table.push(c.assignment[f * c.views.len() + nearest]);
-                }
+/// The run-time table of a clustering ([`Lookup`]) with `polar` × `azimuth` cells per keyframe.
+pub fn lookup(c: &Clustering, polar: usize, azimuth: usize) -> Lookup {
+    let keyframes = c.assignment.len() / c.views.len().max(1);
+    let mut table = Vec::with_capacity(keyframes * polar * azimuth);
+    for f in 0..keyframes {
+        for i in 0..polar {
+            for j in 0..azimuth {
+                let d = direction(
+                    i as f32 * std::f32::consts::PI / (polar - 1).max(1) as f32,
+                    j as f32 * std::f32::consts::TAU / azimuth as f32,
+                );
+                let nearest =
+                    (0..c.views.len()).max_by(|&a, &b| c.views[a].dot(d).total_cmp(&c.views[b].dot(d))).unwrap_or(0);
+                table.push(c.assignment[f * c.views.len() + nearest]);
             }
         }
-        Lookup { keyframes, polar, azimuth, table }
     }
-
-    /// The buffer for keyframe `f` seen from unit direction `dir` (model space, from the
-    /// model's center toward the eye), both rounded to the nearest stored value.
-    pub fn get(&self, f: usize, dir: Vec3) -> u8 {
-        let dir = dir.normalize_or(Vec3::Z);
-        let theta = dir.z.clamp(-1.0, 1.0).acos();
-        let phi = dir.y.atan2(dir.x).rem_euclid(std::f32::consts::TAU);
-        let i = (theta / std::f32::consts::PI * (self.polar - 1).max(1) as f32).round() as usize;
-        let j = (phi / std::f32::consts::TAU * self.azimuth as f32).round() as usize % self.azimuth.max(1);
-        let f = f.min(self.keyframes.saturating_sub(1));
-        // An empty table (no keyframes) selects buffer 0.
-        let cell = (f * self.polar + i.min(self.polar.saturating_sub(1))) * self.azimuth + j;
-        self.table.get(cell).copied().unwrap_or(0)
-    }
+    Lookup { keyframes, polar, azimuth, table }
 }
 
-/// What a bake stores for run-time selection: the buffers, the keyframes they were
-/// clustered for, the framing the viewpoints were placed with, and the lookup table.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Orders {
-    pub lambda: f32,
-    /// (clip index among the baked clips, time) of each keyframe.
-    pub keyframes: Vec<(u32, f32)>,
-    pub framing: Framing,
-    pub buffers: Vec<Vec<[u32; 3]>>,
-    pub lookup: Lookup,
-}
-
-impl Orders {
-    /// Lookup cells per keyframe stored by [`Orders::new`]: 37 polar × 72 azimuth (5°).
-    pub const CELLS: (usize, usize) = (37, 72);
-
-    pub fn new(c: &Clustering, keyframes: Vec<(u32, f32)>, lambda: f32) -> Orders {
-        let lookup = Lookup::new(c, Self::CELLS.0, Self::CELLS.1);
-        Orders { lambda, keyframes, framing: c.framing, buffers: c.buffers.clone(), lookup }
-    }
-
-    /// The buffer to draw for `clip` at `time` seen from `eye` (model space): the nearest
-    /// stored keyframe of that clip (the first keyframe when the clip has none), then the
-    /// lookup by the direction from the model's center to the eye.
-    pub fn select(&self, clip: u32, time: f32, eye: Vec3) -> usize {
-        let f = (0..self.keyframes.len())
-            .filter(|&f| self.keyframes[f].0 == clip)
-            .min_by(|&a, &b| (self.keyframes[a].1 - time).abs().total_cmp(&(self.keyframes[b].1 - time).abs()))
-            .unwrap_or(0);
-        self.lookup.get(f, (eye - self.framing.center).normalize_or(Vec3::Z)) as usize
-    }
-}
-
-fn direction(theta: f32, phi: f32) -> Vec3 {
-    Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
+/// What a bake stores of a clustering for run-time selection ([`Orders`]): its buffers,
+/// `keyframes` (clip index and time per keyframe), λ, the framing and the lookup table.
+pub fn orders(c: &Clustering, keyframes: Vec<(u32, f32)>, lambda: f32) -> Orders {
+    let lookup = lookup(c, Orders::CELLS.0, Orders::CELLS.1);
+    Orders { lambda, keyframes, framing: c.framing, buffers: c.buffers.clone(), lookup }
 }
 
 #[cfg(test)]
@@ -467,7 +379,7 @@ mod tests {
             assert_eq!(canonical(b.clone()), canonical(triangles.clone()));
         }
         // The lookup returns the assigned buffer at every stored node's own direction.
-        let lookup = Lookup::new(&c, 91, 180);
+        let lookup = lookup(&c, 91, 180);
         let mut agree = 0;
         for f in 0..keyframes.len() {
             for (v, dir) in c.views.iter().enumerate() {

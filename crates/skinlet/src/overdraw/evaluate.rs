@@ -13,7 +13,7 @@
 //! fraction of the cost). Viewpoints lie at 3 × the bounding-sphere radius. ACMR is the mean
 //! over a method's buffers (FIFO cache of `cache_size`). Deterministic for a seed.
 
-use super::cluster::{ClusterParams, Framing, Lookup, cluster};
+use super::cluster::{ClusterParams, Framing, cluster, lookup};
 use super::measure::{Raster, acmr};
 use super::tipsify::{occlusion_order, patches, tipsify};
 use glam::Vec3;
@@ -152,7 +152,7 @@ pub fn evaluate(clips: &[Vec<Vec<Vec3>>], original: &[[u32; 3]], params: &EvalPa
         .iter()
         .map(|keys| {
             let c = cluster(keys, original, &params.cluster);
-            let lookup = Lookup::new(&c, 37, 72);
+            let lookup = lookup(&c, 37, 72);
             (c, lookup)
         })
         .collect();
@@ -172,7 +172,7 @@ pub fn evaluate(clips: &[Vec<Vec<Vec3>>], original: &[[u32; 3]], params: &EvalPa
 
     let started = Instant::now();
     let joint = cluster(&all, original, &params.cluster);
-    let lookup = Lookup::new(&joint, 37, 72);
+    let lookup = lookup(&joint, 37, 72);
     let preprocess_s = started.elapsed().as_secs_f64();
     let offsets: Vec<usize> = clips.iter().scan(0, |acc, k| Some(std::mem::replace(acc, *acc + k.len()))).collect();
     rows.push(MethodResult {

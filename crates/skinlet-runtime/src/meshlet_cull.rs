@@ -28,20 +28,19 @@
 //! `A⁻¹`), far above f32 rounding, so a meshlet culled here is culled in exact arithmetic
 //! too; the crowd scene checks this triangle by triangle against reference skinning.
 //!
-//! A culler may also hold the any-pose boxes of [`super::any_pose`] (one box per meshlet and
+//! A culler may also hold the any-pose boxes of [`crate::any_pose`] (one box per meshlet and
 //! influencing joint, in that joint's bind space): [`MeshletCuller::prepare_with_boxes`]
 //! adds their test to the bounds', [`MeshletCuller::prepare_boxes_only`] runs it alone for a
 //! pose no stored bound covers. A box moved by `G` lies beyond a plane `(n, w)` exactly when
 //! `n_j·c + w_j + |n_j|·h < 0` with the plane in joint space (`|n_j|` componentwise), so the
-//! test reuses the joint-space planes and needs no per-box transform; the GPU passes read
-//! the same planes and run it operation for operation.
+//! test needs no per-box transform, only each joint's six planes per instance; the GPU passes
+//! read the same planes and run it operation for operation.
 
-use super::any_pose::AnyPoseBoxes;
-use super::joint_aabb::{JointBoxes, JointSpace};
-use super::{Camera, Projection};
-use crate::bounds::Aabb as DAabb;
-use crate::bounds::meshlet::{Class, MeshletBounds};
-use glam::{Affine3A, BVec4A, Mat4, Vec3, Vec3A, Vec4};
+use crate::any_pose::AnyPoseBoxes;
+use crate::camera::{Camera, Projection};
+use crate::joint_boxes::{JointBoxes, JointSpace};
+use crate::meshlet_bounds::{Class, MeshletBounds};
+use glam::{Affine3A, BVec4A, DVec3, Mat4, Vec3, Vec3A, Vec4};
 
 /// Which tests run (the paper's three culling pipelines).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -245,8 +244,13 @@ impl JointFrame {
     /// of the boxes' ranges), so that GPU culling passes draw it whole.
     pub fn keep_all(joints: usize) -> JointFrame {
         let mut frame = JointFrame::default();
-        frame.reset(joints, false, Tests::Both);
+        frame.set_keep_all(joints);
         frame
+    }
+
+    /// This frame made one that culls nothing ([`JointFrame::keep_all`]), reusing its buffers.
+    pub fn set_keep_all(&mut self, joints: usize) {
+        self.reset(joints, false, Tests::Both);
     }
 
     /// Sizes the frame for `joints` joints with every group inside and no backface test;
@@ -392,11 +396,11 @@ impl MeshletCuller {
         c.lane_cz = lanes(c.group_center.iter().map(|p| p.z).collect());
         c.lane_radius = lanes(c.group_radius.clone());
         c.lane_extent = lanes(c.extent.clone());
-        let group_boxes: Vec<DAabb> = (0..joints)
+        let group_boxes: Vec<(DVec3, DVec3)> = (0..joints)
             .map(|j| {
                 let cullable = (c.groups[j]..c.groups[j + 1]).any(|i| c.frustum_ok[i as usize] == 1);
                 let (center, r) = (c.group_center[j].as_dvec3(), c.group_radius[j] as f64);
-                if cullable { DAabb { min: center - r, max: center + r } } else { DAabb::EMPTY }
+                if cullable { (center - r, center + r) } else { (DVec3::INFINITY, DVec3::NEG_INFINITY) }
             })
             .collect();
         c.instance = JointBoxes::from_boxes(JointSpace::Joint, &group_boxes);
@@ -560,32 +564,33 @@ impl MeshletCuller {
         self.box_planes(joint_to_world, camera, frame);
     }
 
-    /// Joint-space planes of every joint and the box margins, for the any-pose boxes. The
-    /// planes are computed as `prepare` computes them (the same f32 operations, so a joint
-    /// whose group straddles gets the same values). Margin: `n_j` and `w_j` carry f32
-    /// errors below 3 ulps of `|A|ᵀ|n|` and `|t|·|n| + |w|`, the box test below 8 ulps of
-    /// `|n_j|·(|c| + h) + |w_j|`; 1e-5 of `s·Σ(|cᵢ| + hᵢ) + u` (`s`: the largest entry of
-    /// `|A|ᵀ|n|`, `u`: the largest `|t|·|n| + |w|`, over the planes) covers both many times.
-    /// A joint matrix that is not finite gets NaN planes, which cull nothing.
+    /// Joint-space planes of every joint and the box margins, for the any-pose boxes:
+    /// `n_j = Aᵀn` (one matrix-vector product per plane), `w_j = n·t + w`. Margin, with
+    /// `ν` the largest `|nₖ|` component and `ω` the largest `|w|` over the planes: `n_j`'s
+    /// components carry f32 errors below 3 ulps of `s = ν·max |aᵢ|₁` (and are at most `s`),
+    /// `w_j`'s below 4 ulps of `u = ν·|t|₁ + ω`, the box test's own sum below 8 ulps of
+    /// `s·Σ(|cᵢ| + hᵢ) + u`; 1e-5 of that covers all of them many times. A joint matrix that
+    /// is not finite gets NaN planes, which cull nothing.
     fn box_planes(&self, joint_to_world: &[Affine3A], camera: &Camera, frame: &mut JointFrame) {
         if self.boxes.is_empty() {
             return;
         }
+        let nu = camera.planes.iter().map(|p| p.truncate().abs().max_element()).fold(0.0f32, f32::max);
+        let omega = camera.planes.iter().map(|p| p.w.abs()).fold(0.0f32, f32::max);
         let n = frame.joints();
         for (j, g) in joint_to_world[..n].iter().enumerate() {
-            let (a, t) = (&g.matrix3, g.translation);
-            let (mut s, mut u) = (0.0f32, 0.0f32);
-            for (k, p) in camera.planes.iter().enumerate() {
-                let dot = |v: Vec3A| v.x * p.x + v.y * p.y + v.z * p.z;
-                let plane = [dot(a.x_axis), dot(a.y_axis), dot(a.z_axis), dot(t) + p.w];
-                frame.planes[j][k] = if g.is_finite() { plane } else { [f32::NAN; 4] };
-                let pa = p.truncate().abs();
-                s = s
-                    .max(a.x_axis.abs().dot(pa.into()))
-                    .max(a.y_axis.abs().dot(pa.into()))
-                    .max(a.z_axis.abs().dot(pa.into()));
-                u = u.max(t.abs().dot(pa.into()) + p.w.abs());
+            let (a, t) = (g.matrix3.transpose(), g.translation);
+            for (plane, p) in frame.planes[j].iter_mut().zip(&camera.planes) {
+                let nj = a * Vec3A::from(p.truncate());
+                *plane = [nj.x, nj.y, nj.z, t.x * p.x + t.y * p.y + t.z * p.z + p.w];
             }
+            if !g.is_finite() {
+                frame.planes[j] = [[f32::NAN; 4]; 6];
+            }
+            let m = &g.matrix3;
+            let s =
+                nu * m.x_axis.abs().element_sum().max(m.y_axis.abs().element_sum()).max(m.z_axis.abs().element_sum());
+            let u = nu * t.abs().element_sum() + omega;
             frame.box_margin[j] = [1e-5 * s, 1e-5 * u];
         }
         frame.any_pose = true;
@@ -780,9 +785,13 @@ impl MeshletCuller {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bounds::meshlet::cofactor;
     use glam::{DMat3, DMat4, DQuat, DVec3, DVec4};
     use proptest::prelude::*;
+
+    /// The cofactor matrix `det(A)·A⁻ᵀ` (columns `b×c, c×a, a×b`): face normals move by it.
+    fn cofactor(a: &DMat3) -> DMat3 {
+        DMat3::from_cols(a.y_axis.cross(a.z_axis), a.z_axis.cross(a.x_axis), a.x_axis.cross(a.y_axis))
+    }
 
     fn unit(v: [f64; 3]) -> DVec3 {
         let v = DVec3::from(v);

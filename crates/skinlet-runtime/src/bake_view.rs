@@ -1,0 +1,232 @@
+//! A validated, zero-copy view over the bytes of a bake file (`docs/FORMAT.md`): the header
+//! and section table are checked once, and sections come out as typed slices of the file's
+//! own bytes (every section starts 16-byte aligned in the file, so a memory-mapped file or a
+//! `Vec<u8>` read from disk serves them directly; its records are little-endian, as the
+//! format is). What it hands out has been checked: a culler built from it never indexes out
+//! of range and never sees a non-finite number.
+//!
+//! Covered so far: the section table, the drivers' inverse bind matrices and nodes (`SKIN`),
+//! the meshlet count (`MLET`) and the meshlet bounds with their classes (`BNDS`). The baker's
+//! reader (`skinlet::bake::from_bytes`) goes through this view for those and parses the
+//! other sections itself.
+
+use crate::meshlet_bounds::{Class, MeshletBounds};
+use crate::meshlet_cull::MeshletCuller;
+use crate::{Error, Result};
+use glam::Vec3;
+
+/// The first eight bytes of every bake file.
+pub const MAGIC: [u8; 8] = *b"SKINLET\0";
+/// The format version this view reads.
+pub const VERSION: u32 = 3;
+/// Bytes per section table entry: tag, zero, offset (u64), length (u64).
+const ENTRY: usize = 24;
+
+/// One meshlet's record in `BNDS` (48 bytes, `docs/FORMAT.md`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[repr(C)]
+pub struct BakedBounds {
+    pub center: [f32; 3],
+    pub radius: f32,
+    pub cone_axis: [f32; 3],
+    pub cone_angle: f32,
+    pub rest_radius: f32,
+    pub rest_cone_angle: f32,
+    pub joint: u32,
+    /// 0 both tests, 1 frustum only, 2 none.
+    pub class: u32,
+}
+
+// SAFETY: `repr(C)`, twelve 4-byte fields of plain numbers (48 bytes, no padding): every bit
+// pattern is a value, and zero is one.
+unsafe impl bytemuck::Zeroable for BakedBounds {}
+// SAFETY: as above; `Copy` and `'static`.
+unsafe impl bytemuck::Pod for BakedBounds {}
+
+impl BakedBounds {
+    /// The bounds (the joint is below 2¹⁶ in any record [`check_bounds`] accepts).
+    pub fn bounds(&self) -> MeshletBounds {
+        MeshletBounds {
+            joint: self.joint as u16,
+            center: Vec3::from(self.center),
+            radius: self.radius,
+            rest_radius: self.rest_radius,
+            cone_axis: Vec3::from(self.cone_axis),
+            cone_angle: self.cone_angle,
+            rest_cone_angle: self.rest_cone_angle,
+        }
+    }
+
+    /// The class (a code above 2, which [`check_bounds`] refuses, reads as "none").
+    pub fn class(&self) -> Class {
+        match self.class {
+            0 => Class::Both,
+            1 => Class::FrustumOnly,
+            _ => Class::None,
+        }
+    }
+}
+
+/// Checks bounds records for `joints` joints: finite numbers, principal joints below
+/// `joints`, known classes, radii not negative, cone angles in [0, π]. Errors name the
+/// meshlet; `location` says where the records came from.
+pub fn check_bounds(records: &[BakedBounds], joints: usize, location: &str) -> Result<()> {
+    for (i, r) in records.iter().enumerate() {
+        let bad = |what: String| Err(Error::invalid(location, format!("meshlet {i}: {what}")));
+        // The first ten words are the floats.
+        let words: [f32; 12] = bytemuck::cast(*r);
+        if words[..10].iter().any(|x| !x.is_finite()) {
+            return bad("a number is not finite".into());
+        }
+        if r.joint as usize >= joints {
+            return bad(format!("principal joint {} is not one of {joints} joints", r.joint));
+        }
+        if r.class > 2 {
+            return bad(format!("unknown class {}", r.class));
+        }
+        if r.radius < 0.0 || r.rest_radius < 0.0 || !(0.0..=std::f32::consts::PI).contains(&r.cone_angle) {
+            return bad("a negative radius or a cone angle outside [0, π]".into());
+        }
+    }
+    Ok(())
+}
+
+/// The checked view.
+#[derive(Clone, Debug)]
+pub struct BakeView<'a> {
+    sections: Vec<([u8; 4], &'a [u8])>,
+}
+
+/// The little-endian `u32` at byte `at` of `b`, or `None` past its end.
+fn u32_at(b: &[u8], at: usize) -> Option<u32> {
+    Some(u32::from_le_bytes(b.get(at..at.checked_add(4)?)?.try_into().ok()?))
+}
+
+impl<'a> BakeView<'a> {
+    /// Checks the header (magic, version) and the section table (every section inside the
+    /// file). `bytes` must start at a 4-byte aligned address, as a memory map or a buffer
+    /// from the allocator does. Errors say what is wrong and where.
+    pub fn new(bytes: &'a [u8]) -> Result<BakeView<'a>> {
+        let head = |message: String| Error::invalid("bake header", message);
+        if cfg!(target_endian = "big") {
+            return Err(head("bake files are little-endian; this target is big-endian".into()));
+        }
+        if !(bytes.as_ptr() as usize).is_multiple_of(4) {
+            return Err(head(
+                "the bytes must start at a 4-byte aligned address (copy them into an aligned buffer)".into(),
+            ));
+        }
+        if bytes.get(..8) != Some(&MAGIC[..]) {
+            return Err(head("not a skinlet bake file (wrong magic bytes)".into()));
+        }
+        let version = u32_at(bytes, 8).ok_or_else(|| head("truncated (no version)".into()))?;
+        if version != VERSION {
+            return Err(Error::unsupported("bake header", format!("version {version}; this skinlet reads {VERSION}")));
+        }
+        let n = u32_at(bytes, 12).ok_or_else(|| head("truncated (no section count)".into()))? as usize;
+        if n.saturating_mul(ENTRY) > bytes.len() - 16 {
+            return Err(head(format!("byte 12: {n} sections do not fit in the file")));
+        }
+        let mut sections = Vec::with_capacity(n);
+        for k in 0..n {
+            let e = &bytes[16 + k * ENTRY..16 + (k + 1) * ENTRY];
+            let tag: [u8; 4] = e[..4].try_into().expect("4 bytes");
+            let (offset, len) = (
+                u64::from_le_bytes(e[8..16].try_into().expect("8 bytes")),
+                u64::from_le_bytes(e[16..24].try_into().expect("8 bytes")),
+            );
+            let body = usize::try_from(offset)
+                .ok()
+                .zip(usize::try_from(len).ok())
+                .and_then(|(o, l)| bytes.get(o..o.checked_add(l)?))
+                .ok_or_else(|| {
+                    head(format!("byte {}: section {} lies outside the file", 16 + k * ENTRY, tag_name(&tag)))
+                })?;
+            sections.push((tag, body));
+        }
+        Ok(BakeView { sections })
+    }
+
+    /// The bytes of section `tag` (the first with that tag), if the file has it.
+    pub fn section(&self, tag: &[u8; 4]) -> Option<&'a [u8]> {
+        self.sections.iter().find(|(t, _)| t == tag).map(|(_, b)| *b)
+    }
+
+    /// The bytes of a section the format requires.
+    pub fn required(&self, tag: &[u8; 4]) -> Result<&'a [u8]> {
+        self.section(tag).ok_or_else(|| Error::invalid("bake file", format!("section {} is missing", tag_name(tag))))
+    }
+
+    /// The number of drivers (joints), from `SKIN`.
+    pub fn joint_count(&self) -> Result<usize> {
+        let s = self.required(b"SKIN")?;
+        let n = u32_at(s, 0).ok_or_else(|| Error::invalid("bake section SKIN", "byte 0: truncated"))? as usize;
+        if n.saturating_mul(68) > s.len() - 4 {
+            return Err(Error::invalid("bake section SKIN", format!("byte 0: {n} joints do not fit in the section")));
+        }
+        Ok(n)
+    }
+
+    /// Each driver's inverse bind matrix (16 `f32`, column-major), checked finite.
+    pub fn inverse_bind(&self) -> Result<&'a [[f32; 16]]> {
+        let n = self.joint_count()?;
+        let m: &[[f32; 16]] = cast(&self.required(b"SKIN")?[4..4 + 64 * n], "SKIN")?;
+        if let Some(j) = m.iter().position(|m| m.iter().any(|x| !x.is_finite())) {
+            return Err(Error::invalid("bake section SKIN", format!("joint {j}'s inverse bind matrix is not finite")));
+        }
+        Ok(m)
+    }
+
+    /// Each driver's node (index into the source file's nodes).
+    pub fn joint_nodes(&self) -> Result<&'a [u32]> {
+        let n = self.joint_count()?;
+        cast(&self.required(b"SKIN")?[4 + 64 * n..4 + 68 * n], "SKIN")
+    }
+
+    /// The meshlet count, from `MLET`'s header.
+    pub fn meshlet_count(&self) -> Result<usize> {
+        let s = self.required(b"MLET")?;
+        Ok(u32_at(s, 0).ok_or_else(|| Error::invalid("bake section MLET", "byte 0: truncated"))? as usize)
+    }
+
+    /// The meshlet bounds and classes of `BNDS`, one per meshlet, checked
+    /// ([`check_bounds`] for the file's joints).
+    pub fn meshlet_bounds(&self) -> Result<&'a [BakedBounds]> {
+        let s = self.required(b"BNDS")?;
+        let location = "bake section BNDS";
+        let n = u32_at(s, 0).ok_or_else(|| Error::invalid(location, "byte 0: truncated"))? as usize;
+        let meshlets = self.meshlet_count()?;
+        if n != meshlets {
+            return Err(Error::invalid(location, format!("byte 0: {n} bounds for {meshlets} meshlets")));
+        }
+        let end = n.checked_mul(48).and_then(|b| b.checked_add(16)).filter(|&e| e <= s.len());
+        let end = end
+            .ok_or_else(|| Error::invalid(location, format!("byte 0: {n} meshlet bounds do not fit in the section")))?;
+        if end != s.len() {
+            return Err(Error::invalid(location, format!("byte {end}: unexpected bytes after the section's data")));
+        }
+        let records: &[BakedBounds] = cast(&s[16..end], "BNDS")?;
+        check_bounds(records, self.joint_count()?, location)?;
+        Ok(records)
+    }
+
+    /// The run-time culler for the clip bounds of `BNDS`.
+    pub fn culler(&self) -> Result<MeshletCuller> {
+        let records = self.meshlet_bounds()?;
+        let bounds: Vec<MeshletBounds> = records.iter().map(BakedBounds::bounds).collect();
+        let classes: Vec<Class> = records.iter().map(BakedBounds::class).collect();
+        MeshletCuller::new(&bounds, &classes, self.joint_count()?)
+    }
+}
+
+/// The tag as text (lossy for non-ASCII bytes).
+fn tag_name(tag: &[u8; 4]) -> String {
+    String::from_utf8_lossy(tag).into_owned()
+}
+
+/// Section bytes as typed records (the view checked the file's start alignment; sections and
+/// their records are aligned within the file).
+fn cast<'a, T: bytemuck::Pod>(b: &'a [u8], tag: &str) -> Result<&'a [T]> {
+    bytemuck::try_cast_slice(b)
+        .map_err(|e| Error::invalid(format!("bake section {tag}"), format!("records misaligned or cut: {e:?}")))
+}
