@@ -6,14 +6,17 @@
 //! of range and never sees a non-finite number.
 //!
 //! Covered so far: the section table, the drivers' inverse bind matrices and nodes (`SKIN`),
-//! the meshlet count (`MLET`) and the meshlet bounds with their classes (`BNDS`). The baker's
-//! reader (`skinlet::bake::from_bytes`) goes through this view for those and parses the
-//! other sections itself.
+//! the meshlet count (`MLET`), the meshlet bounds with their classes (`BNDS`), and the pose
+//! envelope with its bounds and any-pose boxes (`ENVL`): everything the CPU culler and the
+//! pose guard need. The baker's reader (`skinlet::bake::from_bytes`) goes through this view
+//! for those and parses the other sections itself.
 
+use crate::any_pose::AnyPoseBoxes;
 use crate::meshlet_bounds::{Class, MeshletBounds};
 use crate::meshlet_cull::MeshletCuller;
+use crate::pose_guard::{NodeRange, PoseGuard, check_ranges};
 use crate::{Error, Result};
-use glam::Vec3;
+use glam::{Quat, Vec3};
 
 /// The first eight bytes of every bake file.
 pub const MAGIC: [u8; 8] = *b"SKINLET\0";
@@ -89,6 +92,91 @@ pub fn check_bounds(records: &[BakedBounds], joints: usize, location: &str) -> R
         }
     }
     Ok(())
+}
+
+/// One node range's record in `ENVL` (72 bytes, `docs/FORMAT.md`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[repr(C)]
+pub struct BakedNodeRange {
+    pub node: u32,
+    /// x, y, z, w.
+    pub centre: [f32; 4],
+    pub angle: f32,
+    pub translation_min: [f32; 3],
+    pub translation_max: [f32; 3],
+    pub scale_min: [f32; 3],
+    pub scale_max: [f32; 3],
+}
+
+// SAFETY: `repr(C)`, eighteen 4-byte fields of plain numbers (72 bytes, no padding): every bit
+// pattern is a value, and zero is one.
+unsafe impl bytemuck::Zeroable for BakedNodeRange {}
+// SAFETY: as above; `Copy` and `'static`.
+unsafe impl bytemuck::Pod for BakedNodeRange {}
+
+impl BakedNodeRange {
+    pub fn range(&self) -> NodeRange {
+        NodeRange {
+            node: self.node,
+            centre: Quat::from_array(self.centre),
+            angle: self.angle,
+            translation: (Vec3::from(self.translation_min), Vec3::from(self.translation_max)),
+            scale: (Vec3::from(self.scale_min), Vec3::from(self.scale_max)),
+        }
+    }
+}
+
+/// The `ENVL` section, checked: the pose envelope's node and morph weight ranges, one
+/// envelope bounds record per meshlet, the any-pose boxes; slices of the file's bytes. The
+/// nodes' names that follow are not read (a game needs none).
+#[derive(Clone, Copy, Debug)]
+pub struct EnvelopeView<'a> {
+    pub nodes: &'a [BakedNodeRange],
+    /// Per morph weight, its range (min, max).
+    pub weights: &'a [[f32; 2]],
+    pub bounds: &'a [BakedBounds],
+    /// Boxes of meshlet `m`: `box_offsets[m]..box_offsets[m + 1]`.
+    pub box_offsets: &'a [u32],
+    /// Per box its joint, then its center and half extents.
+    pub box_joints: &'a [u32],
+    pub boxes: &'a [[f32; 6]],
+    /// Where the nodes' names start in the section.
+    pub names_at: usize,
+}
+
+impl EnvelopeView<'_> {
+    /// The node ranges as [`NodeRange`]s.
+    pub fn ranges(&self) -> Vec<NodeRange> {
+        self.nodes.iter().map(BakedNodeRange::range).collect()
+    }
+
+    /// The morph weight ranges as pairs.
+    pub fn weight_ranges(&self) -> Vec<(f32, f32)> {
+        self.weights.iter().map(|w| (w[0], w[1])).collect()
+    }
+
+    /// The run-time pose guard of the envelope.
+    pub fn guard(&self) -> Result<PoseGuard> {
+        PoseGuard::new(&self.ranges(), &self.weight_ranges())
+    }
+
+    /// The any-pose boxes, owned.
+    pub fn any_pose(&self) -> AnyPoseBoxes {
+        AnyPoseBoxes {
+            offsets: self.box_offsets.to_vec(),
+            joints: self.box_joints.iter().map(|&j| j as u16).collect(),
+            center: self.boxes.iter().map(|b| Vec3::new(b[0], b[1], b[2])).collect(),
+            half: self.boxes.iter().map(|b| Vec3::new(b[3], b[4], b[5])).collect(),
+        }
+    }
+
+    /// The culler for poses inside the envelope, holding the any-pose boxes for the rest
+    /// ([`MeshletCuller::prepare_with_boxes`], [`MeshletCuller::prepare_boxes_only`]).
+    pub fn culler(&self, joints: usize) -> Result<MeshletCuller> {
+        let bounds: Vec<MeshletBounds> = self.bounds.iter().map(BakedBounds::bounds).collect();
+        let classes: Vec<Class> = self.bounds.iter().map(BakedBounds::class).collect();
+        MeshletCuller::new(&bounds, &classes, joints)?.with_any_pose(&self.any_pose())
+    }
 }
 
 /// The checked view.
@@ -216,6 +304,65 @@ impl<'a> BakeView<'a> {
         let bounds: Vec<MeshletBounds> = records.iter().map(BakedBounds::bounds).collect();
         let classes: Vec<Class> = records.iter().map(BakedBounds::class).collect();
         MeshletCuller::new(&bounds, &classes, self.joint_count()?)
+    }
+
+    /// The optional `ENVL` section, checked: node ranges ([`check_ranges`], any node index,
+    /// each once), morph weight ranges (as many as `weights`, the mesh's morph weights),
+    /// envelope bounds for every meshlet ([`check_bounds`]), any-pose boxes
+    /// ([`AnyPoseBoxes::check`] rules, box joints below 2¹⁶).
+    pub fn envelope(&self, weights: usize) -> Result<Option<EnvelopeView<'a>>> {
+        let Some(s) = self.section(b"ENVL") else { return Ok(None) };
+        let location = "bake section ENVL";
+        let err = |at: usize, what: String| Error::invalid(location, format!("byte {at}: {what}"));
+        let word = |at: usize| u32_at(s, at).map(|x| x as usize).ok_or_else(|| err(at, "truncated".into()));
+        let (r, w, m, b) = (word(0)?, word(4)?, word(8)?, word(12)?);
+        let meshlets = self.meshlet_count()?;
+        if m != meshlets {
+            return Err(err(8, format!("{m} envelope bounds for {meshlets} meshlets")));
+        }
+        if w != weights {
+            return Err(err(4, format!("{w} morph weight ranges for {weights} morph weights")));
+        }
+        // Byte ranges, in u64 so that no count overflows.
+        let mut at = 16u64;
+        let mut take = |bytes: u64, align: u64| {
+            let start = at.next_multiple_of(align);
+            at = start + bytes;
+            (at <= s.len() as u64).then_some(start as usize..at as usize)
+        };
+        let (r64, w64, m64, b64) = (r as u64, w as u64, m as u64, b as u64);
+        let spans = [
+            take(72 * r64, 4),
+            take(8 * w64, 4),
+            take(48 * m64, 16),
+            take(4 * (m64 + 1), 4),
+            take(4 * b64, 4),
+            take(24 * b64, 4),
+        ];
+        let [Some(nodes), Some(ws), Some(bounds), Some(offsets), Some(joints), Some(boxes)] = spans else {
+            return Err(err(
+                0,
+                format!("{r} node ranges, {w} weight ranges, {m} bounds and {b} boxes do not fit in the section"),
+            ));
+        };
+        let (names_at, offsets_at, joints_at) = (boxes.end, offsets.start, joints.start);
+        let view = EnvelopeView {
+            nodes: cast(&s[nodes], "ENVL")?,
+            weights: cast(&s[ws], "ENVL")?,
+            bounds: cast(&s[bounds], "ENVL")?,
+            box_offsets: cast(&s[offsets.clone()], "ENVL")?,
+            box_joints: cast(&s[joints], "ENVL")?,
+            boxes: cast(&s[boxes], "ENVL")?,
+            names_at,
+        };
+        check_ranges(&view.ranges(), &view.weight_ranges(), None, weights).map_err(|e| err(16, e.to_string()))?;
+        let j = self.joint_count()?;
+        check_bounds(view.bounds, j, location)?;
+        if let Some(x) = view.box_joints.iter().find(|&&x| x > u16::MAX as u32) {
+            return Err(err(joints_at, format!("box joint {x}")));
+        }
+        view.any_pose().check(meshlets, j).map_err(|e| err(offsets_at, e.to_string()))?;
+        Ok(Some(view))
     }
 }
 

@@ -628,6 +628,22 @@ impl MeshletCuller {
         (&self.box_offsets, &self.boxes)
     }
 
+    /// A culler with the any-pose boxes alone (its meshlets get bounds that never cull, class
+    /// "none"): for [`MeshletCuller::prepare_boxes_only`] where no other bounds exist.
+    pub fn from_any_pose(boxes: &AnyPoseBoxes, joints: usize) -> crate::Result<MeshletCuller> {
+        let none = MeshletBounds {
+            joint: 0,
+            center: Vec3::ZERO,
+            radius: 0.0,
+            rest_radius: 0.0,
+            cone_axis: Vec3::Z,
+            cone_angle: std::f32::consts::PI,
+            rest_cone_angle: std::f32::consts::PI,
+        };
+        let n = boxes.len();
+        MeshletCuller::new(&vec![none; n], &vec![Class::None; n], joints.max(1))?.with_any_pose(boxes)
+    }
+
     /// The culler with `boxes` (built for the same meshlets and joints) tested by frames
     /// prepared with [`MeshletCuller::prepare_with_boxes`] or
     /// [`MeshletCuller::prepare_boxes_only`]. Errors when [`AnyPoseBoxes::check`] refuses
@@ -895,17 +911,8 @@ mod tests {
 
     /// One meshlet with one any-pose box (and bounds that never cull) for joint `g`.
     fn box_culled(c: Vec3, h: Vec3, g: Affine3A, cam: &Camera) -> bool {
-        let b = MeshletBounds {
-            joint: 0,
-            center: Vec3::ZERO,
-            radius: 0.0,
-            rest_radius: 0.0,
-            cone_axis: Vec3::Z,
-            cone_angle: 4.0,
-            rest_cone_angle: 4.0,
-        };
         let boxes = AnyPoseBoxes { offsets: vec![0, 1], joints: vec![0], center: vec![c], half: vec![h] };
-        let culler = MeshletCuller::new(&[b], &[Class::None], 1).unwrap().with_any_pose(&boxes).unwrap();
+        let culler = MeshletCuller::from_any_pose(&boxes, 1).unwrap();
         let mut frame = JointFrame::default();
         culler.prepare_boxes_only(&[g], cam, Tests::Both, &mut frame);
         let mut visible = Vec::new();

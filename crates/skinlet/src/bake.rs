@@ -12,7 +12,7 @@
 //! destination atomically (temporary file in the same folder, then rename). Readers skip
 //! sections with tags they do not know, so later versions can add sections.
 
-use crate::bounds::envelope::{Envelope, NodeRange, envelope_bounds};
+use crate::bounds::envelope::{Envelope, envelope_bounds};
 use crate::bounds::meshlet::{Class, MeshletBounds, classify};
 use crate::bounds::refine::{Progress, Refinement, Stop, refine_with_progress};
 use crate::character::{Character, PartKind};
@@ -28,8 +28,8 @@ use crate::model::{Asset, Influences, MorphDelta, MorphWeight, Morphs, Skin, Ski
 use crate::overdraw::cluster::{ClusterParams, Framing, Lookup, Orders, cluster};
 use crate::overdraw::evaluate::keyframes;
 use crate::{Error, Result};
-use glam::{Mat4, Quat, Vec3};
-use skinlet_runtime::bake_view::{BakeView, BakedBounds, check_bounds};
+use glam::{Mat4, Vec3};
+use skinlet_runtime::bake_view::BakeView;
 use std::io::Write;
 use std::ops::Range;
 use std::path::Path;
@@ -264,14 +264,12 @@ fn baked_clips<'a>(baked: &Baked, asset: &'a Asset) -> Result<Vec<&'a Clip>> {
 /// targets and pose envelope.
 const TAGS: [&[u8; 4]; 11] =
     [b"INFO", b"SKIN", b"VERT", b"TRIS", b"MLET", b"BNDS", b"PART", b"OVDR", b"CONT", b"MRPH", b"ENVL"];
-const NODE_RANGE_STRIDE: usize = 72;
 const MORPH_WEIGHT_STRIDE: usize = 12;
 const MORPH_DELTA_STRIDE: usize = 28;
 const PART_STRIDE: usize = 40;
 const PATCH_STRIDE: usize = 48;
 const HEADER: usize = 16;
 const ENTRY: usize = 24;
-const BOUNDS_STRIDE: usize = 48;
 
 fn builder_code(b: Builder) -> u32 {
     Builder::ALL.iter().position(|&x| x == b).expect("every builder is in ALL") as u32
@@ -313,7 +311,7 @@ impl Out {
     fn f64(&mut self, x: f64) {
         self.0.extend_from_slice(&x.to_le_bytes());
     }
-    /// Meshlet bounds with their classes, [`BOUNDS_STRIDE`] bytes each.
+    /// Meshlet bounds with their classes, 48 bytes each ([`skinlet_runtime::bake_view::BakedBounds`]).
     fn bounds(&mut self, bounds: &[MeshletBounds], classes: &[Class]) {
         for (x, c) in bounds.iter().zip(classes) {
             self.vec3(x.center);
@@ -647,18 +645,6 @@ impl<'a> In<'a> {
     fn end(&self) -> Result<()> {
         if self.at == self.b.len() { Ok(()) } else { Err(self.err("unexpected bytes after the section's data")) }
     }
-    /// `n` meshlet bounds with their classes, checked like `BNDS`'s
-    /// ([`skinlet_runtime::bake_view::check_bounds`]).
-    fn bounds(&mut self, n: usize, joints: usize) -> Result<(Vec<MeshletBounds>, Vec<Class>)> {
-        if n.saturating_mul(BOUNDS_STRIDE) > self.b.len() - self.at {
-            return Err(self.err(format!("{n} meshlet bounds do not fit in the section")));
-        }
-        let at = self.at;
-        let records: Vec<BakedBounds> = bytemuck::pod_collect_to_vec(self.bytes(n * BOUNDS_STRIDE)?);
-        check_bounds(&records, joints, &format!("bake section {}", self.tag))
-            .map_err(|e| Error::invalid(format!("bake section {}", self.tag), format!("byte {at}: {e}")))?;
-        Ok(records.iter().map(|r| (r.bounds(), r.class())).unzip())
-    }
 }
 
 /// Parses and checks bake file bytes.
@@ -748,8 +734,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
     let parts = read_parts(section(6)?, &mesh, &meshlets)?;
     let overdraw = if found[7].is_some() { Some(read_orders(section(7)?, &mesh, &parts, clips_len)?) } else { None };
     let contours = if found[8].is_some() { Some(read_contours(section(8)?, &mesh, joints)?) } else { None };
-    let envelope =
-        if found[10].is_some() { Some(read_envelope(section(10)?, &mesh, meshlets.len(), joints)?) } else { None };
+    let envelope = if found[10].is_some() { Some(read_envelope(&view, section(10)?, &mesh)?) } else { None };
     Ok(Baked {
         settings,
         joint_nodes,
@@ -766,51 +751,17 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
     })
 }
 
-/// The ENVL section: node ranges and morph weight ranges (checked like any [`Envelope`]),
-/// one envelope bound per meshlet, the any-pose boxes (checked against the meshlets and
-/// joints), then the nodes' names.
-fn read_envelope(mut s: In, mesh: &SkinnedMesh, meshlets: usize, joints: usize) -> Result<BakedEnvelope> {
-    let r = s.count("node ranges", NODE_RANGE_STRIDE)?;
-    let w = s.count("morph weight ranges", 8)?;
-    let m = s.count("envelope bounds", BOUNDS_STRIDE)?;
-    let b = s.count("any-pose boxes", 28)?;
-    if m != meshlets {
-        return Err(s.err(format!("{m} envelope bounds for {meshlets} meshlets")));
-    }
-    let mut nodes = Vec::with_capacity(r);
-    for _ in 0..r {
-        let node = s.u32()?;
-        let centre = Quat::from_xyzw(s.f32()?, s.f32()?, s.f32()?, s.f32()?);
-        let angle = s.f32()?;
-        let (t0, t1, s0, s1) = (s.vec3()?, s.vec3()?, s.vec3()?, s.vec3()?);
-        nodes.push(NodeRange { node, centre, angle, translation: (t0, t1), scale: (s0, s1) });
-    }
-    let weights = (0..w).map(|_| Ok((s.f32()?, s.f32()?))).collect::<Result<Vec<_>>>()?;
-    let envelope = Envelope { nodes, weights };
-    // Node indices are the source file's: any index is allowed (the guard refuses a pose
-    // without that node), each once.
-    let top = envelope.nodes.iter().map(|r| r.node as usize + 1).max().unwrap_or(0);
-    envelope.check(top, mesh.morphs.weights.len()).map_err(|e| s.err(e))?;
-    s.align(16)?;
-    let (bounds, classes) = s.bounds(m, joints)?;
-    if (m + 1 + b).saturating_mul(4) > s.b.len() - s.at {
-        return Err(s.err("the any-pose box offsets do not fit in the section"));
-    }
-    let offsets = (0..=m).map(|_| s.u32()).collect::<Result<Vec<_>>>()?;
-    let box_joints = (0..b)
-        .map(|_| s.u32().and_then(|j| u16::try_from(j).map_err(|_| s.err(format!("box joint {j}")))))
-        .collect::<Result<Vec<_>>>()?;
-    let (mut center, mut half) = (Vec::with_capacity(b), Vec::with_capacity(b));
-    for _ in 0..b {
-        center.push(s.vec3()?);
-        half.push(s.vec3()?);
-    }
-    let any_pose = AnyPoseBoxes { offsets, joints: box_joints, center, half };
-    any_pose.check(meshlets, joints).map_err(|e| s.err(e))?;
-    let names = (0..r).map(|_| s.str()).collect::<Result<Vec<_>>>()?;
+/// The ENVL section: node and morph weight ranges, envelope bounds and any-pose boxes as the
+/// runtime's view reads and checks them ([`BakeView::envelope`]), then the nodes' names.
+fn read_envelope(view: &BakeView, mut s: In, mesh: &SkinnedMesh) -> Result<BakedEnvelope> {
+    let e = view.envelope(mesh.morphs.weights.len())?.ok_or_else(|| s.err("missing"))?;
+    let envelope = Envelope { nodes: e.ranges(), weights: e.weight_ranges() };
+    let (bounds, classes) = e.bounds.iter().map(|r| (r.bounds(), r.class())).unzip();
+    s.at = e.names_at;
+    let names = (0..e.nodes.len()).map(|_| s.str()).collect::<Result<Vec<_>>>()?;
     s.align(4)?;
     s.end()?;
-    Ok(BakedEnvelope { envelope, names, bounds, classes, any_pose })
+    Ok(BakedEnvelope { envelope, names, bounds, classes, any_pose: e.any_pose() })
 }
 
 /// The MRPH section: the morph weights, then per vertex its first delta (one more offset
@@ -1106,10 +1057,14 @@ mod tests {
     #[test]
     fn the_runtime_view_reads_what_the_baker_wrote() {
         // The zero-copy view of skinlet-runtime hands out the bake's own bytes as the bounds,
-        // matrices and nodes read gives, and builds the same culler; from a misaligned start
-        // the view refuses and read goes through an aligned copy.
+        // matrices, nodes and envelope read gives, and builds the same cullers and guard; from
+        // a misaligned start the view refuses and read goes through an aligned copy.
         use skinlet_runtime::meshlet_cull::MeshletCuller;
-        let b = baked();
+        let asset = demo_character(&DemoParams { triangles: 2000, ..DemoParams::default() });
+        let mut b = baked();
+        let clips: Vec<_> = asset.clips.iter().collect();
+        let envelope = Envelope::from_clips(&asset.skeleton, &b.palette(), &b.mesh, &clips, 0.1).unwrap();
+        add_envelope(&mut b, &asset, envelope).unwrap();
         let bytes = to_bytes(&b);
         let view = BakeView::new(&bytes).unwrap();
         let records = view.meshlet_bounds().unwrap();
@@ -1123,6 +1078,13 @@ mod tests {
         assert_eq!(view.joint_nodes().unwrap(), &b.joint_nodes[..]);
         let culler = MeshletCuller::new(&b.bounds, &b.classes, b.inverse_bind.len()).unwrap();
         assert_eq!(view.culler().unwrap().slots(), culler.slots());
+        let (e, ev) = (b.envelope.as_ref().unwrap(), view.envelope(b.mesh.morphs.weights.len()).unwrap().unwrap());
+        assert_eq!(ev.guard().unwrap(), e.envelope.guard().unwrap());
+        assert_eq!(ev.any_pose(), e.any_pose);
+        let culler = MeshletCuller::new(&e.bounds, &e.classes, b.inverse_bind.len()).unwrap();
+        let culler = culler.with_any_pose(&e.any_pose).unwrap();
+        let from_view = ev.culler(b.inverse_bind.len()).unwrap();
+        assert_eq!((from_view.slots(), from_view.any_pose_boxes()), (culler.slots(), culler.any_pose_boxes()));
         let mut shifted = vec![0u8; bytes.len() + 1];
         shifted[1..].copy_from_slice(&bytes);
         assert!(BakeView::new(&shifted[1..]).unwrap_err().to_string().contains("aligned"));

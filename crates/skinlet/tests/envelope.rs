@@ -153,7 +153,6 @@ fn envelopes_are_checked_often_enough_to_matter() {
 /// for, seen by a random camera: every meshlet the any-pose boxes cull has every skinned
 /// vertex outside one frustum plane. Returns the meshlets culled.
 fn check_any_pose(seed: u64) -> Result<usize, String> {
-    use skinlet::bounds::meshlet::{Class, MeshletBounds};
     use skinlet::cull::Camera;
     use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller, Tests};
     let (skeleton, skin, mut clip, mut positions, mut inf) = random_character(seed);
@@ -166,20 +165,7 @@ fn check_any_pose(seed: u64) -> Result<usize, String> {
     let ranges =
         skinlet::bounds::vertex::clip_weight_ranges(&prepared.mesh.morphs, &[&clip]).map_err(|e| e.to_string())?;
     let boxes = skinlet::cull::any_pose::build(&skin, &prepared.mesh, &meshlets, &ranges).map_err(|e| e.to_string())?;
-    // A culler whose bounds never cull (class "none"), holding the boxes.
-    let none = MeshletBounds {
-        joint: 0,
-        center: Vec3::ZERO,
-        radius: 0.0,
-        rest_radius: 0.0,
-        cone_axis: Vec3::Z,
-        cone_angle: 4.0,
-        rest_cone_angle: 4.0,
-    };
-    let n = meshlets.meshlets.len();
-    let culler = MeshletCuller::new(&vec![none; n], &vec![Class::None; n], skin.joints.len())
-        .and_then(|c| c.with_any_pose(&boxes))
-        .map_err(|e| e.to_string())?;
+    let culler = MeshletCuller::from_any_pose(&boxes, skin.joints.len()).map_err(|e| e.to_string())?;
     let mut frame = JointFrame::default();
     let mut r = Rng(seed ^ 0xA4E);
     let mut culled = 0;
