@@ -1012,7 +1012,7 @@ fn prepared_character(file: &str) -> Result<(Asset, Character, skinlet::meshlet:
 }
 
 fn bounds(file: &str, builder: &str, clips: Option<&str>, args: RefineArgs, json: bool) -> Result<()> {
-    use skinlet::bounds::meshlet::{Class, classify};
+    use skinlet::bounds::sphere_cone::{Class, classify};
     let how = args.refinement()?;
     let (asset, character, prepared) = prepared_character(file)?;
     let clips = select_clips(&asset, clips)?;

@@ -3,8 +3,8 @@
 use anyhow::{Context, Result};
 use glam::{DMat4, Vec3};
 use serde_json::json;
-use skinlet::bounds::meshlet::Class;
 use skinlet::bounds::refine::Refinement;
+use skinlet::bounds::sphere_cone::Class;
 use skinlet::clip::Clip;
 use skinlet::contour::skinned::{SkinnedMethod, SkinnedParams, refinement, skinned_edges};
 use skinlet::meshlet::{Builder, MeshletLimits};

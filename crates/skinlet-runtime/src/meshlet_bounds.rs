@@ -1,7 +1,7 @@
 //! What the baker stores per meshlet for culling (conservative-bounds paper, sections 4–6): a
 //! sphere and a normal cone in the bind space of the meshlet's principal joint, valid over the
 //! baked clips (or over a pose envelope), and the culling class that says which tests may use
-//! them. The baker (`skinlet::bounds::meshlet`) computes them; [`crate::meshlet_cull`] tests them.
+//! them. The baker (`skinlet::bounds::sphere_cone`) computes them; [`crate::meshlet_cull`] tests them.
 
 use glam::Vec3;
 

@@ -6,8 +6,8 @@
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use skinlet::Asset;
-use skinlet::bounds::meshlet::{key_intervals, meshlet_bounds};
 use skinlet::bounds::refine::{Refinement, refine};
+use skinlet::bounds::sphere_cone::{key_intervals, meshlet_bounds};
 use skinlet::clip::Clip;
 use skinlet::demo::{DemoParams, demo_character};
 use skinlet::meshlet::{Builder, MeshletLimits, build};

@@ -13,8 +13,8 @@
 //! sections with tags they do not know, so later versions can add sections.
 
 use crate::bounds::envelope::{Envelope, envelope_bounds};
-use crate::bounds::meshlet::{Class, MeshletBounds, classify};
 use crate::bounds::refine::{Progress, Refinement, Stop, refine_with_progress};
+use crate::bounds::sphere_cone::{Class, MeshletBounds, classify};
 use crate::character::{Character, PartKind};
 use crate::clip::Clip;
 use crate::contour::bound::PatchBounds;

@@ -6,8 +6,8 @@
 mod common;
 use common::assets_dir;
 
-use skinlet::bounds::meshlet::{Class, classify};
 use skinlet::bounds::refine::{Refinement, Stop, refine};
+use skinlet::bounds::sphere_cone::{Class, classify};
 use skinlet::bounds::verify::{sampled_bounds, verify_bounds};
 use skinlet::meshlet::{Builder, MeshletLimits, Meshlets, PreparedMesh, build};
 

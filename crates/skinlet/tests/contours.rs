@@ -16,7 +16,7 @@ use skinlet::contour::evaluate::{frame, uv_sphere, views};
 use skinlet::contour::patches::{self, PatchParams, SphereKind};
 use skinlet::contour::skinned::{SkinnedMethod, SkinnedParams, SkinnedPatches, build, rigid_quad, rigid_vertices};
 use skinlet::contour::snch::Snch;
-use skinlet::contour::{Edges, Projection, Tested, brute_force, meshlets};
+use skinlet::contour::{Edges, Projection, Tested, brute_force, meshlet_patches};
 use skinlet::model::{Influences, Skeleton, Skin, SkinnedMesh};
 use skinlet::pose::{Poser, skinning_matrices};
 
@@ -68,7 +68,7 @@ fn check_static(name: &str, positions: &[Vec3], triangles: &[[u32; 3]], edges: &
     let p = patches::build(positions, edges, params);
     let mean = patches::build(positions, edges, &PatchParams { sphere: SphereKind::Mean, ..*params });
     let tree = Snch::build(positions, edges);
-    let ml = meshlets::build(positions, triangles, edges, 16);
+    let ml = meshlet_patches::build(positions, triangles, edges, 16);
     // Every quad is in exactly one patch or tested every time.
     for x in [&p, &mean, &ml] {
         let mut seen = x.order.clone();

@@ -19,9 +19,9 @@
 //! for additive layers and IK.
 
 use super::Aabb;
-use super::meshlet::{MeshletBounds, key_intervals, piece_extent, rest_bounds, round_up};
 use super::motion::{Motion, RotationMotion, node_motion};
 use super::refine::Ctx;
+use super::sphere_cone::{MeshletBounds, key_intervals, piece_extent, rest_bounds, round_up};
 use super::vertex::{IntervalMotions, clip_weight_ranges};
 use crate::clip::Clip;
 use crate::meshlet::Meshlets;

@@ -11,15 +11,15 @@
 //! Guarantee: for every time t in the interval, the reference-skinned position of the
 //! vertex, expressed in the target bone's space (`global(target, t)⁻¹ · p(t)`), lies in the
 //! returned box, including the f32 rounding of the sampled pose ([`motion::SAMPLING_ROUNDING`]
-//! per step); [`meshlet`] then adds [`INFLATE`] for the rounding of the skinning itself.
-//! [`meshlet`] builds spheres and normal cones from these boxes, [`verify`] checks them
+//! per step); [`sphere_cone`] then adds [`INFLATE`] for the rounding of the skinning itself.
+//! [`sphere_cone`] builds spheres and normal cones from these boxes, [`verify`] checks them
 //! against dense sampling. Tested on random hierarchies and clips and on the shared assets.
 
 pub mod cone;
 pub mod envelope;
-pub mod meshlet;
 pub mod motion;
 pub mod refine;
+pub mod sphere_cone;
 pub mod verify;
 pub mod vertex;
 

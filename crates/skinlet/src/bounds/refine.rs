@@ -16,7 +16,7 @@
 //! round; a budget only decides how tight they get. Each round is deterministic (meshlets
 //! are independent), so the output depends only on the input and the number of rounds.
 
-use super::meshlet::{MeshletBounds, key_intervals, piece_extent, rest_bounds, round_up};
+use super::sphere_cone::{MeshletBounds, key_intervals, piece_extent, rest_bounds, round_up};
 use super::vertex::IntervalMotions;
 use crate::Result;
 use crate::clip::Clip;
@@ -312,7 +312,7 @@ fn refine_once(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bounds::meshlet::meshlet_bounds;
+    use crate::bounds::sphere_cone::meshlet_bounds;
     use crate::bounds::verify::verify_bounds;
     use crate::demo::{DemoParams, demo_character};
     use crate::meshlet::{Builder, MeshletLimits, build};

@@ -11,7 +11,7 @@
 //! this way: its vertices are counted in [`VerifyReport::singular`] (the culler never
 //! backface-culls them).
 
-use super::meshlet::{MeshletBounds, key_intervals, rest_bounds};
+use super::sphere_cone::{MeshletBounds, key_intervals, rest_bounds};
 use crate::clip::Clip;
 use crate::meshlet::Meshlets;
 use crate::model::{Skeleton, Skin, SkinnedMesh, Trs};
@@ -312,7 +312,7 @@ fn scan(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bounds::meshlet::meshlet_bounds;
+    use crate::bounds::sphere_cone::meshlet_bounds;
     use crate::clip::{Channel, Interpolation};
     use crate::meshlet::{Builder, MeshletLimits, build, prepare};
     use crate::model::{Influences, Node, Trs};

@@ -117,7 +117,7 @@ pub fn clip_weight_ranges(morphs: &Morphs, clips: &[&Clip]) -> Result<Vec<(f64, 
     }
     out.fill((f64::INFINITY, f64::NEG_INFINITY));
     for c in clips {
-        for (a, b) in super::meshlet::key_intervals(c) {
+        for (a, b) in super::sphere_cone::key_intervals(c) {
             for (o, r) in out.iter_mut().zip(weight_ranges(morphs, Some(c), a, b)?) {
                 *o = (o.0.min(r.0), o.1.max(r.1));
             }

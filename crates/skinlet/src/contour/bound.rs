@@ -20,7 +20,7 @@
 
 use super::edges::quad_normals;
 use super::{Projection, Viewer};
-use crate::bounds::meshlet::round_up;
+use crate::bounds::sphere_cone::round_up;
 use glam::{DVec3, Vec3};
 use std::f64::consts::FRAC_PI_2;
 

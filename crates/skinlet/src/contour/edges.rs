@@ -3,7 +3,7 @@
 //!
 //! - *Quads* `(a, b, c, d)`: interior edges with exactly two faces of consistent winding,
 //!   `(a, b, c)` and `(b, a, d)`. Contour when one face is front-facing and the other not
-//!   (see [`super::is_contour`]); the quads are what patches, hierarchies and meshlets cull.
+//!   (see [`super::quad_is_contour`]); the quads are what patches, hierarchies and meshlets cull.
 //! - *Irregular* edges: more than two faces, or two faces that wind the edge the same way.
 //!   Contour when their faces do not all face the same way; always tested (never culled).
 //! - *Boundary* edges (one face): the border of an open surface, always part of the result.

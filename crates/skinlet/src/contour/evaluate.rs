@@ -7,7 +7,7 @@
 
 use super::patches::{self, BuiltPatch, PatchParams, Patches, SphereKind};
 use super::snch::Snch;
-use super::{Edges, Projection, Tested, brute_force, meshlets};
+use super::{Edges, Projection, Tested, brute_force, meshlet_patches};
 use crate::overdraw::viewpoints::icosphere;
 use glam::{DVec3, Vec3};
 use std::time::Instant;
@@ -71,7 +71,7 @@ impl Extractor {
                 &PatchParams { sphere: SphereKind::Mean, ..*params },
             )),
             Method::Snch => Extractor::Snch(Snch::build(positions, edges)),
-            Method::Meshlets => Extractor::Patches(meshlets::build(positions, triangles, edges, 16)),
+            Method::Meshlets => Extractor::Patches(meshlet_patches::build(positions, triangles, edges, 16)),
         }
     }
 

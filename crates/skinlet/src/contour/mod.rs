@@ -9,7 +9,7 @@
 //! - [`bound`]: spatialized normal cones — Mean and Reduced Sphere (section 3.1), the cone
 //!   test `|n·s| ≤ sin(α + β)` (eq. 1) — and the acceptance metric and cost (section 3.2).
 //! - [`patches`]: greedy patch fusion with the k-best cache and space partition (3.3).
-//! - [`snch`], [`meshlets`]: the baselines (Johnson & Cohen 2001's hierarchy; meshoptimizer
+//! - [`snch`], [`meshlet_patches`]: the baselines (Johnson & Cohen 2001's hierarchy; meshoptimizer
 //!   meshlets used as patches, with a correct cone).
 //! - [`skinned`]: skinned characters — the paper's rigid parts, and patches bounded over the
 //!   clips with the conservative animated bounds of [`crate::bounds`], per time window.
@@ -24,7 +24,7 @@
 pub mod bound;
 pub mod edges;
 pub mod evaluate;
-pub mod meshlets;
+pub mod meshlet_patches;
 pub mod patches;
 pub mod skinned;
 pub mod snch;

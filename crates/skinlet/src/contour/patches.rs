@@ -24,7 +24,7 @@ use super::bound::{
 };
 use super::{Edges, Projection, Tested, Viewer, extract_uncullable, quad_is_contour};
 use crate::bounds::cone::reference_axis;
-use crate::bounds::meshlet::round_up;
+use crate::bounds::sphere_cone::round_up;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use std::f64::consts::PI;

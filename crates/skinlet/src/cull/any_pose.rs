@@ -3,7 +3,7 @@
 //! for any pose, the culler's fallback when a pose leaves the pose envelope.
 
 use crate::bounds::Aabb;
-use crate::bounds::meshlet::round_up;
+use crate::bounds::sphere_cone::round_up;
 use crate::bounds::vertex::morph_box;
 use crate::meshlet::Meshlets;
 use crate::model::{Skin, SkinnedMesh};

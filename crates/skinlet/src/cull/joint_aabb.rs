@@ -10,7 +10,7 @@
 //! ([`crate::bounds::vertex`]), so it stays a guarantee for those clips.
 
 use crate::bounds::Aabb as DAabb;
-use crate::bounds::meshlet::key_intervals;
+use crate::bounds::sphere_cone::key_intervals;
 use crate::bounds::vertex::{IntervalMotions, clip_weight_ranges, morph_box};
 use crate::clip::Clip;
 use crate::model::{Skeleton, Skin, SkinnedMesh};
