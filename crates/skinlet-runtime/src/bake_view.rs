@@ -115,6 +115,7 @@ unsafe impl bytemuck::Zeroable for BakedNodeRange {}
 unsafe impl bytemuck::Pod for BakedNodeRange {}
 
 impl BakedNodeRange {
+    /// The range as the pose guard takes it.
     pub fn range(&self) -> NodeRange {
         NodeRange {
             node: self.node,
@@ -164,7 +165,8 @@ impl EnvelopeView<'_> {
     pub fn any_pose(&self) -> AnyPoseBoxes {
         AnyPoseBoxes {
             offsets: self.box_offsets.to_vec(),
-            joints: self.box_joints.iter().map(|&j| j as u16).collect(),
+            // A joint past u16 (only a hand-made view has one) becomes one no culler accepts.
+            joints: self.box_joints.iter().map(|&j| u16::try_from(j).unwrap_or(u16::MAX)).collect(),
             center: self.boxes.iter().map(|b| Vec3::new(b[0], b[1], b[2])).collect(),
             half: self.boxes.iter().map(|b| Vec3::new(b[3], b[4], b[5])).collect(),
         }
@@ -350,7 +352,7 @@ impl<'a> BakeView<'a> {
             nodes: cast(&s[nodes], "ENVL")?,
             weights: cast(&s[ws], "ENVL")?,
             bounds: cast(&s[bounds], "ENVL")?,
-            box_offsets: cast(&s[offsets.clone()], "ENVL")?,
+            box_offsets: cast(&s[offsets], "ENVL")?,
             box_joints: cast(&s[joints], "ENVL")?,
             boxes: cast(&s[boxes], "ENVL")?,
             names_at,
