@@ -379,3 +379,80 @@ fn cast<'a, T: bytemuck::Pod>(b: &'a [u8], tag: &str) -> Result<&'a [T]> {
     bytemuck::try_cast_slice(b)
         .map_err(|e| Error::invalid(format!("bake section {tag}"), format!("records misaligned or cut: {e:?}")))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A header with `sections` (tag, offset, length) and `len` bytes in all, in u32 storage
+    /// (4-byte aligned).
+    fn file(sections: &[(&[u8; 4], u64, u64)], len: usize) -> Vec<u32> {
+        let mut b = vec![0u8; len.max(16 + 24 * sections.len())];
+        b[..8].copy_from_slice(&MAGIC);
+        b[8..12].copy_from_slice(&VERSION.to_le_bytes());
+        b[12..16].copy_from_slice(&(sections.len() as u32).to_le_bytes());
+        for (k, (tag, offset, length)) in sections.iter().enumerate() {
+            let e = 16 + 24 * k;
+            b[e..e + 4].copy_from_slice(*tag);
+            b[e + 8..e + 16].copy_from_slice(&offset.to_le_bytes());
+            b[e + 16..e + 24].copy_from_slice(&length.to_le_bytes());
+        }
+        b.resize(b.len().next_multiple_of(4), 0);
+        b.chunks_exact(4).map(|w| u32::from_ne_bytes(w.try_into().unwrap())).collect()
+    }
+
+    fn error(bytes: &[u8]) -> String {
+        BakeView::new(bytes).and_then(|v| v.meshlet_bounds().map(|_| ())).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn bad_headers_and_tables_are_errors_that_say_where() {
+        let ok = file(&[(b"SKIN", 96, 4), (b"MLET", 112, 16), (b"BNDS", 128, 16)], 144);
+        let bytes: &[u8] = bytemuck::cast_slice(&ok);
+        let view = BakeView::new(bytes).unwrap();
+        assert_eq!((view.joint_count().unwrap(), view.meshlet_count().unwrap()), (0, 0));
+        assert!(view.meshlet_bounds().unwrap().is_empty());
+        assert!(view.envelope(0).unwrap().is_none());
+        let mut wrong = bytes.to_vec();
+        wrong[0] = b'X';
+        assert!(BakeView::new(&wrong).unwrap_err().to_string().contains("magic"));
+        let mut newer = bytes.to_vec();
+        newer[8] = VERSION as u8 + 1;
+        assert!(matches!(BakeView::new(&newer), Err(Error::Unsupported { .. })));
+        let outside = file(&[(b"BNDS", 96, 64)], 144);
+        assert!(error(bytemuck::cast_slice(&outside)).contains("section BNDS lies outside the file"));
+        let missing = file(&[(b"SKIN", 96, 4)], 144);
+        assert!(error(bytemuck::cast_slice(&missing)).contains("section BNDS is missing"));
+        let words = file(&[(b"SKIN", 96, 4), (b"MLET", 112, 16), (b"BNDS", 128, 16)], 148);
+        let shifted: &[u8] = &bytemuck::cast_slice::<u32, u8>(&words)[1..];
+        assert!(BakeView::new(shifted).unwrap_err().to_string().contains("aligned"));
+        for cut in 0..bytes.len() {
+            // Every truncation is an error or a view whose sections all lie inside.
+            if let Ok(v) = BakeView::new(&bytes[..cut]) {
+                assert!(v.meshlet_bounds().is_err() || cut >= 144);
+            }
+        }
+    }
+
+    #[test]
+    fn bounds_records_are_checked() {
+        let good = BakedBounds {
+            radius: 1.0,
+            rest_radius: 1.0,
+            cone_axis: [0.0, 0.0, 1.0],
+            cone_angle: 0.5,
+            ..Default::default()
+        };
+        assert!(check_bounds(&[good], 1, "t").is_ok());
+        for (what, bad) in [
+            ("principal joint", BakedBounds { joint: 1, ..good }),
+            ("class", BakedBounds { class: 3, ..good }),
+            ("finite", BakedBounds { radius: f32::NAN, ..good }),
+            ("negative", BakedBounds { radius: -1.0, ..good }),
+            ("cone angle", BakedBounds { cone_angle: 4.0, ..good }),
+        ] {
+            let e = check_bounds(&[good, bad], 1, "t").unwrap_err().to_string();
+            assert!(e.contains("meshlet 1") && e.contains(what), "{what}: {e}");
+        }
+    }
+}
