@@ -13,8 +13,9 @@
 //! and culls what the envelope's bounds keep where its caps are wide. Cost per meshlet
 //! grows with its joint count, which skin-aware meshlets keep small. The baker builds the
 //! boxes (`skinlet::cull::any_pose::build`); this module holds and checks them, and
-//! [`crate::meshlet_cull::MeshletCuller::with_any_pose`] lays them out for culling, where each box is tested exactly against the frustum planes moved into its
-//! joint's space (f32, with a rounding margin far above the rounding).
+//! [`crate::meshlet_cull::MeshletCuller::with_any_pose`] lays them out for culling, where
+//! each box is tested exactly against the frustum planes moved into its joint's space (f32,
+//! with a rounding margin far above the rounding).
 
 use crate::{Error, Result};
 use glam::Vec3;

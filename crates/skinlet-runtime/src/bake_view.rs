@@ -94,6 +94,11 @@ pub fn check_bounds(records: &[BakedBounds], joints: usize, location: &str) -> R
     Ok(())
 }
 
+/// Records as the culler takes them: the bounds and the classes.
+pub fn bounds_and_classes(records: &[BakedBounds]) -> (Vec<MeshletBounds>, Vec<Class>) {
+    records.iter().map(|r| (r.bounds(), r.class())).unzip()
+}
+
 /// One node range's record in `ENVL` (72 bytes, `docs/FORMAT.md`).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[repr(C)]
@@ -175,8 +180,7 @@ impl EnvelopeView<'_> {
     /// The culler for poses inside the envelope, holding the any-pose boxes for the rest
     /// ([`MeshletCuller::prepare_with_boxes`], [`MeshletCuller::prepare_boxes_only`]).
     pub fn culler(&self, joints: usize) -> Result<MeshletCuller> {
-        let bounds: Vec<MeshletBounds> = self.bounds.iter().map(BakedBounds::bounds).collect();
-        let classes: Vec<Class> = self.bounds.iter().map(BakedBounds::class).collect();
+        let (bounds, classes) = bounds_and_classes(self.bounds);
         MeshletCuller::new(&bounds, &classes, joints)?.with_any_pose(&self.any_pose())
     }
 }
@@ -302,9 +306,7 @@ impl<'a> BakeView<'a> {
 
     /// The run-time culler for the clip bounds of `BNDS`.
     pub fn culler(&self) -> Result<MeshletCuller> {
-        let records = self.meshlet_bounds()?;
-        let bounds: Vec<MeshletBounds> = records.iter().map(BakedBounds::bounds).collect();
-        let classes: Vec<Class> = records.iter().map(BakedBounds::class).collect();
+        let (bounds, classes) = bounds_and_classes(self.meshlet_bounds()?);
         MeshletCuller::new(&bounds, &classes, self.joint_count()?)
     }
 

@@ -570,7 +570,10 @@ impl MeshletCuller {
     /// components carry f32 errors below 3 ulps of `s = ν·max |aᵢ|₁` (and are at most `s`),
     /// `w_j`'s below 4 ulps of `u = ν·|t|₁ + ω`, the box test's own sum below 8 ulps of
     /// `s·Σ(|cᵢ| + hᵢ) + u`; 1e-5 of that covers all of them many times. A joint matrix that
-    /// is not finite gets NaN planes, which cull nothing.
+    /// is not finite gets NaN planes, which cull nothing. After `prepare`, this also rewrites
+    /// the straddling joints' planes with the same products rounded in another order: both
+    /// lie within the same f32 rounding bound of the exact plane, which is what the sphere
+    /// test's margin covers.
     fn box_planes(&self, joint_to_world: &[Affine3A], camera: &Camera, frame: &mut JointFrame) {
         if self.boxes.is_empty() {
             return;

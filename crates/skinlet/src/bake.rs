@@ -29,7 +29,7 @@ use crate::overdraw::cluster::{ClusterParams, Framing, Lookup, Orders, cluster};
 use crate::overdraw::evaluate::keyframes;
 use crate::{Error, Result};
 use glam::{Mat4, Vec3};
-use skinlet_runtime::bake_view::BakeView;
+use skinlet_runtime::bake_view::{BakeView, bounds_and_classes};
 use std::io::Write;
 use std::ops::Range;
 use std::path::Path;
@@ -729,8 +729,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
     let meshlets = flat::from_bytes(s.b).map_err(|e| s.err(e))?;
     meshlets.validate(&mesh.triangles, limits).map_err(|e| s.err(e))?;
 
-    let (bounds, classes): (Vec<MeshletBounds>, Vec<Class>) =
-        view.meshlet_bounds()?.iter().map(|r| (r.bounds(), r.class())).unzip();
+    let (bounds, classes): (Vec<MeshletBounds>, Vec<Class>) = bounds_and_classes(view.meshlet_bounds()?);
     let parts = read_parts(section(6)?, &mesh, &meshlets)?;
     let overdraw = if found[7].is_some() { Some(read_orders(section(7)?, &mesh, &parts, clips_len)?) } else { None };
     let contours = if found[8].is_some() { Some(read_contours(section(8)?, &mesh, joints)?) } else { None };
@@ -756,7 +755,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
 fn read_envelope(view: &BakeView, mut s: In, mesh: &SkinnedMesh) -> Result<BakedEnvelope> {
     let e = view.envelope(mesh.morphs.weights.len())?.ok_or_else(|| s.err("missing"))?;
     let envelope = Envelope { nodes: e.ranges(), weights: e.weight_ranges() };
-    let (bounds, classes) = e.bounds.iter().map(|r| (r.bounds(), r.class())).unzip();
+    let (bounds, classes) = bounds_and_classes(e.bounds);
     s.at = e.names_at;
     let names = (0..e.nodes.len()).map(|_| s.str()).collect::<Result<Vec<_>>>()?;
     s.align(4)?;
