@@ -37,7 +37,8 @@ impl Gpu {
             ..Default::default()
         }))
         .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
-        let mut wanted = wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::SHADER_F64;
+        let mut wanted =
+            wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::SHADER_F64 | wgpu::Features::INDIRECT_FIRST_INSTANCE;
         if !options.no_subgroups {
             wanted |= wgpu::Features::SUBGROUP;
         }
@@ -92,13 +93,7 @@ impl Gpu {
 
     /// A buffer holding `data` (at least 16 bytes: empty bindings are not allowed).
     pub(crate) fn buffer<T: bytemuck::Pod>(&self, label: &str, data: &[T], usage: wgpu::BufferUsages) -> wgpu::Buffer {
-        let mut bytes = bytemuck::cast_slice::<T, u8>(data).to_vec();
-        bytes.resize(bytes.len().max(16).next_multiple_of(4), 0);
-        self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents: &bytes,
-            usage,
-        })
+        buffer(&self.device, label, data, usage)
     }
 
     /// A compute pipeline from WGSL `source` with entry point `entry` and one bind group of
@@ -124,24 +119,7 @@ impl Gpu {
         entry: &str,
         layout: &wgpu::BindGroupLayout,
     ) -> wgpu::ComputePipeline {
-        let device = &self.device;
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some(label),
-            source: wgpu::ShaderSource::Wgsl(source.into()),
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some(label),
-            bind_group_layouts: &[Some(layout)],
-            immediate_size: 0,
-        });
-        device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some(label),
-            layout: Some(&pipeline_layout),
-            module: &module,
-            entry_point: Some(entry),
-            compilation_options: Default::default(),
-            cache: None,
-        })
+        compute_pipeline_with(&self.device, label, source, entry, layout)
     }
 
     /// A bind group of `entries` for `layout`.
@@ -157,14 +135,7 @@ impl Gpu {
     /// Runs `work` inside a validation error scope and waits for the queue: a validation or
     /// out-of-memory error becomes a [`GpuError`] named after `location`.
     pub(crate) fn checked<T>(&self, location: &'static str, work: impl FnOnce() -> T) -> Result<T> {
-        let memory = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
-        let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let out = work();
-        let errors = [pollster::block_on(validation.pop()), pollster::block_on(memory.pop())];
-        match errors.into_iter().flatten().next() {
-            Some(e) => Err(GpuError::Gpu { location, message: e.to_string() }),
-            None => Ok(out),
-        }
+        checked(&self.device, location, work)
     }
 
     /// Copies `size` bytes of `buffer` (which needs COPY_SRC) back to the CPU.
@@ -192,5 +163,58 @@ impl Gpu {
         drop(view);
         staging.unmap();
         Ok(out)
+    }
+}
+
+/// A buffer holding `data` (at least 16 bytes: empty bindings are not allowed).
+pub(crate) fn buffer<T: bytemuck::Pod>(
+    device: &wgpu::Device,
+    label: &str,
+    data: &[T],
+    usage: wgpu::BufferUsages,
+) -> wgpu::Buffer {
+    let mut bytes = bytemuck::cast_slice::<T, u8>(data).to_vec();
+    bytes.resize(bytes.len().max(16).next_multiple_of(4), 0);
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents: &bytes, usage })
+}
+
+/// A compute pipeline from WGSL `source` with entry point `entry` and one bind group of an
+/// existing `layout`.
+pub(crate) fn compute_pipeline_with(
+    device: &wgpu::Device,
+    label: &str,
+    source: String,
+    entry: &str,
+    layout: &wgpu::BindGroupLayout,
+) -> wgpu::ComputePipeline {
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(label),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(label),
+        bind_group_layouts: &[Some(layout)],
+        immediate_size: 0,
+    });
+    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(label),
+        layout: Some(&pipeline_layout),
+        module: &module,
+        entry_point: Some(entry),
+        compilation_options: Default::default(),
+        cache: None,
+    })
+}
+
+/// Runs `work` inside a validation and an out-of-memory error scope on `device`: an error
+/// becomes a [`GpuError`] named after `location`.
+pub(crate) fn checked<T>(device: &wgpu::Device, location: &'static str, work: impl FnOnce() -> T) -> Result<T> {
+    let memory = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+    let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let out = work();
+    let errors = [pollster::block_on(validation.pop()), pollster::block_on(memory.pop())];
+    match errors.into_iter().flatten().next() {
+        Some(e) => Err(GpuError::Gpu { location, message: e.to_string() }),
+        None => Ok(out),
     }
 }

@@ -237,7 +237,7 @@ fn dispatch(pass: &mut wgpu::ComputePass, total: usize) {
 }
 
 /// Slots as `Slot` in cull_common.wgsl (12 words each).
-fn pack_slots(slots: &[CullSlot]) -> Vec<u32> {
+pub(crate) fn pack_slots(slots: &[CullSlot]) -> Vec<u32> {
     slots
         .iter()
         .flat_map(|s| {
@@ -279,7 +279,7 @@ pub(crate) fn pack_records(frames: &[JointFrame]) -> Vec<f32> {
 /// The culler's any-pose boxes as `any_pose_boxes` in cull_common.wgsl: per meshlet
 /// (original index) the first word of its boxes and, after the last, the end; then the
 /// boxes, 8 words each. One zero word without boxes (frames then never test them).
-fn pack_boxes(culler: &MeshletCuller) -> Vec<u32> {
+pub(crate) fn pack_boxes(culler: &MeshletCuller) -> Vec<u32> {
     let (offsets, boxes) = culler.any_pose_boxes();
     if boxes.is_empty() {
         return vec![0];

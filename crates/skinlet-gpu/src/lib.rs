@@ -9,7 +9,10 @@
 //!   skinning (the same image), culled drawing (task shaders, or a compute pass and indirect
 //!   draws without mesh shaders), crowds timed by timestamp queries, colored, contour and
 //!   overdraw views.
-//! - [`cull`]: per-meshlet culling of many instances in a compute pass, equal to the CPU's.
+//! - [`crowd_culling`]: culling a crowd on the caller's own device, recorded into the caller's
+//!   own encoder: per-joint preparation and per-meshlet tests in one compute pass, indexed
+//!   indirect draws out, nothing read back (the library API an engine links).
+//! - [`cull`]: per-meshlet culling of many instances prepared on the CPU, equal to the CPU's.
 //! - [`contours`]: contour extraction (patch culling and edge test passes), equal to brute
 //!   force.
 //!
@@ -18,6 +21,7 @@
 
 mod context;
 pub mod contours;
+pub mod crowd_culling;
 pub mod cull;
 pub mod mesh;
 pub mod render;

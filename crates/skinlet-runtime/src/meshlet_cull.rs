@@ -419,6 +419,13 @@ impl MeshletCuller {
         self.extent.len()
     }
 
+    /// Per joint, the largest `|c| + r` of its meshlets' spheres (joint space): what the
+    /// rounding margins of [`MeshletCuller::prepare`] scale with (GPU preparation passes
+    /// use the same).
+    pub fn joint_extents(&self) -> &[f32] {
+        &self.extent
+    }
+
     /// Per-joint values for `joint_to_world` (one matrix per joint: the joint's world
     /// transform, i.e. model matrix × the joint's global transform) and the tests to run.
     /// Each joint's meshlet group is first tested as one sphere in world space (radius scaled

@@ -82,3 +82,22 @@ impl Posed {
         Pose { matrices: &self.matrices, morph_weights: &self.weights }
     }
 }
+
+/// Copies the first `size` bytes of `buffer` (which needs COPY_SRC) back, as `T`s.
+pub fn read_buffer<T: bytemuck::Pod>(gpu: &Gpu, buffer: &wgpu::Buffer, size: u64) -> Vec<T> {
+    let size = size.max(4).next_multiple_of(4);
+    let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("test readback"),
+        size,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, size);
+    let index = gpu.queue.submit([encoder.finish()]);
+    staging.slice(..).map_async(wgpu::MapMode::Read, |r| r.unwrap());
+    gpu.device.poll(wgpu::PollType::Wait { submission_index: Some(index), timeout: None }).unwrap();
+    let out = bytemuck::pod_collect_to_vec(&staging.slice(..).get_mapped_range().unwrap());
+    staging.unmap();
+    out
+}

@@ -1,0 +1,473 @@
+//! Meshlet culling of a whole crowd on the caller's own wgpu device, recorded into the
+//! caller's own command encoder (conservative-bounds paper, section 6), with the per-joint
+//! preparation on the GPU too: per frame the CPU writes one small uniform and records one
+//! compute pass; it touches no per-instance data.
+//!
+//! Setup, once:
+//! - [`CullPipelines::new`] per device (needs [`wgpu::Features::INDIRECT_FIRST_INSTANCE`]:
+//!   each instance's draws carry its index as `first_instance`);
+//! - [`GpuCharacter::new`] per character: uploads the culler's meshlets grouped by joint
+//!   (`Slot` of `cull_common.wgsl`), its any-pose boxes, each meshlet's index range in the
+//!   caller's index buffer, and each joint's bind matrix;
+//! - [`CrowdCulling::new`] per crowd, over two buffers the caller owns and writes:
+//!   - `palette`: per instance, per joint, the skinning matrix `S_j = global_j ×
+//!     inverse_bind_j` as a column-major `mat4x4<f32>` (64 bytes), instance after instance:
+//!     the palette a skinning vertex shader reads (`STORAGE` usage);
+//!   - `instances`: per instance a [`CullInstance`] (80 bytes: model matrix, [`CullMode`]).
+//!
+//! Per frame, [`CrowdCulling::encode`] runs, in one compute pass:
+//! 1. `prepare.wgsl`, one invocation per (instance, joint): the joint's world matrix
+//!    `model × S_j × bind_j` and its record (joint-space planes, eye, margins), as
+//!    [`MeshletCuller::prepare`] does on the CPU;
+//! 2. `cull.wgsl::cull_draws`, one invocation per (instance, meshlet): the test of
+//!    [`CULL_WGSL`], writing one `DrawIndexedIndirectArgs` per (instance, meshlet) into
+//!    [`CrowdCulling::commands`] (instance-major, meshlets in bake order; a culled meshlet has
+//!    instance count 0) and counts (visible, frustum, backface) per instance into
+//!    [`CrowdCulling::counts`].
+//!
+//! The caller draws `multi_draw_indexed_indirect(commands(), 0, draw_count(n))` with its own
+//! pipeline and index buffer; nothing is read back. The visible set is conservative: a meshlet
+//! culled here is culled by the same test in exact arithmetic on the same matrices (the GPU's
+//! margins cover its f32 rounding, `prepare.wgsl`); `tests/crowd_culling.rs` checks every
+//! culled meshlet of the crowd scene in f64, and the `bring_your_own` example compares the
+//! image with an unculled draw.
+
+use crate::cull::{pack_boxes, pack_slots};
+use crate::{GpuError, Result};
+use glam::{Mat4, Vec4Swizzles};
+use skinlet_runtime::camera::{Camera, Projection};
+use skinlet_runtime::meshlet_cull::{MeshletCuller, Tests};
+
+/// The per-meshlet culling test as a WGSL module for the caller's own task or compute
+/// shader: `CullParams`, `Slot`, `RECORD` and `meshlet_flag(slot, instance)` (0 visible, bit 0
+/// outside the frustum, 2 back-facing). The including shader declares, in any group:
+/// `var<uniform> cull_params: CullParams` ([`CrowdCulling::params`]), `var<storage, read>
+/// joint_records: array<f32>` ([`CrowdCulling::records`], written by [`CrowdCulling::encode`])
+/// and `var<storage, read> any_pose_boxes: array<u32>` ([`GpuCharacter::any_pose_boxes`]),
+/// and reads its slots from `var<storage, read> slots: array<Slot>` ([`GpuCharacter::slots`]).
+pub const CULL_WGSL: &str = include_str!("shaders/cull_common.wgsl");
+
+/// How an instance is culled this frame (the pose guard's answer, when the bounds are the
+/// envelope's; see `skinlet_runtime::pose_guard`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[repr(u32)]
+pub enum CullMode {
+    /// By the bounds alone (a pose they hold for).
+    #[default]
+    Bounds = 0,
+    /// By the bounds, and the any-pose boxes on what the bounds keep.
+    BoundsAndBoxes = 1,
+    /// By the any-pose boxes alone (a pose the bounds do not hold for).
+    BoxesOnly = 2,
+    /// Not culled (morph weights outside every stored range): every meshlet drawn.
+    Keep = 3,
+}
+
+/// One instance as `prepare.wgsl` reads it (80 bytes).
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+#[repr(C)]
+pub struct CullInstance {
+    /// Model matrix, column-major.
+    pub model: [f32; 16],
+    /// A [`CullMode`] as `u32`.
+    pub mode: u32,
+    pub pad: [u32; 3],
+}
+
+impl CullInstance {
+    pub fn new(model: Mat4, mode: CullMode) -> CullInstance {
+        CullInstance { model: model.to_cols_array(), mode: mode as u32, pad: [0; 3] }
+    }
+}
+
+/// The two compute pipelines (prepare, cull to draws) of one device.
+pub struct CullPipelines {
+    prepare: wgpu::ComputePipeline,
+    prepare_layout: wgpu::BindGroupLayout,
+    cull: wgpu::ComputePipeline,
+    cull_layout: wgpu::BindGroupLayout,
+}
+
+/// A character's culling data on the GPU (uploaded once).
+pub struct GpuCharacter {
+    meshlets: u32,
+    joints: u32,
+    has_boxes: bool,
+    slots: wgpu::Buffer,
+    boxes: wgpu::Buffer,
+    draws: wgpu::Buffer,
+    statics: wgpu::Buffer,
+}
+
+/// One crowd's per-frame buffers and bind groups over the caller's palette and instances.
+pub struct CrowdCulling {
+    capacity: u32,
+    meshlets: u32,
+    joints: u32,
+    has_boxes: bool,
+    /// `CullParams` at 0, `CullCamera` at [`CAMERA_OFFSET`].
+    uniforms: wgpu::Buffer,
+    records: wgpu::Buffer,
+    counts: wgpu::Buffer,
+    commands: wgpu::Buffer,
+    prepare: wgpu::BindGroup,
+    cull: wgpu::BindGroup,
+    prepare_pipeline: wgpu::ComputePipeline,
+    cull_pipeline: wgpu::ComputePipeline,
+}
+
+/// Where `CullCamera` starts in the uniform buffer (the uniform offset alignment WebGPU
+/// guarantees).
+const CAMERA_OFFSET: usize = 256;
+/// Bytes per (instance, joint) record (`RECORD` floats) and per draw command.
+const RECORD_BYTES: u64 = 40 * 4;
+const COMMAND_BYTES: u64 = 20;
+
+/// The uniform buffer's contents: `CullParams`, padding, `CullCamera` (prepare.wgsl).
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+#[repr(C)]
+struct Uniforms {
+    params: [u32; 8],
+    pad: [u32; (CAMERA_OFFSET - 32) / 4],
+    planes: [[f32; 4]; 6],
+    view: [f32; 4],
+    nu: f32,
+    omega: f32,
+    has_boxes: u32,
+    pad2: u32,
+}
+
+fn invalid(location: &'static str, message: String) -> GpuError {
+    GpuError::Invalid { location, message }
+}
+
+fn bind(binding: u32, resource: wgpu::BindingResource<'_>) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry { binding, resource }
+}
+
+fn whole(buffer: &wgpu::Buffer) -> wgpu::BindingResource<'_> {
+    buffer.as_entire_binding()
+}
+
+fn layout_entry(binding: u32, ty: wgpu::BufferBindingType) -> wgpu::BindGroupLayoutEntry {
+    crate::skinning::buffer_entry(binding, wgpu::ShaderStages::COMPUTE, ty)
+}
+
+fn pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    source: String,
+    entry: &str,
+    entries: &[wgpu::BindGroupLayoutEntry],
+) -> (wgpu::ComputePipeline, wgpu::BindGroupLayout) {
+    let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries });
+    (crate::context::compute_pipeline_with(device, label, source, entry, &layout), layout)
+}
+
+impl CullPipelines {
+    /// Compiles the passes on `device`. Errors when the device lacks
+    /// `INDIRECT_FIRST_INSTANCE` or a pipeline fails validation.
+    pub fn new(device: &wgpu::Device) -> Result<CullPipelines> {
+        if !device.features().contains(wgpu::Features::INDIRECT_FIRST_INSTANCE) {
+            return Err(invalid(
+                "GPU crowd culling",
+                "the device lacks INDIRECT_FIRST_INSTANCE (request it in the device descriptor)".into(),
+            ));
+        }
+        crate::context::checked(device, "GPU crowd culling pipelines", || {
+            use wgpu::BufferBindingType::{Storage, Uniform};
+            let (read, write) = (Storage { read_only: true }, Storage { read_only: false });
+            let (prepare, prepare_layout) = pipeline(
+                device,
+                "skinlet prepare",
+                include_str!("shaders/prepare.wgsl").into(),
+                "prepare",
+                &[
+                    layout_entry(0, Uniform),
+                    layout_entry(1, Uniform),
+                    layout_entry(2, read),
+                    layout_entry(3, read),
+                    layout_entry(4, read),
+                    layout_entry(5, write),
+                ],
+            );
+            let (cull, cull_layout) = pipeline(
+                device,
+                "skinlet cull",
+                [CULL_WGSL, include_str!("shaders/cull.wgsl")].concat(),
+                "cull_draws",
+                &[
+                    layout_entry(0, Uniform),
+                    layout_entry(1, read),
+                    layout_entry(2, read),
+                    layout_entry(3, write),
+                    layout_entry(5, read),
+                    layout_entry(6, write),
+                    layout_entry(7, read),
+                ],
+            );
+            CullPipelines { prepare, prepare_layout, cull, cull_layout }
+        })
+    }
+}
+
+impl GpuCharacter {
+    /// Uploads `culler`'s meshlets and any-pose boxes, `inverse_bind` (one per joint, the
+    /// skin's inverse bind matrices) and `draws` (per meshlet, in the culler's meshlet order:
+    /// its index count and first index in the caller's index buffer). Errors when the counts
+    /// disagree or an inverse bind matrix is not finite or not invertible.
+    pub fn new(
+        device: &wgpu::Device,
+        culler: &MeshletCuller,
+        inverse_bind: &[Mat4],
+        draws: &[[u32; 2]],
+    ) -> Result<GpuCharacter> {
+        let location = "GPU character";
+        let (meshlets, joints) = (culler.len(), culler.joints());
+        if draws.len() != meshlets {
+            return Err(invalid(location, format!("{} meshlet draws for {meshlets} meshlets", draws.len())));
+        }
+        if inverse_bind.len() != joints {
+            return Err(invalid(location, format!("{} inverse bind matrices for {joints} joints", inverse_bind.len())));
+        }
+        let mut statics: Vec<f32> = Vec::with_capacity(20 * joints);
+        for (j, (m, &extent)) in inverse_bind.iter().zip(culler.joint_extents()).enumerate() {
+            let bind = m.inverse();
+            if !(m.is_finite() && bind.is_finite() && m.determinant() != 0.0) {
+                return Err(invalid(location, format!("joint {j}'s inverse bind matrix is not invertible")));
+            }
+            statics.extend(bind.to_cols_array());
+            statics.extend([extent, 0.0, 0.0, 0.0]);
+        }
+        if meshlets > u32::MAX as usize / 4 || joints > u32::MAX as usize / 4 {
+            return Err(invalid(location, format!("{meshlets} meshlets and {joints} joints")));
+        }
+        let storage = wgpu::BufferUsages::STORAGE;
+        crate::context::checked(device, location, || GpuCharacter {
+            meshlets: meshlets as u32,
+            joints: joints as u32,
+            has_boxes: !culler.any_pose_boxes().1.is_empty(),
+            slots: crate::context::buffer(device, "skinlet cull slots", &pack_slots(&culler.slots()), storage),
+            boxes: crate::context::buffer(device, "skinlet any-pose boxes", &pack_boxes(culler), storage),
+            draws: crate::context::buffer(device, "skinlet meshlet draws", draws, storage),
+            statics: crate::context::buffer(device, "skinlet joint statics", &statics, storage),
+        })
+    }
+
+    pub fn meshlets(&self) -> u32 {
+        self.meshlets
+    }
+
+    pub fn joints(&self) -> u32 {
+        self.joints
+    }
+
+    /// The meshlets as `array<Slot>` of [`CULL_WGSL`] (grouped by joint; `Slot::id` is the
+    /// meshlet's index).
+    pub fn slots(&self) -> &wgpu::Buffer {
+        &self.slots
+    }
+
+    /// `any_pose_boxes` of [`CULL_WGSL`].
+    pub fn any_pose_boxes(&self) -> &wgpu::Buffer {
+        &self.boxes
+    }
+}
+
+impl CrowdCulling {
+    /// Buffers and bind groups for up to `capacity` instances of `character` over the
+    /// caller's `palette` (at least `capacity × joints` matrices) and `instances` (at least
+    /// `capacity` [`CullInstance`]s), both with `STORAGE` usage. Errors when a buffer is too
+    /// small or lacks the usage, or the draw commands exceed the device's storage binding limit.
+    pub fn new(
+        device: &wgpu::Device,
+        pipelines: &CullPipelines,
+        character: &GpuCharacter,
+        palette: &wgpu::Buffer,
+        instances: &wgpu::Buffer,
+        capacity: u32,
+    ) -> Result<CrowdCulling> {
+        let location = "GPU crowd culling";
+        let cap = capacity as u64;
+        let (joints, meshlets) = (character.joints as u64, character.meshlets as u64);
+        let need = |buffer: &wgpu::Buffer, name: &str, bytes: u64| {
+            if !buffer.usage().contains(wgpu::BufferUsages::STORAGE) {
+                return Err(invalid(location, format!("the {name} buffer lacks STORAGE usage")));
+            }
+            if buffer.size() < bytes {
+                return Err(invalid(
+                    location,
+                    format!("the {name} buffer holds {} bytes; {capacity} instances need {bytes}", buffer.size()),
+                ));
+            }
+            Ok(())
+        };
+        need(palette, "palette", cap * joints * 64)?;
+        need(instances, "instances", cap * std::mem::size_of::<CullInstance>() as u64)?;
+        let limit = device.limits().max_storage_buffer_binding_size;
+        let (records_size, commands_size) = (cap * joints * RECORD_BYTES, cap * meshlets * COMMAND_BYTES);
+        if records_size.max(commands_size).max(cap * 12) > limit || cap * meshlets.max(joints) > u32::MAX as u64 / 2 {
+            return Err(invalid(
+                location,
+                format!(
+                    "{capacity} instances of {meshlets} meshlets and {joints} joints exceed the device's {limit}-byte storage bindings"
+                ),
+            ));
+        }
+        let size = |bytes: u64| bytes.max(16);
+        let make = |label: &str, bytes: u64, usage: wgpu::BufferUsages| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: size(bytes),
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        use wgpu::BufferUsages as U;
+        crate::context::checked(device, location, || {
+            let uniforms =
+                make("skinlet cull uniforms", std::mem::size_of::<Uniforms>() as u64, U::UNIFORM | U::COPY_DST);
+            let records = make("skinlet joint records", records_size, U::STORAGE);
+            let counts = make("skinlet cull counts", cap * 12, U::STORAGE | U::COPY_SRC | U::COPY_DST);
+            let commands = make("skinlet draw commands", commands_size, U::STORAGE | U::INDIRECT | U::COPY_SRC);
+            let params = wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                buffer: &uniforms,
+                offset: 0,
+                size: std::num::NonZeroU64::new(32),
+            });
+            let camera = wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                buffer: &uniforms,
+                offset: CAMERA_OFFSET as u64,
+                size: std::num::NonZeroU64::new((std::mem::size_of::<Uniforms>() - CAMERA_OFFSET) as u64),
+            });
+            let prepare = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("skinlet prepare"),
+                layout: &pipelines.prepare_layout,
+                entries: &[
+                    bind(0, params.clone()),
+                    bind(1, camera),
+                    bind(2, whole(palette)),
+                    bind(3, whole(instances)),
+                    bind(4, whole(&character.statics)),
+                    bind(5, whole(&records)),
+                ],
+            });
+            let cull = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("skinlet cull"),
+                layout: &pipelines.cull_layout,
+                entries: &[
+                    bind(0, params),
+                    bind(1, whole(&character.slots)),
+                    bind(2, whole(&records)),
+                    bind(3, whole(&counts)),
+                    bind(5, whole(&character.draws)),
+                    bind(6, whole(&commands)),
+                    bind(7, whole(&character.boxes)),
+                ],
+            });
+            CrowdCulling {
+                capacity,
+                meshlets: character.meshlets,
+                joints: character.joints,
+                has_boxes: character.has_boxes,
+                uniforms,
+                records,
+                counts,
+                commands,
+                prepare,
+                cull,
+                prepare_pipeline: pipelines.prepare.clone(),
+                cull_pipeline: pipelines.cull.clone(),
+            }
+        })
+    }
+
+    /// Writes this frame's camera and instance count (`queue.write_buffer`, 384 bytes) and
+    /// records the passes for the first `instances` instances into `encoder` (the counts are
+    /// cleared first); `timestamps`, if given, are written at the pass's start and end. The
+    /// caller's palette and instances must hold this frame's values when the commands run.
+    /// Allocates nothing itself. Errors when `instances` exceeds the capacity.
+    pub fn encode(
+        &self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        camera: &Camera,
+        tests: Tests,
+        instances: u32,
+        timestamps: Option<wgpu::ComputePassTimestampWrites<'_>>,
+    ) -> Result<()> {
+        if instances > self.capacity {
+            return Err(invalid(
+                "GPU crowd culling",
+                format!("{instances} instances for a crowd of capacity {}", self.capacity),
+            ));
+        }
+        let (view, orthographic) = match camera.projection {
+            Projection::Perspective { eye } => (eye.extend(0.0), false),
+            Projection::Orthographic { dir } => (dir.extend(0.0), true),
+        };
+        let flags =
+            (tests != Tests::Backface) as u32 | ((tests != Tests::Frustum) as u32) << 1 | (orthographic as u32) << 2;
+        let planes = &camera.planes;
+        let uniforms = Uniforms {
+            params: [self.meshlets, self.joints, instances, flags, 0, 0, 0, 0],
+            pad: [0; (CAMERA_OFFSET - 32) / 4],
+            planes: planes.map(|p| p.to_array()),
+            view: view.to_array(),
+            nu: planes.iter().map(|p| p.xyz().abs().max_element()).fold(0.0, f32::max),
+            omega: planes.iter().map(|p| p.w.abs()).fold(0.0, f32::max),
+            has_boxes: self.has_boxes as u32,
+            pad2: 0,
+        };
+        queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&uniforms));
+        encoder.clear_buffer(&self.counts, 0, None);
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("skinlet crowd culling"),
+            timestamp_writes: timestamps,
+        });
+        pass.set_pipeline(&self.prepare_pipeline);
+        pass.set_bind_group(0, &self.prepare, &[]);
+        dispatch(&mut pass, instances * self.joints);
+        pass.set_pipeline(&self.cull_pipeline);
+        pass.set_bind_group(0, &self.cull, &[]);
+        dispatch(&mut pass, instances * self.meshlets);
+        Ok(())
+    }
+
+    /// The indirect draws of the first `instances` instances: `multi_draw_indexed_indirect(
+    /// commands(), 0, draw_count(instances))`.
+    pub fn draw_count(&self, instances: u32) -> u32 {
+        instances.min(self.capacity) * self.meshlets
+    }
+
+    /// Per (instance, meshlet) a `DrawIndexedIndirectArgs` (index count, instance count 0 or
+    /// 1, first index, base vertex 0, first instance = the instance's index); `INDIRECT`,
+    /// `STORAGE` and `COPY_SRC` usage.
+    pub fn commands(&self) -> &wgpu::Buffer {
+        &self.commands
+    }
+
+    /// Per instance three `u32`: meshlets visible, culled by the frustum, culled as back-facing
+    /// only (`COPY_SRC`: an optional readback).
+    pub fn counts(&self) -> &wgpu::Buffer {
+        &self.counts
+    }
+
+    /// The joint records `prepare.wgsl` writes (`joint_records` of [`CULL_WGSL`]).
+    pub fn records(&self) -> &wgpu::Buffer {
+        &self.records
+    }
+
+    /// `cull_params` of [`CULL_WGSL`]: a uniform binding of the first 32 bytes.
+    pub fn params(&self) -> wgpu::BufferBinding<'_> {
+        wgpu::BufferBinding { buffer: &self.uniforms, offset: 0, size: std::num::NonZeroU64::new(32) }
+    }
+}
+
+/// `total` invocations of a 64-wide entry point: index = y × 65535 × 64 + x.
+fn dispatch(pass: &mut wgpu::ComputePass<'_>, total: u32) {
+    let groups = total.div_ceil(64);
+    if groups > 0 {
+        pass.dispatch_workgroups(groups.min(65535), groups.div_ceil(65535), 1);
+    }
+}
