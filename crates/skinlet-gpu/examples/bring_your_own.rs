@@ -78,13 +78,7 @@ fn run() -> Result<(bool, String)> {
     let inf = mesh.influences.as_ref().ok_or("the bake has no skin weights")?;
 
     // The index buffer in meshlet order, and each meshlet's range in it.
-    let (mut indices, mut draws) = (Vec::new(), Vec::new());
-    for m in &baked.meshlets.meshlets {
-        let vertices = &baked.meshlets.vertices[m.vertex_offset as usize..];
-        let local = &baked.meshlets.triangles[m.triangle_offset as usize..][..3 * m.triangle_count as usize];
-        draws.push([local.len() as u32, indices.len() as u32]);
-        indices.extend(local.iter().map(|&l| vertices[l as usize]));
-    }
+    let (indices, draws) = skinlet_gpu::mesh::meshlet_index_buffer(&baked.meshlets, mesh.positions.len())?;
 
     // The crowd: placements and camera of skinlet's crowd scene, every instance on its clip.
     let params = CrowdParams { instances: 64, frames: 4, ..CrowdParams::default() };

@@ -471,3 +471,129 @@ fn dispatch(pass: &mut wgpu::ComputePass<'_>, total: u32) {
         pass.dispatch_workgroups(groups.min(65535), groups.div_ceil(65535), 1);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    //! A frame of GPU crowd culling costs the CPU no allocation of skinlet's own: after setup,
+    //! `encode` allocates exactly as often as its own wgpu calls made by hand on the same
+    //! pipelines, bind groups and buffers (wgpu's command recording), whatever the instance
+    //! count. Allocations are counted per thread (wgpu records on the calling thread).
+    use super::*;
+    use glam::Vec3;
+    use std::alloc::{GlobalAlloc, Layout, System};
+    use std::cell::Cell;
+
+    struct Counting;
+
+    thread_local! {
+        static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
+    }
+
+    // SAFETY: forwards to the system allocator, counting this thread's allocating calls (a
+    // const-initialized thread local: counting never allocates).
+    unsafe impl GlobalAlloc for Counting {
+        unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+            let _ = ALLOCATIONS.try_with(|a| a.set(a.get() + 1));
+            // SAFETY: the caller's promises hold for System too.
+            unsafe { System.alloc(layout) }
+        }
+        unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+            // SAFETY: `ptr` came from `alloc` above, that is from System.
+            unsafe { System.dealloc(ptr, layout) }
+        }
+        unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+            let _ = ALLOCATIONS.try_with(|a| a.set(a.get() + 1));
+            // SAFETY: as for `alloc` and `dealloc`.
+            unsafe { System.realloc(ptr, layout, new_size) }
+        }
+    }
+
+    #[global_allocator]
+    static GLOBAL: Counting = Counting;
+
+    /// This thread's allocations while `record` records into a fresh encoder (submitted and
+    /// waited for afterwards).
+    fn counted(gpu: &crate::Gpu, record: impl Fn(&mut wgpu::CommandEncoder)) -> usize {
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        let before = ALLOCATIONS.with(Cell::get);
+        record(&mut encoder);
+        let during = ALLOCATIONS.with(Cell::get) - before;
+        gpu.queue.submit([encoder.finish()]);
+        gpu.device.poll(wgpu::PollType::Wait { submission_index: None, timeout: None }).unwrap();
+        during
+    }
+
+    #[test]
+    fn encode_allocates_only_what_its_wgpu_calls_allocate() {
+        let gpu = match crate::Gpu::new(Default::default()) {
+            Ok(gpu) => gpu,
+            Err(e) if std::env::var("SKINLET_REQUIRE_GPU").is_ok_and(|v| v == "1") => panic!("{e}"),
+            Err(e) => return eprintln!("skipping: {e}"),
+        };
+        let device = &gpu.device;
+        // A small character: 12 joints, 4 meshlets each.
+        let joints = 12;
+        let bounds: Vec<_> = (0..4 * joints)
+            .map(|i| skinlet_runtime::meshlet_bounds::MeshletBounds {
+                joint: (i / 4) as u16,
+                center: Vec3::new(0.1 * i as f32, 0.0, 0.0),
+                radius: 0.2,
+                rest_radius: 0.2,
+                cone_axis: Vec3::Z,
+                cone_angle: 0.7,
+                rest_cone_angle: 0.7,
+            })
+            .collect();
+        let classes = vec![skinlet_runtime::meshlet_bounds::Class::Both; bounds.len()];
+        let culler = MeshletCuller::new(&bounds, &classes, joints).unwrap();
+        let draws: Vec<[u32; 2]> = (0..bounds.len() as u32).map(|i| [30, 30 * i]).collect();
+        let pipelines = CullPipelines::new(device).unwrap();
+        let character = GpuCharacter::new(device, &culler, &vec![Mat4::IDENTITY; joints], &draws).unwrap();
+        let capacity = 1000u32;
+        let storage = |size: u64| {
+            let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
+            device.create_buffer(&wgpu::BufferDescriptor { label: None, size, usage, mapped_at_creation: false })
+        };
+        let (palette, instances) = (storage(64 * joints as u64 * capacity as u64), storage(80 * capacity as u64));
+        let crowd = CrowdCulling::new(device, &pipelines, &character, &palette, &instances, capacity).unwrap();
+        let camera = Camera::perspective(Vec3::new(0.0, 1.0, 6.0), Vec3::ZERO, Vec3::Y, 1.0, 1.5, 0.1, 100.0).unwrap();
+        let encode = |n: u32| {
+            let (crowd, camera, queue) = (&crowd, &camera, &gpu.queue);
+            move |encoder: &mut wgpu::CommandEncoder| {
+                crowd.encode(queue, encoder, camera, Tests::Both, n, None).unwrap()
+            }
+        };
+        // The same wgpu calls, with the same arguments, made here.
+        let by_hand = |n: u32| {
+            let (crowd, queue) = (&crowd, &gpu.queue);
+            move |encoder: &mut wgpu::CommandEncoder| {
+                queue.write_buffer(&crowd.uniforms, 0, &[0; std::mem::size_of::<Uniforms>()]);
+                encoder.clear_buffer(&crowd.counts, 0, None);
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("skinlet crowd culling"),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(&crowd.prepare_pipeline);
+                pass.set_bind_group(0, &crowd.prepare, &[]);
+                dispatch(&mut pass, n * crowd.joints);
+                pass.set_pipeline(&crowd.cull_pipeline);
+                pass.set_bind_group(0, &crowd.cull, &[]);
+                dispatch(&mut pass, n * crowd.meshlets);
+            }
+        };
+        for _ in 0..3 {
+            counted(&gpu, by_hand(capacity));
+            counted(&gpu, encode(capacity));
+        }
+        let mut seen = Vec::new();
+        for frame in 0..12 {
+            let n = [1, 17, 250, capacity][frame % 4];
+            seen.push((n, counted(&gpu, by_hand(n)), counted(&gpu, encode(n))));
+        }
+        for &(n, hand, ours) in &seen {
+            assert_eq!(ours, hand, "{n} instances: encode allocated {ours} times, its wgpu calls by hand {hand}");
+        }
+        let counts: std::collections::BTreeSet<usize> = seen.iter().map(|s| s.2).collect();
+        assert_eq!(counts.len(), 1, "allocations vary with the instance count: {seen:?}");
+    }
+}

@@ -103,11 +103,11 @@ impl GpuMesh {
             return Err(invalid(format!("triangle {t} {tri:?} indexes past {n} vertices")));
         }
         let joints: Vec<u32> = inf.joints.iter().map(|&j| j as u32).collect();
-        let indices: Vec<u32> = match meshlets {
-            Some(m) => meshlet_triangles(m, n)?.into_iter().flatten().collect(),
-            None => mesh.triangles.iter().flatten().copied().collect(),
+        let (indices, draws) = match meshlets {
+            Some(m) => meshlet_index_buffer(m, n)?,
+            None => (mesh.triangles.iter().flatten().copied().collect(), Vec::new()),
         };
-        let meshlets = meshlets.map(|m| upload_meshlets(gpu, m, inf)).transpose()?;
+        let meshlets = meshlets.map(|m| upload_meshlets(gpu, m, inf, &draws)).transpose()?;
         let morphs = &mesh.morphs;
         morphs.check(n).map_err(|e| invalid(e.to_string()))?;
         // One u32 buffer: per vertex its first delta (one more offset than vertices), then
@@ -196,6 +196,22 @@ pub(crate) fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry
     wgpu::BindGroupEntry { binding, resource: buffer.as_entire_binding() }
 }
 
+/// An index buffer listing `m`'s triangles meshlet by meshlet (mesh vertex indices), and per
+/// meshlet its index count and first index in it: the `draws` of
+/// [`crate::crowd_culling::GpuCharacter::new`]. Errors as [`GpuMesh::new`] does for bad meshlets.
+pub fn meshlet_index_buffer(m: &Meshlets, vertices: usize) -> Result<(Vec<u32>, Vec<[u32; 2]>)> {
+    let indices: Vec<u32> = meshlet_triangles(m, vertices)?.into_iter().flatten().collect();
+    let mut first = 0;
+    let draws = (m.meshlets.iter())
+        .map(|ml| {
+            let draw = [3 * ml.triangle_count as u32, first];
+            first += draw[0];
+            draw
+        })
+        .collect();
+    Ok((indices, draws))
+}
+
 /// The meshlets' triangles in mesh vertex indices, meshlet by meshlet; errors when a meshlet
 /// exceeds the mesh shader's outputs or points past the mesh.
 fn meshlet_triangles(m: &Meshlets, vertices: usize) -> Result<Vec<[u32; 3]>> {
@@ -224,7 +240,7 @@ fn meshlet_triangles(m: &Meshlets, vertices: usize) -> Result<Vec<[u32; 3]>> {
     Ok(out)
 }
 
-fn upload_meshlets(gpu: &Gpu, m: &Meshlets, inf: &Influences) -> Result<GpuMeshlets> {
+fn upload_meshlets(gpu: &Gpu, m: &Meshlets, inf: &Influences, draws: &[[u32; 2]]) -> Result<GpuMeshlets> {
     let mut joint_lists: Vec<u32> = Vec::new();
     let (mut slim, mut slim_vertices, mut fat_vertices) = (0, 0, 0);
     let records: Vec<[u32; 8]> = (m.meshlets.iter())
@@ -252,13 +268,6 @@ fn upload_meshlets(gpu: &Gpu, m: &Meshlets, inf: &Influences) -> Result<GpuMeshl
         .collect();
     let packed: Vec<u32> =
         m.triangles.chunks_exact(3).map(|t| t[0] as u32 | (t[1] as u32) << 8 | (t[2] as u32) << 16).collect();
-    let draws: Vec<[u32; 2]> = (m.meshlets.iter())
-        .scan(0, |first, ml| {
-            let count = 3 * ml.triangle_count as u32;
-            *first += count;
-            Some([count, *first - count])
-        })
-        .collect();
     let storage = wgpu::BufferUsages::STORAGE;
     gpu.checked("GPU meshlets upload", || GpuMeshlets {
         count: m.len() as u32,
@@ -269,6 +278,6 @@ fn upload_meshlets(gpu: &Gpu, m: &Meshlets, inf: &Influences) -> Result<GpuMeshl
         meshlets: gpu.buffer("meshlets", &records, storage),
         vertices: gpu.buffer("meshlet vertices", &m.vertices, storage),
         triangles: gpu.buffer("meshlet triangles", &packed, storage),
-        draws: gpu.buffer("meshlet draws", &draws, storage),
+        draws: gpu.buffer("meshlet draws", draws, storage),
     })
 }

@@ -132,17 +132,8 @@ fn cull_on_gpu(
 }
 
 /// Per meshlet `(index count, first index)` in meshlet order.
-fn meshlet_draws(meshlets: &skinlet::meshlet::Meshlets) -> Vec<[u32; 2]> {
-    let mut first = 0;
-    meshlets
-        .meshlets
-        .iter()
-        .map(|m| {
-            let d = [3 * m.triangle_count as u32, first];
-            first += d[0];
-            d
-        })
-        .collect()
+fn meshlet_draws(baked: &skinlet::bake::Baked) -> Vec<[u32; 2]> {
+    skinlet_gpu::mesh::meshlet_index_buffer(&baked.meshlets, baked.mesh.positions.len()).unwrap().1
 }
 
 #[test]
@@ -159,7 +150,7 @@ fn gpu_prepared_crowd_culling_is_exact_and_culls_what_the_cpu_culls() {
         let boxes = skinlet::cull::any_pose::build(skin, &baked.mesh, &baked.meshlets, &ranges).unwrap();
         let joints = skin.joints.len();
         let culler = MeshletCuller::new(&baked.bounds, &baked.classes, joints).unwrap().with_any_pose(&boxes).unwrap();
-        let draws = meshlet_draws(&baked.meshlets);
+        let draws = meshlet_draws(&baked);
         let gpu_character = GpuCharacter::new(&gpu.device, &culler, &skin.inverse_bind, &draws).unwrap();
         let slots = culler.slots();
         let bind: Vec<Affine3A> = skin.inverse_bind.iter().map(|m| Affine3A::from_mat4(m.inverse())).collect();
@@ -272,7 +263,7 @@ fn random_joint_matrices_cull_only_what_exact_arithmetic_culls() {
     let boxes = skinlet::cull::any_pose::build(skin, &baked.mesh, &baked.meshlets, &ranges).unwrap();
     let joints = skin.joints.len();
     let culler = MeshletCuller::new(&baked.bounds, &baked.classes, joints).unwrap().with_any_pose(&boxes).unwrap();
-    let draws = meshlet_draws(&baked.meshlets);
+    let draws = meshlet_draws(&baked);
     let gpu_character = GpuCharacter::new(&gpu.device, &culler, &skin.inverse_bind, &draws).unwrap();
     let slots = culler.slots();
     let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
@@ -344,7 +335,7 @@ fn crowd_culling_refuses_bad_buffers_and_counts() {
     let baked = bake(&asset, &character);
     let skin = &character.palette;
     let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len()).unwrap();
-    let draws = meshlet_draws(&baked.meshlets);
+    let draws = meshlet_draws(&baked);
     let err = |r: Result<GpuCharacter, skinlet_gpu::GpuError>| r.err().map(|e| e.to_string()).unwrap_or_default();
     assert!(err(GpuCharacter::new(device, &culler, &skin.inverse_bind, &draws[1..])).contains("meshlet draws"));
     assert!(err(GpuCharacter::new(device, &culler, &skin.inverse_bind[1..], &draws)).contains("inverse bind"));

@@ -9,7 +9,11 @@ fn bring_your_own_draws_what_the_unculled_crowd_draws() {
     let Some(_) = common::gpu() else { return };
     let exe = std::env::current_exe().unwrap();
     let example = exe.parent().and_then(|deps| deps.parent()).unwrap().join("examples/bring_your_own");
-    assert!(example.exists(), "{} is missing: build it with `cargo build -p skinlet-gpu --examples`", example.display());
+    assert!(
+        example.exists(),
+        "{} is missing: build it with `cargo build -p skinlet-gpu --examples`",
+        example.display()
+    );
     let out = std::process::Command::new(&example).arg("--json").output().unwrap();
     let line = String::from_utf8_lossy(&out.stdout);
     eprintln!("{line}{}", String::from_utf8_lossy(&out.stderr));
