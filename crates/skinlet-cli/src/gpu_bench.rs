@@ -18,7 +18,7 @@ use skinlet::cull::crowd::{Animation, CrowdParams, instance_pose, posed_crowd};
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::global_transforms;
 use skinlet_gpu::mesh::{GpuMesh, Pose};
-use skinlet_gpu::render::{CrowdDraw, Culling, Instance, Renderer, Skinning};
+use skinlet_gpu::render::{CrowdDraw, Culling, PosedInstance, Renderer, Skinning};
 use skinlet_gpu::{Gpu, GpuOptions};
 use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller, Tests};
 
@@ -288,8 +288,8 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let light = Vec3::new(0.4, 0.8, 0.6);
     let draw = |k: usize, f: usize| {
         let c = &configs[k];
-        let list: Vec<Instance> = (frames[f].iter().enumerate())
-            .map(|(i, p)| Instance {
+        let list: Vec<PosedInstance> = (frames[f].iter().enumerate())
+            .map(|(i, p)| PosedInstance {
                 pose: Pose { matrices: &p.skinning, morph_weights: &p.weights },
                 frame: prepared[k].get(f).map(|frames| &frames[i]),
             })

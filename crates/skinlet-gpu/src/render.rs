@@ -101,7 +101,7 @@ enum Draw<'a> {
 
 /// One character of a crowd draw ([`Renderer::render_crowd`]).
 #[derive(Clone, Copy, Debug)]
-pub struct Instance<'a> {
+pub struct PosedInstance<'a> {
     /// Skinning matrices, into the space of the camera's `view_proj` (world), and morph weights.
     pub pose: Pose<'a>,
     /// For culled drawing: the culler's preparation of this instance for the camera.
@@ -397,7 +397,7 @@ impl Renderer {
         light: Vec3,
         skinning: Skinning,
     ) -> Result<Image> {
-        let one = [Instance { pose: pose.into(), frame: None }];
+        let one = [PosedInstance { pose: pose.into(), frame: None }];
         self.draw(gpu, mesh, &one, view_proj, light, Draw::Plain(skinning)).map(|d| d.image)
     }
 
@@ -426,7 +426,7 @@ impl Renderer {
         frame: &JointFrame,
         triangles: Option<Projection>,
     ) -> Result<(Image, u32)> {
-        let one = [Instance { pose: pose.into(), frame: Some(frame) }];
+        let one = [PosedInstance { pose: pose.into(), frame: Some(frame) }];
         let (culling, skinning) = match self.mesh_path {
             Some(_) => (Culling::Task, Skinning::Mesh),
             None => (Culling::ComputeIndirect, Skinning::Vertex),
@@ -442,7 +442,7 @@ impl Renderer {
         &self,
         gpu: &Gpu,
         mesh: &GpuMesh,
-        instances: &[Instance],
+        instances: &[PosedInstance],
         view_proj: Mat4,
         light: Vec3,
         how: CrowdDraw,
@@ -468,7 +468,7 @@ impl Renderer {
         light: Vec3,
         colors: &[[u8; 4]],
     ) -> Result<Image> {
-        let one = [Instance { pose: pose.into(), frame: None }];
+        let one = [PosedInstance { pose: pose.into(), frame: None }];
         self.draw(gpu, mesh, &one, view_proj, light, Draw::Colored(colors)).map(|d| d.image)
     }
 
@@ -494,7 +494,7 @@ impl Renderer {
                 message: format!("contours over {} vertices, the mesh has {}", contours.vertices, mesh.vertices),
             });
         }
-        let one = [Instance { pose: pose.into(), frame: None }];
+        let one = [PosedInstance { pose: pose.into(), frame: None }];
         let d = self.draw(gpu, mesh, &one, view_proj, light, Draw::Contours(extraction, contours, view))?;
         Ok((d.image, contours.read(gpu)?))
     }
@@ -511,7 +511,7 @@ impl Renderer {
         pose: impl Into<Pose<'a>>,
         view_proj: Mat4,
     ) -> Result<(Vec<u32>, Overdraw)> {
-        let one = [Instance { pose: pose.into(), frame: None }];
+        let one = [PosedInstance { pose: pose.into(), frame: None }];
         let d = self.draw(gpu, mesh, &one, view_proj, Vec3::ZERO, Draw::Overdraw)?;
         let counts: Vec<u32> = d.image.rgba.chunks_exact(4).map(|p| p[0] as u32).collect();
         let covered = counts.iter().filter(|&&n| n > 0).count() as u64;
@@ -523,7 +523,7 @@ impl Renderer {
         &self,
         gpu: &Gpu,
         mesh: &GpuMesh,
-        instances: &[Instance],
+        instances: &[PosedInstance],
         view_proj: Mat4,
         light: Vec3,
         draw: Draw,
@@ -546,7 +546,7 @@ impl Renderer {
         let meshlet_count = mesh.meshlets.as_ref().map_or(0, |m| m.count as usize);
         match draw {
             Draw::Culled(culler, ..) => {
-                let fits = |i: &Instance| i.frame.is_some_and(|f| f.joints() == culler.joints());
+                let fits = |i: &PosedInstance| i.frame.is_some_and(|f| f.joints() == culler.joints());
                 if culler.len() != meshlet_count || !instances.iter().all(fits) {
                     return Err(invalid(
                         "the culler and every instance's frame must be the mesh's meshlets and joints",

@@ -10,7 +10,7 @@ use glam::Vec3;
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::Poser;
 use skinlet_gpu::mesh::{GpuMesh, Pose};
-use skinlet_gpu::render::{CrowdDraw, Culling, Instance, Renderer, Skinning, framing};
+use skinlet_gpu::render::{CrowdDraw, Culling, PosedInstance, Renderer, Skinning, framing};
 use skinlet_gpu::{Gpu, GpuOptions};
 
 #[test]
@@ -159,7 +159,7 @@ fn culled_drawing_gives_the_unculled_image() {
                 }
                 if mesh_shaders {
                     // The paper's three task pipelines, one per culling class.
-                    let one = [Instance { pose, frame: Some(&frame) }];
+                    let one = [PosedInstance { pose, frame: Some(&frame) }];
                     let how = CrowdDraw::Culled {
                         culler: &culler,
                         culling: Culling::TaskByClass,
@@ -215,8 +215,8 @@ fn crowd_draws_agree_and_are_timed() {
         expected += visible.iter().map(|&m| baked.meshlets.meshlets[m as usize].triangle_count as u32).sum::<u32>();
         frames.push(frame);
     }
-    let instances: Vec<Instance> = (matrices.iter().zip(&frames))
-        .map(|((m, w), f)| Instance { pose: Pose { matrices: m, morph_weights: w }, frame: Some(f) })
+    let instances: Vec<PosedInstance> = (matrices.iter().zip(&frames))
+        .map(|((m, w), f)| PosedInstance { pose: Pose { matrices: m, morph_weights: w }, frame: Some(f) })
         .collect();
     let mesh_gpu = GpuMesh::new(&gpu, &baked.mesh, Some(&baked.meshlets)).unwrap();
     let (view_proj, light) = (scene.camera.view_proj, Vec3::new(0.4, 0.8, 0.6));
@@ -315,8 +315,8 @@ fn game_poses_cull_on_the_gpu_as_on_the_cpu() {
     }
     assert!(refused > 0 && refused < 12, "the guard refused {refused} of 12 instances");
     assert!(culled_refused > 0, "the any-pose boxes culled nothing of the refused instances");
-    let instances: Vec<Instance> = (poses.iter().zip(&frames))
-        .map(|((m, w), f)| Instance { pose: Pose { matrices: m, morph_weights: w }, frame: Some(f) })
+    let instances: Vec<PosedInstance> = (poses.iter().zip(&frames))
+        .map(|((m, w), f)| PosedInstance { pose: Pose { matrices: m, morph_weights: w }, frame: Some(f) })
         .collect();
     let mesh_gpu = GpuMesh::new(&gpu, &baked.mesh, Some(&baked.meshlets)).unwrap();
     let (view_proj, light) = (scene.camera.view_proj, Vec3::new(0.4, 0.8, 0.6));

@@ -371,6 +371,169 @@ impl<'a> BakeView<'a> {
 }
 
 /// The tag as text (lossy for non-ASCII bytes).
+/// The prepared vertices of `VERT`, as slices of the file's bytes.
+#[derive(Clone, Copy, Debug)]
+pub struct VertexView<'a> {
+    /// Bind-pose positions (mesh space of skinned parts, node space of rigid ones).
+    pub positions: &'a [[f32; 3]],
+    /// Unit normals, or empty when the bake has none.
+    pub normals: &'a [[f32; 3]],
+    /// Influences per vertex: 4 or 8 (0: no skin weights); vertex `v`'s are
+    /// `joints[v * stride..][..stride]` (driver numbers) and the same range of `weights`.
+    pub stride: usize,
+    pub joints: &'a [u16],
+    pub weights: &'a [f32],
+}
+
+/// The meshlets of `MLET` (the flat layout of `docs/FORMAT.md`), as slices of the file's bytes.
+#[derive(Clone, Copy, Debug)]
+pub struct MeshletView<'a> {
+    /// Per meshlet: first vertex index, first triangle byte, first joint, and `packed`
+    /// (vertex count in bits 0–8, triangle count in bits 9–18, joint count in bits 19–22).
+    pub headers: &'a [[u32; 4]],
+    /// Indices into the vertices.
+    pub vertices: &'a [u32],
+    /// Local vertex indices, three per triangle.
+    pub triangles: &'a [u8],
+    /// Joint numbers of single-joint-set meshlets.
+    pub joints: &'a [u16],
+}
+
+impl MeshletView<'_> {
+    pub fn len(&self) -> usize {
+        self.headers.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.headers.is_empty()
+    }
+
+    /// Meshlet `i`'s vertex and triangle counts.
+    pub fn counts(&self, i: usize) -> (usize, usize) {
+        let packed = self.headers[i][3];
+        ((packed & 0x1ff) as usize, (packed >> 9 & 0x3ff) as usize)
+    }
+
+    /// An index buffer listing the triangles meshlet by meshlet (vertex indices), and per
+    /// meshlet its index count and first index in it: what a renderer binds to draw
+    /// meshlets one by one (GPU culling passes write indirect draws over these ranges).
+    pub fn index_buffer(&self) -> (Vec<u32>, Vec<[u32; 2]>) {
+        let (mut indices, mut draws) = (Vec::with_capacity(self.triangles.len()), Vec::with_capacity(self.len()));
+        for (i, h) in self.headers.iter().enumerate() {
+            let (vc, tc) = self.counts(i);
+            let local = &self.vertices[h[0] as usize..][..vc];
+            draws.push([3 * tc as u32, indices.len() as u32]);
+            indices.extend(self.triangles[h[1] as usize..][..3 * tc].iter().map(|&l| local[l as usize]));
+        }
+        (indices, draws)
+    }
+}
+
+impl<'a> BakeView<'a> {
+    /// The vertices of `VERT`, checked: the section's exact length, finite positions and
+    /// normals, joint numbers below the file's joint count, finite weights.
+    pub fn vertices(&self) -> Result<VertexView<'a>> {
+        let (s, location) = (self.required(b"VERT")?, "bake section VERT");
+        let word = |at: usize| u32_at(s, at).ok_or_else(|| Error::invalid(location, format!("byte {at}: truncated")));
+        let (n, stride, flag) = (word(0)? as usize, word(4)? as usize, word(8)?);
+        if !matches!(stride, 0 | 4 | 8) || flag > 1 {
+            return Err(Error::invalid(location, format!("byte 4: influence stride {stride} and normals flag {flag}")));
+        }
+        let slots = n.checked_mul(stride).filter(|&k| k <= s.len() / 6);
+        let slots = slots.ok_or_else(|| Error::invalid(location, format!("byte 0: {n} vertices do not fit")))?;
+        let after_positions = n.checked_mul(12).and_then(|b| b.checked_add(12)).filter(|&e| e <= s.len());
+        let after_positions =
+            after_positions.ok_or_else(|| Error::invalid(location, format!("byte 0: {n} vertices do not fit")))?;
+        let after_normals = after_positions + 12 * n * flag as usize;
+        let joints_end = after_normals + (2 * slots).next_multiple_of(4);
+        if joints_end + 4 * slots != s.len() {
+            return Err(Error::invalid(
+                location,
+                format!(
+                    "{} bytes for {n} vertices of {stride} influences (expected {})",
+                    s.len(),
+                    joints_end + 4 * slots
+                ),
+            ));
+        }
+        let positions: &[[f32; 3]] = cast(&s[12..after_positions], "VERT")?;
+        let normals: &[[f32; 3]] = cast(&s[after_positions..after_normals], "VERT")?;
+        let joints: &[u16] = cast(&s[after_normals..after_normals + 2 * slots], "VERT")?;
+        let weights: &[f32] = cast(&s[joints_end..], "VERT")?;
+        if let Some(v) = positions.iter().chain(normals).position(|p| p.iter().any(|x| !x.is_finite())) {
+            let what = if v < n { "position" } else { "normal" };
+            return Err(Error::invalid(location, format!("vertex {}'s {what} is not finite", v % n.max(1))));
+        }
+        let drivers = self.joint_count()?;
+        if let Some(k) = joints.iter().position(|&j| j as usize >= drivers) {
+            return Err(Error::invalid(
+                location,
+                format!("vertex {}'s joint {} is not one of {drivers}", k / stride, joints[k]),
+            ));
+        }
+        if let Some(k) = weights.iter().position(|w| !w.is_finite()) {
+            return Err(Error::invalid(location, format!("vertex {}'s weight is not finite", k / stride)));
+        }
+        Ok(VertexView { positions, normals, stride, joints, weights })
+    }
+
+    /// The triangles of `TRIS` (vertex indices, counter-clockwise front faces), checked
+    /// against the vertex count.
+    pub fn triangles(&self) -> Result<&'a [[u32; 3]]> {
+        let (s, location) = (self.required(b"TRIS")?, "bake section TRIS");
+        let n = u32_at(s, 0).ok_or_else(|| Error::invalid(location, "byte 0: truncated"))? as usize;
+        if n.checked_mul(12).and_then(|b| b.checked_add(4)) != Some(s.len()) {
+            return Err(Error::invalid(location, format!("{} bytes for {n} triangles", s.len())));
+        }
+        let triangles: &[[u32; 3]] = cast(&s[4..], "TRIS")?;
+        let vertices = self.vertices()?.positions.len();
+        if let Some(t) = triangles.iter().position(|t| t.iter().any(|&i| i as usize >= vertices)) {
+            return Err(Error::invalid(
+                location,
+                format!("triangle {t} {:?} indexes past {vertices} vertices", triangles[t]),
+            ));
+        }
+        Ok(triangles)
+    }
+
+    /// The meshlets of `MLET`, checked: the section's exact length, every meshlet's ranges
+    /// inside the arrays, its local indices below its vertex count, its vertex indices below
+    /// the vertex count.
+    pub fn meshlets(&self) -> Result<MeshletView<'a>> {
+        let (s, location) = (self.required(b"MLET")?, "bake section MLET");
+        let word = |at: usize| u32_at(s, at).ok_or_else(|| Error::invalid(location, format!("byte {at}: truncated")));
+        let [m, v, t, j] = [word(0)?, word(4)?, word(8)?, word(12)?].map(|x| x as u64);
+        let (headers_end, vertices_end) = (16 + 16 * m, 16 + 16 * m + 4 * v);
+        let triangles_end = vertices_end + t.next_multiple_of(4);
+        let end = triangles_end + (2 * j).next_multiple_of(4);
+        if end != s.len() as u64 {
+            return Err(Error::invalid(location, format!("{} bytes; the header's counts need {end}", s.len())));
+        }
+        let (he, ve, te) = (headers_end as usize, vertices_end as usize, triangles_end as usize);
+        let view = MeshletView {
+            headers: cast(&s[16..he], "MLET")?,
+            vertices: cast(&s[he..ve], "MLET")?,
+            triangles: &s[ve..ve + t as usize],
+            joints: cast(&s[te..te + 2 * j as usize], "MLET")?,
+        };
+        let mesh_vertices = self.vertices()?.positions.len();
+        for (i, h) in view.headers.iter().enumerate() {
+            let (vc, tc) = view.counts(i);
+            let jc = (h[3] >> 19 & 0xf) as usize;
+            let verts = view.vertices.get(h[0] as usize..).and_then(|r| r.get(..vc));
+            let tris = view.triangles.get(h[1] as usize..).and_then(|r| r.get(..3 * tc));
+            let joints = view.joints.get(h[2] as usize..).and_then(|r| r.get(..jc));
+            let (Some(verts), Some(tris), Some(_)) = (verts, tris, joints) else {
+                return Err(Error::invalid(location, format!("meshlet {i} points past the meshlet arrays")));
+            };
+            if tris.iter().any(|&l| l as usize >= vc) || verts.iter().any(|&x| x as usize >= mesh_vertices) {
+                return Err(Error::invalid(location, format!("meshlet {i} indexes past its or the mesh's vertices")));
+            }
+        }
+        Ok(view)
+    }
+}
+
 fn tag_name(tag: &[u8; 4]) -> String {
     String::from_utf8_lossy(tag).into_owned()
 }

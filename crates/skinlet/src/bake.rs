@@ -1075,6 +1075,23 @@ mod tests {
         let ibm: Vec<glam::Mat4> = view.inverse_bind().unwrap().iter().map(glam::Mat4::from_cols_array).collect();
         assert_eq!(ibm, b.inverse_bind);
         assert_eq!(view.joint_nodes().unwrap(), &b.joint_nodes[..]);
+        // Vertices, triangles and meshlets as slices of the file, and the meshlet index buffer.
+        let v = view.vertices().unwrap();
+        let inf = b.mesh.influences.as_ref().unwrap();
+        assert_eq!(v.positions, b.mesh.positions.iter().map(|p| p.to_array()).collect::<Vec<_>>());
+        assert_eq!(v.normals, b.mesh.normals.iter().map(|p| p.to_array()).collect::<Vec<_>>());
+        assert_eq!((v.stride, v.joints, v.weights), (inf.stride, &inf.joints[..], &inf.weights[..]));
+        assert_eq!(view.triangles().unwrap(), &b.mesh.triangles[..]);
+        let (indices, draws) = view.meshlets().unwrap().index_buffer();
+        let mut first = 0;
+        for (m, draw) in b.meshlets.meshlets.iter().zip(&draws) {
+            let local = &b.meshlets.triangles[m.triangle_offset as usize..][..3 * m.triangle_count as usize];
+            let verts = &b.meshlets.vertices[m.vertex_offset as usize..];
+            assert_eq!(*draw, [local.len() as u32, first]);
+            assert!(local.iter().zip(&indices[first as usize..]).all(|(&l, &i)| verts[l as usize] == i));
+            first += local.len() as u32;
+        }
+        assert_eq!((draws.len(), indices.len()), (b.meshlets.len(), first as usize));
         let culler = MeshletCuller::new(&b.bounds, &b.classes, b.inverse_bind.len()).unwrap();
         assert_eq!(view.culler().unwrap().slots(), culler.slots());
         let (e, ev) = (b.envelope.as_ref().unwrap(), view.envelope(b.mesh.morphs.weights.len()).unwrap().unwrap());
@@ -1125,9 +1142,15 @@ mod tests {
             let mut b = bytes.clone();
             let at = (rng % b.len() as u64) as usize;
             b[at] ^= 1 << (rng >> 60 & 7);
+            // The runtime view's vertex, triangle and meshlet slices: an error, never a panic.
+            let view = BakeView::new(&b).ok();
+            let slices =
+                view.map(|v| (v.vertices().is_ok(), v.triangles().is_ok(), v.meshlets().map(|m| m.index_buffer())));
             // Many flips (e.g. in a float's low bits) are valid: those must run everywhere.
             if let Ok(back) = from_bytes(&b) {
                 check_consumers(&back).unwrap();
+                let (vertices, triangles, meshlets) = slices.unwrap();
+                assert!(vertices && triangles && meshlets.is_ok(), "the reader took what the view refused");
                 accepted += 1;
             }
         }

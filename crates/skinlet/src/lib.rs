@@ -40,9 +40,5 @@ pub mod weld;
 
 pub use character::{Character, Part, PartKind};
 
-/// The README's Rust examples, compiled as doc-tests so they cannot rot.
-#[cfg(doctest)]
-#[doc = include_str!("../../../README.md")]
-struct ReadmeExamples;
 pub use error::{Error, Result};
 pub use model::{Asset, Influences, Instance, Mesh, Node, Skeleton, Skin, SkinnedMesh, Trs};
