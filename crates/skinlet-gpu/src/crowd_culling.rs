@@ -32,7 +32,7 @@
 //! culled meshlet of the crowd scene in f64, and the `bring_your_own` example compares the
 //! image with an unculled draw.
 
-use crate::cull::{pack_boxes, pack_slots};
+use crate::cull::{dispatch, flags, pack_boxes, pack_slots};
 use crate::{GpuError, Result};
 use glam::{Mat4, Vec4Swizzles};
 use skinlet_runtime::camera::{Camera, Projection};
@@ -406,11 +406,9 @@ impl CrowdCulling {
             Projection::Perspective { eye } => (eye.extend(0.0), false),
             Projection::Orthographic { dir } => (dir.extend(0.0), true),
         };
-        let flags =
-            (tests != Tests::Backface) as u32 | ((tests != Tests::Frustum) as u32) << 1 | (orthographic as u32) << 2;
         let planes = &camera.planes;
         let uniforms = Uniforms {
-            params: [self.meshlets, self.joints, instances, flags, 0, 0, 0, 0],
+            params: [self.meshlets, self.joints, instances, flags(tests, orthographic), 0, 0, 0, 0],
             pad: [0; (CAMERA_OFFSET - 32) / 4],
             planes: planes.map(|p| p.to_array()),
             view: view.to_array(),
@@ -461,14 +459,6 @@ impl CrowdCulling {
     /// `cull_params` of [`CULL_WGSL`]: a uniform binding of the first 32 bytes.
     pub fn params(&self) -> wgpu::BufferBinding<'_> {
         wgpu::BufferBinding { buffer: &self.uniforms, offset: 0, size: std::num::NonZeroU64::new(32) }
-    }
-}
-
-/// `total` invocations of a 64-wide entry point: index = y × 65535 × 64 + x.
-fn dispatch(pass: &mut wgpu::ComputePass<'_>, total: u32) {
-    let groups = total.div_ceil(64);
-    if groups > 0 {
-        pass.dispatch_workgroups(groups.min(65535), groups.div_ceil(65535), 1);
     }
 }
 

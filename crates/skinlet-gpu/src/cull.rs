@@ -156,7 +156,7 @@ impl ComputeCulling {
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
         pass.set_pipeline(&self.draws_pipeline);
         pass.set_bind_group(0, &bind, &[]);
-        dispatch(&mut pass, meshlets.count as usize);
+        dispatch(&mut pass, meshlets.count);
     }
 
     /// Culls every meshlet of `culler` for each instance's prepared `frames` (all with the
@@ -212,7 +212,7 @@ impl ComputeCulling {
                 let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
                 pass.set_pipeline(&self.pipeline);
                 pass.set_bind_group(0, &bind, &[]);
-                dispatch(&mut pass, total);
+                dispatch(&mut pass, total as u32);
             }
             gpu.queue.submit([encoder.finish()]);
             (counts, visible)
@@ -230,10 +230,13 @@ impl ComputeCulling {
     }
 }
 
-/// One invocation per (instance, slot) of `total`: index = y × 65535 × 64 + x (cull.wgsl).
-fn dispatch(pass: &mut wgpu::ComputePass, total: usize) {
-    let groups = (total as u32).div_ceil(64);
-    pass.dispatch_workgroups(groups.min(65535), groups.div_ceil(65535), 1);
+/// `total` invocations of a 64-wide entry point: index = y × 65535 × 64 + x (cull.wgsl,
+/// prepare.wgsl dispatch a 2D grid past 65535 groups).
+pub(crate) fn dispatch(pass: &mut wgpu::ComputePass, total: u32) {
+    let groups = total.div_ceil(64);
+    if groups > 0 {
+        pass.dispatch_workgroups(groups.min(65535), groups.div_ceil(65535), 1);
+    }
 }
 
 /// Slots as `Slot` in cull_common.wgsl (12 words each).
@@ -294,8 +297,12 @@ pub(crate) fn pack_boxes(culler: &MeshletCuller) -> Vec<u32> {
     out
 }
 
-/// `CullParams::flags` for a prepared frame: bit 0 frustum, bit 1 backface, bit 2 orthographic.
+/// `CullParams::flags` for a prepared frame.
 pub(crate) fn test_flags(frame: &JointFrame) -> u32 {
-    let tests = frame.tests();
-    (tests != Tests::Backface) as u32 | ((tests != Tests::Frustum) as u32) << 1 | (frame.orthographic() as u32) << 2
+    flags(frame.tests(), frame.orthographic())
+}
+
+/// `CullParams::flags`: bit 0 frustum, bit 1 backface, bit 2 orthographic.
+pub(crate) fn flags(tests: Tests, orthographic: bool) -> u32 {
+    (tests != Tests::Backface) as u32 | ((tests != Tests::Frustum) as u32) << 1 | (orthographic as u32) << 2
 }

@@ -6,7 +6,7 @@
 //! the CPU culler culls, and its draw commands say what it culled.
 
 mod common;
-use common::{assets, bake, gpu, read_buffer};
+use common::{assets, bake, boxed_culler, gpu, read_buffer};
 use glam::{Affine3A, DMat4, DVec3, DVec4, Mat4, Vec3, Vec4};
 use skinlet::clip::Clip;
 use skinlet::cull::crowd::{CrowdParams, crowd};
@@ -146,10 +146,8 @@ fn gpu_prepared_crowd_culling_is_exact_and_culls_what_the_cpu_culls() {
         let clips: Vec<&Clip> = asset.clips.iter().collect();
         let baked = bake(&asset, &character);
         let skin = &character.palette;
-        let ranges = skinlet::bounds::vertex::clip_weight_ranges(&baked.mesh.morphs, &clips).unwrap();
-        let boxes = skinlet::cull::any_pose::build(skin, &baked.mesh, &baked.meshlets, &ranges).unwrap();
         let joints = skin.joints.len();
-        let culler = MeshletCuller::new(&baked.bounds, &baked.classes, joints).unwrap().with_any_pose(&boxes).unwrap();
+        let culler = boxed_culler(&asset, &character, &baked);
         let draws = meshlet_draws(&baked);
         let gpu_character = GpuCharacter::new(&gpu.device, &culler, &skin.inverse_bind, &draws).unwrap();
         let slots = culler.slots();
@@ -258,11 +256,8 @@ fn random_joint_matrices_cull_only_what_exact_arithmetic_culls() {
     let character = asset.character().unwrap();
     let baked = bake(&asset, &character);
     let skin = &character.palette;
-    let clips: Vec<&Clip> = asset.clips.iter().collect();
-    let ranges = skinlet::bounds::vertex::clip_weight_ranges(&baked.mesh.morphs, &clips).unwrap();
-    let boxes = skinlet::cull::any_pose::build(skin, &baked.mesh, &baked.meshlets, &ranges).unwrap();
     let joints = skin.joints.len();
-    let culler = MeshletCuller::new(&baked.bounds, &baked.classes, joints).unwrap().with_any_pose(&boxes).unwrap();
+    let culler = boxed_culler(&asset, &character, &baked);
     let draws = meshlet_draws(&baked);
     let gpu_character = GpuCharacter::new(&gpu.device, &culler, &skin.inverse_bind, &draws).unwrap();
     let slots = culler.slots();

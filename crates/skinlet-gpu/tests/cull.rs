@@ -4,7 +4,7 @@
 //! with the bounds, the bounds and the any-pose boxes, or the boxes alone.
 
 mod common;
-use common::{assets, bake, gpu};
+use common::{assets, bake, boxed_culler, gpu};
 use glam::Affine3A;
 use skinlet::clip::Clip;
 use skinlet::cull::crowd::{CrowdParams, crowd};
@@ -22,12 +22,7 @@ fn gpu_culling_matches_the_cpu_on_the_crowd_scene() {
         let clips: Vec<&Clip> = asset.clips.iter().collect();
         let baked = bake(&asset, &character);
         let skin = &character.palette;
-        let ranges = skinlet::bounds::vertex::clip_weight_ranges(&baked.mesh.morphs, &clips).unwrap();
-        let boxes = skinlet::cull::any_pose::build(skin, &baked.mesh, &baked.meshlets, &ranges).unwrap();
-        let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len())
-            .unwrap()
-            .with_any_pose(&boxes)
-            .unwrap();
+        let culler = boxed_culler(&asset, &character, &baked);
         for orthographic in [false, true] {
             let params = CrowdParams { instances: 24, frames: 3, orthographic, ..CrowdParams::default() };
             let scene = crowd(&baked.mesh.positions, clips.len(), &params).unwrap();

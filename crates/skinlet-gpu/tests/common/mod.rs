@@ -6,6 +6,7 @@ use glam::{Affine3A, Vec3};
 use skinlet::Asset;
 use skinlet_gpu::mesh::Pose;
 use skinlet_gpu::{Gpu, GpuOptions};
+use skinlet_runtime::meshlet_cull::MeshletCuller;
 use std::path::PathBuf;
 
 #[path = "../../../skinlet/tests/common/mod.rs"]
@@ -52,6 +53,15 @@ pub fn bake(asset: &Asset, character: &skinlet::Character) -> skinlet::bake::Bak
     skinlet::bake::bake(asset, character, &clips, skinlet::meshlet::Builder::SkinAware, limits, &how, &mut |_| {})
         .unwrap()
         .0
+}
+
+/// The culler of `baked`'s bounds with the any-pose boxes of its clips' morph weight ranges.
+pub fn boxed_culler(asset: &Asset, character: &skinlet::Character, baked: &skinlet::bake::Baked) -> MeshletCuller {
+    let clips: Vec<&skinlet::clip::Clip> = asset.clips.iter().collect();
+    let skin = &character.palette;
+    let ranges = skinlet::bounds::vertex::clip_weight_ranges(&baked.mesh.morphs, &clips).unwrap();
+    let boxes = skinlet::cull::any_pose::build(skin, &baked.mesh, &baked.meshlets, &ranges).unwrap();
+    MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len()).unwrap().with_any_pose(&boxes).unwrap()
 }
 
 /// A mesh posed on the CPU: the skinning matrices and morph weights of `clip` at `t` (what a
