@@ -5,13 +5,17 @@
 //! format is). What it hands out has been checked: a culler built from it never indexes out
 //! of range and never sees a non-finite number.
 //!
-//! Covered so far: the section table, the drivers' inverse bind matrices and nodes (`SKIN`),
-//! the meshlet count (`MLET`), the meshlet bounds with their classes (`BNDS`), and the pose
-//! envelope with its bounds and any-pose boxes (`ENVL`): everything the CPU culler and the
-//! pose guard need. The baker's reader (`skinlet::bake::from_bytes`) goes through this view
-//! for those and parses the other sections itself.
+//! Covered: the section table, the drivers' inverse bind matrices and nodes (`SKIN`), the
+//! vertices (`VERT`), triangles (`TRIS`), meshlets (`MLET`), meshlet bounds with their classes
+//! (`BNDS`), morph targets (`MRPH`), the pose envelope with its bounds and any-pose boxes
+//! (`ENVL`), and the contour patches (`CONT`, read into arrays with the edges it indexes,
+//! which the file does not store). Not yet viewed here: `INFO`, `PART` and `OVDR`, which the
+//! baker's reader (`skinlet::bake::from_bytes`) parses itself; it goes through this view for
+//! `SKIN`, `BNDS`, `ENVL` and `CONT`.
 
 use crate::any_pose::AnyPoseBoxes;
+use crate::contour_edges::Edges;
+use crate::contour_patches::{BakedContours, rigid_vertices, skinned_edges};
 use crate::meshlet_bounds::{Class, MeshletBounds};
 use crate::meshlet_cull::MeshletCuller;
 use crate::pose_guard::{NodeRange, PoseGuard, check_ranges};
@@ -531,6 +535,159 @@ impl<'a> BakeView<'a> {
             }
         }
         Ok(view)
+    }
+}
+
+/// One morph weight of `MRPH`: target `target` of the mesh node `node` draws, and its
+/// default weight.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[repr(C)]
+pub struct BakedMorphWeight {
+    pub node: u32,
+    pub target: u32,
+    pub default: f32,
+}
+
+/// One vertex delta of `MRPH`: the weight it scales, position and normal deltas.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[repr(C)]
+pub struct BakedMorphDelta {
+    pub weight: u32,
+    pub position: [f32; 3],
+    pub normal: [f32; 3],
+}
+
+// SAFETY: `repr(C)`, 4-byte fields of plain numbers (12 and 28 bytes, no padding): every bit
+// pattern is a value, and zero is one; `Copy` and `'static`.
+unsafe impl bytemuck::Zeroable for BakedMorphWeight {}
+unsafe impl bytemuck::Pod for BakedMorphWeight {}
+unsafe impl bytemuck::Zeroable for BakedMorphDelta {}
+unsafe impl bytemuck::Pod for BakedMorphDelta {}
+
+/// The morph targets of `MRPH`, as slices of the file's bytes: a vertex is drawn at
+/// `p + Σ wₖ·dₖ` over its deltas (normals alike), then skinned.
+#[derive(Clone, Copy, Debug)]
+pub struct MorphView<'a> {
+    pub weights: &'a [BakedMorphWeight],
+    /// Vertex `v`'s deltas are `deltas[offsets[v]..offsets[v + 1]]`.
+    pub offsets: &'a [u32],
+    pub deltas: &'a [BakedMorphDelta],
+}
+
+impl<'a> MorphView<'a> {
+    /// The deltas of vertex `v` (none past the last vertex).
+    pub fn of(&self, v: usize) -> &'a [BakedMorphDelta] {
+        let range = self.offsets.get(v..v + 2).and_then(|r| self.deltas.get(r[0] as usize..r[1] as usize));
+        range.unwrap_or(&[])
+    }
+}
+
+impl<'a> BakeView<'a> {
+    /// The optional `MRPH` section, checked: exact length, one offset per vertex and one
+    /// more, from 0, never decreasing, ending at the delta count; every delta's weight in
+    /// range; finite deltas and defaults.
+    pub fn morphs(&self) -> Result<Option<MorphView<'a>>> {
+        let Some(s) = self.section(b"MRPH") else { return Ok(None) };
+        let location = "bake section MRPH";
+        let err = |at: usize, what: String| Error::invalid(location, format!("byte {at}: {what}"));
+        let word = |at: usize| u32_at(s, at).map(|x| x as u64).ok_or_else(|| err(at, "truncated".into()));
+        let (w, d) = (word(0)?, word(4)?);
+        let vertices = self.vertices()?.positions.len() as u64;
+        let offsets_at = 8 + 12 * w;
+        let deltas_at = offsets_at + 4 * (vertices + 1);
+        if deltas_at + 28 * d != s.len() as u64 {
+            return Err(err(0, format!("{} bytes for {w} weights, {vertices} vertices and {d} deltas", s.len())));
+        }
+        let (o, e) = (offsets_at as usize, deltas_at as usize);
+        let view = MorphView {
+            weights: cast(&s[8..o], "MRPH")?,
+            offsets: cast(&s[o..e], "MRPH")?,
+            deltas: cast(&s[e..], "MRPH")?,
+        };
+        if view.offsets[0] != 0 || view.offsets[vertices as usize] as u64 != d {
+            return Err(err(
+                o,
+                format!(
+                    "vertex offsets run from {} to {}, not 0 to {d}",
+                    view.offsets[0], view.offsets[vertices as usize]
+                ),
+            ));
+        }
+        if let Some(v) = view.offsets.windows(2).position(|x| x[1] < x[0]) {
+            return Err(err(o + 4 * v, format!("vertex {v}: offsets decrease")));
+        }
+        if let Some(k) = view.deltas.iter().position(|x| x.weight as u64 >= w) {
+            return Err(err(e + 28 * k, format!("a delta uses weight {} of {w}", view.deltas[k].weight)));
+        }
+        let finite = |x: &[f32]| x.iter().all(|x| x.is_finite());
+        if let Some(k) = view.deltas.iter().position(|x| !(finite(&x.position) && finite(&x.normal))) {
+            return Err(err(e + 28 * k, "non-finite delta".into()));
+        }
+        if let Some(k) = view.weights.iter().position(|x| !x.default.is_finite()) {
+            return Err(err(8 + 12 * k, "non-finite default weight".into()));
+        }
+        Ok(Some(view))
+    }
+
+    /// The optional `CONT` section, read and checked, with the edges its quads index (rebuilt
+    /// from `VERT` and `TRIS`: [`skinned_edges`], without the concave rigid quads when the
+    /// patches are visible-only). Allocates: run it once, at load.
+    pub fn contours(&self) -> Result<Option<(BakedContours, Edges)>> {
+        let Some(s) = self.section(b"CONT") else { return Ok(None) };
+        let vertices = self.vertices()?;
+        let positions: Vec<glam::Vec3> = vertices.positions.iter().map(|&p| p.into()).collect();
+        let rigid = if BakedContours::visible_only(s)? {
+            let morphs = self.morphs()?;
+            let morphed = |v: usize| morphs.is_some_and(|m| !m.of(v).is_empty());
+            Some(rigid_vertices(positions.len(), vertices.stride, vertices.joints, vertices.weights, morphed))
+        } else {
+            None
+        };
+        let edges = skinned_edges(&positions, self.triangles()?, rigid.as_deref())
+            .map_err(|e| Error::invalid("bake section CONT", e.to_string()))?;
+        Ok(Some((BakedContours::read(s, &edges, self.joint_count()?)?, edges)))
+    }
+}
+
+/// A cursor over one section's bytes that names the section and the byte in its errors (for
+/// the sections read into arrays rather than viewed in place).
+pub(crate) struct Cursor<'a> {
+    tag: &'static str,
+    b: &'a [u8],
+    pub(crate) at: usize,
+}
+
+impl<'a> Cursor<'a> {
+    pub(crate) fn new(tag: &'static str, b: &'a [u8]) -> Cursor<'a> {
+        Cursor { tag, b, at: 0 }
+    }
+    pub(crate) fn err(&self, msg: impl std::fmt::Display) -> Error {
+        Error::invalid(format!("bake section {}", self.tag), format!("byte {}: {msg}", self.at))
+    }
+    pub(crate) fn bytes(&mut self, n: usize) -> Result<&'a [u8]> {
+        let end = self.at.checked_add(n).filter(|&e| e <= self.b.len());
+        let end = end.ok_or_else(|| self.err(format!("truncated (needs {n} more bytes)")))?;
+        let s = &self.b[self.at..end];
+        self.at = end;
+        Ok(s)
+    }
+    pub(crate) fn u32(&mut self) -> Result<u32> {
+        Ok(u32::from_le_bytes(self.bytes(4)?.try_into().expect("4 bytes")))
+    }
+    /// A finite `f32`.
+    pub(crate) fn f32(&mut self) -> Result<f32> {
+        let x = f32::from_le_bytes(self.bytes(4)?.try_into().expect("4 bytes"));
+        if x.is_finite() { Ok(x) } else { Err(self.err(format!("non-finite number {x}"))) }
+    }
+    pub(crate) fn vec3(&mut self) -> Result<glam::Vec3> {
+        Ok(glam::Vec3::new(self.f32()?, self.f32()?, self.f32()?))
+    }
+    pub(crate) fn align(&mut self, to: usize) -> Result<()> {
+        let pad = self.at.next_multiple_of(to) - self.at;
+        self.bytes(pad).map(|_| ())
+    }
+    pub(crate) fn end(&self) -> Result<()> {
+        if self.at == self.b.len() { Ok(()) } else { Err(self.err("unexpected bytes after the section's data")) }
     }
 }
 

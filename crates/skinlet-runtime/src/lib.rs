@@ -2,7 +2,8 @@
 //!
 //! The baker (`skinlet`) turns a glTF character into meshlets with conservative bounds that
 //! hold while it animates; this crate uses them every frame, on the CPU, with no allocation
-//! once its buffers have grown and no panic on the data it is given. It depends on glam and bytemuck only. Modules, one algorithm each:
+//! once its buffers have grown and no panic on the data it is given. It depends on glam and
+//! bytemuck only. Modules, one algorithm each:
 //! - [`bake_view`]: a checked, zero-copy view over a bake file's bytes.
 //! - [`camera`]: a camera's frustum planes and what backface tests need.
 //! - [`meshlet_bounds`]: per-meshlet spheres, normal cones and culling classes, as baked.
@@ -14,6 +15,10 @@
 //! - [`joint_boxes`]: whole-mesh boxes from per-joint boxes (the Bevy PR's method).
 //! - [`pose_guard`]: whether a pose (blend, additive layer, IK) lies inside a pose envelope.
 //! - [`overdraw_orders`]: which of a bake's overdraw-reducing index buffers to draw.
+//! - [`contour_edges`]: a mesh's edges and the contour test (Tsiapkolis & Bénard 2024), brute
+//!   force as the reference.
+//! - [`contour_patches`]: contour extraction with a bake's patches (static or skinned, per
+//!   time window), exactly brute force's edges.
 //!
 //! Culling one instance of a baked character (one meshlet here, built by hand):
 //!
@@ -54,6 +59,8 @@
 pub mod any_pose;
 pub mod bake_view;
 pub mod camera;
+pub mod contour_edges;
+pub mod contour_patches;
 pub mod error;
 pub mod joint_boxes;
 pub mod meshlet_bounds;

@@ -44,3 +44,39 @@ impl Class {
         }
     }
 }
+
+/// The smallest `f32` at least `x` (bounds are stored rounded outward: radii, angles, box
+/// maxima; `-round_up(-x)` rounds minima down). Any sign; NaN stays NaN.
+pub fn round_up(x: f64) -> f32 {
+    let f = x as f32;
+    if (f as f64) >= x || x.is_nan() { f } else { f.next_up() }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::round_up;
+    use proptest::prelude::*;
+
+    proptest! {
+        #[test]
+        fn round_up_is_the_nearest_f32_not_below(x in prop::num::f64::ANY) {
+            let f = round_up(x);
+            if x.is_nan() {
+                prop_assert!(f.is_nan());
+            } else {
+                prop_assert!(f as f64 >= x, "{x} rounded to {f}");
+                // Nothing smaller is also at least x.
+                prop_assert!((f.next_down() as f64) < x || f == f32::NEG_INFINITY, "{x} rounded to {f}");
+            }
+        }
+    }
+
+    #[test]
+    fn negative_values_round_toward_zero() {
+        // -1 - 0.75 ulp: the nearest f32 is below it; the bound must be -1.
+        let x = -1.0 - 0.75 * f32::EPSILON as f64;
+        assert_eq!(round_up(x), -1.0);
+        assert_eq!(round_up(1.0 + 0.25 * f32::EPSILON as f64), 1.0 + f32::EPSILON);
+        assert_eq!(round_up(f64::MAX), f32::INFINITY);
+    }
+}

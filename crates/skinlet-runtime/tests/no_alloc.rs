@@ -1,27 +1,41 @@
 //! A frame of CPU culling allocates nothing once its buffers have grown: preparing and
 //! culling instances with the bounds, with the bounds and the any-pose boxes, with the boxes
 //! alone and with nothing, the pose guard, and the per-joint box update, counted by a
-//! counting global allocator over many frames of moving joints.
+//! counting global allocator over many frames of moving joints; and a frame of contour
+//! extraction with skinned patches (equal to brute force on every frame).
 
-use glam::{Affine3A, Quat, Vec3};
+use glam::{Affine3A, DMat4, DVec3, Quat, Vec3};
 use skinlet_runtime::Trs;
 use skinlet_runtime::any_pose::AnyPoseBoxes;
-use skinlet_runtime::camera::Camera;
+use skinlet_runtime::camera::{Camera, Projection};
+use skinlet_runtime::contour_edges::{Edges, brute_force};
+use skinlet_runtime::contour_patches::{ClipWindows, PatchBounds, Patches, SkinnedPatches};
 use skinlet_runtime::joint_boxes::{Box3, JointBoxes, JointSpace};
 use skinlet_runtime::meshlet_bounds::{Class, MeshletBounds};
 use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller, Tests};
 use skinlet_runtime::pose_guard::{NodeRange, PoseGuard};
 use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::cell::Cell;
 
 struct Counting;
 
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+thread_local! {
+    /// Allocations made by this thread (tests run on threads of their own, in parallel).
+    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
+}
+
+fn count() {
+    ALLOCATIONS.with(|c| c.set(c.get() + 1));
+}
+
+fn allocations() -> usize {
+    ALLOCATIONS.with(Cell::get)
+}
 
 // SAFETY: forwards to the system allocator, counting calls that allocate.
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        count();
         // SAFETY: the caller's promises hold for System too.
         unsafe { System.alloc(layout) }
     }
@@ -30,7 +44,7 @@ unsafe impl GlobalAlloc for Counting {
         unsafe { System.dealloc(ptr, layout) }
     }
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        count();
         // SAFETY: as for `alloc` and `dealloc`.
         unsafe { System.realloc(ptr, layout, new_size) }
     }
@@ -93,7 +107,7 @@ fn a_frame_of_cpu_culling_allocates_nothing() {
     let (mut frame, mut flags, mut visible) = (JointFrame::default(), Vec::new(), Vec::new());
     let (mut locals, mut world, mut boxes_out) = (Vec::new(), Vec::new(), vec![Box3::EMPTY; 1]);
     let mut frame_of = |f: usize, culled: &mut usize, counted: bool| {
-        let before = ALLOCATIONS.load(Ordering::Relaxed);
+        let before = allocations();
         for instance in 0..16 {
             // Each instance's pose: joints in a row, turning more with the frame; every
             // fourth instance turns past the guard's cap.
@@ -118,7 +132,7 @@ fn a_frame_of_cpu_culling_allocates_nothing() {
             *culled += counts.meshlets - counts.visible;
             joint_boxes.update_all(&world, JOINTS, &mut boxes_out).unwrap();
         }
-        let after = ALLOCATIONS.load(Ordering::Relaxed);
+        let after = allocations();
         if counted {
             assert_eq!(after - before, 0, "frame {f} allocated {} times", after - before);
         }
@@ -132,4 +146,99 @@ fn a_frame_of_cpu_culling_allocates_nothing() {
         frame_of(f, &mut culled, true);
     }
     assert!(culled > 0, "nothing was culled: the frames would not exercise the culling");
+}
+
+/// A closed UV sphere of `rings × segments` quads split into triangles.
+fn sphere(rings: u32, segments: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let mut p = vec![Vec3::Z];
+    for r in 1..rings {
+        let (s, c) = (std::f32::consts::PI * r as f32 / rings as f32).sin_cos();
+        p.extend((0..segments).map(|k| {
+            let (y, x) = (std::f32::consts::TAU * k as f32 / segments as f32).sin_cos();
+            Vec3::new(s * x, s * y, c)
+        }));
+    }
+    p.push(-Vec3::Z);
+    let at = |r: u32, k: u32| 1 + (r - 1) * segments + k % segments;
+    let mut t = Vec::new();
+    for k in 0..segments {
+        t.push([0, at(1, k), at(1, k + 1)]);
+        t.push([p.len() as u32 - 1, at(rings - 1, k + 1), at(rings - 1, k)]);
+        for r in 1..rings - 1 {
+            t.push([at(r, k), at(r + 1, k), at(r + 1, k + 1)]);
+            t.push([at(r, k), at(r + 1, k + 1), at(r, k + 1)]);
+        }
+    }
+    (p, t)
+}
+
+/// Patches of 16 consecutive quads with a sphere around their vertices and a cone around
+/// their faces' normals (exact, in f64, widened a little): valid bounds built by hand.
+fn patches(p: &[Vec3], edges: &Edges) -> SkinnedPatches {
+    let mut patches = Patches::default();
+    let ids: Vec<u32> = (0..edges.quads.len() as u32).collect();
+    for chunk in ids.chunks(16) {
+        let points: Vec<DVec3> =
+            chunk.iter().flat_map(|&q| edges.quads[q as usize]).map(|v| p[v as usize].as_dvec3()).collect();
+        let center = points.iter().sum::<DVec3>() / points.len() as f64;
+        let radius = points.iter().map(|x| x.distance(center)).fold(0.0, f64::max);
+        let normals: Vec<DVec3> = chunk
+            .iter()
+            .flat_map(|&q| {
+                let [a, b, c, d] = edges.quads[q as usize].map(|v| p[v as usize].as_dvec3());
+                [(b - a).cross(c - a).normalize(), (d - a).cross(b - a).normalize()]
+            })
+            .collect();
+        let axis = normals.iter().sum::<DVec3>().normalize();
+        let angle = normals.iter().map(|n| n.dot(axis).clamp(-1.0, 1.0).acos()).fold(0.0, f64::max);
+        patches.ranges.push([patches.order.len() as u32, chunk.len() as u32]);
+        patches.bounds.push(PatchBounds::new(center, radius, axis, angle + 1e-6));
+        patches.order.extend_from_slice(chunk);
+    }
+    patches.always_from = patches.order.len();
+    patches.quads = patches.order.iter().map(|&q| edges.quads[q as usize]).collect();
+    let n = patches.bounds.len();
+    SkinnedPatches {
+        joints: vec![0; n],
+        rigid_quads: patches.order.len(),
+        animated_quads: 0,
+        clips: vec![ClipWindows { start: 0.0, end: 1.0, count: 1, first: 0 }],
+        window_bounds: patches.bounds.clone(),
+        patches,
+    }
+}
+
+#[test]
+fn a_frame_of_contour_extraction_allocates_nothing_and_equals_brute_force() {
+    let (rest, triangles) = sphere(24, 48);
+    let edges = Edges::build(&rest, &triangles).unwrap();
+    let patches = patches(&rest, &edges);
+    // Reserved once: a frame's contour is at most every edge.
+    let (mut posed, mut got, mut want) = (Vec::new(), Vec::with_capacity(edges.len()), Vec::new());
+    let mut culled = 0;
+    for f in 0..100 {
+        // One joint carries the whole sphere: turned, stretched and moved with the frame.
+        let g = DMat4::from_scale_rotation_translation(
+            DVec3::new(1.0, 1.5, 0.8),
+            glam::DQuat::from_rotation_y(f as f64 * 0.07),
+            DVec3::new(0.3, -0.2, f as f64 * 0.01),
+        );
+        posed.clear();
+        posed.extend(rest.iter().map(|x| g.transform_point3(x.as_dvec3()).as_vec3()));
+        let eye = Vec3::new((f as f32 * 0.1).sin() * 6.0, 2.0, 5.0);
+        let projection = if f % 2 == 0 {
+            Projection::Perspective { eye }
+        } else {
+            Projection::Orthographic { dir: -eye.normalize() }
+        };
+        let before = allocations();
+        let tested = patches.extract(&posed, &edges, &[g], Some((0, 0.5)), projection, &mut got);
+        let after = allocations();
+        assert_eq!(after - before, 0, "frame {f} allocated {} times", after - before);
+        brute_force(&posed, &edges, projection, &mut want);
+        got.sort_unstable();
+        assert_eq!(got, want, "frame {f}");
+        culled += edges.quads.len() - tested.edges;
+    }
+    assert!(culled > 0, "no patch was culled: the frames would not exercise the cone test");
 }

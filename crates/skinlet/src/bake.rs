@@ -8,7 +8,7 @@
 //! Guarantees: [`to_bytes`] is a pure function of the [`Baked`] value (same input and
 //! options, same bytes); [`from_bytes`] accepts exactly what `to_bytes` can produce and
 //! reports anything else (wrong magic, newer version, truncation, out-of-range indices,
-//! non-finite numbers) as an error naming the section and byte; [`write`] replaces the
+//! non-finite numbers) as an error naming the section and byte; [`write()`] replaces the
 //! destination atomically (temporary file in the same folder, then rename). Readers skip
 //! sections with tags they do not know, so later versions can add sections.
 
@@ -17,9 +17,7 @@ use crate::bounds::refine::{Progress, Refinement, Stop, refine_with_progress};
 use crate::bounds::sphere_cone::{Class, MeshletBounds, classify};
 use crate::character::{Character, PartKind};
 use crate::clip::Clip;
-use crate::contour::bound::PatchBounds;
-use crate::contour::patches::Patches;
-use crate::contour::skinned::{ClipWindows, SkinnedParams, SkinnedPatches, skinned_edges};
+use crate::contour::skinned::{SkinnedParams, skinned_edges};
 use crate::cull::any_pose::AnyPoseBoxes;
 use crate::meshlet::{
     Builder, MeshletLimits, Meshlets, PartRange, PreparedMesh, build, canonical, flat, prepare_parts,
@@ -35,6 +33,9 @@ use std::ops::Range;
 use std::path::Path;
 
 pub use skinlet_runtime::bake_view::{MAGIC, VERSION};
+/// Contour patches of a bake's mesh; their quads index the edges that
+/// [`skinned_edges`]`(mesh, visible_only)` rebuilds from the stored triangles.
+pub use skinlet_runtime::contour_patches::BakedContours;
 
 /// How a bake was made (enough to reproduce it from the same source file).
 #[derive(Clone, Debug, PartialEq)]
@@ -100,14 +101,6 @@ pub struct BakedEnvelope {
     pub bounds: Vec<MeshletBounds>,
     pub classes: Vec<Class>,
     pub any_pose: AnyPoseBoxes,
-}
-
-/// Contour patches of a bake's mesh; their quads index the edges that
-/// [`skinned_edges`]`(mesh, visible_only)` rebuilds from the stored triangles.
-#[derive(Clone, Debug, PartialEq)]
-pub struct BakedContours {
-    pub visible_only: bool,
-    pub patches: SkinnedPatches,
 }
 
 /// Precomputation figures of a bake (not stored: they depend on the machine).
@@ -264,10 +257,7 @@ fn baked_clips<'a>(baked: &Baked, asset: &'a Asset) -> Result<Vec<&'a Clip>> {
 /// targets and pose envelope.
 const TAGS: [&[u8; 4]; 11] =
     [b"INFO", b"SKIN", b"VERT", b"TRIS", b"MLET", b"BNDS", b"PART", b"OVDR", b"CONT", b"MRPH", b"ENVL"];
-const MORPH_WEIGHT_STRIDE: usize = 12;
-const MORPH_DELTA_STRIDE: usize = 28;
 const PART_STRIDE: usize = 40;
-const PATCH_STRIDE: usize = 48;
 const HEADER: usize = 16;
 const ENTRY: usize = 24;
 
@@ -722,7 +712,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
         })
         .collect::<Result<Vec<_>>>()?;
     s.end()?;
-    let morphs = if found[9].is_some() { read_morphs(section(9)?, vertices)? } else { Morphs::default() };
+    let morphs = read_morphs(&view)?;
     let mesh = SkinnedMesh { positions, normals, triangles, influences, morphs };
 
     let s = section(4)?;
@@ -732,7 +722,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
     let (bounds, classes): (Vec<MeshletBounds>, Vec<Class>) = bounds_and_classes(view.meshlet_bounds()?);
     let parts = read_parts(section(6)?, &mesh, &meshlets)?;
     let overdraw = if found[7].is_some() { Some(read_orders(section(7)?, &mesh, &parts, clips_len)?) } else { None };
-    let contours = if found[8].is_some() { Some(read_contours(section(8)?, &mesh, joints)?) } else { None };
+    let contours = view.contours()?.map(|(c, _)| c);
     let envelope = if found[10].is_some() { Some(read_envelope(&view, section(10)?, &mesh)?) } else { None };
     Ok(Baked {
         settings,
@@ -763,25 +753,16 @@ fn read_envelope(view: &BakeView, mut s: In, mesh: &SkinnedMesh) -> Result<Baked
     Ok(BakedEnvelope { envelope, names, bounds, classes, any_pose: e.any_pose() })
 }
 
-/// The MRPH section: the morph weights, then per vertex its first delta (one more offset
-/// than vertices), then the deltas; checked like any [`Morphs`].
-fn read_morphs(mut s: In, vertices: usize) -> Result<Morphs> {
-    let n = s.count("morph weights", MORPH_WEIGHT_STRIDE)?;
-    let d = s.count("morph deltas", MORPH_DELTA_STRIDE)?;
-    let weights = (0..n)
-        .map(|_| Ok(MorphWeight { node: s.u32()?, target: s.u32()?, default: s.f32()? }))
-        .collect::<Result<Vec<_>>>()?;
-    if (vertices + 1).saturating_mul(4) > s.b.len() - s.at {
-        return Err(s.err(format!("{} vertex offsets do not fit in the section", vertices + 1)));
-    }
-    let offsets = (0..=vertices).map(|_| s.u32()).collect::<Result<Vec<_>>>()?;
-    let deltas = (0..d)
-        .map(|_| Ok(MorphDelta { weight: s.u32()?, position: s.vec3()?, normal: s.vec3()? }))
-        .collect::<Result<Vec<_>>>()?;
-    s.end()?;
-    let morphs = Morphs { weights, offsets, deltas };
-    morphs.check(vertices).map_err(|e| s.err(e))?;
-    Ok(morphs)
+/// The MRPH section as the runtime's view reads and checks it ([`BakeView::morphs`]).
+fn read_morphs(view: &BakeView) -> Result<Morphs> {
+    let Some(m) = view.morphs()? else { return Ok(Morphs::default()) };
+    Ok(Morphs {
+        weights: m.weights.iter().map(|w| MorphWeight { node: w.node, target: w.target, default: w.default }).collect(),
+        offsets: m.offsets.to_vec(),
+        deltas: (m.deltas.iter())
+            .map(|d| MorphDelta { weight: d.weight, position: d.position.into(), normal: d.normal.into() })
+            .collect(),
+    })
 }
 
 /// The PART section: consecutive ranges covering the vertices, triangles and meshlets, each
@@ -816,95 +797,6 @@ fn read_parts(mut s: In, mesh: &SkinnedMesh, meshlets: &Meshlets) -> Result<Vec<
         return Err(s.err("the parts do not cover every vertex, triangle and meshlet"));
     }
     Ok(parts)
-}
-
-/// The CONT section: patches partition the rebuilt edges' quads, ranges contiguous, joints
-/// and numbers in range.
-fn read_contours(mut s: In, mesh: &SkinnedMesh, joints: usize) -> Result<BakedContours> {
-    let visible_only = match s.u32()? {
-        0 => false,
-        1 => true,
-        x => return Err(s.err(format!("visible-only flag {x}"))),
-    };
-    let (quads, n, always_from) = (s.u32()? as usize, s.u32()? as usize, s.u32()? as usize);
-    let (rigid_quads, animated_quads) = (s.u32()? as usize, s.u32()? as usize);
-    let mut f64s = [0.0; 4];
-    for x in &mut f64s {
-        *x = f64::from_le_bytes(s.bytes(8)?.try_into().expect("8 bytes"));
-        if !x.is_finite() {
-            return Err(s.err("non-finite statistic"));
-        }
-    }
-    s.align(64)?;
-    let edges = skinned_edges(mesh, visible_only).map_err(|e| s.err(e))?;
-    if quads != edges.quads.len() || always_from > quads || n.saturating_mul(PATCH_STRIDE) > s.b.len() {
-        return Err(s.err(format!("{quads} quads ({} in the mesh), {always_from} in {n} patches", edges.quads.len())));
-    }
-    let mut p = Patches {
-        always_from,
-        size: f64s[0],
-        mean_radius: f64s[1],
-        mean_angle_deg: f64s[2],
-        cost_ratio: f64s[3],
-        ..Patches::default()
-    };
-    let mut patch_joints = Vec::with_capacity(n);
-    for i in 0..n {
-        let (center, radius, axis, sin_angle, cos_angle) = (s.vec3()?, s.f32()?, s.vec3()?, s.f32()?, s.f32()?);
-        let (joint, first, count) = (s.u32()?, s.u32()?, s.u32()?);
-        let at = p.ranges.last().map_or(0, |r: &[u32; 2]| r[0] as usize + r[1] as usize);
-        if joint as usize >= joints
-            || first as usize != at
-            || count == 0
-            || radius < 0.0
-            || !(-1.0..=1.0).contains(&sin_angle)
-            || !(-1.0..=1.0).contains(&cos_angle)
-        {
-            return Err(s.err(format!(
-                "patch {i}: joint {joint}, edges {first}+{count}, radius {radius}, sin/cos {sin_angle}/{cos_angle}"
-            )));
-        }
-        p.bounds.push(PatchBounds { center, radius, axis, sin_angle, cos_angle });
-        p.ranges.push([first, count]);
-        patch_joints.push(joint as u16);
-    }
-    if p.ranges.last().map_or(0, |r| r[0] as usize + r[1] as usize) != always_from {
-        return Err(s.err(format!("patches hold other than {always_from} quads")));
-    }
-    p.order = (0..quads).map(|_| s.u32()).collect::<Result<Vec<_>>>()?;
-    let mut seen = vec![false; quads];
-    for &q in &p.order {
-        if std::mem::replace(seen.get_mut(q as usize).ok_or_else(|| s.err(format!("quad {q} of {quads}")))?, true) {
-            return Err(s.err(format!("quad {q} appears twice")));
-        }
-    }
-    let n_clips = s.count("clip window lists", 16)?;
-    let mut clips = Vec::with_capacity(n_clips);
-    let mut total = 0u32;
-    for c in 0..n_clips {
-        let w = ClipWindows { start: s.f32()?, end: s.f32()?, count: s.u32()?, first: s.u32()? };
-        if w.first != total || w.count == 0 || w.end < w.start {
-            return Err(s.err(format!("clip {c}: windows {}+{} over [{}, {}]", w.first, w.count, w.start, w.end)));
-        }
-        total = w.first.saturating_add(w.count);
-        clips.push(w);
-    }
-    let cells = (total as usize).checked_mul(n).filter(|c| c.saturating_mul(12) <= s.b.len() - s.at);
-    let cells = cells.ok_or_else(|| s.err(format!("{total} windows x {n} patches do not fit in the section")))?;
-    let mut window_bounds = Vec::with_capacity(cells);
-    for i in 0..cells {
-        let (radius, sin_angle, cos_angle) = (s.f32()?, s.f32()?, s.f32()?);
-        if radius < 0.0 || !(-1.0..=1.0).contains(&sin_angle) || !(-1.0..=1.0).contains(&cos_angle) {
-            return Err(s.err(format!("window bound {i}: radius {radius}, sin/cos {sin_angle}/{cos_angle}")));
-        }
-        window_bounds.push(PatchBounds { radius, sin_angle, cos_angle, ..p.bounds[i % n] });
-    }
-    s.end()?;
-    p.quads = p.order.iter().map(|&q| edges.quads[q as usize]).collect();
-    Ok(BakedContours {
-        visible_only,
-        patches: SkinnedPatches { patches: p, joints: patch_joints, rigid_quads, animated_quads, clips, window_bounds },
-    })
 }
 
 /// The OVDR section: every buffer a permutation of the triangles, table entries in range.
@@ -1064,6 +956,9 @@ mod tests {
         let clips: Vec<_> = asset.clips.iter().collect();
         let envelope = Envelope::from_clips(&asset.skeleton, &b.palette(), &b.mesh, &clips, 0.1).unwrap();
         add_envelope(&mut b, &asset, envelope).unwrap();
+        let how = crate::contour::skinned::refinement(None, 0);
+        let sp = SkinnedParams::new(crate::contour::skinned::SkinnedMethod::Animated, how);
+        add_contours(&mut b, &asset, &sp, true).unwrap();
         let bytes = to_bytes(&b);
         let view = BakeView::new(&bytes).unwrap();
         let records = view.meshlet_bounds().unwrap();
@@ -1101,6 +996,24 @@ mod tests {
         let culler = culler.with_any_pose(&e.any_pose).unwrap();
         let from_view = ev.culler(b.inverse_bind.len()).unwrap();
         assert_eq!((from_view.slots(), from_view.any_pose_boxes()), (culler.slots(), culler.any_pose_boxes()));
+        // Morph targets as slices of the file; contour patches with the edges they index.
+        let (m, mv) = (&b.mesh.morphs, view.morphs().unwrap().unwrap());
+        assert!(!m.deltas.is_empty());
+        assert!(std::ptr::eq(mv.weights.as_ptr().cast::<u8>(), &bytes[section_start(&bytes, b"MRPH") + 8]));
+        assert_eq!(mv.offsets, &m.offsets[..]);
+        for v in 0..b.mesh.positions.len() {
+            let (want, got) = (m.of(v), mv.of(v));
+            assert_eq!(want.len(), got.len());
+            for (w, g) in want.iter().zip(got) {
+                assert_eq!((w.weight, w.position.to_array(), w.normal.to_array()), (g.weight, g.position, g.normal));
+            }
+        }
+        let defaults: Vec<_> = mv.weights.iter().map(|w| (w.node, w.target, w.default)).collect();
+        assert_eq!(defaults, m.weights.iter().map(|w| (w.node, w.target, w.default)).collect::<Vec<_>>());
+        let (contours, edges) = view.contours().unwrap().unwrap();
+        assert_eq!(Some(&contours), b.contours.as_ref());
+        assert_eq!(edges, skinned_edges(&b.mesh, true).unwrap());
+        assert!(edges.dropped_concave > 0, "the demo has concave rigid quads to leave out");
         let mut shifted = vec![0u8; bytes.len() + 1];
         shifted[1..].copy_from_slice(&bytes);
         assert!(BakeView::new(&shifted[1..]).unwrap_err().to_string().contains("aligned"));
@@ -1144,8 +1057,13 @@ mod tests {
             b[at] ^= 1 << (rng >> 60 & 7);
             // The runtime view's vertex, triangle and meshlet slices: an error, never a panic.
             let view = BakeView::new(&b).ok();
-            let slices =
-                view.map(|v| (v.vertices().is_ok(), v.triangles().is_ok(), v.meshlets().map(|m| m.index_buffer())));
+            let slices = view.map(|v| {
+                (
+                    v.vertices().is_ok() && v.morphs().is_ok(),
+                    v.triangles().is_ok(),
+                    v.meshlets().map(|m| m.index_buffer()),
+                )
+            });
             // Many flips (e.g. in a float's low bits) are valid: those must run everywhere.
             if let Ok(back) = from_bytes(&b) {
                 check_consumers(&back).unwrap();
@@ -1206,7 +1124,7 @@ mod tests {
         let mut bytes = to_bytes(&b);
         let start = section_start(&bytes, b"MRPH");
         let mo = &b.mesh.morphs;
-        let first_delta = start + 8 + MORPH_WEIGHT_STRIDE * mo.weights.len() + 4 * mo.offsets.len();
+        let first_delta = start + 8 + 12 * mo.weights.len() + 4 * mo.offsets.len();
         bytes[first_delta..first_delta + 4].copy_from_slice(&9u32.to_le_bytes());
         let m = msg(&bytes);
         assert!(m.contains("MRPH") && m.contains("a delta uses weight 9 of 2"), "{m}");

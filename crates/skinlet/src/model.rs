@@ -95,7 +95,7 @@ pub struct Skin {
 /// Per-vertex joint influences, `stride` (4 or 8, at most 8) slots per vertex. Within a vertex the
 /// non-zero weights come first and sum to 1; unused slots have weight 0 and joint 0. Joint
 /// numbers index [`Skin::joints`]. The order of the non-zero slots means nothing to skinning:
-/// the importer and the demo write them by decreasing weight, [`crate::meshlet::prepare`]
+/// the importer and the demo write them by decreasing weight, [`crate::meshlet::prepare()`]
 /// sorts them by joint (the order a bake stores), and code that needs a vertex's strongest
 /// influence asks [`Influences::strongest`].
 #[derive(Clone, Debug, Default, PartialEq)]

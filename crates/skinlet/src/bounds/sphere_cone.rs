@@ -144,10 +144,7 @@ fn corner_normals_min_cos(b1: &Aabb, b2: &Aabb, b3: &Aabb, axis: DVec3) -> f64 {
     min_cos
 }
 
-pub(crate) fn round_up(x: f64) -> f32 {
-    let f = x as f32;
-    if (f as f64) >= x { f } else { f32::from_bits(f.to_bits() + 1) }
-}
+pub(crate) use skinlet_runtime::meshlet_bounds::round_up;
 
 /// Rest-pose bounds: principal joint, bounding sphere of the vertices in the joint's bind
 /// space (center of their box, radius to the farthest vertex), rest normal cone. The rest

@@ -19,15 +19,11 @@
 //! ([`edge_geometry`] refuses thinner ones), so a culled edge's test is certainly negative.
 
 use super::edges::quad_normals;
-use super::{Projection, Viewer};
-use crate::bounds::sphere_cone::round_up;
 use glam::{DVec3, Vec3};
 use std::f64::consts::FRAC_PI_2;
 
-/// Slack of the run-time cone test, in units of `sin`: covers the f32 rounding of the test
-/// itself (≈ 1e-6) and of stored bounds, with a wide safety factor. It costs nothing
-/// measurable: a patch within 1e-5 of the threshold is accepted.
-pub const MARGIN: f32 = 1e-5;
+/// The bounds as stored and tested at run time live in the runtime crate.
+pub use skinlet_runtime::contour_patches::{MARGIN, PatchBounds, ViewF, viewers};
 
 /// A face whose normal is shorter than this times the product of its two edge lengths (its
 /// angle's sine) is too thin to bound; its edges are never culled.
@@ -106,103 +102,6 @@ pub fn line_distance(o: DVec3, a: DVec3, b: DVec3) -> f64 {
 pub fn acceptance(alpha: f64, r: f64, d_cam: f64) -> f64 {
     let s = alpha + (r / d_cam).min(1.0).asin();
     if s >= FRAC_PI_2 { 1.0 } else { s.sin() }
-}
-
-/// Bounds as the run-time test reads them (f32, rounded outward).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PatchBounds {
-    pub center: Vec3,
-    pub radius: f32,
-    pub axis: Vec3,
-    pub sin_angle: f32,
-    /// Negative for cones wider than π/2 (never culled).
-    pub cos_angle: f32,
-}
-
-impl PatchBounds {
-    /// Never culled.
-    pub const ALWAYS: PatchBounds =
-        PatchBounds { center: Vec3::ZERO, radius: 0.0, axis: Vec3::Z, sin_angle: 1.0, cos_angle: -1.0 };
-
-    /// From f64 bounds, the radius and angle rounded up (a radius that is not finite or an
-    /// angle from π/2 on: never culled, center and axis kept; a center or axis that is not
-    /// finite: [`Self::ALWAYS`]).
-    pub fn new(center: DVec3, radius: f64, axis: DVec3, angle: f64) -> PatchBounds {
-        if !(axis.is_finite() && center.is_finite()) {
-            return PatchBounds::ALWAYS;
-        }
-        let axis32 = axis.as_vec3().normalize();
-        PatchBounds { center: center.as_vec3(), axis: axis32, ..PatchBounds::ALWAYS }.with_extent(center, radius, angle)
-    }
-
-    /// The same center and axis with another radius and angle around them (e.g. a bound over
-    /// part of a clip): radius and angle rounded up; from π/2 on, never culled.
-    pub fn with_extent(&self, center: DVec3, radius: f64, angle: f64) -> PatchBounds {
-        if angle >= FRAC_PI_2 || !radius.is_finite() {
-            return PatchBounds { sin_angle: 1.0, cos_angle: -1.0, ..*self };
-        }
-        // 1e-7 rad covers the f32 rounding of the stored axis and the sin/cos below.
-        let angle = angle + 1e-7;
-        let radius = radius * (1.0 + 1e-6) + center.distance(self.center.as_dvec3());
-        PatchBounds {
-            radius: round_up(radius),
-            sin_angle: round_up(angle.sin()),
-            cos_angle: (angle.cos() as f32).min(angle.cos() as f32 - f32::EPSILON * 0.5),
-            ..*self
-        }
-    }
-
-    /// Eq. 1 with [`MARGIN`]: `false` means no edge bounded by this patch can be a contour.
-    #[inline(always)]
-    pub fn accepts(&self, view: &ViewF) -> bool {
-        match view {
-            ViewF::Eye(eye) => self.accepts_eye(*eye),
-            ViewF::Dir(dir) => self.accepts_dir(*dir),
-        }
-    }
-
-    /// [`Self::accepts`] for a perspective eye, without branches (patches are tested in
-    /// batches, where a mispredicted branch per patch would cost more than the test).
-    #[inline(always)]
-    pub fn accepts_eye(&self, eye: Vec3) -> bool {
-        let d = self.center - eye;
-        let dist2 = d.length_squared();
-        let r = self.radius;
-        let inv = dist2.sqrt().recip();
-        let sin_b = (r * inv).min(1.0);
-        let cos_b = (1.0 - sin_b * sin_b).max(0.0).sqrt();
-        let cos_sum = self.cos_angle * cos_b - self.sin_angle * sin_b;
-        let sin_sum = self.sin_angle * cos_b + self.cos_angle * sin_b;
-        // Inside the sphere (or at its center) the test says nothing: accept.
-        (dist2 <= r * r * (1.0 + 1e-4)) | (cos_sum <= MARGIN) | ((self.axis.dot(d) * inv).abs() <= sin_sum + MARGIN)
-    }
-
-    /// [`Self::accepts`] for an orthographic view along unit `dir`.
-    #[inline(always)]
-    pub fn accepts_dir(&self, dir: Vec3) -> bool {
-        (self.cos_angle <= MARGIN) | (self.axis.dot(dir).abs() <= self.sin_angle + MARGIN)
-    }
-}
-
-/// The viewer as cone tests use it (f32).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum ViewF {
-    Eye(Vec3),
-    Dir(Vec3),
-}
-
-impl ViewF {
-    pub fn new(projection: Projection) -> ViewF {
-        match projection {
-            Projection::Perspective { eye } => ViewF::Eye(eye),
-            Projection::Orthographic { dir } => ViewF::Dir(dir.normalize()),
-        }
-    }
-}
-
-/// Both viewers of a projection.
-pub(crate) fn viewers(projection: Projection) -> (Viewer, ViewF) {
-    (Viewer::new(projection), ViewF::new(projection))
 }
 
 #[cfg(test)]

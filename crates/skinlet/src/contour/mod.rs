@@ -4,8 +4,8 @@
 //! A mesh contour edge joins a front-facing face to one that is not (section 1): with the
 //! viewer at `e`, face `(a, b, c)` is front-facing when `((b − a) × (c − a)) · (e − a) > 0`
 //! (orthographic views: `−dir` instead of `e − a`). Modules:
-//! - [`edges`]: the edge structure (quads `a, b, c, d`, boundary and irregular edges, the
-//!   concave filter).
+//! - [`edges`] (in `skinlet_runtime`): the edge structure (quads `a, b, c, d`, boundary and
+//!   irregular edges, the concave filter) and the per-edge test.
 //! - [`bound`]: spatialized normal cones — Mean and Reduced Sphere (section 3.1), the cone
 //!   test `|n·s| ≤ sin(α + β)` (eq. 1) — and the acceptance metric and cost (section 3.2).
 //! - [`patches`]: greedy patch fusion with the k-best cache and space partition (3.3).
@@ -22,99 +22,23 @@
 //! too thin for their normal to have a reliable direction are never culled.
 
 pub mod bound;
-pub mod edges;
 pub mod evaluate;
 pub mod meshlet_patches;
 pub mod patches;
 pub mod skinned;
 pub mod snch;
 
-pub use crate::cull::Projection;
-pub use edges::{Edges, Irregular};
-
-use edges::quad_normals;
-use glam::{DVec3, Vec3};
-
-/// What an extraction did: edges tested and bounding volumes (patches, nodes) tested.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Tested {
-    pub edges: usize,
-    pub bounds: usize,
-}
-
-/// The viewer as the edge test uses it (f64).
-#[derive(Clone, Copy, Debug)]
-pub struct Viewer {
-    /// The eye, or for orthographic views the unit vector toward the viewer.
-    v: DVec3,
-    ortho: bool,
-}
-
-impl Viewer {
-    pub fn new(projection: Projection) -> Viewer {
-        match projection {
-            Projection::Perspective { eye } => Viewer { v: eye.as_dvec3(), ortho: false },
-            Projection::Orthographic { dir } => Viewer { v: -dir.as_dvec3(), ortho: true },
-        }
-    }
-
-    /// A vector from point `a` toward the viewer.
-    #[inline(always)]
-    pub fn toward(&self, a: DVec3) -> DVec3 {
-        if self.ortho { self.v } else { self.v - a }
-    }
-}
-
-/// The contour test of a quad `(a, b, c, d)`: faces `(a, b, c)` and `(b, a, d)` differ in facing.
-#[inline(always)]
-pub fn quad_is_contour(p: &[Vec3], q: [u32; 4], viewer: &Viewer) -> bool {
-    let [a, b, c, d] = q.map(|i| p[i as usize].as_dvec3());
-    let (n1, n2) = quad_normals(a, b, c, d);
-    let v = viewer.toward(a);
-    (n1.dot(v) > 0.0) != (n2.dot(v) > 0.0)
-}
-
-/// The contour test of an irregular edge: its faces do not all face the same way (each face
-/// with its own winding, measured at the edge's first vertex, which lies on every face).
-pub fn irregular_is_contour(p: &[Vec3], e: &Irregular, viewer: &Viewer) -> bool {
-    let v = viewer.toward(p[e.edge[0] as usize].as_dvec3());
-    let facing = |f: &[u32; 3]| {
-        let [x, y, z] = f.map(|i| p[i as usize].as_dvec3());
-        (y - x).cross(z - x).dot(v) > 0.0
-    };
-    let first = e.faces.first().map(facing);
-    e.faces.iter().any(|f| Some(facing(f)) != first)
-}
-
-/// Appends the contours of irregular edges and every boundary edge (no extractor culls them).
-pub(crate) fn extract_uncullable(p: &[Vec3], edges: &Edges, viewer: &Viewer, out: &mut Vec<u32>) -> usize {
-    let q = edges.quads.len() as u32;
-    for (i, e) in edges.irregular.iter().enumerate() {
-        if irregular_is_contour(p, e, viewer) {
-            out.push(q + i as u32);
-        }
-    }
-    let first_boundary = q + edges.irregular.len() as u32;
-    out.extend(first_boundary..first_boundary + edges.boundary.len() as u32);
-    edges.irregular.len()
-}
-
-/// The reference: tests every edge. `out` receives the contour edge identifiers, ascending.
-pub fn brute_force(positions: &[Vec3], edges: &Edges, projection: Projection, out: &mut Vec<u32>) -> Tested {
-    let viewer = Viewer::new(projection);
-    out.clear();
-    for (i, q) in edges.quads.iter().enumerate() {
-        if quad_is_contour(positions, *q, &viewer) {
-            out.push(i as u32);
-        }
-    }
-    let irregular = extract_uncullable(positions, edges, &viewer, out);
-    Tested { edges: edges.quads.len() + irregular, bounds: 0 }
-}
+pub use skinlet_runtime::camera::Projection;
+/// The edge structure and the per-edge test live in the runtime crate (what a game ships).
+pub use skinlet_runtime::contour_edges as edges;
+pub use skinlet_runtime::contour_edges::{
+    Edges, Irregular, Tested, Viewer, brute_force, extract_uncullable, irregular_is_contour, quad_is_contour,
+};
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::Vec3;
 
     #[test]
     fn sphere_contour_is_the_equator_band() {

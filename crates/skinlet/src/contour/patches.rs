@@ -18,16 +18,19 @@
 //!
 //! Guarantee (see [`super`]): extraction returns exactly the brute-force contour set.
 
+use super::Edges;
 use super::bound::{
-    EdgeGeometry, PatchBounds, ViewF, acceptance, cone_angle, edge_geometry, line_distance, mean_axis, mean_sphere,
-    reduced_sphere, viewers,
+    EdgeGeometry, PatchBounds, acceptance, cone_angle, edge_geometry, line_distance, mean_axis, mean_sphere,
+    reduced_sphere,
 };
-use super::{Edges, Projection, Tested, Viewer, extract_uncullable, quad_is_contour};
 use crate::bounds::cone::reference_axis;
 use crate::bounds::sphere_cone::round_up;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use std::f64::consts::PI;
+
+/// Patches as extraction reads them, and the extraction, live in the runtime crate.
+pub use skinlet_runtime::contour_patches::{Patches, test_quads};
 
 /// Which bounding sphere patches use (section 3.1).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -71,26 +74,6 @@ impl Default for PatchParams {
 /// on the 2-core EPYC VM of docs/PERFORMANCE.md: bunny 0.32, armadillo 0.36 (the paper's
 /// CPUs: 1.4 and 2.0; our patch test is branch-free and batched).
 pub const DEFAULT_COST_RATIO: f64 = 0.35;
-
-/// A patch decomposition, ready for extraction.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Patches {
-    pub bounds: Vec<PatchBounds>,
-    /// Per patch: first index into `order` and edge count.
-    pub ranges: Vec<[u32; 2]>,
-    /// Quad identifiers, patch after patch, then from `always_from` the quads tested every time.
-    pub order: Vec<u32>,
-    /// The quads of `order` (a copy, so extraction reads them in sequence).
-    pub quads: Vec<[u32; 4]>,
-    pub always_from: usize,
-    /// Model size the metric used (largest side of the quads' box).
-    pub size: f64,
-    /// The `t_P / t_e` the decomposition was optimized for (calibrated per machine).
-    pub cost_ratio: f64,
-    /// Mean radius (in model sizes) and cone half-angle (degrees) of the patches.
-    pub mean_radius: f64,
-    pub mean_angle_deg: f64,
-}
 
 /// One patch being built (f64).
 #[derive(Clone, Debug)]
@@ -538,73 +521,6 @@ pub fn assemble(edges: &Edges, built: Vec<BuiltPatch>, always: Vec<u32>, size: f
     p.order.extend(always);
     p.quads = p.order.iter().map(|&i| edges.quads[i as usize]).collect();
     p
-}
-
-impl Patches {
-    /// Contour edges (identifiers of [`Edges`], in patch order) for one view.
-    pub fn extract(&self, positions: &[Vec3], edges: &Edges, projection: Projection, out: &mut Vec<u32>) -> Tested {
-        let (viewer, view) = viewers(projection);
-        out.clear();
-        let mut tested = self.test_patches(positions, 0..self.len(), &self.bounds, Some(view), &viewer, out);
-        tested += self.test_always(positions, edges, &viewer, out);
-        Tested { edges: tested, bounds: self.bounds.len() }
-    }
-
-    pub fn len(&self) -> usize {
-        self.bounds.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.bounds.is_empty()
-    }
-
-    /// Tests the quads outside patches, the irregular edges, and adds the boundary edges;
-    /// returns the edges tested.
-    pub(crate) fn test_always(&self, positions: &[Vec3], edges: &Edges, viewer: &Viewer, out: &mut Vec<u32>) -> usize {
-        let rest = self.always_from..self.order.len();
-        test_quads(positions, &self.quads[rest.clone()], &self.order[rest.clone()], viewer, out);
-        rest.len() + extract_uncullable(positions, edges, viewer, out)
-    }
-
-    /// Tests patches `which` with `bounds` (one per patch in `which`) from `view` (`None`:
-    /// accept all), then the quads of the accepted ones; returns the quads tested. Cone tests
-    /// run in batches of 64 without branches, then the accepted patches' edges.
-    pub(crate) fn test_patches(
-        &self,
-        positions: &[Vec3],
-        which: std::ops::Range<usize>,
-        bounds: &[PatchBounds],
-        view: Option<ViewF>,
-        viewer: &Viewer,
-        out: &mut Vec<u32>,
-    ) -> usize {
-        let mut tested = 0;
-        let mut flags = [true; 64];
-        for (bounds, ranges) in bounds.chunks(64).zip(self.ranges[which].chunks(64)) {
-            match view {
-                Some(ViewF::Eye(eye)) => flags.iter_mut().zip(bounds).for_each(|(f, b)| *f = b.accepts_eye(eye)),
-                Some(ViewF::Dir(dir)) => flags.iter_mut().zip(bounds).for_each(|(f, b)| *f = b.accepts_dir(dir)),
-                None => {}
-            }
-            for (&accepted, r) in flags.iter().zip(ranges) {
-                if accepted {
-                    let range = r[0] as usize..(r[0] + r[1]) as usize;
-                    test_quads(positions, &self.quads[range.clone()], &self.order[range], viewer, out);
-                    tested += r[1] as usize;
-                }
-            }
-        }
-        tested
-    }
-}
-
-#[inline(always)]
-pub(crate) fn test_quads(p: &[Vec3], quads: &[[u32; 4]], ids: &[u32], viewer: &Viewer, out: &mut Vec<u32>) {
-    for (q, &id) in quads.iter().zip(ids) {
-        if quad_is_contour(p, *q, viewer) {
-            out.push(id);
-        }
-    }
 }
 
 /// Exact bounds of arbitrary quads (for baselines and checks): Reduced Sphere and mean cone.

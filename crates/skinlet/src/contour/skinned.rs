@@ -23,9 +23,9 @@
 //! times its `2(|e1| + |e2|)/|n|`, and each patch's cone is widened by four times the
 //! largest such turn among its faces. Tested on every shared asset over sampled frames.
 
-use super::bound::{EdgeGeometry, PatchBounds, ViewF, quad_geometry};
+use super::Edges;
+use super::bound::{EdgeGeometry, quad_geometry};
 use super::patches::{BuiltPatch, PatchParams, Patches, assemble, fuse, patch_around, size_of};
-use super::{Edges, Projection, Tested, Viewer};
 use crate::bounds::cone::reference_axis;
 use crate::bounds::refine::{PieceExtent, Refinement, refine};
 use crate::clip::Clip;
@@ -37,6 +37,9 @@ use glam::{DMat4, DVec3, Vec3};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
+
+/// Skinned patches as extraction reads them, and the extraction, live in the runtime crate.
+pub use skinlet_runtime::contour_patches::{ClipWindows, SkinnedPatches, joint_view, rigid_quad};
 
 /// Relative f32 rounding of skinned positions, as the bounds module allows for it.
 pub const SKIN_ROUNDING: f64 = crate::bounds::INFLATE;
@@ -78,47 +81,6 @@ impl SkinnedParams {
 /// Windows per clip by default: bounds over an eighth of a clip are much tighter than over
 /// all clips (Fox: ×1.35 → ×2.0 over brute force) for 8× the bound memory.
 pub const DEFAULT_WINDOWS: usize = 8;
-
-/// Patches of a skinned mesh, bounds in their joints' spaces.
-#[derive(Clone, Debug, PartialEq)]
-pub struct SkinnedPatches {
-    /// The patches with bounds that hold over every clip.
-    pub patches: Patches,
-    /// Per patch, its joint (index into the skin's joints); patches of a joint are adjacent.
-    pub joints: Vec<u16>,
-    /// Quads in rigid patches / in animated (non-rigid) patches.
-    pub rigid_quads: usize,
-    pub animated_quads: usize,
-    /// Per clip (in the order given to [`build`]), its time windows.
-    pub clips: Vec<ClipWindows>,
-    /// Bounds over each window, window after window (`window_bounds[w * patches + i]`); same
-    /// centers and axes as `patches.bounds`, each at most as wide.
-    pub window_bounds: Vec<PatchBounds>,
-}
-
-/// The windows of one clip: `count` equal parts of `[start, end]` (its first and last key
-/// time; before and after, the pose stays the end keys'), numbered from `first`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ClipWindows {
-    pub start: f32,
-    pub end: f32,
-    pub count: u32,
-    pub first: u32,
-}
-
-impl ClipWindows {
-    /// The window `[a, b]` number `k` of the clip.
-    pub fn range(&self, k: u32) -> (f32, f32) {
-        let d = (self.end - self.start) / self.count as f32;
-        (self.start + d * k as f32, if k + 1 == self.count { self.end } else { self.start + d * (k + 1) as f32 })
-    }
-
-    /// The window holding time `t` (clamped to the clip).
-    pub fn at(&self, t: f32) -> u32 {
-        let x = (t - self.start) / (self.end - self.start) * self.count as f32;
-        if x.is_finite() { (x.max(0.0) as u32).min(self.count - 1) + self.first } else { self.first }
-    }
-}
 
 /// Builds the patches of `mesh` (welded, skinned by `skin`) for `clips`.
 pub fn build(
@@ -297,39 +259,25 @@ pub fn refinement(budget: Option<std::time::Duration>, max_rounds: usize) -> Ref
 }
 
 /// The edges of a skinned mesh; with `visible_only`, minus the concave rigid quads (their
-/// concavity cannot change, so their contours are always hidden).
+/// concavity cannot change, so their contours are always hidden): what a bake's `CONT`
+/// patches index ([`skinlet_runtime::contour_patches::skinned_edges`]).
 pub fn skinned_edges(mesh: &SkinnedMesh, visible_only: bool) -> Result<Edges> {
-    let mut edges = Edges::build(&mesh.positions, &mesh.triangles)?;
-    if visible_only {
-        let rigid = rigid_vertices(mesh);
-        edges.drop_concave(&mesh.positions, |q| rigid_quad(&rigid, q));
-    }
-    Ok(edges)
+    let rigid = visible_only.then(|| rigid_vertices(mesh));
+    Ok(skinlet_runtime::contour_patches::skinned_edges(&mesh.positions, &mesh.triangles, rigid.as_deref())?)
 }
 
-/// Per vertex, the joint that carries all its weight (a single influence of weight exactly
-/// 1; with any other weight `w`, `w·G·x` is not fixed in the joint's space) when no morph
-/// target moves it.
+/// Per vertex, the joint that carries all its weight rigidly, when no morph target moves it
+/// ([`skinlet_runtime::contour_patches::rigid_vertices`]).
 pub fn rigid_vertices(mesh: &SkinnedMesh) -> Vec<Option<u16>> {
     let Some(inf) = &mesh.influences else { return vec![None; mesh.positions.len()] };
-    (0..mesh.positions.len())
-        .map(|v| {
-            if !mesh.morphs.of(v).is_empty() {
-                return None;
-            }
-            let mut it = inf.of(v).filter(|&(_, w)| w != 0.0);
-            match (it.next(), it.next()) {
-                (Some((j, 1.0)), None) => Some(j),
-                _ => None,
-            }
-        })
-        .collect()
-}
-
-/// A quad is rigid when its four vertices follow one joint rigidly.
-pub fn rigid_quad(rigid: &[Option<u16>], q: &[u32; 4]) -> bool {
-    let r = rigid[q[0] as usize];
-    r.is_some() && q.iter().all(|&v| rigid[v as usize] == r)
+    let morphed = |v: usize| !mesh.morphs.of(v).is_empty();
+    skinlet_runtime::contour_patches::rigid_vertices(
+        mesh.positions.len(),
+        inf.stride,
+        &inf.joints,
+        &inf.weights,
+        morphed,
+    )
 }
 
 /// Bounds of a rigid patch in its joint's space (`to_joint · x`): Reduced Sphere and the
@@ -391,109 +339,4 @@ fn model_extent(skeleton: &Skeleton, skin: &Skin, clips: &[&Clip], mesh: &Skinne
         }
     }
     Ok(2.0 * extent)
-}
-
-/// The viewer in the space of a joint whose global matrix has inverse `inverse` (`G⁻¹·eye`,
-/// or `A⁻¹·dir` normalized), as patch tests read it; `None` when that matrix is singular or
-/// not finite (such a joint says nothing about facing: its patches are all tested).
-pub fn joint_view(inverse: &DMat4, projection: Projection) -> Option<ViewF> {
-    let view = match projection {
-        Projection::Perspective { eye } => ViewF::Eye(inverse.transform_point3(eye.as_dvec3()).as_vec3()),
-        Projection::Orthographic { dir } => {
-            ViewF::Dir(inverse.transform_vector3(dir.as_dvec3()).normalize_or_zero().as_vec3())
-        }
-    };
-    let finite = match view {
-        ViewF::Eye(e) => e.is_finite(),
-        ViewF::Dir(d) => d.is_finite() && d != Vec3::ZERO,
-    };
-    finite.then_some(view)
-}
-
-impl SkinnedPatches {
-    /// The window of clip `clip` (index into the clips given to [`build`]) at time `t`.
-    pub fn window(&self, clip: usize, t: f32) -> Option<usize> {
-        self.clips.get(clip).map(|w| w.at(t) as usize)
-    }
-
-    /// Contour edges of the skinned `positions` for joints at global (model-space) matrices
-    /// `joint_globals` (one per skin joint), posed by `clip` at time `t` when `at` is given
-    /// (the window's bounds are used; otherwise those over every clip).
-    pub fn extract(
-        &self,
-        positions: &[Vec3],
-        edges: &Edges,
-        joint_globals: &[DMat4],
-        at: Option<(usize, f32)>,
-        projection: Projection,
-        out: &mut Vec<u32>,
-    ) -> Tested {
-        let inverse = |j: usize| joint_globals.get(j).map_or(DMat4::NAN, |g| g.inverse());
-        self.extract_with(positions, edges, inverse, at, projection, out)
-    }
-
-    /// [`Self::extract`] with the joints' inverse global matrices computed once per frame
-    /// (`joint_inverses[j] = joint_globals[j]⁻¹`), for several views of one frame.
-    pub fn extract_prepared(
-        &self,
-        positions: &[Vec3],
-        edges: &Edges,
-        joint_inverses: &[DMat4],
-        at: Option<(usize, f32)>,
-        projection: Projection,
-        out: &mut Vec<u32>,
-    ) -> Tested {
-        let inverse = |j: usize| joint_inverses.get(j).copied().unwrap_or(DMat4::NAN);
-        self.extract_with(positions, edges, inverse, at, projection, out)
-    }
-
-    /// Which bounds a frame uses: `w + 1` for window `w` of clip `at.0` at time `at.1` (when
-    /// given and built), else 0, the bounds over every clip. See [`Self::bound_set_bounds`].
-    pub fn bound_set(&self, at: Option<(usize, f32)>) -> usize {
-        let n = self.patches.len();
-        match at.and_then(|(c, t)| self.window(c, t)) {
-            Some(w) if self.window_bounds.len() >= (w + 1) * n => w + 1,
-            _ => 0,
-        }
-    }
-
-    /// The bounds of set `set` (one per patch; 0: over every clip, `w + 1`: window `w`).
-    pub fn bound_set_bounds(&self, set: usize) -> &[PatchBounds] {
-        let n = self.patches.len();
-        match set {
-            0 => &self.patches.bounds,
-            w => self.window_bounds.get((w - 1) * n..w * n).unwrap_or(&self.patches.bounds),
-        }
-    }
-
-    /// The number of bound sets: 1 + the windows built.
-    pub fn bound_sets(&self) -> usize {
-        1 + self.window_bounds.len().checked_div(self.patches.len()).unwrap_or(0)
-    }
-
-    fn extract_with(
-        &self,
-        positions: &[Vec3],
-        edges: &Edges,
-        inverse: impl Fn(usize) -> DMat4,
-        at: Option<(usize, f32)>,
-        projection: Projection,
-        out: &mut Vec<u32>,
-    ) -> Tested {
-        let all_bounds = self.bound_set_bounds(self.bound_set(at));
-        let viewer = Viewer::new(projection);
-        out.clear();
-        let p = &self.patches;
-        let mut tested = 0;
-        let mut start = 0;
-        while start < self.joints.len() {
-            let j = self.joints[start];
-            let end = start + self.joints[start..].iter().take_while(|&&x| x == j).count();
-            let view = joint_view(&inverse(j as usize), projection);
-            tested += p.test_patches(positions, start..end, &all_bounds[start..end], view, &viewer, out);
-            start = end;
-        }
-        tested += p.test_always(positions, edges, &viewer, out);
-        Tested { edges: tested, bounds: p.len() }
-    }
 }

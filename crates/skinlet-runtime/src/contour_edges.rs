@@ -1,9 +1,16 @@
-//! The edge structure of contour extraction (Tsiapkolis & Bénard 2024, section 4.1): every
-//! unique edge of a triangle mesh with what the contour test needs.
+//! The edge structure of contour extraction (Tsiapkolis & Bénard 2024, "Patch Decomposition
+//! for Efficient Mesh Contours Extraction", section 4.1): every unique edge of a triangle mesh
+//! with what the contour test needs, and that test.
+//!
+//! A mesh contour edge joins a front-facing face to one that is not (section 1): with the
+//! viewer at `e`, face `(a, b, c)` is front-facing when `((b − a) × (c − a)) · (e − a) > 0`
+//! (orthographic views: `−dir` instead of `e − a`). Every extractor (brute force here, the
+//! patches of [`crate::contour_patches`], the baker's baselines) runs this one test, in f64
+//! on the f32 positions, so their results can be compared edge for edge.
 //!
 //! - *Quads* `(a, b, c, d)`: interior edges with exactly two faces of consistent winding,
 //!   `(a, b, c)` and `(b, a, d)`. Contour when one face is front-facing and the other not
-//!   (see [`super::quad_is_contour`]); the quads are what patches, hierarchies and meshlets cull.
+//!   (see [`quad_is_contour`]); the quads are what patches, hierarchies and meshlets cull.
 //! - *Irregular* edges: more than two faces, or two faces that wind the edge the same way.
 //!   Contour when their faces do not all face the same way; always tested (never culled).
 //! - *Boundary* edges (one face): the border of an open surface, always part of the result.
@@ -17,6 +24,7 @@
 //! seen from outside, exceeds π: their contours are always hidden by the adjacent faces, so
 //! line drawings and shadow volumes do not need them (the paper applies it to all models).
 
+use crate::camera::Projection;
 use crate::{Error, Result};
 use glam::{DVec3, Vec3};
 
@@ -141,6 +149,85 @@ fn concave(p: &[Vec3], q: &[u32; 4]) -> bool {
 pub fn quad_normals(a: DVec3, b: DVec3, c: DVec3, d: DVec3) -> (DVec3, DVec3) {
     let ab = b - a;
     (ab.cross(c - a), (d - a).cross(ab))
+}
+
+/// What an extraction did: edges tested and bounding volumes (patches, nodes) tested.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Tested {
+    pub edges: usize,
+    pub bounds: usize,
+}
+
+/// The viewer as the edge test uses it (f64).
+#[derive(Clone, Copy, Debug)]
+pub struct Viewer {
+    /// The eye, or for orthographic views the unit vector toward the viewer.
+    v: DVec3,
+    ortho: bool,
+}
+
+impl Viewer {
+    pub fn new(projection: Projection) -> Viewer {
+        match projection {
+            Projection::Perspective { eye } => Viewer { v: eye.as_dvec3(), ortho: false },
+            Projection::Orthographic { dir } => Viewer { v: -dir.as_dvec3(), ortho: true },
+        }
+    }
+
+    /// A vector from point `a` toward the viewer.
+    #[inline(always)]
+    pub fn toward(&self, a: DVec3) -> DVec3 {
+        if self.ortho { self.v } else { self.v - a }
+    }
+}
+
+/// The contour test of a quad `(a, b, c, d)`: faces `(a, b, c)` and `(b, a, d)` differ in facing.
+#[inline(always)]
+pub fn quad_is_contour(p: &[Vec3], q: [u32; 4], viewer: &Viewer) -> bool {
+    let [a, b, c, d] = q.map(|i| p[i as usize].as_dvec3());
+    let (n1, n2) = quad_normals(a, b, c, d);
+    let v = viewer.toward(a);
+    (n1.dot(v) > 0.0) != (n2.dot(v) > 0.0)
+}
+
+/// The contour test of an irregular edge: its faces do not all face the same way (each face
+/// with its own winding, measured at the edge's first vertex, which lies on every face).
+pub fn irregular_is_contour(p: &[Vec3], e: &Irregular, viewer: &Viewer) -> bool {
+    let v = viewer.toward(p[e.edge[0] as usize].as_dvec3());
+    let facing = |f: &[u32; 3]| {
+        let [x, y, z] = f.map(|i| p[i as usize].as_dvec3());
+        (y - x).cross(z - x).dot(v) > 0.0
+    };
+    let first = e.faces.first().map(facing);
+    e.faces.iter().any(|f| Some(facing(f)) != first)
+}
+
+/// Appends the contours of irregular edges and every boundary edge (no extractor culls them);
+/// returns the irregular edges tested.
+pub fn extract_uncullable(p: &[Vec3], edges: &Edges, viewer: &Viewer, out: &mut Vec<u32>) -> usize {
+    let q = edges.quads.len() as u32;
+    for (i, e) in edges.irregular.iter().enumerate() {
+        if irregular_is_contour(p, e, viewer) {
+            out.push(q + i as u32);
+        }
+    }
+    let first_boundary = q + edges.irregular.len() as u32;
+    out.extend(first_boundary..first_boundary + edges.boundary.len() as u32);
+    edges.irregular.len()
+}
+
+/// The reference: tests every edge. `out` receives the contour edge identifiers, ascending.
+/// `positions` must be the ones `edges` was built over (or a pose of them).
+pub fn brute_force(positions: &[Vec3], edges: &Edges, projection: Projection, out: &mut Vec<u32>) -> Tested {
+    let viewer = Viewer::new(projection);
+    out.clear();
+    for (i, q) in edges.quads.iter().enumerate() {
+        if quad_is_contour(positions, *q, &viewer) {
+            out.push(i as u32);
+        }
+    }
+    let irregular = extract_uncullable(positions, edges, &viewer, out);
+    Tested { edges: edges.quads.len() + irregular, bounds: 0 }
 }
 
 #[cfg(test)]
