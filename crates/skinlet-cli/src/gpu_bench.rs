@@ -153,7 +153,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let gpu = Gpu::new(GpuOptions { software: a.software, ..GpuOptions::default() })?;
     let height = (a.width * 9 / 16).max(1);
     let renderer = Renderer::new(&gpu, a.width, height)?;
-    let mesh = GpuMesh::new(&gpu, &baked.mesh, Some(&baked.meshlets))?;
+    let mesh = GpuMesh::new(&gpu, &baked.mesh.mesh_data(Some(baked.meshlets.view(&baked.meshlets.headers()))))?;
     // The bounds the culling uses: the clip bounds for clips, else the envelope's and the
     // any-pose boxes.
     let culler_of = |b: &skinlet::bake::Baked| match (&b.envelope, animation) {
@@ -178,7 +178,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         let env = crate::bake::envelope_of(&envelope_spec, &asset, &ci)?;
         skinlet::bake::add_envelope(&mut ci, &asset, env)?;
     }
-    let ci_mesh = GpuMesh::new(&gpu, &ci.mesh, Some(&ci.meshlets))?;
+    let ci_mesh = GpuMesh::new(&gpu, &ci.mesh.mesh_data(Some(ci.meshlets.view(&ci.meshlets.headers()))))?;
     let ci_culler = culler_of(&ci)?;
     // Per frame and instance: world-space skinning matrices, joint matrices, morph weights,
     // the pose guard's answer (clips: always).

@@ -111,7 +111,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         "meshlets" => {
             let prepared = prepare()?;
             let meshlets = skinlet::meshlet::build(&prepared, Builder::SkinAware, MeshletLimits::NVIDIA)?;
-            let gpu_mesh = GpuMesh::new(&gpu, &prepared.mesh, Some(&meshlets))?;
+            let gpu_mesh = GpuMesh::new(&gpu, &prepared.mesh.mesh_data(Some(meshlets.view(&meshlets.headers()))))?;
             let colors: Vec<[u8; 4]> = (0..meshlets.len()).map(id_color).collect();
             summary = json!({"meshlets": meshlets.len()});
             colored(&gpu_mesh, &colors)?
@@ -138,7 +138,8 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             }
             summary = json!({"meshlets": counts.meshlets, "kept": counts.visible, "frustum_culled": counts.frustum,
                 "backface_culled": counts.backface});
-            let gpu_mesh = GpuMesh::new(&gpu, &baked.mesh, Some(&baked.meshlets))?;
+            let gpu_mesh =
+                GpuMesh::new(&gpu, &baked.mesh.mesh_data(Some(baked.meshlets.view(&baked.meshlets.headers()))))?;
             let observer = framing(&posed, OBSERVER, 0.95)?.view_proj;
             renderer.render_colored(&gpu, &gpu_mesh, pose, observer, LIGHT, &colors)?
         }
@@ -154,7 +155,8 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             let count = |k: Class| baked.classes.iter().filter(|&&c| c == k).count();
             summary = json!({"meshlets": baked.meshlets.len(), "both": count(Class::Both),
                 "frustum_only": count(Class::FrustumOnly), "none": count(Class::None)});
-            let gpu_mesh = GpuMesh::new(&gpu, &baked.mesh, Some(&baked.meshlets))?;
+            let gpu_mesh =
+                GpuMesh::new(&gpu, &baked.mesh.mesh_data(Some(baked.meshlets.view(&baked.meshlets.headers()))))?;
             colored(&gpu_mesh, &colors)?
         }
         "contours" => {
@@ -163,7 +165,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             skinlet::bake::add_contours(&mut baked, &asset, &params, true)?;
             let patches = &baked.contours.as_ref().context("contours were just added")?.patches;
             let edges = skinned_edges(&baked.mesh, true)?;
-            let gpu_mesh = GpuMesh::new(&gpu, &baked.mesh, None)?;
+            let gpu_mesh = GpuMesh::new(&gpu, &baked.mesh.mesh_data(None))?;
             let shape = GpuContours::skinned(&gpu, &edges, patches)?;
             let extraction = ContourExtraction::new(&gpu)?;
             let camera = framing(&posed, FRONT, 1.0)?;
@@ -191,7 +193,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             let mut ratios = Vec::new();
             for order in [&baked.mesh.triangles, &orders.buffers[chosen]] {
                 let ordered = SkinnedMesh { triangles: order.clone(), ..baked.mesh.clone() };
-                let gpu_mesh = GpuMesh::new(&gpu, &ordered, None)?;
+                let gpu_mesh = GpuMesh::new(&gpu, &ordered.mesh_data(None))?;
                 let (counts, overdraw) = renderer.render_overdraw(&gpu, &gpu_mesh, pose, framing.view_proj(eye))?;
                 halves.push(skinlet::overdraw::measure::heatmap(&counts));
                 ratios.push(overdraw.ratio());
@@ -208,8 +210,8 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         }
         _ => {
             let (gpu_mesh, path) = match a.skinning.as_str() {
-                "vertex" => (GpuMesh::new(&gpu, mesh, None)?, Skinning::Vertex),
-                "compute" => (GpuMesh::new(&gpu, mesh, None)?, Skinning::Compute),
+                "vertex" => (GpuMesh::new(&gpu, &mesh.mesh_data(None))?, Skinning::Vertex),
+                "compute" => (GpuMesh::new(&gpu, &mesh.mesh_data(None))?, Skinning::Compute),
                 _ => {
                     let (builder, path) = match a.skinning.as_str() {
                         "mesh" => (Builder::SkinAware, Skinning::Mesh),
@@ -217,7 +219,8 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                     };
                     let prepared = prepare()?;
                     let meshlets = skinlet::meshlet::build(&prepared, builder, MeshletLimits::NVIDIA)?;
-                    let gpu_mesh = GpuMesh::new(&gpu, &prepared.mesh, Some(&meshlets))?;
+                    let gpu_mesh =
+                        GpuMesh::new(&gpu, &prepared.mesh.mesh_data(Some(meshlets.view(&meshlets.headers()))))?;
                     let m = gpu_mesh.meshlets.as_ref().context("uploaded with meshlets")?;
                     summary = json!({"meshlets": m.count, "slim_meshlets": m.slim,
                         "slim_vertices": m.slim_vertices, "fat_vertices": m.fat_vertices});

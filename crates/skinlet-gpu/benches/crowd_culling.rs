@@ -26,7 +26,11 @@ fn bench_asset(c: &mut Criterion, gpu: &Gpu, label: &str, asset: &skinlet::Asset
     let (baked, _) = skinlet::bake::bake(asset, &character, &clips, builder, limits, &how, &mut |_| {}).unwrap();
     let (skin, joints) = (baked.palette(), baked.inverse_bind.len());
     let culler = MeshletCuller::new(&baked.bounds, &baked.classes, joints).unwrap();
-    let (_, draws) = skinlet_gpu::mesh::meshlet_index_buffer(&baked.meshlets, baked.mesh.positions.len()).unwrap();
+    let (_, draws) = skinlet_gpu::mesh::meshlet_index_buffer(
+        &baked.meshlets.view(&baked.meshlets.headers()),
+        baked.mesh.positions.len(),
+    )
+    .unwrap();
     let params = CrowdParams { instances: INSTANCES, ..CrowdParams::default() };
     let scene = crowd(&baked.mesh.positions, clips.len(), &params).unwrap();
     let camera = &scene.camera;

@@ -78,7 +78,8 @@ fn run() -> Result<(bool, String)> {
     let inf = mesh.influences.as_ref().ok_or("the bake has no skin weights")?;
 
     // The index buffer in meshlet order, and each meshlet's range in it.
-    let (indices, draws) = skinlet_gpu::mesh::meshlet_index_buffer(&baked.meshlets, mesh.positions.len())?;
+    let (indices, draws) =
+        skinlet_gpu::mesh::meshlet_index_buffer(&baked.meshlets.view(&baked.meshlets.headers()), mesh.positions.len())?;
 
     // The crowd: placements and camera of skinlet's crowd scene, every instance on its clip.
     let params = CrowdParams { instances: 64, frames: 4, ..CrowdParams::default() };

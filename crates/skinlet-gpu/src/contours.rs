@@ -19,10 +19,9 @@ use crate::mesh::entry;
 use crate::skinning::buffer_entry;
 use crate::{Gpu, GpuError, Result};
 use glam::{DMat4, Vec3};
-use skinlet::contour::bound::{PatchBounds, ViewF};
-use skinlet::contour::patches::Patches;
-use skinlet::contour::skinned::{SkinnedPatches, joint_view};
-use skinlet::contour::{Edges, Projection};
+use skinlet_runtime::camera::Projection;
+use skinlet_runtime::contour_edges::Edges;
+use skinlet_runtime::contour_patches::{PatchBounds, Patches, SkinnedPatches, ViewF, joint_view};
 
 /// Quads tested every time (outside any patch) are split into groups of this many, so the
 /// edge pass spreads them over workgroups.

@@ -2,8 +2,9 @@
 //!
 //! - [`Gpu`]: a headless Vulkan device with the optional features the adapter offers (mesh
 //!   shaders, timestamps, subgroups, f64).
-//! - [`mesh`]: a skinned mesh (morph target deltas included) and its meshlets on the GPU; a
-//!   [`mesh::Pose`] is one draw's skinning matrices and morph weights.
+//! - [`mesh`]: a skinned mesh (morph target deltas included) and its meshlets on the GPU,
+//!   uploaded from a bake's `skinlet_runtime::bake_view::MeshData`; a [`mesh::Pose`] is one
+//!   draw's skinning matrices and morph weights.
 //! - [`skinning`]: compute-shader skinning, checked against skinlet's reference skinning.
 //! - [`render`]: offscreen drawing by vertex-, compute-, mesh-shader and slim mesh-shader
 //!   skinning (the same image), culled drawing (task shaders, or a compute pass and indirect

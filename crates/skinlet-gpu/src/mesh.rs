@@ -1,11 +1,11 @@
 //! A skinned mesh on the GPU: bind-pose vertices, influences, morph target deltas, triangles,
 //! and the buffers the compute path writes skinned vertices to; a [`Pose`] is what one draw
-//! moves it by.
+//! moves it by. The input is a mesh as a bake stores it ([`MeshData`]: from a bake file's
+//! [`skinlet_runtime::bake_view::BakeView::mesh_data`], or the baker's in-memory mesh).
 
 use crate::{Gpu, GpuError, Result};
 use glam::{Affine3A, Vec3};
-use skinlet::meshlet::Meshlets;
-use skinlet::model::{Influences, SkinnedMesh};
+use skinlet_runtime::bake_view::{MeshData, MeshletView, VertexView};
 
 /// Most vertices and triangles per meshlet the mesh shader emits (its output arrays).
 pub const MAX_MESHLET_VERTICES: usize = 128;
@@ -84,47 +84,58 @@ pub struct GpuMesh {
 }
 
 impl GpuMesh {
-    /// Uploads `mesh`, and `meshlets` of it if given (for mesh-shader drawing). Errors when it
-    /// has no skin weights, its lengths disagree, an index is out of range, or a meshlet is
-    /// larger than the mesh shader's outputs.
-    pub fn new(gpu: &Gpu, mesh: &SkinnedMesh, meshlets: Option<&Meshlets>) -> Result<GpuMesh> {
+    /// Uploads `mesh`, with its meshlets if it has them (for mesh-shader drawing and
+    /// meshlet culling). Errors when it has no skin weights, its lengths disagree, an index
+    /// is out of range, its morph targets or meshlets are malformed, or a meshlet is larger
+    /// than the mesh shader's outputs.
+    pub fn new(gpu: &Gpu, mesh: &MeshData) -> Result<GpuMesh> {
         let invalid = |message: String| GpuError::Invalid { location: "GPU mesh", message };
-        let inf = mesh.influences.as_ref().ok_or_else(|| invalid("the mesh has no skin weights".into()))?;
-        let n = inf.vertex_count();
-        let (positions, normals) = (&mesh.positions, &mesh.normals);
-        if positions.len() != n || !(normals.is_empty() || normals.len() == n) || n > u32::MAX as usize / 3 {
+        let v = &mesh.vertices;
+        let (positions, normals, stride) = (v.positions, v.normals, v.stride);
+        if stride == 0 {
+            return Err(invalid("the mesh has no skin weights".into()));
+        }
+        let n = positions.len();
+        if v.joints.len() != n * stride
+            || v.weights.len() != n * stride
+            || !(normals.is_empty() || normals.len() == n)
+            || n > u32::MAX as usize / 3
+        {
             return Err(invalid(format!(
-                "{n} influence sets but {} positions and {} normals",
-                positions.len(),
-                normals.len()
+                "{n} positions, {} normals, {} joints and {} weights at {stride} influences per vertex",
+                normals.len(),
+                v.joints.len(),
+                v.weights.len()
             )));
         }
         if let Some((t, tri)) = mesh.triangles.iter().enumerate().find(|(_, t)| t.iter().any(|&i| i as usize >= n)) {
             return Err(invalid(format!("triangle {t} {tri:?} indexes past {n} vertices")));
         }
-        let joints: Vec<u32> = inf.joints.iter().map(|&j| j as u32).collect();
-        let (indices, draws) = match meshlets {
+        let joints: Vec<u32> = v.joints.iter().map(|&j| j as u32).collect();
+        let (indices, draws) = match &mesh.meshlets {
             Some(m) => meshlet_index_buffer(m, n)?,
             None => (mesh.triangles.iter().flatten().copied().collect(), Vec::new()),
         };
-        let meshlets = meshlets.map(|m| upload_meshlets(gpu, m, inf, &draws)).transpose()?;
-        let morphs = &mesh.morphs;
-        morphs.check(n).map_err(|e| invalid(e.to_string()))?;
+        let meshlets = mesh.meshlets.as_ref().map(|m| upload_meshlets(gpu, m, v, &draws)).transpose()?;
+        if let Some(m) = &mesh.morphs {
+            m.check(n).map_err(|e| invalid(e.to_string()))?;
+        }
         // One u32 buffer: per vertex its first delta (one more offset than vertices), then
         // eight words per delta: position delta, weight index, normal delta, 0.
-        let mut morph_data: Vec<u32> = if morphs.is_empty() { vec![0] } else { morphs.offsets.clone() };
+        let mut morph_data: Vec<u32> = mesh.morphs.map_or(vec![0], |m| m.offsets.to_vec());
         let delta_base = morph_data.len() as u32;
-        for d in &morphs.deltas {
+        for d in mesh.morphs.iter().flat_map(|m| m.deltas) {
             let [px, py, pz] = d.position.to_array().map(f32::to_bits);
             let [nx, ny, nz] = d.normal.to_array().map(f32::to_bits);
             morph_data.extend([px, py, pz, d.weight, nx, ny, nz, 0]);
         }
-        let joint_count = inf.joints.iter().map(|&j| j as usize + 1).max().unwrap_or(0);
+        let joint_count = v.joints.iter().map(|&j| j as usize + 1).max().unwrap_or(0);
+        let morph_weights = mesh.morphs.map_or(0, |m| m.weights.len());
         let params: [u32; 8] = [
             n as u32,
-            inf.stride as u32,
+            stride as u32,
             !normals.is_empty() as u32,
-            !morphs.is_empty() as u32,
+            mesh.morphs.is_some() as u32,
             4 * joint_count as u32,
             delta_base,
             0,
@@ -135,12 +146,12 @@ impl GpuMesh {
             vertices: n as u32,
             has_normals: !normals.is_empty(),
             joint_count,
-            morph_weights: if morphs.is_empty() { 0 } else { morphs.weights.len() },
+            morph_weights,
             params: gpu.buffer("mesh params", &params, wgpu::BufferUsages::UNIFORM),
             positions: vec3_buffer(gpu, "positions", positions),
             normals: vec3_buffer(gpu, "normals", normals),
             joints: gpu.buffer("joints", &joints, wgpu::BufferUsages::STORAGE),
-            weights: gpu.buffer("weights", &inf.weights, wgpu::BufferUsages::STORAGE),
+            weights: gpu.buffer("weights", v.weights, wgpu::BufferUsages::STORAGE),
             morphs: gpu.buffer("morph deltas", &morph_data, wgpu::BufferUsages::STORAGE),
             indices: gpu.buffer("indices", &indices, wgpu::BufferUsages::INDEX),
             index_count: indices.len() as u32,
@@ -198,72 +209,49 @@ pub(crate) fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry
 
 /// An index buffer listing `m`'s triangles meshlet by meshlet (mesh vertex indices), and per
 /// meshlet its index count and first index in it: the `draws` of
-/// [`crate::crowd_culling::GpuCharacter::new`]. Errors as [`GpuMesh::new`] does for bad meshlets.
-pub fn meshlet_index_buffer(m: &Meshlets, vertices: usize) -> Result<(Vec<u32>, Vec<[u32; 2]>)> {
-    let indices: Vec<u32> = meshlet_triangles(m, vertices)?.into_iter().flatten().collect();
-    let mut first = 0;
-    let draws = (m.meshlets.iter())
-        .map(|ml| {
-            let draw = [3 * ml.triangle_count as u32, first];
-            first += draw[0];
-            draw
-        })
-        .collect();
-    Ok((indices, draws))
-}
-
-/// The meshlets' triangles in mesh vertex indices, meshlet by meshlet; errors when a meshlet
-/// exceeds the mesh shader's outputs or points past the mesh.
-fn meshlet_triangles(m: &Meshlets, vertices: usize) -> Result<Vec<[u32; 3]>> {
+/// [`crate::crowd_culling::GpuCharacter::new`]. Errors when a meshlet exceeds the mesh
+/// shader's outputs or points past its arrays or the mesh's `vertices`.
+pub fn meshlet_index_buffer(m: &MeshletView, vertices: usize) -> Result<(Vec<u32>, Vec<[u32; 2]>)> {
     let invalid = |message: String| GpuError::Invalid { location: "GPU meshlets", message };
-    let mut out = Vec::new();
-    for (i, ml) in m.meshlets.iter().enumerate() {
-        let (vc, tc) = (ml.vertex_count as usize, ml.triangle_count as usize);
-        if vc > MAX_MESHLET_VERTICES || tc > MAX_MESHLET_TRIANGLES {
-            return Err(invalid(format!(
-                "meshlet {i} has {vc} vertices and {tc} triangles; the mesh shader emits at most {MAX_MESHLET_VERTICES} and {MAX_MESHLET_TRIANGLES}"
-            )));
-        }
-        let verts = m.vertices.get(ml.vertex_offset as usize..ml.vertex_offset as usize + vc);
-        let tris = m.triangles.get(ml.triangle_offset as usize..ml.triangle_offset as usize + 3 * tc);
-        let (Some(verts), Some(tris)) = (verts, tris) else {
-            return Err(invalid(format!("meshlet {i} points past the meshlet arrays")));
-        };
-        for t in tris.chunks_exact(3) {
-            let global = |l: u8| verts.get(l as usize).copied().filter(|&v| (v as usize) < vertices);
-            match (global(t[0]), global(t[1]), global(t[2])) {
-                (Some(a), Some(b), Some(c)) => out.push([a, b, c]),
-                _ => return Err(invalid(format!("meshlet {i}: triangle {t:?} points past its vertices or the mesh"))),
-            }
-        }
+    m.check(vertices).map_err(|e| invalid(e.to_string()))?;
+    if let Some(i) = (0..m.len()).find(|&i| {
+        let (vc, tc) = m.counts(i);
+        vc > MAX_MESHLET_VERTICES || tc > MAX_MESHLET_TRIANGLES
+    }) {
+        let (vc, tc) = m.counts(i);
+        return Err(invalid(format!(
+            "meshlet {i} has {vc} vertices and {tc} triangles; the mesh shader emits at most {MAX_MESHLET_VERTICES} and {MAX_MESHLET_TRIANGLES}"
+        )));
     }
-    Ok(out)
+    Ok(m.index_buffer())
 }
 
-fn upload_meshlets(gpu: &Gpu, m: &Meshlets, inf: &Influences, draws: &[[u32; 2]]) -> Result<GpuMeshlets> {
+fn upload_meshlets(gpu: &Gpu, m: &MeshletView, v: &VertexView, draws: &[[u32; 2]]) -> Result<GpuMeshlets> {
     let mut joint_lists: Vec<u32> = Vec::new();
     let (mut slim, mut slim_vertices, mut fat_vertices) = (0, 0, 0);
-    let records: Vec<[u32; 8]> = (m.meshlets.iter())
-        .map(|ml| {
+    // A vertex's joints: its influence slots up to the first zero weight.
+    let vertex_joints = |x: u32| {
+        let slots = x as usize * v.stride..(x as usize + 1) * v.stride;
+        v.joints[slots.clone()].iter().zip(&v.weights[slots]).take_while(|(_, w)| **w != 0.0).map(|(j, _)| *j)
+    };
+    let records: Vec<[u32; 8]> = (0..m.len())
+        .map(|i| {
+            let (h, (vc, tc)) = (m.headers[i], m.counts(i));
             // Slim when every vertex has exactly the meshlet's joints, in that order (skinlet's
             // `prepare` sorts influences by joint, so a shared joint set is a shared order).
-            let joints = m
-                .joints
-                .get(ml.joint_offset as usize..)
-                .map_or(&[][..], |j| &j[..(ml.joint_count as usize).min(j.len())]);
+            let joints = m.joints_of(i).unwrap_or(&[]);
+            let verts = &m.vertices[h[0] as usize..][..vc];
             let shared = (1..=MAX_SLIM_JOINTS).contains(&joints.len())
-                && m.vertices_of(ml).iter().all(|&v| inf.of(v as usize).map(|(j, _)| j).eq(joints.iter().copied()));
+                && verts.iter().all(|&x| vertex_joints(x).eq(joints.iter().copied()));
             let (offset, count) = if shared { (joint_lists.len() as u32, joints.len() as u32) } else { (0, 0) };
             if shared {
                 joint_lists.extend(joints.iter().map(|&j| j as u32));
                 slim += 1;
-                slim_vertices += ml.vertex_count as u32;
+                slim_vertices += vc as u32;
             } else {
-                fat_vertices += ml.vertex_count as u32;
+                fat_vertices += vc as u32;
             }
-            let (vo, vc, to, tc) =
-                (ml.vertex_offset, ml.vertex_count as u32, ml.triangle_offset / 3, ml.triangle_count);
-            [vo, vc, to, tc as u32, offset, count, 0, 0]
+            [h[0], vc as u32, h[1] / 3, tc as u32, offset, count, 0, 0]
         })
         .collect();
     let packed: Vec<u32> =
@@ -276,7 +264,7 @@ fn upload_meshlets(gpu: &Gpu, m: &Meshlets, inf: &Influences, draws: &[[u32; 2]]
         fat_vertices,
         joint_lists: gpu.buffer("meshlet joints", &joint_lists, storage),
         meshlets: gpu.buffer("meshlets", &records, storage),
-        vertices: gpu.buffer("meshlet vertices", &m.vertices, storage),
+        vertices: gpu.buffer("meshlet vertices", m.vertices, storage),
         triangles: gpu.buffer("meshlet triangles", &packed, storage),
         draws: gpu.buffer("meshlet draws", draws, storage),
     })

@@ -12,9 +12,9 @@ use crate::mesh::{GpuMesh, Pose, entry};
 use crate::skinning::{ComputeSkinning, buffer_entry, mesh_bindings, mesh_entries};
 use crate::{Gpu, GpuError, Result};
 use glam::{Mat4, Vec3};
-use skinlet::cull::{Camera, Projection};
-use skinlet::overdraw::measure::Overdraw;
+use skinlet_runtime::camera::{Camera, Projection};
 use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller};
+use skinlet_runtime::overdraw_orders::Overdraw;
 
 /// How skinned vertices reach the rasterizer.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -120,7 +120,7 @@ fn skinned_assets_match_brute_force() {
         let sp = build(&asset.skeleton, skin, &clips, &mesh, &edges, &SkinnedParams::new(SkinnedMethod::Animated, how))
             .unwrap();
         let shape = GpuContours::skinned(&gpu, &edges, &sp).unwrap();
-        let buffers = GpuMesh::new(&gpu, &mesh, None).unwrap();
+        let buffers = GpuMesh::new(&gpu, &mesh.mesh_data(None)).unwrap();
         let mut poser = Poser::default();
         let (mut frames, mut found) = (0, 0);
         let (mut matrices, mut weights, mut out) = (Vec::new(), Vec::new(), Vec::new());

@@ -133,7 +133,9 @@ fn cull_on_gpu(
 
 /// Per meshlet `(index count, first index)` in meshlet order.
 fn meshlet_draws(baked: &skinlet::bake::Baked) -> Vec<[u32; 2]> {
-    skinlet_gpu::mesh::meshlet_index_buffer(&baked.meshlets, baked.mesh.positions.len()).unwrap().1
+    skinlet_gpu::mesh::meshlet_index_buffer(&baked.meshlets.view(&baked.meshlets.headers()), baked.mesh.positions.len())
+        .unwrap()
+        .1
 }
 
 #[test]

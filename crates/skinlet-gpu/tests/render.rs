@@ -29,7 +29,7 @@ fn every_skinning_pipeline_draws_the_same_image() {
         let t = clip.map_or(0.0, |c| c.start + 0.4 * c.duration());
         let posed = Posed::new(&asset, skin, &mesh, clip, t);
         let view_proj = framing(&posed.positions, Vec3::new(0.3, 0.2, 1.0), 1.0).unwrap().view_proj;
-        let gpu_mesh = GpuMesh::new(&gpu, &mesh, Some(&meshlets)).unwrap();
+        let gpu_mesh = GpuMesh::new(&gpu, &mesh.mesh_data(Some(meshlets.view(&meshlets.headers())))).unwrap();
         let light = Vec3::new(0.4, 0.8, 0.6);
         let by_vertex = renderer.render(&gpu, &gpu_mesh, posed.pose(), view_proj, light, Skinning::Vertex).unwrap();
         let by_compute = renderer.render(&gpu, &gpu_mesh, posed.pose(), view_proj, light, Skinning::Compute).unwrap();
@@ -40,7 +40,7 @@ fn every_skinning_pipeline_draws_the_same_image() {
         let mut others = vec![("compute".to_string(), by_compute)];
         if gpu.has_mesh_shaders() {
             for (builder, m) in [("skin-aware", &meshlets), ("common-influences", &common)] {
-                let gpu_mesh = GpuMesh::new(&gpu, &mesh, Some(m)).unwrap();
+                let gpu_mesh = GpuMesh::new(&gpu, &mesh.mesh_data(Some(m.view(&m.headers())))).unwrap();
                 let ml = gpu_mesh.meshlets.as_ref().unwrap();
                 (slim, meshlet_total) = (slim + ml.slim, meshlet_total + ml.count);
                 for path in [Skinning::Mesh, Skinning::MeshSlim] {
@@ -69,7 +69,7 @@ fn a_pose_change_changes_the_image() {
     let character = asset.character().unwrap();
     let (skin, mesh, clip) = (&character.palette, &character.mesh, &asset.clips[0]);
     let renderer = Renderer::new(&gpu, 128, 128).unwrap();
-    let gpu_mesh = GpuMesh::new(&gpu, mesh, None).unwrap();
+    let gpu_mesh = GpuMesh::new(&gpu, &mesh.mesh_data(None)).unwrap();
     let view_proj = framing(&mesh.positions, Vec3::Z, 1.0).unwrap().view_proj;
     let mut images = Vec::new();
     for t in [0.2, 0.6] {
@@ -128,7 +128,9 @@ fn culled_drawing_gives_the_unculled_image() {
         skinlet::pose::joint_globals(skin, poser.globals(&asset.skeleton, clip, t), &mut joints);
         for (device, renderer) in &devices {
             let mesh_shaders = device.has_mesh_shaders();
-            let gpu_mesh = GpuMesh::new(device, &baked.mesh, Some(&baked.meshlets)).unwrap();
+            let gpu_mesh =
+                GpuMesh::new(device, &baked.mesh.mesh_data(Some(baked.meshlets.view(&baked.meshlets.headers()))))
+                    .unwrap();
             for (dir, zoom) in [(Vec3::new(0.3, 0.2, 1.0), 1.0), (Vec3::new(-1.0, 0.4, -0.5), 2.5)] {
                 let camera = framing(posed, dir, zoom).unwrap();
                 let mut frame = skinlet_runtime::meshlet_cull::JointFrame::default();
@@ -218,7 +220,8 @@ fn crowd_draws_agree_and_are_timed() {
     let instances: Vec<PosedInstance> = (matrices.iter().zip(&frames))
         .map(|((m, w), f)| PosedInstance { pose: Pose { matrices: m, morph_weights: w }, frame: Some(f) })
         .collect();
-    let mesh_gpu = GpuMesh::new(&gpu, &baked.mesh, Some(&baked.meshlets)).unwrap();
+    let mesh_gpu =
+        GpuMesh::new(&gpu, &baked.mesh.mesh_data(Some(baked.meshlets.view(&baked.meshlets.headers())))).unwrap();
     let (view_proj, light) = (scene.camera.view_proj, Vec3::new(0.4, 0.8, 0.6));
     let draw = |how| renderer.render_crowd(&gpu, &mesh_gpu, &instances, view_proj, light, how).unwrap();
     let reference = draw(CrowdDraw::Plain(Skinning::Vertex));
@@ -318,7 +321,8 @@ fn game_poses_cull_on_the_gpu_as_on_the_cpu() {
     let instances: Vec<PosedInstance> = (poses.iter().zip(&frames))
         .map(|((m, w), f)| PosedInstance { pose: Pose { matrices: m, morph_weights: w }, frame: Some(f) })
         .collect();
-    let mesh_gpu = GpuMesh::new(&gpu, &baked.mesh, Some(&baked.meshlets)).unwrap();
+    let mesh_gpu =
+        GpuMesh::new(&gpu, &baked.mesh.mesh_data(Some(baked.meshlets.view(&baked.meshlets.headers())))).unwrap();
     let (view_proj, light) = (scene.camera.view_proj, Vec3::new(0.4, 0.8, 0.6));
     let draw = |how| renderer.render_crowd(&gpu, &mesh_gpu, &instances, view_proj, light, how).unwrap();
     let reference = draw(CrowdDraw::Plain(Skinning::Vertex));
@@ -368,7 +372,7 @@ fn gpu_overdraw_matches_the_cpu_rasterizer() {
         let mut ratios = Vec::new();
         for order in [mesh.triangles.clone(), reversed] {
             let ordered = skinlet::model::SkinnedMesh { triangles: order.clone(), ..mesh.clone() };
-            let gpu_mesh = GpuMesh::new(&gpu, &ordered, None).unwrap();
+            let gpu_mesh = GpuMesh::new(&gpu, &ordered.mesh_data(None)).unwrap();
             let (counts, on_gpu) = renderer.render_overdraw(&gpu, &gpu_mesh, pose.pose(), view_proj).unwrap();
             let on_cpu = raster.render(posed, &order, &view_proj);
             let pixels = counts.iter().zip(&raster.shaded).filter(|(a, b)| a != b).count();

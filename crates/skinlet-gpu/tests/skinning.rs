@@ -27,7 +27,7 @@ fn compute_skinning_matches_the_cpu_reference() {
         let character = asset.character().unwrap();
         let skin = &character.palette;
         let mesh = character.mesh.clone();
-        let buffers = GpuMesh::new(&gpu, &mesh, None).unwrap();
+        let buffers = GpuMesh::new(&gpu, &mesh.mesh_data(None)).unwrap();
         let mut poser = Poser::default();
         let mut times: Vec<(Option<usize>, f32)> = vec![(None, 0.0)];
         for (c, clip) in asset.clips.iter().enumerate().take(3) {

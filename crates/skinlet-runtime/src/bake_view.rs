@@ -5,19 +5,21 @@
 //! format is). What it hands out has been checked: a culler built from it never indexes out
 //! of range and never sees a non-finite number.
 //!
-//! Covered: the section table, the drivers' inverse bind matrices and nodes (`SKIN`), the
-//! vertices (`VERT`), triangles (`TRIS`), meshlets (`MLET`), meshlet bounds with their classes
-//! (`BNDS`), morph targets (`MRPH`), the pose envelope with its bounds and any-pose boxes
-//! (`ENVL`), and the contour patches (`CONT`, read into arrays with the edges it indexes,
-//! which the file does not store). Not yet viewed here: `INFO`, `PART` and `OVDR`, which the
-//! baker's reader (`skinlet::bake::from_bytes`) parses itself; it goes through this view for
-//! `SKIN`, `BNDS`, `ENVL` and `CONT`.
+//! Every section: the bake settings and clip names (`INFO`), the drivers' inverse bind
+//! matrices and nodes (`SKIN`), vertices (`VERT`), triangles (`TRIS`), meshlets (`MLET`),
+//! meshlet bounds with their classes (`BNDS`), parts (`PART`), morph targets (`MRPH`), the
+//! pose envelope with its bounds and any-pose boxes (`ENVL`) as typed slices; the overdraw
+//! orders (`OVDR`) and contour patches (`CONT`, with the edges it indexes, which the file
+//! does not store) read into arrays once, at load. The baker's reader
+//! (`skinlet::bake::from_bytes`) goes through this view for every section but `SKIN`'s names,
+//! `VERT`, `TRIS` and `MLET`, which it parses into its own types.
 
 use crate::any_pose::AnyPoseBoxes;
 use crate::contour_edges::Edges;
 use crate::contour_patches::{BakedContours, rigid_vertices, skinned_edges};
 use crate::meshlet_bounds::{Class, MeshletBounds};
 use crate::meshlet_cull::MeshletCuller;
+use crate::overdraw_orders::Orders;
 use crate::pose_guard::{NodeRange, PoseGuard, check_ranges};
 use crate::{Error, Result};
 use glam::{Quat, Vec3};
@@ -379,9 +381,9 @@ impl<'a> BakeView<'a> {
 #[derive(Clone, Copy, Debug)]
 pub struct VertexView<'a> {
     /// Bind-pose positions (mesh space of skinned parts, node space of rigid ones).
-    pub positions: &'a [[f32; 3]],
+    pub positions: &'a [Vec3],
     /// Unit normals, or empty when the bake has none.
-    pub normals: &'a [[f32; 3]],
+    pub normals: &'a [Vec3],
     /// Influences per vertex: 4 or 8 (0: no skin weights); vertex `v`'s are
     /// `joints[v * stride..][..stride]` (driver numbers) and the same range of `weights`.
     pub stride: usize,
@@ -404,6 +406,31 @@ pub struct MeshletView<'a> {
 }
 
 impl MeshletView<'_> {
+    /// Checks the meshlets of a mesh of `vertices` vertices: every meshlet's ranges inside
+    /// the arrays, its local indices below its vertex count, its vertex indices below
+    /// `vertices`. What [`Self::index_buffer`] and a GPU upload need.
+    pub fn check(&self, vertices: usize) -> Result<()> {
+        for (i, h) in self.headers.iter().enumerate() {
+            let (vc, tc) = self.counts(i);
+            let verts = self.vertices.get(h[0] as usize..).and_then(|r| r.get(..vc));
+            let tris = self.triangles.get(h[1] as usize..).and_then(|r| r.get(..3 * tc));
+            let (Some(verts), Some(tris), Some(_)) = (verts, tris, self.joints_of(i)) else {
+                return Err(Error::invalid(format!("meshlet {i}"), "points past the meshlet arrays"));
+            };
+            if tris.iter().any(|&l| l as usize >= vc) || verts.iter().any(|&x| x as usize >= vertices) {
+                return Err(Error::invalid(format!("meshlet {i}"), "indexes past its or the mesh's vertices"));
+            }
+        }
+        Ok(())
+    }
+
+    /// Meshlet `i`'s joint list (single-joint-set meshlets; empty for the others), or `None`
+    /// when it points past the array.
+    pub fn joints_of(&self, i: usize) -> Option<&[u16]> {
+        let h = self.headers[i];
+        self.joints.get(h[2] as usize..).and_then(|r| r.get(..(h[3] >> 19 & 0xf) as usize))
+    }
+
     pub fn len(&self) -> usize {
         self.headers.len()
     }
@@ -421,6 +448,7 @@ impl MeshletView<'_> {
     /// An index buffer listing the triangles meshlet by meshlet (vertex indices), and per
     /// meshlet its index count and first index in it: what a renderer binds to draw
     /// meshlets one by one (GPU culling passes write indirect draws over these ranges).
+    /// Panics unless [`Self::check`] passes (a view from [`BakeView::meshlets`] does).
     pub fn index_buffer(&self) -> (Vec<u32>, Vec<[u32; 2]>) {
         let (mut indices, mut draws) = (Vec::with_capacity(self.triangles.len()), Vec::with_capacity(self.len()));
         for (i, h) in self.headers.iter().enumerate() {
@@ -460,11 +488,11 @@ impl<'a> BakeView<'a> {
                 ),
             ));
         }
-        let positions: &[[f32; 3]] = cast(&s[12..after_positions], "VERT")?;
-        let normals: &[[f32; 3]] = cast(&s[after_positions..after_normals], "VERT")?;
+        let positions: &[Vec3] = cast(&s[12..after_positions], "VERT")?;
+        let normals: &[Vec3] = cast(&s[after_positions..after_normals], "VERT")?;
         let joints: &[u16] = cast(&s[after_normals..after_normals + 2 * slots], "VERT")?;
         let weights: &[f32] = cast(&s[joints_end..], "VERT")?;
-        if let Some(v) = positions.iter().chain(normals).position(|p| p.iter().any(|x| !x.is_finite())) {
+        if let Some(v) = positions.iter().chain(normals).position(|p| !p.is_finite()) {
             let what = if v < n { "position" } else { "normal" };
             return Err(Error::invalid(location, format!("vertex {}'s {what} is not finite", v % n.max(1))));
         }
@@ -520,21 +548,35 @@ impl<'a> BakeView<'a> {
             triangles: &s[ve..ve + t as usize],
             joints: cast(&s[te..te + 2 * j as usize], "MLET")?,
         };
-        let mesh_vertices = self.vertices()?.positions.len();
-        for (i, h) in view.headers.iter().enumerate() {
-            let (vc, tc) = view.counts(i);
-            let jc = (h[3] >> 19 & 0xf) as usize;
-            let verts = view.vertices.get(h[0] as usize..).and_then(|r| r.get(..vc));
-            let tris = view.triangles.get(h[1] as usize..).and_then(|r| r.get(..3 * tc));
-            let joints = view.joints.get(h[2] as usize..).and_then(|r| r.get(..jc));
-            let (Some(verts), Some(tris), Some(_)) = (verts, tris, joints) else {
-                return Err(Error::invalid(location, format!("meshlet {i} points past the meshlet arrays")));
-            };
-            if tris.iter().any(|&l| l as usize >= vc) || verts.iter().any(|&x| x as usize >= mesh_vertices) {
-                return Err(Error::invalid(location, format!("meshlet {i} indexes past its or the mesh's vertices")));
-            }
-        }
+        view.check(self.vertices()?.positions.len()).map_err(|e| Error::invalid(location, e.to_string()))?;
         Ok(view)
+    }
+}
+
+/// A mesh as a bake stores it, as slices: what a GPU upload reads
+/// (`skinlet_gpu::mesh::GpuMesh::new`). From a file: [`BakeView::mesh_data`]; the baker
+/// builds the same from its in-memory mesh (`skinlet::model::SkinnedMesh::mesh_data`).
+#[derive(Clone, Copy, Debug)]
+pub struct MeshData<'a> {
+    pub vertices: VertexView<'a>,
+    /// Vertex indices, counter-clockwise front faces.
+    pub triangles: &'a [[u32; 3]],
+    /// `None`: no morph targets.
+    pub morphs: Option<MorphView<'a>>,
+    /// `None`: drawn without meshlets (no mesh shaders, no meshlet culling).
+    pub meshlets: Option<MeshletView<'a>>,
+}
+
+impl<'a> BakeView<'a> {
+    /// The vertices, triangles, morph targets and meshlets, each checked
+    /// ([`Self::vertices`], [`Self::triangles`], [`Self::morphs`], [`Self::meshlets`]).
+    pub fn mesh_data(&self) -> Result<MeshData<'a>> {
+        Ok(MeshData {
+            vertices: self.vertices()?,
+            triangles: self.triangles()?,
+            morphs: self.morphs()?,
+            meshlets: Some(self.meshlets()?),
+        })
     }
 }
 
@@ -548,13 +590,16 @@ pub struct BakedMorphWeight {
     pub default: f32,
 }
 
-/// One vertex delta of `MRPH`: the weight it scales, position and normal deltas.
+/// One vertex delta of `MRPH`: the vertex moves by `weight × position` and its normal by
+/// `weight × normal`.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[repr(C)]
 pub struct BakedMorphDelta {
+    /// Index into the morph weights.
     pub weight: u32,
-    pub position: [f32; 3],
-    pub normal: [f32; 3],
+    pub position: Vec3,
+    /// Zero where the source gives no normal deltas.
+    pub normal: Vec3,
 }
 
 // SAFETY: `repr(C)`, 4-byte fields of plain numbers (12 and 28 bytes, no padding): every bit
@@ -575,6 +620,30 @@ pub struct MorphView<'a> {
 }
 
 impl<'a> MorphView<'a> {
+    /// Checks the deltas of a mesh of `vertices` vertices: one offset per vertex and one
+    /// more, from 0, never decreasing, ending at the delta count; every delta's weight in
+    /// range; finite deltas and defaults.
+    pub fn check(&self, vertices: usize) -> Result<()> {
+        let bad = |what: String| Err(Error::invalid("morph targets", what));
+        let (o, d, w) = (self.offsets, self.deltas.len(), self.weights.len());
+        if o.len() != vertices + 1 || o[0] != 0 || o[vertices] as usize != d {
+            return bad(format!("{} vertex offsets for {vertices} vertices and {d} deltas", o.len()));
+        }
+        if let Some(v) = o.windows(2).position(|x| x[1] < x[0]) {
+            return bad(format!("vertex {v}: offsets decrease"));
+        }
+        if let Some(x) = self.deltas.iter().find(|x| x.weight as usize >= w) {
+            return bad(format!("a delta uses weight {} of {w}", x.weight));
+        }
+        if let Some(k) = self.deltas.iter().position(|x| !(x.position.is_finite() && x.normal.is_finite())) {
+            return bad(format!("delta {k} is not finite"));
+        }
+        if let Some(k) = self.weights.iter().position(|x| !x.default.is_finite()) {
+            return bad(format!("morph weight {k}'s default is not finite"));
+        }
+        Ok(())
+    }
+
     /// The deltas of vertex `v` (none past the last vertex).
     pub fn of(&self, v: usize) -> &'a [BakedMorphDelta] {
         let range = self.offsets.get(v..v + 2).and_then(|r| self.deltas.get(r[0] as usize..r[1] as usize));
@@ -604,28 +673,7 @@ impl<'a> BakeView<'a> {
             offsets: cast(&s[o..e], "MRPH")?,
             deltas: cast(&s[e..], "MRPH")?,
         };
-        if view.offsets[0] != 0 || view.offsets[vertices as usize] as u64 != d {
-            return Err(err(
-                o,
-                format!(
-                    "vertex offsets run from {} to {}, not 0 to {d}",
-                    view.offsets[0], view.offsets[vertices as usize]
-                ),
-            ));
-        }
-        if let Some(v) = view.offsets.windows(2).position(|x| x[1] < x[0]) {
-            return Err(err(o + 4 * v, format!("vertex {v}: offsets decrease")));
-        }
-        if let Some(k) = view.deltas.iter().position(|x| x.weight as u64 >= w) {
-            return Err(err(e + 28 * k, format!("a delta uses weight {} of {w}", view.deltas[k].weight)));
-        }
-        let finite = |x: &[f32]| x.iter().all(|x| x.is_finite());
-        if let Some(k) = view.deltas.iter().position(|x| !(finite(&x.position) && finite(&x.normal))) {
-            return Err(err(e + 28 * k, "non-finite delta".into()));
-        }
-        if let Some(k) = view.weights.iter().position(|x| !x.default.is_finite()) {
-            return Err(err(8 + 12 * k, "non-finite default weight".into()));
-        }
+        view.check(vertices as usize).map_err(|e| Error::invalid(location, e.to_string()))?;
         Ok(Some(view))
     }
 
@@ -635,17 +683,116 @@ impl<'a> BakeView<'a> {
     pub fn contours(&self) -> Result<Option<(BakedContours, Edges)>> {
         let Some(s) = self.section(b"CONT") else { return Ok(None) };
         let vertices = self.vertices()?;
-        let positions: Vec<glam::Vec3> = vertices.positions.iter().map(|&p| p.into()).collect();
         let rigid = if BakedContours::visible_only(s)? {
             let morphs = self.morphs()?;
             let morphed = |v: usize| morphs.is_some_and(|m| !m.of(v).is_empty());
-            Some(rigid_vertices(positions.len(), vertices.stride, vertices.joints, vertices.weights, morphed))
+            Some(rigid_vertices(vertices.positions.len(), vertices.stride, vertices.joints, vertices.weights, morphed))
         } else {
             None
         };
-        let edges = skinned_edges(&positions, self.triangles()?, rigid.as_deref())
+        let edges = skinned_edges(vertices.positions, self.triangles()?, rigid.as_deref())
             .map_err(|e| Error::invalid("bake section CONT", e.to_string()))?;
         Ok(Some((BakedContours::read(s, &edges, self.joint_count()?)?, edges)))
+    }
+}
+
+/// What `INFO` says about how the bake was made: the meshlet builder (its code in
+/// `docs/FORMAT.md`), the meshlet limits, the refinement and why it stopped, and the baked
+/// clips' names (clip indices in other sections index this list).
+#[derive(Clone, Debug, PartialEq)]
+pub struct InfoView<'a> {
+    pub builder: u32,
+    pub max_vertices: u32,
+    pub max_triangles: u32,
+    pub s_r: f32,
+    pub alpha_t: f32,
+    pub rounds: u32,
+    /// 0 converged, 1 round limit, 2 time budget.
+    pub stop: u32,
+    pub clips: Vec<&'a str>,
+}
+
+/// One part of a baked character in `PART` (40 bytes): which node draws which glTF mesh
+/// primitive, its skin (`u32::MAX`: a rigid part), and its `[start, end)` ranges of vertices,
+/// triangles and meshlets.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[repr(C)]
+pub struct BakedPartRecord {
+    pub node: u32,
+    pub mesh: u32,
+    pub primitive: u32,
+    pub skin: u32,
+    pub vertices: [u32; 2],
+    pub triangles: [u32; 2],
+    pub meshlets: [u32; 2],
+}
+
+// SAFETY: `repr(C)`, ten `u32`s (40 bytes, no padding): every bit pattern is a value, and zero
+// is one; `Copy` and `'static`.
+unsafe impl bytemuck::Zeroable for BakedPartRecord {}
+unsafe impl bytemuck::Pod for BakedPartRecord {}
+
+impl<'a> BakeView<'a> {
+    /// `INFO`, checked: the whole section read, names in UTF-8.
+    pub fn info(&self) -> Result<InfoView<'a>> {
+        let mut s = Cursor::new("INFO", self.required(b"INFO")?);
+        let (builder, max_vertices, max_triangles) = (s.u32()?, s.u32()?, s.u32()?);
+        let (s_r, alpha_t, rounds, stop) = (s.f32()?, s.f32()?, s.u32()?, s.u32()?);
+        let n = s.u32()? as usize;
+        if n.saturating_mul(4) > s.remaining() {
+            return Err(s.err(format!("{n} clip names do not fit in the section")));
+        }
+        let clips = (0..n).map(|_| s.str()).collect::<Result<Vec<_>>>()?;
+        s.end()?;
+        Ok(InfoView { builder, max_vertices, max_triangles, s_r, alpha_t, rounds, stop, clips })
+    }
+
+    /// `PART`, checked: consecutive ranges from 0 covering every vertex, triangle and meshlet,
+    /// each part's triangles and meshlets using only its own vertices (so one material per
+    /// part range holds).
+    pub fn parts(&self) -> Result<&'a [BakedPartRecord]> {
+        let (s, location) = (self.required(b"PART")?, "bake section PART");
+        let n = u32_at(s, 0).ok_or_else(|| Error::invalid(location, "byte 0: truncated"))? as usize;
+        if n.checked_mul(40).and_then(|b| b.checked_add(4)) != Some(s.len()) {
+            return Err(Error::invalid(location, format!("{} bytes for {n} parts", s.len())));
+        }
+        let parts: &[BakedPartRecord] = cast(&s[4..], "PART")?;
+        let (triangles, meshlets) = (self.triangles()?, self.meshlets()?);
+        let totals = [self.vertices()?.positions.len(), triangles.len(), meshlets.len()];
+        let mut ends = [0u32; 3];
+        for (i, p) in parts.iter().enumerate() {
+            let ranges = [p.vertices, p.triangles, p.meshlets];
+            let next =
+                ranges.iter().zip(ends).zip(totals).all(|((r, e), t)| r[0] == e && r[1] >= e && r[1] as usize <= t);
+            let own = |v: &u32| (p.vertices[0]..p.vertices[1]).contains(v);
+            let ok = next
+                && triangles[p.triangles[0] as usize..p.triangles[1] as usize].iter().flatten().all(own)
+                && (p.meshlets[0] as usize..p.meshlets[1] as usize).all(|m| {
+                    let (h, (vc, _)) = (meshlets.headers[m], meshlets.counts(m));
+                    meshlets.vertices[h[0] as usize..][..vc].iter().all(own)
+                });
+            if !ok {
+                return Err(Error::invalid(
+                    location,
+                    format!(
+                        "part {i}: vertices {:?}, triangles {:?}, meshlets {:?} are not the next ranges of its own data",
+                        p.vertices, p.triangles, p.meshlets
+                    ),
+                ));
+            }
+            ends = ranges.map(|r| r[1]);
+        }
+        if ends.map(|e| e as usize) != totals {
+            return Err(Error::invalid(location, "the parts do not cover every vertex, triangle and meshlet"));
+        }
+        Ok(parts)
+    }
+
+    /// The optional `OVDR` section, read and checked ([`Orders::read`]): the overdraw orders'
+    /// buffers and their run-time lookup.
+    pub fn overdraw_orders(&self) -> Result<Option<Orders>> {
+        let Some(s) = self.section(b"OVDR") else { return Ok(None) };
+        Ok(Some(Orders::read(s, self.triangles()?, self.parts()?, self.info()?.clips.len())?))
     }
 }
 
@@ -670,6 +817,15 @@ impl<'a> Cursor<'a> {
         let s = &self.b[self.at..end];
         self.at = end;
         Ok(s)
+    }
+    pub(crate) fn remaining(&self) -> usize {
+        self.b.len() - self.at
+    }
+    /// A length-prefixed UTF-8 string.
+    pub(crate) fn str(&mut self) -> Result<&'a str> {
+        let n = self.u32()? as usize;
+        let b = self.bytes(n)?;
+        std::str::from_utf8(b).map_err(|_| self.err("a name is not UTF-8"))
     }
     pub(crate) fn u32(&mut self) -> Result<u32> {
         Ok(u32::from_le_bytes(self.bytes(4)?.try_into().expect("4 bytes")))

@@ -4,6 +4,8 @@
 //! [`Orders::select`] picks the one to draw. The baker (`skinlet::overdraw`) clusters the
 //! nodes and orders the buffers.
 
+use crate::Result;
+use crate::bake_view::{BakedPartRecord, Cursor};
 use glam::{Mat4, Vec3};
 
 /// Where viewpoints sit: on the sphere of `3 × radius` around `center`, looking at it.
@@ -92,7 +94,93 @@ impl Orders {
     }
 }
 
+impl Orders {
+    /// Reads and checks a bake's `OVDR` bytes (`docs/FORMAT.md`) for a mesh of `triangles`
+    /// in `parts`, baked over `clips` clips: every buffer a reordering of exactly the
+    /// triangles (windings kept), each part's triangles inside the part's triangle range,
+    /// keyframes naming baked clips, lookup cells naming stored buffers.
+    pub fn read(section: &[u8], triangles: &[[u32; 3]], parts: &[BakedPartRecord], clips: usize) -> Result<Orders> {
+        let mut s = Cursor::new("OVDR", section);
+        let (k, f, polar, azimuth) = (s.u32()? as usize, s.u32()? as usize, s.u32()? as usize, s.u32()? as usize);
+        if k == 0 || k > 255 || polar == 0 || azimuth == 0 || f == 0 {
+            return Err(s.err(format!("{k} buffers, {f} keyframes, {polar} × {azimuth} cells")));
+        }
+        let lambda = s.f32()?;
+        let framing = Framing { center: s.vec3()?, radius: s.f32()? };
+        if f.saturating_mul(8) > s.remaining() {
+            return Err(s.err(format!("{f} keyframes do not fit in the section")));
+        }
+        let mut keyframes = Vec::with_capacity(f);
+        for i in 0..f {
+            let (clip, t) = (s.u32()?, s.f32()?);
+            if clip as usize >= clips {
+                return Err(s.err(format!("keyframe {i} names clip {clip} of {clips}")));
+            }
+            keyframes.push((clip, t));
+        }
+        let mut want: Vec<[u32; 3]> = triangles.iter().map(|t| canonical(*t)).collect();
+        want.sort_unstable();
+        let mut buffers = Vec::with_capacity(k);
+        for b in 0..k {
+            let n = s.u32()? as usize;
+            if n.saturating_mul(12) > s.remaining() {
+                return Err(s.err(format!("{n} triangles do not fit in the section")));
+            }
+            let buf = (0..n).map(|_| Ok([s.u32()?, s.u32()?, s.u32()?])).collect::<Result<Vec<[u32; 3]>>>()?;
+            let mut got: Vec<[u32; 3]> = buf.iter().map(|t| canonical(*t)).collect();
+            got.sort_unstable();
+            if got != want {
+                return Err(s.err(format!("buffer {b} is not a reordering of the mesh's triangles")));
+            }
+            let outside = |p: &BakedPartRecord| {
+                let own = p.vertices[0]..p.vertices[1];
+                let range = buf.get(p.triangles[0] as usize..p.triangles[1] as usize);
+                range.is_none_or(|r| r.iter().flatten().any(|v| !own.contains(v)))
+            };
+            if let Some(p) = parts.iter().position(outside) {
+                return Err(s.err(format!("buffer {b} moves a triangle out of part {p}'s range")));
+            }
+            buffers.push(buf);
+        }
+        let cells =
+            f.checked_mul(polar).and_then(|x| x.checked_mul(azimuth)).ok_or_else(|| s.err("lookup table too large"))?;
+        let table = s.bytes(cells)?.to_vec();
+        if let Some(bad) = table.iter().position(|&b| b as usize >= k) {
+            return Err(s.err(format!("lookup cell {bad} names buffer {} of {k}", table[bad])));
+        }
+        s.align(4)?;
+        s.end()?;
+        Ok(Orders { lambda, keyframes, framing, buffers, lookup: Lookup { keyframes: f, polar, azimuth, table } })
+    }
+}
+
+/// A triangle rotated so its smallest index comes first (winding kept).
+pub fn canonical(t: [u32; 3]) -> [u32; 3] {
+    let k = (0..3).min_by_key(|&k| t[k]).unwrap_or(0);
+    [t[k], t[(k + 1) % 3], t[(k + 2) % 3]]
+}
+
 /// The unit direction at polar angle `theta` from +z and azimuth `phi` from +x toward +y.
 pub fn direction(theta: f32, phi: f32) -> Vec3 {
     Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
+}
+
+/// Fragments that passed the depth test and pixels covered by one render: what an overdraw
+/// order is measured by (the baker's rasterizer and skinlet-gpu's overdraw view both fill it).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Overdraw {
+    pub shaded: u64,
+    pub covered: u64,
+}
+
+impl Overdraw {
+    /// OVR: shaded fragments per visible pixel (1 = no overdraw; 0 when nothing is visible).
+    pub fn ratio(&self) -> f64 {
+        if self.covered == 0 { 0.0 } else { self.shaded as f64 / self.covered as f64 }
+    }
+
+    pub fn add(&mut self, o: Overdraw) {
+        self.shaded += o.shaded;
+        self.covered += o.covered;
+    }
 }

@@ -19,11 +19,9 @@ use crate::character::{Character, PartKind};
 use crate::clip::Clip;
 use crate::contour::skinned::{SkinnedParams, skinned_edges};
 use crate::cull::any_pose::AnyPoseBoxes;
-use crate::meshlet::{
-    Builder, MeshletLimits, Meshlets, PartRange, PreparedMesh, build, canonical, flat, prepare_parts,
-};
-use crate::model::{Asset, Influences, MorphDelta, MorphWeight, Morphs, Skin, SkinnedMesh};
-use crate::overdraw::cluster::{ClusterParams, Framing, Lookup, Orders, cluster};
+use crate::meshlet::{Builder, MeshletLimits, Meshlets, PartRange, PreparedMesh, build, flat, prepare_parts};
+use crate::model::{Asset, Influences, Morphs, Skin, SkinnedMesh};
+use crate::overdraw::cluster::{ClusterParams, Orders, cluster};
 use crate::overdraw::evaluate::keyframes;
 use crate::{Error, Result};
 use glam::{Mat4, Vec3};
@@ -257,7 +255,6 @@ fn baked_clips<'a>(baked: &Baked, asset: &'a Asset) -> Result<Vec<&'a Clip>> {
 /// targets and pose envelope.
 const TAGS: [&[u8; 4]; 11] =
     [b"INFO", b"SKIN", b"VERT", b"TRIS", b"MLET", b"BNDS", b"PART", b"OVDR", b"CONT", b"MRPH", b"ENVL"];
-const PART_STRIDE: usize = 40;
 const HEADER: usize = 16;
 const ENTRY: usize = 24;
 
@@ -655,21 +652,20 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
         Ok(In { tag, b: view.required(TAGS[i])?, at: 0 })
     };
 
-    let mut s = section(0)?;
-    let builder = *Builder::ALL.get(s.u32()? as usize).ok_or_else(|| s.err("unknown meshlet builder"))?;
-    let limits = MeshletLimits { max_vertices: s.u32()? as usize, max_triangles: s.u32()? as usize };
-    limits.check().map_err(|e| s.err(e))?;
-    let (s_r, alpha_t, rounds) = (s.f32()?, s.f32()?, s.u32()?);
-    let stop = match s.u32()? {
+    let info = view.info()?;
+    let location = "bake section INFO";
+    let builder =
+        *Builder::ALL.get(info.builder as usize).ok_or_else(|| Error::invalid(location, "unknown meshlet builder"))?;
+    let limits = MeshletLimits { max_vertices: info.max_vertices as usize, max_triangles: info.max_triangles as usize };
+    limits.check().map_err(|e| Error::invalid(location, e.to_string()))?;
+    let (s_r, alpha_t, rounds) = (info.s_r, info.alpha_t, info.rounds);
+    let stop = match info.stop {
         0 => Stop::Converged,
         1 => Stop::Rounds,
         2 => Stop::Budget,
-        x => return Err(s.err(format!("unknown stop reason {x}"))),
+        x => return Err(Error::invalid(location, format!("unknown stop reason {x}"))),
     };
-    let n = s.count("clip names", 4)?;
-    let clips = (0..n).map(|_| s.str()).collect::<Result<Vec<_>>>()?;
-    s.end()?;
-    let clips_len = clips.len();
+    let clips: Vec<String> = info.clips.iter().map(|c| c.to_string()).collect();
     let settings = BakeSettings { builder, limits, s_r, alpha_t, rounds, stop, clips };
 
     let mut s = section(1)?;
@@ -720,8 +716,8 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
     meshlets.validate(&mesh.triangles, limits).map_err(|e| s.err(e))?;
 
     let (bounds, classes): (Vec<MeshletBounds>, Vec<Class>) = bounds_and_classes(view.meshlet_bounds()?);
-    let parts = read_parts(section(6)?, &mesh, &meshlets)?;
-    let overdraw = if found[7].is_some() { Some(read_orders(section(7)?, &mesh, &parts, clips_len)?) } else { None };
+    let parts = read_parts(&view)?;
+    let overdraw = view.overdraw_orders()?;
     let contours = view.contours()?.map(|(c, _)| c);
     let envelope = if found[10].is_some() { Some(read_envelope(&view, section(10)?, &mesh)?) } else { None };
     Ok(Baked {
@@ -756,95 +752,23 @@ fn read_envelope(view: &BakeView, mut s: In, mesh: &SkinnedMesh) -> Result<Baked
 /// The MRPH section as the runtime's view reads and checks it ([`BakeView::morphs`]).
 fn read_morphs(view: &BakeView) -> Result<Morphs> {
     let Some(m) = view.morphs()? else { return Ok(Morphs::default()) };
-    Ok(Morphs {
-        weights: m.weights.iter().map(|w| MorphWeight { node: w.node, target: w.target, default: w.default }).collect(),
-        offsets: m.offsets.to_vec(),
-        deltas: (m.deltas.iter())
-            .map(|d| MorphDelta { weight: d.weight, position: d.position.into(), normal: d.normal.into() })
-            .collect(),
-    })
+    Ok(Morphs { weights: m.weights.to_vec(), offsets: m.offsets.to_vec(), deltas: m.deltas.to_vec() })
 }
 
-/// The PART section: consecutive ranges covering the vertices, triangles and meshlets, each
-/// part's triangles and meshlets using only its own vertices.
-fn read_parts(mut s: In, mesh: &SkinnedMesh, meshlets: &Meshlets) -> Result<Vec<BakedPart>> {
-    let n = s.count("parts", PART_STRIDE)?;
-    let mut parts: Vec<BakedPart> = Vec::with_capacity(n);
-    let range = |s: &mut In| -> Result<Range<u32>> { Ok(s.u32()?..s.u32()?) };
-    for i in 0..n {
-        let (node, mesh_index, primitive, skin) = (s.u32()?, s.u32()?, s.u32()?, s.u32()?);
-        let (vertices, triangles, meshlet_range) = (range(&mut s)?, range(&mut s)?, range(&mut s)?);
-        let ends = parts.last().map_or([0; 3], |p| [p.vertices.end, p.triangles.end, p.meshlets.end]);
-        let own = |v: &u32| vertices.contains(v);
-        let ok = [&vertices, &triangles, &meshlet_range].iter().zip(ends).all(|(r, e)| r.start == e && r.end >= e)
-            && (triangles.end as usize) <= mesh.triangles.len()
-            && (meshlet_range.end as usize) <= meshlets.len()
-            && mesh.triangles[triangles.start as usize..triangles.end as usize].iter().flatten().all(own)
-            && meshlets.meshlets[meshlet_range.start as usize..meshlet_range.end as usize]
-                .iter()
-                .all(|m| meshlets.vertices_of(m).iter().all(own));
-        if !ok {
-            return Err(s.err(format!(
-                "part {i}: vertices {vertices:?}, triangles {triangles:?}, meshlets {meshlet_range:?} are not the next ranges of its own data"
-            )));
-        }
-        let kind = if skin == u32::MAX { PartKind::Rigid } else { PartKind::Skinned { skin } };
-        parts.push(BakedPart { node, mesh: mesh_index, primitive, kind, vertices, triangles, meshlets: meshlet_range });
-    }
-    s.end()?;
-    let ends = parts.last().map_or([0; 3], |p| [p.vertices.end, p.triangles.end, p.meshlets.end]);
-    if ends != [mesh.positions.len(), mesh.triangles.len(), meshlets.len()].map(|x| x as u32) {
-        return Err(s.err("the parts do not cover every vertex, triangle and meshlet"));
-    }
-    Ok(parts)
-}
-
-/// The OVDR section: every buffer a permutation of the triangles, table entries in range.
-fn read_orders(mut s: In, mesh: &SkinnedMesh, parts: &[BakedPart], clips: usize) -> Result<Orders> {
-    let (k, f, polar, azimuth) = (s.u32()? as usize, s.u32()? as usize, s.u32()? as usize, s.u32()? as usize);
-    if k == 0 || k > 255 || polar == 0 || azimuth == 0 || f == 0 {
-        return Err(s.err(format!("{k} buffers, {f} keyframes, {polar} × {azimuth} cells")));
-    }
-    let lambda = s.f32()?;
-    let framing = Framing { center: s.vec3()?, radius: s.f32()? };
-    if f.saturating_mul(8) > s.b.len() {
-        return Err(s.err(format!("{f} keyframes do not fit in the section")));
-    }
-    let mut keyframes = Vec::with_capacity(f);
-    for i in 0..f {
-        let (clip, t) = (s.u32()?, s.f32()?);
-        if clip as usize >= clips {
-            return Err(s.err(format!("keyframe {i} names clip {clip} of {clips}")));
-        }
-        keyframes.push((clip, t));
-    }
-    let mut want = mesh.triangles.iter().map(|t| canonical(*t)).collect::<Vec<_>>();
-    want.sort_unstable();
-    let mut buffers = Vec::with_capacity(k);
-    for b in 0..k {
-        let n = s.count("triangles", 12)?;
-        let buf = (0..n).map(|_| Ok([s.u32()?, s.u32()?, s.u32()?])).collect::<Result<Vec<[u32; 3]>>>()?;
-        let mut got: Vec<[u32; 3]> = buf.iter().map(|t| canonical(*t)).collect();
-        got.sort_unstable();
-        if got != want {
-            return Err(s.err(format!("buffer {b} is not a reordering of the mesh's triangles")));
-        }
-        if let Some(p) = (parts.iter()).position(|p| {
-            buf[p.triangles.start as usize..p.triangles.end as usize].iter().flatten().any(|v| !p.vertices.contains(v))
-        }) {
-            return Err(s.err(format!("buffer {b} moves a triangle out of part {p}'s range")));
-        }
-        buffers.push(buf);
-    }
-    let cells =
-        f.checked_mul(polar).and_then(|x| x.checked_mul(azimuth)).ok_or_else(|| s.err("lookup table too large"))?;
-    let table = s.bytes(cells)?.to_vec();
-    if let Some(bad) = table.iter().position(|&b| b as usize >= k) {
-        return Err(s.err(format!("lookup cell {bad} names buffer {} of {k}", table[bad])));
-    }
-    s.align(4)?;
-    s.end()?;
-    Ok(Orders { lambda, keyframes, framing, buffers, lookup: Lookup { keyframes: f, polar, azimuth, table } })
+/// The PART section as the runtime's view reads and checks it ([`BakeView::parts`]).
+fn read_parts(view: &BakeView) -> Result<Vec<BakedPart>> {
+    let range = |r: [u32; 2]| r[0]..r[1];
+    Ok((view.parts()?.iter())
+        .map(|p| BakedPart {
+            node: p.node,
+            mesh: p.mesh,
+            primitive: p.primitive,
+            kind: if p.skin == u32::MAX { PartKind::Rigid } else { PartKind::Skinned { skin: p.skin } },
+            vertices: range(p.vertices),
+            triangles: range(p.triangles),
+            meshlets: range(p.meshlets),
+        })
+        .collect())
 }
 
 #[cfg(test)]
@@ -959,6 +883,8 @@ mod tests {
         let how = crate::contour::skinned::refinement(None, 0);
         let sp = SkinnedParams::new(crate::contour::skinned::SkinnedMethod::Animated, how);
         add_contours(&mut b, &asset, &sp, true).unwrap();
+        let params = ClusterParams { k: 2, view_levels: 1, iterations: 1, ..ClusterParams::default() };
+        add_overdraw(&mut b, &asset, &params, 2).unwrap();
         let bytes = to_bytes(&b);
         let view = BakeView::new(&bytes).unwrap();
         let records = view.meshlet_bounds().unwrap();
@@ -973,8 +899,7 @@ mod tests {
         // Vertices, triangles and meshlets as slices of the file, and the meshlet index buffer.
         let v = view.vertices().unwrap();
         let inf = b.mesh.influences.as_ref().unwrap();
-        assert_eq!(v.positions, b.mesh.positions.iter().map(|p| p.to_array()).collect::<Vec<_>>());
-        assert_eq!(v.normals, b.mesh.normals.iter().map(|p| p.to_array()).collect::<Vec<_>>());
+        assert_eq!((v.positions, v.normals), (&b.mesh.positions[..], &b.mesh.normals[..]));
         assert_eq!((v.stride, v.joints, v.weights), (inf.stride, &inf.joints[..], &inf.weights[..]));
         assert_eq!(view.triangles().unwrap(), &b.mesh.triangles[..]);
         let (indices, draws) = view.meshlets().unwrap().index_buffer();
@@ -1000,16 +925,15 @@ mod tests {
         let (m, mv) = (&b.mesh.morphs, view.morphs().unwrap().unwrap());
         assert!(!m.deltas.is_empty());
         assert!(std::ptr::eq(mv.weights.as_ptr().cast::<u8>(), &bytes[section_start(&bytes, b"MRPH") + 8]));
-        assert_eq!(mv.offsets, &m.offsets[..]);
-        for v in 0..b.mesh.positions.len() {
-            let (want, got) = (m.of(v), mv.of(v));
-            assert_eq!(want.len(), got.len());
-            for (w, g) in want.iter().zip(got) {
-                assert_eq!((w.weight, w.position.to_array(), w.normal.to_array()), (g.weight, g.position, g.normal));
-            }
-        }
-        let defaults: Vec<_> = mv.weights.iter().map(|w| (w.node, w.target, w.default)).collect();
-        assert_eq!(defaults, m.weights.iter().map(|w| (w.node, w.target, w.default)).collect::<Vec<_>>());
+        assert_eq!((mv.weights, mv.offsets, mv.deltas), (&m.weights[..], &m.offsets[..], &m.deltas[..]));
+        // INFO's clips, PART's records in place, OVDR's orders.
+        assert_eq!(view.info().unwrap().clips, b.settings.clips);
+        let parts = view.parts().unwrap();
+        assert!(std::ptr::eq(parts.as_ptr().cast::<u8>(), &bytes[section_start(&bytes, b"PART") + 4]));
+        let ranges =
+            |p: &BakedPart| [p.vertices.clone(), p.triangles.clone(), p.meshlets.clone()].map(|r| [r.start, r.end]);
+        assert!(parts.iter().zip(&b.parts).all(|(r, p)| [r.vertices, r.triangles, r.meshlets] == ranges(p)));
+        assert_eq!((parts.len(), view.overdraw_orders().unwrap().as_ref()), (b.parts.len(), b.overdraw.as_ref()));
         let (contours, edges) = view.contours().unwrap().unwrap();
         assert_eq!(Some(&contours), b.contours.as_ref());
         assert_eq!(edges, skinned_edges(&b.mesh, true).unwrap());

@@ -198,24 +198,9 @@ pub struct SkinnedMesh {
     pub morphs: Morphs,
 }
 
-/// One morph weight of a mesh: target `target` of the mesh that node `node` draws (glTF's
-/// weights are per node), with the weight it has where no clip animates it.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct MorphWeight {
-    pub node: u32,
-    pub target: u32,
-    pub default: f32,
-}
-
-/// One vertex's displacement by one morph weight: the vertex moves by `weight × position`
-/// and its normal by `weight × normal` (zero where the file gives no normal deltas).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct MorphDelta {
-    /// Index into [`Morphs::weights`].
-    pub weight: u32,
-    pub position: Vec3,
-    pub normal: Vec3,
-}
+/// One morph weight of a mesh (target `target` of the mesh node `node` draws, its default
+/// weight) and one vertex's displacement by one weight: the records the bake file stores.
+pub use skinlet_runtime::bake_view::{BakedMorphDelta as MorphDelta, BakedMorphWeight as MorphWeight};
 
 /// Morph targets of a mesh, stored like skin influences: a palette of weights (the frame's
 /// values are sampled per weight, like joint matrices per joint) and, per vertex, the
@@ -231,6 +216,15 @@ pub struct Morphs {
 }
 
 impl Morphs {
+    /// The deltas as the runtime's view of a bake's `MRPH` holds them (`None` without any).
+    pub fn view(&self) -> Option<skinlet_runtime::bake_view::MorphView<'_>> {
+        (!self.is_empty()).then_some(skinlet_runtime::bake_view::MorphView {
+            weights: &self.weights,
+            offsets: &self.offsets,
+            deltas: &self.deltas,
+        })
+    }
+
     /// True when no vertex has a delta.
     pub fn is_empty(&self) -> bool {
         self.deltas.is_empty()
@@ -317,6 +311,36 @@ impl Morphs {
 }
 
 impl SkinnedMesh {
+    /// The vertices as the runtime's view of a bake's `VERT` holds them (stride 0 without
+    /// skin weights).
+    pub fn vertex_view(&self) -> skinlet_runtime::bake_view::VertexView<'_> {
+        let (stride, joints, weights) = match &self.influences {
+            Some(inf) => (inf.stride, &inf.joints[..], &inf.weights[..]),
+            None => (0, &[][..], &[][..]),
+        };
+        skinlet_runtime::bake_view::VertexView {
+            positions: &self.positions,
+            normals: &self.normals,
+            stride,
+            joints,
+            weights,
+        }
+    }
+
+    /// The mesh as a GPU upload reads it, with `meshlets` of it if given
+    /// ([`crate::meshlet::Meshlets::view`]).
+    pub fn mesh_data<'a>(
+        &'a self,
+        meshlets: Option<skinlet_runtime::bake_view::MeshletView<'a>>,
+    ) -> skinlet_runtime::bake_view::MeshData<'a> {
+        skinlet_runtime::bake_view::MeshData {
+            vertices: self.vertex_view(),
+            triangles: &self.triangles,
+            morphs: self.morphs.view(),
+            meshlets,
+        }
+    }
+
     /// A copy of vertices `vertices` and triangles `triangles`, renumbered from 0 (the
     /// triangles must use only those vertices, as a [`crate::Part`]'s do).
     pub fn slice(&self, vertices: std::ops::Range<u32>, triangles: std::ops::Range<u32>) -> SkinnedMesh {

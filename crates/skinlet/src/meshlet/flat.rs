@@ -32,14 +32,8 @@ pub fn to_bytes(m: &Meshlets) -> Vec<u8> {
     for n in [m.meshlets.len(), m.vertices.len(), m.triangles.len(), m.joints.len()] {
         out.extend_from_slice(&(n as u32).to_le_bytes());
     }
-    for h in &m.meshlets {
-        let packed = h.vertex_count as u32
-            | (h.triangle_count as u32) << 9
-            | (h.joint_count as u32) << 19
-            | (h.single_joint_set() as u32) << 31;
-        for x in [h.vertex_offset, h.triangle_offset, h.joint_offset, packed] {
-            out.extend_from_slice(&x.to_le_bytes());
-        }
+    for x in m.headers().iter().flatten() {
+        out.extend_from_slice(&x.to_le_bytes());
     }
     m.vertices.iter().for_each(|v| out.extend_from_slice(&v.to_le_bytes()));
     out.extend_from_slice(&m.triangles);
@@ -47,6 +41,29 @@ pub fn to_bytes(m: &Meshlets) -> Vec<u8> {
     m.joints.iter().for_each(|j| out.extend_from_slice(&j.to_le_bytes()));
     out.resize(pad4(out.len()), 0);
     out
+}
+
+impl Meshlets {
+    /// The meshlet headers as the layout stores them: `vertex_offset`, `triangle_offset`,
+    /// `joint_offset`, `packed`.
+    pub fn headers(&self) -> Vec<[u32; 4]> {
+        (self.meshlets.iter())
+            .map(|h| {
+                let packed = h.vertex_count as u32
+                    | (h.triangle_count as u32) << 9
+                    | (h.joint_count as u32) << 19
+                    | (h.single_joint_set() as u32) << 31;
+                [h.vertex_offset, h.triangle_offset, h.joint_offset, packed]
+            })
+            .collect()
+    }
+
+    /// The meshlets as the runtime's view of a bake's `MLET` holds them, over `headers`
+    /// ([`Self::headers`]): what a GPU upload reads.
+    pub fn view<'a>(&'a self, headers: &'a [[u32; 4]]) -> skinlet_runtime::bake_view::MeshletView<'a> {
+        let (vertices, triangles, joints) = (&self.vertices[..], &self.triangles[..], &self.joints[..]);
+        skinlet_runtime::bake_view::MeshletView { headers, vertices, triangles, joints }
+    }
 }
 
 /// Size in bytes of [`to_bytes`]'s output.

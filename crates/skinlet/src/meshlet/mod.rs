@@ -175,10 +175,7 @@ impl Meshlets {
 }
 
 /// A triangle rotated so its smallest index comes first (winding kept).
-pub fn canonical(t: [u32; 3]) -> [u32; 3] {
-    let k = (0..3).min_by_key(|&k| t[k]).unwrap_or(0);
-    [t[k], t[(k + 1) % 3], t[(k + 2) % 3]]
-}
+pub use skinlet_runtime::overdraw_orders::canonical;
 
 /// Which meshlet builder to use.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

@@ -53,24 +53,8 @@ pub fn acmr(triangles: &[[u32; 3]], vertex_count: usize, cache_size: u32) -> f32
     misses as f32 / triangles.len().max(1) as f32
 }
 
-/// Fragments that passed the depth test and pixels covered by one render.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Overdraw {
-    pub shaded: u64,
-    pub covered: u64,
-}
-
-impl Overdraw {
-    /// OVR: shaded fragments per visible pixel (1 = no overdraw; 0 when nothing is visible).
-    pub fn ratio(&self) -> f64 {
-        if self.covered == 0 { 0.0 } else { self.shaded as f64 / self.covered as f64 }
-    }
-
-    pub fn add(&mut self, o: Overdraw) {
-        self.shaded += o.shaded;
-        self.covered += o.covered;
-    }
-}
+/// What one render measured (the runtime crate holds the type, which the GPU renderer fills too).
+pub use skinlet_runtime::overdraw_orders::Overdraw;
 
 /// A depth buffer and per-pixel counters, reused across renders.
 #[derive(Clone, Debug)]
