@@ -76,6 +76,15 @@ impl Gpu {
         Ok(Gpu { device, queue, info: adapter.get_info(), features })
     }
 
+    /// skinlet's GPU objects on the caller's own device and queue (handles of the same
+    /// device, as wgpu's `clone` gives), with the caller's adapter's `info`. What skinlet may
+    /// use is what the device was created with (`device.features()`): mesh-shader paths need
+    /// `EXPERIMENTAL_MESH_SHADER`, crowd culling `INDIRECT_FIRST_INSTANCE`.
+    pub fn from_device(device: wgpu::Device, queue: wgpu::Queue, info: wgpu::AdapterInfo) -> Gpu {
+        let features = device.features();
+        Gpu { device, queue, info, features }
+    }
+
     /// Whether GPU timestamps can be written (frame times in `Drawn::gpu_ms`).
     pub fn has_timestamps(&self) -> bool {
         self.features.contains(wgpu::Features::TIMESTAMP_QUERY)

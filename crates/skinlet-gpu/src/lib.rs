@@ -19,6 +19,28 @@
 //!
 //! Errors (no adapter, a failed device request, a validation error, bad input) come back as
 //! [`GpuError`]; nothing here panics on user data.
+//!
+//! Skinning a baked character on your own device (the bake read by `skinlet-runtime`'s view;
+//! crowd culling on the same device: [`crowd_culling`]):
+//!
+//! ```no_run
+//! use skinlet_gpu::mesh::{GpuMesh, Pose};
+//! use skinlet_gpu::{Gpu, skinning::ComputeSkinning};
+//!
+//! fn skin(device: &wgpu::Device, queue: &wgpu::Queue, adapter: &wgpu::Adapter) -> Result<(), Box<dyn std::error::Error>> {
+//!     let gpu = Gpu::from_device(device.clone(), queue.clone(), adapter.get_info());
+//!     let bytes = std::fs::read("character.skinlet")?;
+//!     let view = skinlet_runtime::bake_view::BakeView::new(&bytes)?;
+//!     let mesh = GpuMesh::new(&gpu, &view.mesh_data()?)?; // once
+//!     let skinning = ComputeSkinning::new(&gpu)?;
+//!     // Every frame: your pose's skinning matrices (one per driver) and morph weights.
+//!     let matrices = vec![glam::Affine3A::IDENTITY; view.joint_count()?];
+//!     let morph_weights = vec![0.0; mesh.morph_weights];
+//!     skinning.skin(&gpu, &mesh, Pose { matrices: &matrices, morph_weights: &morph_weights })?;
+//!     // `mesh.out_positions` and `mesh.out_normals` now hold the skinned vertices.
+//!     Ok(())
+//! }
+//! ```
 
 mod context;
 pub mod contours;

@@ -1,6 +1,7 @@
 //! Compute-shader skinning against skinlet's CPU reference skinning (morph targets, then
 //! skinning): every vertex and normal of every shared skinned asset, the morph-target test
-//! and the demo character, at several times of each clip.
+//! and the demo character, at several times of each clip; and on a device the caller
+//! opened, uploaded from a bake file's bytes through the runtime's view.
 //!
 //! Runs on any Vulkan adapter; on CPU-only machines that is Mesa's lavapipe. With
 //! SKINLET_REQUIRE_GPU=1 (CI) a missing adapter fails the test instead of skipping it.
@@ -64,4 +65,44 @@ fn mesh_shaders_can_be_turned_off() {
     drop(gpu);
     let plain = Gpu::new(GpuOptions { no_mesh_shaders: true, ..GpuOptions::default() }).unwrap();
     assert!(!plain.has_mesh_shaders());
+}
+
+#[test]
+fn a_bake_file_skins_on_the_callers_device() {
+    // An engine's path: its own plain device (no optional features), the bake's bytes viewed
+    // by skinlet-runtime, the mesh uploaded from that view; the result equals the baker's
+    // reference skinning of the mesh it baked.
+    let Some(probe) = gpu() else { return };
+    drop(probe);
+    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+        backends: wgpu::Backends::VULKAN,
+        ..wgpu::InstanceDescriptor::new_without_display_handle()
+    });
+    let adapter = pollster::block_on(instance.request_adapter(&Default::default())).unwrap();
+    let (device, queue) = pollster::block_on(adapter.request_device(&Default::default())).unwrap();
+    let gpu = Gpu::from_device(device, queue, adapter.get_info());
+    assert!(!gpu.has_mesh_shaders() && !gpu.has_timestamps());
+    let asset = skinlet::demo::demo_character(&skinlet::demo::DemoParams { triangles: 3000, ..Default::default() });
+    let baked = common::bake(&asset, &asset.character().unwrap());
+    let bytes = skinlet::bake::to_bytes(&baked);
+    let view = skinlet_runtime::bake_view::BakeView::new(&bytes).unwrap();
+    let data = view.mesh_data().unwrap();
+    assert!(data.morphs.is_some(), "the demo's face has morph targets");
+    let buffers = GpuMesh::new(&gpu, &data).unwrap();
+    assert_eq!(buffers.meshlets.as_ref().unwrap().count as usize, baked.meshlets.len());
+    let pipeline = ComputeSkinning::new(&gpu).unwrap();
+    let (mesh, clip) = (&baked.mesh, &asset.clips[0]);
+    let t = clip.start + clip.duration() * 0.4;
+    let (mut matrices, mut weights) = (Vec::new(), Vec::new());
+    Poser::default().skinning_matrices(&asset.skeleton, &baked.palette(), Some(clip), t, &mut matrices);
+    mesh.morphs.weights_at(Some(clip), t, &mut weights);
+    assert!(weights.iter().any(|&w| w != 0.0), "the clip moves the face");
+    let mut cpu_p = vec![Vec3::ZERO; mesh.positions.len()];
+    let mut cpu_n = vec![Vec3::ZERO; mesh.normals.len()];
+    skinlet::skinning::skin_mesh(mesh, &weights, &matrices, &mut cpu_p, &mut cpu_n).unwrap();
+    pipeline.skin(&gpu, &buffers, Pose { matrices: &matrices, morph_weights: &weights }).unwrap();
+    let (gpu_p, gpu_n) = pipeline.read(&gpu, &buffers).unwrap();
+    let p_err = cpu_p.iter().zip(&gpu_p).map(|(a, b)| (*a - *b).length()).fold(0.0f32, f32::max);
+    let n_err = cpu_n.iter().zip(&gpu_n).map(|(a, b)| (*a - *b).length()).fold(0.0f32, f32::max);
+    assert!(p_err <= 1e-5 && n_err <= 1e-5, "position error {p_err:e}, normal error {n_err:e}");
 }

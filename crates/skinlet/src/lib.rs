@@ -11,7 +11,8 @@
 //! - [`export`]: writing an asset as a glTF binary (.glb).
 //! - [`bake`]: the bake file (meshlets, bounds, vertices) the runtime loads.
 //! - [`bounds`]: conservative animated meshlet bounds (spheres, normal cones) and their check.
-//! - [`cull`]: CPU culling at run time: meshlets, triangles, whole-mesh boxes, the crowd scene.
+//! - [`cull`]: the baker's side of culling (any-pose and per-joint boxes, per-triangle tests),
+//!   the crowd scene and the Bevy baseline; the run-time culler is `skinlet_runtime`'s.
 //! - [`meshlet`]: meshlet layout, four builders (incl. skin-aware), flat GPU form, metrics.
 //! - [`contour`]: mesh contour extraction with patch decomposition (and its baselines).
 //! - [`overdraw`]: triangle orders for low overdraw over animation (measures, clustering,
@@ -19,6 +20,29 @@
 //! - [`weld`]: merging vertices that are equal in position, skin data and morph deltas.
 //! - [`summary`]: the facts `skinlet inspect` reports.
 //! - [`demo`]: the built-in procedural demo character.
+//!
+//! Baking the demo character and reading the bake back the way a game does, with
+//! `skinlet-runtime`'s checked view of the bytes:
+//!
+//! ```
+//! use skinlet::bake::{bake, to_bytes};
+//! use skinlet::bounds::refine::Refinement;
+//! use skinlet::demo::{DemoParams, demo_character};
+//! use skinlet::meshlet::{Builder, MeshletLimits};
+//!
+//! let asset = demo_character(&DemoParams { triangles: 1000, ..DemoParams::default() });
+//! let character = asset.character()?; // every mesh-drawing node of the scene, one palette
+//! let clips: Vec<_> = asset.clips.iter().collect();
+//! let limits = MeshletLimits::NVIDIA;
+//! let (baked, _stats) =
+//!     bake(&asset, &character, &clips, Builder::SkinAware, limits, &Refinement::NONE, &mut |_| {})?;
+//! let bytes = to_bytes(&baked); // what `skinlet::bake::write` stores
+//! let view = skinlet_runtime::bake_view::BakeView::new(&bytes)?;
+//! assert_eq!(view.meshlet_count()?, baked.meshlets.len());
+//! let culler = view.culler()?; // what a game culls with, frame after frame
+//! assert_eq!(culler.len(), baked.meshlets.len());
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 
 pub mod bake;
 pub mod bounds;
