@@ -13,8 +13,8 @@ use skinlet::overdraw::cluster::ClusterParams;
 use skinlet::pose::Poser;
 use skinlet_gpu::contours::{ContourExtraction, ContourView, GpuContours};
 use skinlet_gpu::mesh::{GpuMesh, Pose};
-use skinlet_gpu::render::{Image, Renderer, Skinning, framing};
 use skinlet_gpu::{Gpu, GpuOptions};
+use skinlet_lab::render::{Image, Renderer, Skinning, framing};
 use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller, Tests};
 
 /// The default view direction (toward the eye) and the culled view's observer direction.

@@ -101,13 +101,13 @@ impl Gpu {
     }
 
     /// A buffer holding `data` (at least 16 bytes: empty bindings are not allowed).
-    pub(crate) fn buffer<T: bytemuck::Pod>(&self, label: &str, data: &[T], usage: wgpu::BufferUsages) -> wgpu::Buffer {
+    pub fn buffer<T: bytemuck::Pod>(&self, label: &str, data: &[T], usage: wgpu::BufferUsages) -> wgpu::Buffer {
         buffer(&self.device, label, data, usage)
     }
 
     /// A compute pipeline from WGSL `source` with entry point `entry` and one bind group of
     /// `entries`; returns the pipeline and that group's layout.
-    pub(crate) fn compute_pipeline(
+    pub fn compute_pipeline(
         &self,
         label: &str,
         source: String,
@@ -121,7 +121,7 @@ impl Gpu {
 
     /// A compute pipeline from WGSL `source` with entry point `entry` and one bind group of
     /// an existing `layout`.
-    pub(crate) fn compute_pipeline_with(
+    pub fn compute_pipeline_with(
         &self,
         label: &str,
         source: String,
@@ -132,7 +132,7 @@ impl Gpu {
     }
 
     /// A bind group of `entries` for `layout`.
-    pub(crate) fn bind_group(
+    pub fn bind_group(
         &self,
         label: &str,
         layout: &wgpu::BindGroupLayout,
@@ -143,12 +143,12 @@ impl Gpu {
 
     /// Runs `work` inside a validation error scope and waits for the queue: a validation or
     /// out-of-memory error becomes a [`GpuError`] named after `location`.
-    pub(crate) fn checked<T>(&self, location: &'static str, work: impl FnOnce() -> T) -> Result<T> {
+    pub fn checked<T>(&self, location: &'static str, work: impl FnOnce() -> T) -> Result<T> {
         checked(&self.device, location, work)
     }
 
     /// Copies `size` bytes of `buffer` (which needs COPY_SRC) back to the CPU.
-    pub(crate) fn read(&self, buffer: &wgpu::Buffer, size: u64) -> Result<Vec<u8>> {
+    pub fn read(&self, buffer: &wgpu::Buffer, size: u64) -> Result<Vec<u8>> {
         let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("readback"),
             size,

@@ -2,16 +2,16 @@
 //! compute pass writes the ids of the patches whose spatialized normal cone admits the view,
 //! an edge test pass dispatched indirectly (one workgroup per accepted patch) writes the ids
 //! of the contour edges, and the count becomes the vertex count of an indirect line draw
-//! ([`crate::render::Renderer::render_contours`]).
+//! (skinlet-lab's `Renderer::render_contours`).
 //!
-//! Guarantee: the extracted set equals skinlet's CPU brute force ([`skinlet::contour::brute_force`])
+//! Guarantee: the extracted set equals skinlet's CPU brute force ([`skinlet_runtime::contour_edges::brute_force`])
 //! on the same positions. The patch test is skinlet's f32 cone test, which never rejects a
 //! patch holding a contour edge; the edge test is the CPU's f64 test, operation for operation
 //! (it needs `SHADER_F64`, which lavapipe and desktop GPUs offer; without it extraction is an
 //! error rather than an approximation). tests/contours.rs compares the two on the static
 //! scans and on every shared skinned asset skinned on the GPU, perspective and orthographic.
 //!
-//! Skinned characters: their patches' bounds live in joint spaces ([`skinlet::contour::skinned`]);
+//! Skinned characters: their patches' bounds live in joint spaces ([`skinlet_runtime::contour_patches`]);
 //! [`ContourView::skinned`] moves the viewer into each joint's space on the CPU (one vector
 //! per joint per frame), as the CPU extractor does.
 
@@ -31,7 +31,7 @@ const NONE: u32 = u32::MAX;
 /// `DrawIndirectArgs` (vertex count, instance count 1, first vertex, first instance).
 const STATE_RESET: [u32; 6] = [0, 0, 0, 1, 0, 0];
 /// Byte offset of the draw arguments in the state buffer.
-pub(crate) const DRAW_ARGS_OFFSET: u64 = 8;
+pub const DRAW_ARGS_OFFSET: u64 = 8;
 
 /// The three compute pipelines (create once per device).
 pub struct ContourExtraction {
@@ -64,13 +64,13 @@ pub struct GpuContours {
     irregular: wgpu::Buffer,
     faces: wgpu::Buffer,
     /// Both vertices of every edge id (for drawing).
-    pub(crate) endpoints: wgpu::Buffer,
+    pub endpoints: wgpu::Buffer,
     accepted: wgpu::Buffer,
-    pub(crate) state: wgpu::Buffer,
+    pub state: wgpu::Buffer,
     dispatch: wgpu::Buffer,
     reset: wgpu::Buffer,
     /// Contour edge ids, in no particular order.
-    pub(crate) contours: wgpu::Buffer,
+    pub contours: wgpu::Buffer,
 }
 
 /// The viewer of one extraction: the projection (for the edge test), the bound set, and per
@@ -161,7 +161,7 @@ impl ContourExtraction {
 
     /// Records one extraction of `contours` over `positions` (3 f32 per vertex, e.g.
     /// `GpuMesh::out_positions` after compute skinning) seen by `view` into `encoder`.
-    pub(crate) fn encode(
+    pub fn encode(
         &self,
         gpu: &Gpu,
         encoder: &mut wgpu::CommandEncoder,
@@ -388,7 +388,7 @@ impl GpuContours {
     }
 
     /// Reads back what the last extraction found.
-    pub(crate) fn read(&self, gpu: &Gpu) -> Result<Extracted> {
+    pub fn read(&self, gpu: &Gpu) -> Result<Extracted> {
         let state = bytemuck::pod_collect_to_vec::<u8, u32>(&gpu.read(&self.state, 24)?);
         let count = state[2] / 2;
         if count > self.edges {

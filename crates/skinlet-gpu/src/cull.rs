@@ -6,7 +6,7 @@
 //! any-pose boxes are tested), and `shaders/cull.wgsl` runs [`MeshletCuller::cull`]'s
 //! per-meshlet loop operation for operation, any-pose boxes included, one invocation per
 //! (instance, meshlet), so the visible set is the CPU's exactly (tests/cull.rs, on the crowd
-//! scene; tests/render.rs, on game poses). Survivors are compacted per instance with an
+//! scene; skinlet-lab's tests/render.rs, on game poses). Survivors are compacted per instance with an
 //! atomic counter (their order varies; the set does not).
 
 use crate::mesh::entry;
@@ -27,7 +27,7 @@ pub struct ComputeCulling {
 
 /// What the culling passes read: parameters, slots, joint records, any-pose boxes (see
 /// cull_common.wgsl).
-pub(crate) struct CullInput {
+pub struct CullInput {
     /// `CullParams`: slots, joints, instances, test flags, first slot, padding.
     pub params: [u32; 8],
     pub slots: Vec<u32>,
@@ -131,7 +131,7 @@ impl ComputeCulling {
     /// Records a pass writing, for one instance culled by `input`, an indexed indirect draw
     /// per meshlet of `meshlets` into `commands` (culled ones with no instance) and the
     /// counts (visible, frustum, backface) into `counts`.
-    pub(crate) fn encode_draws(
+    pub fn encode_draws(
         &self,
         gpu: &Gpu,
         encoder: &mut wgpu::CommandEncoder,

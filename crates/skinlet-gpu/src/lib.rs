@@ -1,21 +1,23 @@
 //! skinlet's GPU runtime on wgpu (exact version pinned) with WGSL shaders (issue 8).
 //!
-//! - [`Gpu`]: a headless Vulkan device with the optional features the adapter offers (mesh
-//!   shaders, timestamps, subgroups, f64).
+//! - [`Gpu`]: the device skinlet's objects live on: yours ([`Gpu::from_device`]) or a
+//!   headless Vulkan device with the optional features the adapter offers (mesh shaders,
+//!   timestamps, subgroups, f64), with the buffer and pipeline helpers the modules share.
 //! - [`mesh`]: a skinned mesh (morph target deltas included) and its meshlets on the GPU,
 //!   uploaded from a bake's `skinlet_runtime::bake_view::MeshData`; a [`mesh::Pose`] is one
 //!   draw's skinning matrices and morph weights.
-//! - [`skinning`]: compute-shader skinning, checked against skinlet's reference skinning.
-//! - [`render`]: offscreen drawing by vertex-, compute-, mesh-shader and slim mesh-shader
-//!   skinning (the same image), culled drawing (task shaders, or a compute pass and indirect
-//!   draws without mesh shaders), crowds timed by timestamp queries, colored, contour and
-//!   overdraw views.
+//! - [`skinning`]: compute-shader skinning, checked against skinlet's reference skinning, and
+//!   the shared skinning WGSL with its bindings for your own skinning shaders.
 //! - [`crowd_culling`]: culling a crowd on the caller's own device, recorded into the caller's
 //!   own encoder: per-joint preparation and per-meshlet tests in one compute pass, indexed
 //!   indirect draws out, nothing read back (the library API an engine links).
 //! - [`cull`]: per-meshlet culling of many instances prepared on the CPU, equal to the CPU's.
 //! - [`contours`]: contour extraction (patch culling and edge test passes), equal to brute
 //!   force.
+//!
+//! skinlet's own offscreen renderer (every skinning and culling pipeline, timed crowds,
+//! readbacks) is not here: it is a user of this API in the `skinlet-lab` crate, for the tools
+//! and tests.
 //!
 //! Errors (no adapter, a failed device request, a validation error, bad input) come back as
 //! [`GpuError`]; nothing here panics on user data.
@@ -47,7 +49,6 @@ pub mod contours;
 pub mod crowd_culling;
 pub mod cull;
 pub mod mesh;
-pub mod render;
 pub mod skinning;
 
 pub use context::{Gpu, GpuOptions};

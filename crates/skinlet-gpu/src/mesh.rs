@@ -24,14 +24,14 @@ pub struct GpuMeshlets {
     pub fat_vertices: u32,
     /// Per meshlet: vertex offset and count, triangle offset and count, joint offset and
     /// count (0: not slim), padding (`Meshlet` in WGSL).
-    pub(crate) meshlets: wgpu::Buffer,
+    pub meshlets: wgpu::Buffer,
     /// The slim meshlets' joint lists.
-    pub(crate) joint_lists: wgpu::Buffer,
-    pub(crate) vertices: wgpu::Buffer,
+    pub joint_lists: wgpu::Buffer,
+    pub vertices: wgpu::Buffer,
     /// One u32 per triangle: its three local vertex indices in the low three bytes.
-    pub(crate) triangles: wgpu::Buffer,
+    pub triangles: wgpu::Buffer,
     /// Per meshlet: index count and first index in the mesh's index buffer (for indirect draws).
-    pub(crate) draws: wgpu::Buffer,
+    pub draws: wgpu::Buffer,
 }
 
 /// What one draw poses a mesh with: a skinning matrix per joint and, for a mesh with morph
@@ -65,15 +65,15 @@ pub struct GpuMesh {
     /// Vertex count, influences per vertex, normals present (0/1), morph deltas present
     /// (0/1), where the morph weights start in the pose buffer (in vec4s), where the deltas
     /// start in the morph buffer, padding: `Params` in WGSL.
-    pub(crate) params: wgpu::Buffer,
-    pub(crate) positions: wgpu::Buffer,
-    pub(crate) normals: wgpu::Buffer,
-    pub(crate) joints: wgpu::Buffer,
-    pub(crate) weights: wgpu::Buffer,
+    pub params: wgpu::Buffer,
+    pub positions: wgpu::Buffer,
+    pub normals: wgpu::Buffer,
+    pub joints: wgpu::Buffer,
+    pub weights: wgpu::Buffer,
     /// Per vertex its first morph delta (one more entry than vertices; one 0 without
     /// morphs), then eight words per delta: position delta, weight index, normal delta, 0.
-    pub(crate) morphs: wgpu::Buffer,
-    pub(crate) indices: wgpu::Buffer,
+    pub morphs: wgpu::Buffer,
+    pub indices: wgpu::Buffer,
     pub index_count: u32,
     /// Skinned positions and unit normals written by compute skinning (3 f32 per vertex).
     pub out_positions: wgpu::Buffer,
@@ -169,7 +169,7 @@ impl GpuMesh {
     /// z axes, translation), each a vec4, for the joints the mesh uses, then its morph
     /// weights, four per vec4. Errors when a joint has no matrix or the weights are not the
     /// mesh's.
-    pub(crate) fn pose_buffer(&self, gpu: &Gpu, pose: Pose) -> Result<wgpu::Buffer> {
+    pub fn pose_buffer(&self, gpu: &Gpu, pose: Pose) -> Result<wgpu::Buffer> {
         let invalid = |message: String| GpuError::Invalid { location: "skinning", message };
         if pose.matrices.len() < self.joint_count {
             return Err(invalid(format!(
@@ -203,7 +203,7 @@ pub(crate) fn vec3_buffer(gpu: &Gpu, label: &str, v: &[Vec3]) -> wgpu::Buffer {
 }
 
 /// A bind group entry for a whole buffer.
-pub(crate) fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+pub fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
     wgpu::BindGroupEntry { binding, resource: buffer.as_entire_binding() }
 }
 

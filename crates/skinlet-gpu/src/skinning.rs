@@ -2,7 +2,7 @@
 //! plain vertex shader then draws).
 //!
 //! `shaders/common.wgsl` performs skinlet's reference linear blend skinning with morph
-//! targets first ([`skinlet::skinning::skin_mesh`]) with the same operations in the same order, one invocation per
+//! targets first (`skinlet::skinning::skin_mesh`) with the same operations in the same order, one invocation per
 //! vertex, so the only differences are the GPU's own rounding (fused multiply-adds, the
 //! normalization): tests/skinning.rs checks every vertex of every shared asset against the
 //! CPU to 1e-5 of the model's size (on lavapipe they agree bit for bit).
@@ -11,6 +11,10 @@ use crate::mesh::{GpuMesh, Pose, entry};
 use crate::{Gpu, Result};
 use glam::Vec3;
 
+/// The skinning arithmetic every skinning shader shares (the mesh's bindings 0–5 and 8, see
+/// [`mesh_entries`], and `skin_vertex`): prepend it to your own vertex or compute shader.
+pub const COMMON_WGSL: &str = include_str!("shaders/common.wgsl");
+
 /// The compute pipeline (create once per device).
 pub struct ComputeSkinning {
     pipeline: wgpu::ComputePipeline,
@@ -18,7 +22,7 @@ pub struct ComputeSkinning {
 }
 
 /// A bind group layout entry: a buffer of `ty` seen by `stages`.
-pub(crate) fn buffer_entry(
+pub fn buffer_entry(
     binding: u32,
     stages: wgpu::ShaderStages,
     ty: wgpu::BufferBindingType,
@@ -33,7 +37,7 @@ pub(crate) fn buffer_entry(
 
 /// Bindings 0–5 and 8 of `common.wgsl` (mesh parameters, bind-pose vertices, influences,
 /// the pose, morph deltas).
-pub(crate) fn mesh_entries(stages: wgpu::ShaderStages) -> Vec<wgpu::BindGroupLayoutEntry> {
+pub fn mesh_entries(stages: wgpu::ShaderStages) -> Vec<wgpu::BindGroupLayoutEntry> {
     let mut entries = vec![buffer_entry(0, stages, wgpu::BufferBindingType::Uniform)];
     entries.extend(
         [1, 2, 3, 4, 5, 8].map(|b| buffer_entry(b, stages, wgpu::BufferBindingType::Storage { read_only: true })),
@@ -42,7 +46,7 @@ pub(crate) fn mesh_entries(stages: wgpu::ShaderStages) -> Vec<wgpu::BindGroupLay
 }
 
 /// Entries for bindings 0–5 and 8 of `common.wgsl`; `pose` from `GpuMesh::pose_buffer`.
-pub(crate) fn mesh_bindings<'a>(mesh: &'a GpuMesh, pose: &'a wgpu::Buffer) -> Vec<wgpu::BindGroupEntry<'a>> {
+pub fn mesh_bindings<'a>(mesh: &'a GpuMesh, pose: &'a wgpu::Buffer) -> Vec<wgpu::BindGroupEntry<'a>> {
     vec![
         entry(0, &mesh.params),
         entry(1, &mesh.positions),
@@ -61,7 +65,7 @@ impl ComputeSkinning {
             let mut entries = mesh_entries(stage);
             entries
                 .extend((6..=7).map(|b| buffer_entry(b, stage, wgpu::BufferBindingType::Storage { read_only: false })));
-            let source = [include_str!("shaders/common.wgsl"), include_str!("shaders/skin.wgsl")].concat();
+            let source = [COMMON_WGSL, include_str!("shaders/skin.wgsl")].concat();
             let (pipeline, layout) = gpu.compute_pipeline("skinning", source, "skin", &entries);
             ComputeSkinning { pipeline, layout }
         })
@@ -69,7 +73,7 @@ impl ComputeSkinning {
 
     /// Records the skinning of `mesh` by the matrices in `matrices` (from
     /// `GpuMesh::matrix_buffer`) into `positions` and `normals` (3 f32 per vertex).
-    pub(crate) fn encode_into(
+    pub fn encode_into(
         &self,
         gpu: &Gpu,
         encoder: &mut wgpu::CommandEncoder,

@@ -4,14 +4,15 @@
 //! morph-target test and the demo character, mid-clip. With SKINLET_REQUIRE_GPU=1 (CI, lavapipe) the mesh-shader paths
 //! must run.
 
+#[path = "../../skinlet-gpu/tests/common/mod.rs"]
 mod common;
 use common::{Posed, assets, gpu};
 use glam::Vec3;
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::Poser;
 use skinlet_gpu::mesh::{GpuMesh, Pose};
-use skinlet_gpu::render::{CrowdDraw, Culling, PosedInstance, Renderer, Skinning, framing};
 use skinlet_gpu::{Gpu, GpuOptions};
+use skinlet_lab::render::{CrowdDraw, Culling, PosedInstance, Renderer, Skinning, framing};
 
 #[test]
 fn every_skinning_pipeline_draws_the_same_image() {
@@ -342,7 +343,7 @@ fn game_poses_cull_on_the_gpu_as_on_the_cpu() {
     }
 }
 
-fn differing_pixels(a: &skinlet_gpu::render::Image, b: &skinlet_gpu::render::Image) -> usize {
+fn differing_pixels(a: &skinlet_lab::render::Image, b: &skinlet_lab::render::Image) -> usize {
     a.rgba.chunks(4).zip(b.rgba.chunks(4)).filter(|(x, y)| x != y).count()
 }
 

@@ -6,12 +6,12 @@
 //! same order (meshlet order when the mesh has meshlets) and the same fragment shader, so
 //! they must give the same image; tests/render.rs checks that pixel for pixel.
 
-use crate::contours::{ContourExtraction, ContourView, DRAW_ARGS_OFFSET, Extracted, GpuContours};
-use crate::cull::{ComputeCulling, CullInput};
-use crate::mesh::{GpuMesh, Pose, entry};
-use crate::skinning::{ComputeSkinning, buffer_entry, mesh_bindings, mesh_entries};
-use crate::{Gpu, GpuError, Result};
 use glam::{Mat4, Vec3};
+use skinlet_gpu::contours::{ContourExtraction, ContourView, DRAW_ARGS_OFFSET, Extracted, GpuContours};
+use skinlet_gpu::cull::{ComputeCulling, CullInput};
+use skinlet_gpu::mesh::{GpuMesh, Pose, entry};
+use skinlet_gpu::skinning::{COMMON_WGSL, ComputeSkinning, buffer_entry, mesh_bindings, mesh_entries};
+use skinlet_gpu::{Gpu, GpuError, Result};
 use skinlet_runtime::camera::{Camera, Projection};
 use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller};
 use skinlet_runtime::overdraw_orders::Overdraw;
@@ -238,10 +238,10 @@ impl Renderer {
                 let ballot = gpu.has_subgroups();
                 let source = [
                     "enable wgpu_mesh_shader;\n",
-                    include_str!("shaders/common.wgsl"),
+                    COMMON_WGSL,
                     draw,
                     include_str!("shaders/mesh_skin.wgsl"),
-                    include_str!("shaders/cull_common.wgsl"),
+                    skinlet_gpu::crowd_culling::CULL_WGSL,
                     include_str!("shaders/task_cull.wgsl"),
                     include_str!("shaders/slim_skin.wgsl"),
                     if ballot { include_str!("shaders/task_ballot.wgsl") } else { "" },
@@ -311,7 +311,7 @@ impl Renderer {
                     slim,
                 }
             });
-            let vertex_source = [include_str!("shaders/common.wgsl"), draw, include_str!("shaders/vertex_skin.wgsl")];
+            let vertex_source = [COMMON_WGSL, draw, include_str!("shaders/vertex_skin.wgsl")];
             let vertex_pipeline = pipeline("vertex skinning", &vertex_source, &mesh_layout, shade);
             let add = wgpu::BlendComponent {
                 src_factor: wgpu::BlendFactor::One,
@@ -503,7 +503,7 @@ impl Renderer {
     /// (upload the mesh with the triangles in the order to measure): per pixel (rows top to
     /// bottom) the fragments that passed the depth test ("less", back faces culled; at most
     /// 255), and their total over the pixels covered — the OVR of skinlet's CPU rasterizer
-    /// ([`skinlet::overdraw::measure::Raster`]), measured by the GPU's.
+    /// (`skinlet::overdraw::measure::Raster`), measured by the GPU's.
     pub fn render_overdraw<'a>(
         &self,
         gpu: &Gpu,
