@@ -3,8 +3,8 @@
 use anyhow::{Context, Result};
 use serde_json::{Value, json};
 use skinlet::clip::Clip;
-use skinlet::cull::bevy_baseline::Workload;
 use skinlet::cull::joint_aabb::Box3;
+use skinlet_lab::bevy_baseline::Workload;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 

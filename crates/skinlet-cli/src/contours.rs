@@ -3,10 +3,10 @@
 
 use anyhow::{Context, Result};
 use serde_json::json;
-use skinlet::contour::evaluate::{Method, MethodResult, evaluate, frame, views};
 use skinlet::contour::patches::PatchParams;
 use skinlet::contour::{Edges, Projection, brute_force};
 use skinlet::cull::Camera;
+use skinlet_lab::contour_eval::{Method, MethodResult, evaluate, frame, views};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -136,7 +136,7 @@ pub fn command(file: &str, o: &Args) -> Result<()> {
         all_views.len()
     );
     if o.calibrate {
-        let (t_e, t_p) = skinlet::contour::evaluate::calibrate(&mesh.positions, &edges, &all_views, o.repeats);
+        let (t_e, t_p) = skinlet_lab::contour_eval::calibrate(&mesh.positions, &edges, &all_views, o.repeats);
         write!(header, "\ncalibration: t_e {t_e:.2} ns, t_P {t_p:.2} ns, t_P/t_e {:.2}", t_p / t_e)?;
         // An explicit --cost-ratio wins over the measured one.
         if o.cost_ratio.is_none() {
@@ -158,8 +158,8 @@ fn skinned(
     o: &Args,
     params: PatchParams,
 ) -> Result<()> {
-    use skinlet::contour::evaluate::{SkinnedInput, evaluate_skinned};
     use skinlet::contour::skinned::SkinnedMethod;
+    use skinlet_lab::contour_eval::{SkinnedInput, evaluate_skinned};
     let methods = match o.method.as_str() {
         "all" => vec![SkinnedMethod::Rigid, SkinnedMethod::Animated],
         "brute" => vec![],
@@ -223,7 +223,7 @@ fn report(o: &Args, header: &str, rows: &[MethodResult]) -> Result<()> {
 }
 
 /// The contours of the first clip's middle frame, from the front.
-fn write_skinned_svg(path: &Path, input: &skinlet::contour::evaluate::SkinnedInput, edges: &Edges) -> Result<()> {
+fn write_skinned_svg(path: &Path, input: &skinlet_lab::contour_eval::SkinnedInput, edges: &Edges) -> Result<()> {
     let inf = input.mesh.influences.as_ref().context("no skin weights")?;
     let clip = input.clips.first().copied();
     let keys = clip.map(|c| c.key_times()).unwrap_or_default();

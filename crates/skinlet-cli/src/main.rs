@@ -9,8 +9,8 @@ use skinlet::demo::{DemoParams, demo_character};
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::overdraw::cluster::PatchOrder;
 use skinlet::pose::Poser;
-use skinlet::summary::summarize;
 use skinlet::{Asset, Character};
+use skinlet_lab::summary::summarize;
 use std::path::{Path, PathBuf};
 
 mod bake;
@@ -531,7 +531,7 @@ fn load(file: &str) -> Result<Asset> {
     Ok(skinlet::import::load(Path::new(file))?)
 }
 
-fn interp_names(c: &skinlet::summary::ClipSummary) -> Vec<&'static str> {
+fn interp_names(c: &skinlet_lab::summary::ClipSummary) -> Vec<&'static str> {
     c.interpolation.iter().map(|i| i.name()).collect()
 }
 

@@ -10,7 +10,6 @@ use common::{assets, assets_dir, gpu};
 
 use glam::{DMat4, Vec3};
 use skinlet::bounds::refine::Refinement;
-use skinlet::contour::evaluate::{frame, views};
 use skinlet::contour::patches::{self, PatchParams};
 use skinlet::contour::skinned::{SkinnedMethod, SkinnedParams, build, skinned_edges};
 use skinlet::contour::{Edges, Projection, Tested, brute_force};
@@ -19,6 +18,7 @@ use skinlet_gpu::Gpu;
 use skinlet_gpu::contours::{ContourExtraction, ContourView, Extracted, GpuContours, positions_buffer};
 use skinlet_gpu::mesh::{GpuMesh, Pose};
 use skinlet_gpu::skinning::ComputeSkinning;
+use skinlet_lab::contour_eval::{frame, views};
 
 /// Orthographic views along 12 directions and eyes inside the model.
 fn more_views(positions: &[Vec3]) -> Vec<Projection> {
@@ -66,7 +66,7 @@ fn static_scans_match_brute_force() {
     let Some(gpu) = gpu() else { return };
     let pipes = extraction(&gpu);
     let mut meshes: Vec<(String, Vec<Vec3>, Vec<[u32; 3]>)> = Vec::new();
-    let (p, t) = skinlet::contour::evaluate::uv_sphere(24, 48);
+    let (p, t) = skinlet::demo::uv_sphere(24, 48);
     meshes.push(("uv sphere".into(), p, t));
     let files = ["spot.obj", "stanford-bunny.obj", "kitten.obj", "bob_tri.obj"];
     for (dir, file) in assets_dir().into_iter().flat_map(|d| files.map(|f| (d.clone(), f))) {
@@ -160,10 +160,10 @@ fn skinned_assets_match_brute_force() {
 #[test]
 fn patches_of_other_edges_are_an_error() {
     let Some(gpu) = gpu() else { return };
-    let (p, t) = skinlet::contour::evaluate::uv_sphere(8, 16);
+    let (p, t) = skinlet::demo::uv_sphere(8, 16);
     let edges = Edges::build(&p, &t).unwrap();
     let patches = patches::build(&p, &edges, &PatchParams::default());
-    let (p2, t2) = skinlet::contour::evaluate::uv_sphere(9, 16);
+    let (p2, t2) = skinlet::demo::uv_sphere(9, 16);
     let other = Edges::build(&p2, &t2).unwrap();
     assert!(GpuContours::new(&gpu, &other, &patches).is_err());
     // Positions too few for the edges' vertices.

@@ -6,5 +6,16 @@
 //!   pass and indirect draws), crowds timed by timestamp queries, colored, contour and
 //!   overdraw views, every image read back. `skinlet render` and `skinlet gpu-bench` draw
 //!   with it; tests/render.rs checks that every pipeline draws the same pixels.
+//! - [`contour_eval`]: the contour paper's evaluation protocol (42 directions × 6 distances,
+//!   frames of clips) over every extractor, and the calibration of `t_P / t_e`.
+//! - [`snch`], [`meshlet_patches`]: the contour baselines (Johnson & Cohen 2001's hierarchy;
+//!   meshoptimizer meshlets used as patches, with a correct cone).
+//! - [`bevy_baseline`]: Bevy's per-joint box update, the baseline skinlet's is measured against.
+//! - [`summary`]: the facts `skinlet inspect` reports.
 
+pub mod bevy_baseline;
+pub mod contour_eval;
+pub mod meshlet_patches;
 pub mod render;
+pub mod snch;
+pub mod summary;

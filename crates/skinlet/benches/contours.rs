@@ -9,12 +9,12 @@
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::{DMat4, Vec3};
-use skinlet::contour::evaluate::{Extractor, Method, frame, uv_sphere};
 use skinlet::contour::patches::PatchParams;
 use skinlet::contour::skinned::{SkinnedMethod, SkinnedParams, build, refinement, skinned_edges};
 use skinlet::contour::{Edges, Projection};
 use skinlet::overdraw::viewpoints::icosphere;
 use skinlet::pose::{Poser, skinning_matrices};
+use skinlet_lab::contour_eval::{Extractor, Method, frame, uv_sphere};
 use std::hint::black_box;
 use std::path::PathBuf;
 

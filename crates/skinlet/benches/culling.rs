@@ -4,7 +4,7 @@
 //!   instance of a crowd for one frame; criterion's elements are meshlets.
 //! - `joint-aabb/*`: whole-mesh box updates from per-joint boxes for 100 and 1,000 instances
 //!   (the PR's many_foxes scene); elements are joint boxes. `bevy-baseline` and
-//!   `bevy-baseline-flat` are the PR's update ([`skinlet::cull::bevy_baseline`], with and
+//!   `bevy-baseline-flat` are the PR's update ([`skinlet_lab::bevy_baseline`], with and
 //!   without the ECS lookup); `skinlet` is `JointBoxes::update_all` on joint-space boxes
 //!   with one palette of entity-space joint matrices; `skinlet-folded` the same after folding
 //!   leaf joints twice (elements still count the unfolded joint boxes: the work of bounding
@@ -17,12 +17,12 @@ use glam::Affine3A;
 use skinlet::bake::bake;
 use skinlet::bounds::refine::Refinement;
 use skinlet::clip::Clip;
-use skinlet::cull::bevy_baseline::Workload;
 use skinlet::cull::crowd::{CrowdParams, crowd};
 use skinlet::cull::joint_aabb::Box3;
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::Poser;
 use skinlet::{Asset, Character};
+use skinlet_lab::bevy_baseline::Workload;
 use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller, Tests};
 use std::hint::black_box;
 use std::path::PathBuf;

@@ -519,6 +519,30 @@ fn wave(rig: &Rig) -> Clip {
     clip("wave", vec![sway], rotations, vec![pulse])
 }
 
+/// A UV sphere of unit radius (`rings` ≥ 2 latitude bands, `segments` ≥ 3), closed with
+/// pole vertices; for tests and examples.
+pub fn uv_sphere(rings: u32, segments: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let mut p = vec![Vec3::Z, Vec3::NEG_Z];
+    for r in 1..rings {
+        let th = std::f32::consts::PI * r as f32 / rings as f32;
+        for s in 0..segments {
+            let ph = std::f32::consts::TAU * s as f32 / segments as f32;
+            p.push(Vec3::new(th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()));
+        }
+    }
+    let v = |r: u32, s: u32| 2 + (r - 1) * segments + s % segments;
+    let mut t = Vec::new();
+    for s in 0..segments {
+        t.push([0, v(1, s), v(1, s + 1)]);
+        t.push([1, v(rings - 1, s + 1), v(rings - 1, s)]);
+        for r in 1..rings - 1 {
+            t.push([v(r, s), v(r + 1, s), v(r + 1, s + 1)]);
+            t.push([v(r, s), v(r + 1, s + 1), v(r, s + 1)]);
+        }
+    }
+    (p, t)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -12,14 +12,14 @@
 //! - [`bake`]: the bake file (meshlets, bounds, vertices) the runtime loads.
 //! - [`bounds`]: conservative animated meshlet bounds (spheres, normal cones) and their check.
 //! - [`cull`]: the baker's side of culling (any-pose and per-joint boxes, per-triangle tests),
-//!   the crowd scene and the Bevy baseline; the run-time culler is `skinlet_runtime`'s.
+//!   the crowd scene; the run-time culler is `skinlet_runtime`'s (the Bevy baseline is in
+//!   `skinlet-lab`).
 //! - [`meshlet`]: meshlet layout, four builders (incl. skin-aware), flat GPU form, metrics.
 //! - [`contour`]: mesh contour extraction with patch decomposition (and its baselines).
 //! - [`overdraw`]: triangle orders for low overdraw over animation (measures, clustering,
 //!   run-time lookup).
 //! - [`weld`]: merging vertices that are equal in position, skin data and morph deltas.
-//! - [`summary`]: the facts `skinlet inspect` reports.
-//! - [`demo`]: the built-in procedural demo character.
+//! - [`demo`]: the built-in procedural demo character (and a UV sphere).
 //!
 //! Baking the demo character and reading the bake back the way a game does, with
 //! `skinlet-runtime`'s checked view of the bytes:
@@ -59,7 +59,6 @@ pub mod model;
 pub mod overdraw;
 pub mod pose;
 pub mod skinning;
-pub mod summary;
 pub mod weld;
 
 pub use character::{Character, Part, PartKind};

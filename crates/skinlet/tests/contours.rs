@@ -12,13 +12,14 @@ use glam::{DMat4, Vec3};
 use proptest::prelude::*;
 use skinlet::bounds::refine::Refinement;
 use skinlet::clip::Clip;
-use skinlet::contour::evaluate::{frame, uv_sphere, views};
 use skinlet::contour::patches::{self, PatchParams, SphereKind};
 use skinlet::contour::skinned::{SkinnedMethod, SkinnedParams, SkinnedPatches, build, rigid_quad, rigid_vertices};
-use skinlet::contour::snch::Snch;
-use skinlet::contour::{Edges, Projection, Tested, brute_force, meshlet_patches};
+use skinlet::contour::{Edges, Projection, Tested, brute_force};
 use skinlet::model::{Influences, Skeleton, Skin, SkinnedMesh};
 use skinlet::pose::{Poser, skinning_matrices};
+use skinlet_lab::contour_eval::{frame, uv_sphere, views};
+use skinlet_lab::meshlet_patches;
+use skinlet_lab::snch::Snch;
 
 /// Extra views beyond the paper's: orthographic along the 42 directions, and eyes close to
 /// and inside the model.

@@ -9,11 +9,12 @@
 //! - [`bound`]: spatialized normal cones — Mean and Reduced Sphere (section 3.1), the cone
 //!   test `|n·s| ≤ sin(α + β)` (eq. 1) — and the acceptance metric and cost (section 3.2).
 //! - [`patches`]: greedy patch fusion with the k-best cache and space partition (3.3).
-//! - [`snch`], [`meshlet_patches`]: the baselines (Johnson & Cohen 2001's hierarchy; meshoptimizer
-//!   meshlets used as patches, with a correct cone).
 //! - [`skinned`]: skinned characters — the paper's rigid parts, and patches bounded over the
 //!   clips with the conservative animated bounds of [`crate::bounds`], per time window.
-//! - [`evaluate`]: the paper's protocol (42 directions × 6 distances, and frames of clips).
+//!
+//! The baselines (Johnson & Cohen 2001's hierarchy, meshoptimizer meshlets used as patches)
+//! and the paper's evaluation protocol are tools: `skinlet_lab::{snch, meshlet_patches,
+//! contour_eval}`.
 //!
 //! Guarantee, for every extractor: the extracted edge set equals [`brute_force`]'s. All of
 //! them run the same per-edge test ([`quad_is_contour`], in f64 on the f32 positions), and
@@ -22,11 +23,8 @@
 //! too thin for their normal to have a reliable direction are never culled.
 
 pub mod bound;
-pub mod evaluate;
-pub mod meshlet_patches;
 pub mod patches;
 pub mod skinned;
-pub mod snch;
 
 pub use skinlet_runtime::camera::Projection;
 /// The edge structure and the per-edge test live in the runtime crate (what a game ships).
@@ -44,7 +42,7 @@ mod tests {
     fn sphere_contour_is_the_equator_band() {
         // A UV sphere seen from far along +z (and orthographically): contour edges lie
         // near z = 0, and seen from the pole a closed mesh has a closed, non-empty contour.
-        let (p, t) = crate::contour::evaluate::uv_sphere(24, 48);
+        let (p, t) = crate::demo::uv_sphere(24, 48);
         let edges = Edges::build(&p, &t).unwrap();
         let mut out = Vec::new();
         for proj in

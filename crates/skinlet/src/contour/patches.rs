@@ -70,7 +70,7 @@ impl Default for PatchParams {
     }
 }
 
-/// `t_P / t_e` measured with [`super::evaluate::calibrate`] (`skinlet contours --calibrate`)
+/// `t_P / t_e` measured with `skinlet_lab::contour_eval::calibrate` (`skinlet contours --calibrate`)
 /// on the 2-core EPYC VM of docs/PERFORMANCE.md: bunny 0.32, armadillo 0.36 (the paper's
 /// CPUs: 1.4 and 2.0; our patch test is branch-free and batched).
 pub const DEFAULT_COST_RATIO: f64 = 0.35;

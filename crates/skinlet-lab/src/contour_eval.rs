@@ -5,11 +5,12 @@
 //! run, build time, patch count, mean radius and cone angle, and every view whose edge set
 //! differs from brute force's. Also the hardware calibration of `t_P / t_e` (section 4.2).
 
-use super::patches::{self, BuiltPatch, PatchParams, Patches, SphereKind};
-use super::snch::Snch;
-use super::{Edges, Projection, Tested, brute_force, meshlet_patches};
-use crate::overdraw::viewpoints::icosphere;
+use crate::meshlet_patches;
+use crate::snch::Snch;
 use glam::{DVec3, Vec3};
+use skinlet::contour::patches::{self, BuiltPatch, PatchParams, Patches, SphereKind};
+use skinlet::contour::{Edges, Projection, Tested, brute_force};
+use skinlet::overdraw::viewpoints::icosphere;
 use std::time::Instant;
 
 /// Viewing distances, in model sizes.
@@ -250,37 +251,15 @@ pub fn calibrate(positions: &[Vec3], edges: &Edges, views: &[Projection], repeat
     (t_e * 1e9, t_p * 1e9)
 }
 
-/// A UV sphere of unit radius (`rings` ≥ 2 latitude bands, `segments` ≥ 3), closed with
-/// pole vertices; for tests and examples.
-pub fn uv_sphere(rings: u32, segments: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
-    let mut p = vec![Vec3::Z, Vec3::NEG_Z];
-    for r in 1..rings {
-        let th = std::f32::consts::PI * r as f32 / rings as f32;
-        for s in 0..segments {
-            let ph = std::f32::consts::TAU * s as f32 / segments as f32;
-            p.push(Vec3::new(th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()));
-        }
-    }
-    let v = |r: u32, s: u32| 2 + (r - 1) * segments + s % segments;
-    let mut t = Vec::new();
-    for s in 0..segments {
-        t.push([0, v(1, s), v(1, s + 1)]);
-        t.push([1, v(rings - 1, s + 1), v(rings - 1, s)]);
-        for r in 1..rings - 1 {
-            t.push([v(r, s), v(r + 1, s), v(r + 1, s + 1)]);
-            t.push([v(r, s), v(r + 1, s + 1), v(r, s + 1)]);
-        }
-    }
-    (p, t)
-}
+pub use skinlet::demo::uv_sphere;
 
 /// A skinned character for [`evaluate_skinned`].
 pub struct SkinnedInput<'a> {
-    pub skeleton: &'a crate::model::Skeleton,
-    pub skin: &'a crate::model::Skin,
-    pub clips: &'a [&'a crate::clip::Clip],
+    pub skeleton: &'a skinlet::model::Skeleton,
+    pub skin: &'a skinlet::model::Skin,
+    pub clips: &'a [&'a skinlet::clip::Clip],
     /// Welded mesh with skin weights.
-    pub mesh: &'a crate::model::SkinnedMesh,
+    pub mesh: &'a skinlet::model::SkinnedMesh,
     /// Sample times per clip (evenly spread over its key range).
     pub frames_per_clip: usize,
 }
@@ -290,22 +269,22 @@ pub struct SkinnedInput<'a> {
 pub fn evaluate_skinned(
     input: &SkinnedInput,
     edges: &Edges,
-    methods: &[super::skinned::SkinnedMethod],
-    params: &super::skinned::SkinnedParams,
+    methods: &[skinlet::contour::skinned::SkinnedMethod],
+    params: &skinlet::contour::skinned::SkinnedParams,
     repeats: usize,
-) -> crate::Result<Vec<MethodResult>> {
-    use super::skinned::{SkinnedPatches, build};
-    let built: Vec<(super::skinned::SkinnedMethod, SkinnedPatches, f64)> = methods
+) -> skinlet::Result<Vec<MethodResult>> {
+    use skinlet::contour::skinned::{SkinnedPatches, build};
+    let built: Vec<(skinlet::contour::skinned::SkinnedMethod, SkinnedPatches, f64)> = methods
         .iter()
         .map(|&m| {
             let t = Instant::now();
-            let sp = super::skinned::SkinnedParams { method: m, ..*params };
+            let sp = skinlet::contour::skinned::SkinnedParams { method: m, ..*params };
             let b = build(input.skeleton, input.skin, input.clips, input.mesh, edges, &sp)?;
             Ok((m, b, t.elapsed().as_secs_f64()))
         })
-        .collect::<crate::Result<_>>()?;
+        .collect::<skinlet::Result<_>>()?;
     // Frames: positions and the joints' inverse global matrices (once per frame).
-    let mut poser = crate::pose::Poser::default();
+    let mut poser = skinlet::pose::Poser::default();
     let (mut matrices, mut weights) = (Vec::new(), Vec::new());
     // (skinned positions, inverse joint globals, (clip, time)) per frame.
     type Frame = (Vec<Vec3>, Vec<glam::DMat4>, (usize, f32));
@@ -317,10 +296,10 @@ pub fn evaluate_skinned(
         for k in 0..n {
             let t = t0 + (t1 - t0) * (k as f32 + 0.5) / n as f32;
             let globals = poser.globals(input.skeleton, Some(clip), t).to_vec();
-            crate::pose::skinning_matrices(input.skin, &globals, &mut matrices);
+            skinlet::pose::skinning_matrices(input.skin, &globals, &mut matrices);
             input.mesh.morphs.weights_at(Some(clip), t, &mut weights);
             let mut p = vec![Vec3::ZERO; input.mesh.positions.len()];
-            crate::skinning::skin_mesh(input.mesh, &weights, &matrices, &mut p, &mut [])?;
+            skinlet::skinning::skin_mesh(input.mesh, &weights, &matrices, &mut p, &mut [])?;
             let inverses = input.skin.joints.iter().map(|&j| globals[j as usize].inverse()).collect();
             frames.push((p, inverses, (c, t)));
         }

@@ -10,11 +10,11 @@
 //! every vertex of the meshlet, so every point of its edges).
 //! Guarantee (see [`super`]): the same edge set as brute force.
 
-use super::Edges;
-use super::bound::{cone_angle, edge_geometry};
-use super::patches::{BuiltPatch, Patches, assemble, size_of};
-use crate::meshlet::{MeshletLimits, canonical, greedy};
 use glam::{DVec3, Vec3};
+use skinlet::contour::Edges;
+use skinlet::contour::bound::{cone_angle, edge_geometry};
+use skinlet::contour::patches::{BuiltPatch, Patches, assemble, size_of};
+use skinlet::meshlet::{MeshletLimits, canonical, greedy};
 use std::collections::HashMap;
 
 /// meshoptimizer meshlets of at most `max_triangles` faces as patches.

@@ -2,8 +2,8 @@
 //! once, however many nodes draw it), skins and their depth, the influence histogram,
 //! what the importer changed, and per clip its time range, keys, channels and modes.
 
-use crate::clip::Interpolation;
-use crate::model::Asset;
+use skinlet::clip::Interpolation;
+use skinlet::model::Asset;
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct Summary {
@@ -12,7 +12,7 @@ pub struct Summary {
     /// Distinct joint nodes over all skins.
     pub joints: usize,
     pub vertices: usize,
-    /// Vertices left after welding equal position + skin data (see [`crate::weld`]).
+    /// Vertices left after welding equal position + skin data (see [`skinlet::weld`]).
     pub welded_vertices: usize,
     pub triangles: usize,
     /// `influence_histogram[k - 1]`: skinned vertices with `k` non-zero weights (k = 1..8).
@@ -86,7 +86,7 @@ pub fn summarize(asset: &Asset) -> Summary {
                             }
                         }
                     }
-                    let welded = crate::weld::weld(g).2.output_vertices;
+                    let welded = skinlet::weld::weld(g).2.output_vertices;
                     welded_vertices += welded;
                     PrimitiveSummary {
                         index: p.index,

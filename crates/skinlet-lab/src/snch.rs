@@ -8,10 +8,10 @@
 //! Layout: nodes in depth-first order with an escape index, so traversal needs no stack.
 //! Guarantee (see [`super`]): the same edge set as brute force.
 
-use super::bound::{EdgeGeometry, PatchBounds, cone_angle, edge_geometry, mean_axis, mean_sphere, viewers};
-use super::patches::test_quads;
-use super::{Edges, Projection, Tested, extract_uncullable};
 use glam::{DVec3, Vec3};
+use skinlet::contour::bound::{EdgeGeometry, PatchBounds, cone_angle, edge_geometry, mean_axis, mean_sphere, viewers};
+use skinlet::contour::patches::test_quads;
+use skinlet::contour::{Edges, Projection, Tested, extract_uncullable};
 
 /// Most edges in a leaf.
 pub const LEAF: usize = 4;

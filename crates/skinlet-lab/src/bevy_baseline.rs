@@ -14,12 +14,12 @@
 //! Ours ([`Workload::palette`]): joint-space boxes moved by entity-space joint matrices, one
 //! array for all instances, no matrix product and no lookup.
 
-use super::crowd::{CrowdParams, posed_crowd};
-use super::joint_aabb::{Box3, JointBoxes, JointSpace, joint_boxes};
-use crate::model::Asset;
-use crate::pose::Poser;
-use crate::{Character, Result};
 use glam::{Affine3A, Vec3A};
+use skinlet::cull::crowd::{CrowdParams, posed_crowd};
+use skinlet::cull::joint_aabb::{Box3, JointBoxes, JointSpace, joint_boxes};
+use skinlet::model::Asset;
+use skinlet::pose::Poser;
+use skinlet::{Character, Result};
 
 /// Bevy's mesh-space joint box.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -132,7 +132,7 @@ impl Workload {
     pub fn new(asset: &Asset, instances: usize, seed: u64) -> Result<Workload> {
         let character = asset.character()?;
         let (skin, mesh) = (&character.palette, &character.mesh);
-        let clips: Vec<&crate::clip::Clip> = asset.clips.iter().collect();
+        let clips: Vec<&skinlet::clip::Clip> = asset.clips.iter().collect();
         let boxes = joint_boxes(mesh, skin, JointSpace::Joint, &clips)?;
         let mesh_boxes = joint_boxes(mesh, skin, JointSpace::Mesh, &clips)?;
         let scene = posed_crowd(
@@ -199,7 +199,7 @@ impl Workload {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::demo::{DemoParams, demo_character};
+    use skinlet::demo::{DemoParams, demo_character};
 
     /// Both baseline layouts find the same transforms, and the baseline's boxes and ours
     /// hold every skinned vertex of every instance.
@@ -220,7 +220,7 @@ mod tests {
             let skinning: Vec<Affine3A> =
                 joints.iter().zip(&skin.inverse_bind).map(|(g, ibm)| *g * Affine3A::from_mat4(*ibm)).collect();
             let inf = mesh.influences.as_ref().unwrap();
-            crate::skinning::skin(inf, &mesh.positions, &[], &skinning, &mut skinned, &mut []).unwrap();
+            skinlet::skinning::skin(inf, &mesh.positions, &[], &skinning, &mut skinned, &mut []).unwrap();
             for b in [bevy[i], ours[i]] {
                 let slack = 1e-4 * b.diagonal();
                 let grown = Box3 { min: b.min - slack, max: b.max + slack };
