@@ -5,8 +5,8 @@ use crate::{RefineArgs, bake::bake_asset};
 use anyhow::{Context, Result};
 use serde_json::{Value, json};
 use skinlet::clip::Clip;
-use skinlet::cull::crowd::{CULLING_METHODS, CrowdParams, CrowdStats, WHOLE_MESH_BOUNDS, posed_crowd, run};
 use skinlet::meshlet::Builder;
+use skinlet_lab::crowd::{CULLING_METHODS, CrowdParams, CrowdStats, WHOLE_MESH_BOUNDS, posed_crowd, run};
 
 /// The report: `meshlets_total` over all instances and frames; the three pipelines'
 /// culled shares (backface test only, frustum test only, both: `culled_total_pct`);
@@ -124,7 +124,7 @@ pub fn command(
     anyhow::ensure!(params.instances >= 1 && params.frames >= 1, "--instances and --frames must be at least 1");
     anyhow::ensure!((0.0..=180.0).contains(&additive_deg), "--additive-deg must be from 0 to 180");
     let (asset, _, mut baked) = load(file, gltf, args, json)?;
-    if params.animation != skinlet::cull::crowd::Animation::Clips && baked.envelope.is_none() {
+    if params.animation != skinlet_lab::crowd::Animation::Clips && baked.envelope.is_none() {
         anyhow::ensure!(
             gltf.is_none(),
             "--animation {} needs a pose envelope: bake {file} with --envelope",

@@ -14,11 +14,11 @@ use crate::RefineArgs;
 use anyhow::{Context, Result};
 use glam::{Affine3A, Vec3};
 use serde_json::json;
-use skinlet::cull::crowd::{Animation, CrowdParams, instance_pose, posed_crowd};
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::global_transforms;
 use skinlet_gpu::mesh::{GpuMesh, Pose};
 use skinlet_gpu::{Gpu, GpuOptions};
+use skinlet_lab::crowd::{Animation, CrowdParams, instance_pose, posed_crowd};
 use skinlet_lab::render::{CrowdDraw, Culling, PosedInstance, Renderer, Skinning};
 use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller, Tests};
 

@@ -5,11 +5,11 @@ use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use serde_json::{Value, json};
 use skinlet::clip::Clip;
-use skinlet::demo::{DemoParams, demo_character};
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::overdraw::cluster::PatchOrder;
 use skinlet::pose::Poser;
 use skinlet::{Asset, Character};
+use skinlet_lab::demo::{DemoParams, demo_character};
 use skinlet_lab::summary::summarize;
 use std::path::{Path, PathBuf};
 
@@ -484,14 +484,14 @@ fn main() {
             refine,
             json,
         } => {
-            use skinlet::cull::crowd::Animation;
+            use skinlet_lab::crowd::Animation;
             let animation = match animation.as_str() {
                 "blend" => Animation::Blend,
                 "additive" => Animation::Additive(additive_deg.to_radians()),
                 "ik" => Animation::Ik,
                 _ => Animation::Clips,
             };
-            let params = skinlet::cull::crowd::CrowdParams {
+            let params = skinlet_lab::crowd::CrowdParams {
                 instances,
                 frames,
                 seed,
@@ -800,17 +800,16 @@ fn demo(triangles: usize, seed: u64, glb: Option<&Path>, json: bool) -> Result<(
     let check = skinlet::bounds::verify::verify_bounds(&asset.skeleton, skin, &all, &baked.mesh, meshlets, bounds, 200);
     let bake_bytes = skinlet::bake::to_bytes(&baked).len();
     // A small crowd scene: 16 instances, 10 frames, every culled triangle checked.
-    let crowd_params = skinlet::cull::crowd::CrowdParams { instances: 16, frames: 10, ..Default::default() };
-    let scene = skinlet::cull::crowd::posed_crowd(&asset.skeleton, skin, &baked.mesh, &all, &crowd_params)?;
-    let crowd_stats = skinlet::cull::crowd::run(&baked, &asset.skeleton, skin, &all, &scene, &crowd_params, true)?;
+    let crowd_params = skinlet_lab::crowd::CrowdParams { instances: 16, frames: 10, ..Default::default() };
+    let scene = skinlet_lab::crowd::posed_crowd(&asset.skeleton, skin, &baked.mesh, &all, &crowd_params)?;
+    let crowd_stats = skinlet_lab::crowd::run(&baked, &asset.skeleton, skin, &all, &scene, &crowd_params, true)?;
     // Game poses: the same crowd with IK on top of the clips, culled with a pose envelope
     // (the clips widened by 10°) where the guard admits the pose, else the any-pose boxes.
     let mut with_envelope = baked.clone();
     let envelope = bake::envelope_of("clips:10", &asset, &with_envelope)?;
     skinlet::bake::add_envelope(&mut with_envelope, &asset, envelope)?;
-    let ik_params =
-        skinlet::cull::crowd::CrowdParams { animation: skinlet::cull::crowd::Animation::Ik, ..crowd_params };
-    let ik_stats = skinlet::cull::crowd::run(&with_envelope, &asset.skeleton, skin, &all, &scene, &ik_params, true)?;
+    let ik_params = skinlet_lab::crowd::CrowdParams { animation: skinlet_lab::crowd::Animation::Ik, ..crowd_params };
+    let ik_stats = skinlet_lab::crowd::run(&with_envelope, &asset.skeleton, skin, &all, &scene, &ik_params, true)?;
     if json {
         let out = json!({
             "meshlets": meshlets.len(), "both_pct": both, "frustum_only_pct": frustum, "none_pct": none,

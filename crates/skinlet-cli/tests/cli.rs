@@ -572,7 +572,8 @@ fn pose_and_bake_cover_the_whole_demo_character() {
     // `pose --json`: one entry per drawing node and primitive, in scene space: rigid parts at
     // their node's global transform (computed here from the library's node globals).
     let j = json_of(&["pose", "@demo:2000", "--clip", "wave", "--time", "0.7", "--json"]);
-    let asset = skinlet::demo::demo_character(&skinlet::demo::DemoParams { triangles: 2000, ..Default::default() });
+    let asset =
+        skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams { triangles: 2000, ..Default::default() });
     let prims = j["primitives"].as_array().unwrap();
     assert_eq!(prims.len(), asset.instances.len());
     let clip = asset.clips.iter().find(|c| c.name == "wave");

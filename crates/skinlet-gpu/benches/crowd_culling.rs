@@ -8,9 +8,9 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use glam::{Affine3A, Mat4};
-use skinlet::cull::crowd::{CrowdParams, crowd};
 use skinlet_gpu::crowd_culling::{CrowdCulling, CullInstance, CullMode, CullPipelines, GpuCharacter};
 use skinlet_gpu::{Gpu, GpuOptions};
+use skinlet_lab::crowd::{CrowdParams, crowd};
 use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller, Tests, joints_from_skinning};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -136,7 +136,7 @@ fn benches(c: &mut Criterion) {
         Ok(gpu) => gpu,
         Err(e) => return eprintln!("skipping: {e}"),
     };
-    bench_asset(c, &gpu, "demo-20k", &skinlet::demo::demo_character(&Default::default()));
+    bench_asset(c, &gpu, "demo-20k", &skinlet_lab::demo::demo_character(&Default::default()));
     let dir = std::env::var_os("SKINLET_ASSETS")
         .map(PathBuf::from)
         .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/assets")));

@@ -8,8 +8,8 @@
 //! `{"equal_to_unculled": true, "culled_pct": ..., ...}`; exit status 1 when an image differs.
 
 use glam::Mat4;
-use skinlet::cull::crowd::{CrowdParams, crowd};
 use skinlet_gpu::crowd_culling::{CrowdCulling, CullInstance, CullMode, CullPipelines, GpuCharacter};
+use skinlet_lab::crowd::{CrowdParams, crowd};
 use skinlet_runtime::meshlet_cull::{MeshletCuller, Tests};
 use wgpu::util::DeviceExt;
 
@@ -68,7 +68,7 @@ fn run() -> Result<(bool, String)> {
     let (device, queue) = pollster::block_on(adapter.request_device(&desc))?;
 
     // A baked character: the demo, baked to bytes and read back as a game reads its file.
-    let asset = skinlet::demo::demo_character(&Default::default());
+    let asset = skinlet_lab::demo::demo_character(&Default::default());
     let clips: Vec<_> = asset.clips.iter().collect();
     let (builder, limits) = (skinlet::meshlet::Builder::SkinAware, skinlet::meshlet::MeshletLimits::NVIDIA);
     let how = skinlet::bounds::refine::Refinement::NONE;

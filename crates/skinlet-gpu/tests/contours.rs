@@ -66,7 +66,7 @@ fn static_scans_match_brute_force() {
     let Some(gpu) = gpu() else { return };
     let pipes = extraction(&gpu);
     let mut meshes: Vec<(String, Vec<Vec3>, Vec<[u32; 3]>)> = Vec::new();
-    let (p, t) = skinlet::demo::uv_sphere(24, 48);
+    let (p, t) = skinlet_lab::demo::uv_sphere(24, 48);
     meshes.push(("uv sphere".into(), p, t));
     let files = ["spot.obj", "stanford-bunny.obj", "kitten.obj", "bob_tri.obj"];
     for (dir, file) in assets_dir().into_iter().flat_map(|d| files.map(|f| (d.clone(), f))) {
@@ -160,10 +160,10 @@ fn skinned_assets_match_brute_force() {
 #[test]
 fn patches_of_other_edges_are_an_error() {
     let Some(gpu) = gpu() else { return };
-    let (p, t) = skinlet::demo::uv_sphere(8, 16);
+    let (p, t) = skinlet_lab::demo::uv_sphere(8, 16);
     let edges = Edges::build(&p, &t).unwrap();
     let patches = patches::build(&p, &edges, &PatchParams::default());
-    let (p2, t2) = skinlet::demo::uv_sphere(9, 16);
+    let (p2, t2) = skinlet_lab::demo::uv_sphere(9, 16);
     let other = Edges::build(&p2, &t2).unwrap();
     assert!(GpuContours::new(&gpu, &other, &patches).is_err());
     // Positions too few for the edges' vertices.

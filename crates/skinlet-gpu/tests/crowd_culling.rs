@@ -9,10 +9,10 @@ mod common;
 use common::{assets, bake, boxed_culler, gpu, read_buffer};
 use glam::{Affine3A, DMat4, DVec3, DVec4, Mat4, Vec3, Vec4};
 use skinlet::clip::Clip;
-use skinlet::cull::crowd::{CrowdParams, crowd};
 use skinlet::pose::Poser;
 use skinlet_gpu::Gpu;
 use skinlet_gpu::crowd_culling::{CrowdCulling, CullInstance, CullMode, CullPipelines, GpuCharacter};
+use skinlet_lab::crowd::{CrowdParams, crowd};
 use skinlet_runtime::camera::{Camera, Projection};
 use skinlet_runtime::meshlet_cull::{CullSlot, JointFrame, MeshletCuller, Tests, joints_from_skinning};
 use wgpu::util::DeviceExt;
@@ -254,7 +254,7 @@ impl Rng {
 fn random_joint_matrices_cull_only_what_exact_arithmetic_culls() {
     let Some(gpu) = gpu() else { return };
     let pipelines = CullPipelines::new(&gpu.device).unwrap();
-    let asset = skinlet::demo::demo_character(&skinlet::demo::DemoParams::default());
+    let asset = skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams::default());
     let character = asset.character().unwrap();
     let baked = bake(&asset, &character);
     let skin = &character.palette;
@@ -327,7 +327,7 @@ fn crowd_culling_refuses_bad_buffers_and_counts() {
     let Some(gpu) = gpu() else { return };
     let device = &gpu.device;
     let pipelines = CullPipelines::new(device).unwrap();
-    let asset = skinlet::demo::demo_character(&skinlet::demo::DemoParams::default());
+    let asset = skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams::default());
     let character = asset.character().unwrap();
     let baked = bake(&asset, &character);
     let skin = &character.palette;

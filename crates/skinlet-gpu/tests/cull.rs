@@ -7,9 +7,9 @@ mod common;
 use common::{assets, bake, boxed_culler, gpu};
 use glam::Affine3A;
 use skinlet::clip::Clip;
-use skinlet::cull::crowd::{CrowdParams, crowd};
 use skinlet::pose::Poser;
 use skinlet_gpu::cull::ComputeCulling;
+use skinlet_lab::crowd::{CrowdParams, crowd};
 use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller, Tests};
 
 #[test]

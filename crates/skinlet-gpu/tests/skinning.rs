@@ -82,7 +82,8 @@ fn a_bake_file_skins_on_the_callers_device() {
     let (device, queue) = pollster::block_on(adapter.request_device(&Default::default())).unwrap();
     let gpu = Gpu::from_device(device, queue, adapter.get_info());
     assert!(!gpu.has_mesh_shaders() && !gpu.has_timestamps());
-    let asset = skinlet::demo::demo_character(&skinlet::demo::DemoParams { triangles: 3000, ..Default::default() });
+    let asset =
+        skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams { triangles: 3000, ..Default::default() });
     let baked = common::bake(&asset, &asset.character().unwrap());
     let bytes = skinlet::bake::to_bytes(&baked);
     let view = skinlet_runtime::bake_view::BakeView::new(&bytes).unwrap();

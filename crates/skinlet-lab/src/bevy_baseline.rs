@@ -14,8 +14,8 @@
 //! Ours ([`Workload::palette`]): joint-space boxes moved by entity-space joint matrices, one
 //! array for all instances, no matrix product and no lookup.
 
+use crate::crowd::{CrowdParams, posed_crowd};
 use glam::{Affine3A, Vec3A};
-use skinlet::cull::crowd::{CrowdParams, posed_crowd};
 use skinlet::cull::joint_aabb::{Box3, JointBoxes, JointSpace, joint_boxes};
 use skinlet::model::Asset;
 use skinlet::pose::Poser;
@@ -199,7 +199,7 @@ impl Workload {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use skinlet::demo::{DemoParams, demo_character};
+    use crate::demo::{DemoParams, demo_character};
 
     /// Both baseline layouts find the same transforms, and the baseline's boxes and ours
     /// hold every skinned vertex of every instance.

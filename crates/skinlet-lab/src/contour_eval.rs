@@ -251,8 +251,6 @@ pub fn calibrate(positions: &[Vec3], edges: &Edges, views: &[Projection], repeat
     (t_e * 1e9, t_p * 1e9)
 }
 
-pub use skinlet::demo::uv_sphere;
-
 /// A skinned character for [`evaluate_skinned`].
 pub struct SkinnedInput<'a> {
     pub skeleton: &'a skinlet::model::Skeleton,

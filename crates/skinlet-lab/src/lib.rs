@@ -10,11 +10,17 @@
 //!   frames of clips) over every extractor, and the calibration of `t_P / t_e`.
 //! - [`snch`], [`meshlet_patches`]: the contour baselines (Johnson & Cohen 2001's hierarchy;
 //!   meshoptimizer meshlets used as patches, with a correct cone).
+//! - [`demo`]: the built-in demo character `skinlet demo` bakes (a whole character: two skins,
+//!   rigid, animated and instanced parts, a morph face, three clips), and a UV sphere.
+//! - [`crowd`]: the crowd scene of the conservative-bounds paper (clips, crossfades, additive
+//!   layers, IK), its statistics, and the brute-force check of every culled triangle.
 //! - [`bevy_baseline`]: Bevy's per-joint box update, the baseline skinlet's is measured against.
 //! - [`summary`]: the facts `skinlet inspect` reports.
 
 pub mod bevy_baseline;
 pub mod contour_eval;
+pub mod crowd;
+pub mod demo;
 pub mod meshlet_patches;
 pub mod render;
 pub mod snch;

@@ -66,7 +66,8 @@ fn every_skinning_pipeline_draws_the_same_image() {
 fn a_pose_change_changes_the_image() {
     // The comparison above must be able to fail: two different poses give different images.
     let Some(gpu) = gpu() else { return };
-    let asset = skinlet::demo::demo_character(&skinlet::demo::DemoParams { triangles: 4000, ..Default::default() });
+    let asset =
+        skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams { triangles: 4000, ..Default::default() });
     let character = asset.character().unwrap();
     let (skin, mesh, clip) = (&character.palette, &character.mesh, &asset.clips[0]);
     let renderer = Renderer::new(&gpu, 128, 128).unwrap();
@@ -183,7 +184,8 @@ fn culled_drawing_gives_the_unculled_image() {
 /// A 320×180 renderer and the 4,000-triangle demo character, baked: the crowd tests' scene.
 fn crowd_setup(gpu: &Gpu) -> (Renderer, skinlet::Asset, skinlet::bake::Baked) {
     let renderer = Renderer::new(gpu, 320, 180).unwrap();
-    let demo = skinlet::demo::demo_character(&skinlet::demo::DemoParams { triangles: 4000, ..Default::default() });
+    let demo =
+        skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams { triangles: 4000, ..Default::default() });
     let baked = common::bake(&demo, &demo.character().unwrap());
     (renderer, demo, baked)
 }
@@ -197,8 +199,8 @@ fn crowd_draws_agree_and_are_timed() {
     let (renderer, demo, baked) = crowd_setup(&gpu);
     let clips: Vec<&skinlet::clip::Clip> = demo.clips.iter().collect();
     let skin = &baked.palette();
-    let params = skinlet::cull::crowd::CrowdParams { instances: 12, ..Default::default() };
-    let scene = skinlet::cull::crowd::crowd(&baked.mesh.positions, clips.len(), &params).unwrap();
+    let params = skinlet_lab::crowd::CrowdParams { instances: 12, ..Default::default() };
+    let scene = skinlet_lab::crowd::crowd(&baked.mesh.positions, clips.len(), &params).unwrap();
     let culler =
         skinlet_runtime::meshlet_cull::MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len()).unwrap();
     let mut poser = Poser::default();
@@ -279,7 +281,7 @@ fn game_poses_cull_on_the_gpu_as_on_the_cpu() {
     // picks the envelope bounds (with the any-pose boxes), or the any-pose boxes alone; the
     // GPU culling passes draw exactly the CPU's visible meshlets and the same image as
     // without culling.
-    use skinlet::cull::crowd::{Animation, CrowdParams, crowd, instance_pose};
+    use skinlet_lab::crowd::{Animation, CrowdParams, crowd, instance_pose};
     use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller, Tests};
     let Some(gpu) = gpu() else { return };
     let (renderer, demo, mut baked) = crowd_setup(&gpu);

@@ -9,8 +9,8 @@ use skinlet::Asset;
 use skinlet::bounds::refine::{Refinement, refine};
 use skinlet::bounds::sphere_cone::{key_intervals, meshlet_bounds};
 use skinlet::clip::Clip;
-use skinlet::demo::{DemoParams, demo_character};
 use skinlet::meshlet::{Builder, MeshletLimits, build};
+use skinlet_lab::demo::{DemoParams, demo_character};
 use std::path::PathBuf;
 
 fn bench_asset(c: &mut Criterion, label: &str, asset: &Asset, clips: &[&Clip]) {

@@ -14,7 +14,8 @@ use skinlet::contour::skinned::{SkinnedMethod, SkinnedParams, build, refinement,
 use skinlet::contour::{Edges, Projection};
 use skinlet::overdraw::viewpoints::icosphere;
 use skinlet::pose::{Poser, skinning_matrices};
-use skinlet_lab::contour_eval::{Extractor, Method, frame, uv_sphere};
+use skinlet_lab::contour_eval::{Extractor, Method, frame};
+use skinlet_lab::demo::uv_sphere;
 use std::hint::black_box;
 use std::path::PathBuf;
 

@@ -17,12 +17,12 @@ use glam::Affine3A;
 use skinlet::bake::bake;
 use skinlet::bounds::refine::Refinement;
 use skinlet::clip::Clip;
-use skinlet::cull::crowd::{CrowdParams, crowd};
 use skinlet::cull::joint_aabb::Box3;
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::Poser;
 use skinlet::{Asset, Character};
 use skinlet_lab::bevy_baseline::Workload;
+use skinlet_lab::crowd::{CrowdParams, crowd};
 use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller, Tests};
 use std::hint::black_box;
 use std::path::PathBuf;
@@ -138,7 +138,8 @@ fn benches(c: &mut Criterion) {
         meshlet_culling(c, &name, &asset, 2000);
     }
     // A dense character: ~4,000 meshlets over 33 joints, 250 instances ≈ 1M meshlets.
-    let demo = skinlet::demo::demo_character(&skinlet::demo::DemoParams { triangles: 500_000, ..Default::default() });
+    let demo =
+        skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams { triangles: 500_000, ..Default::default() });
     meshlet_culling(c, "demo-500k", &demo, 250);
 }
 

@@ -5,8 +5,8 @@
 //! Run: `cargo bench -p skinlet --bench meshlets`.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use skinlet::demo::{DemoParams, demo_character};
 use skinlet::meshlet::{Builder, MeshletLimits, PreparedMesh, build, prepare};
+use skinlet_lab::demo::{DemoParams, demo_character};
 use std::hint::black_box;
 use std::path::PathBuf;
 

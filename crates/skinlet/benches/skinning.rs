@@ -6,9 +6,9 @@
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::Vec3;
-use skinlet::demo::{DemoParams, demo_character};
 use skinlet::pose::Poser;
 use skinlet::{Asset, skinning};
+use skinlet_lab::demo::{DemoParams, demo_character};
 use std::hint::black_box;
 use std::path::PathBuf;
 

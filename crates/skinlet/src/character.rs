@@ -14,8 +14,8 @@
 //! (then one driver per rigid node, if any).
 //!
 //! ```
-//! use skinlet::demo::{DemoParams, demo_character};
-//! let asset = demo_character(&DemoParams { triangles: 1000, ..DemoParams::default() });
+//! # let asset = skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams { triangles: 1000, ..Default::default() });
+//! // `asset`: the demo character (skinlet-lab), as `skinlet::import::load` reads it.
 //! let character = asset.character()?;
 //! // Body and collar (two skins), anklet, propeller and two eyes (one mesh, two nodes).
 //! assert_eq!(character.parts.len(), 6);
@@ -278,58 +278,5 @@ fn scene_roots(asset: &Asset, scene: Option<usize>) -> Result<Vec<u32>> {
         }),
         None if asset.scenes.is_empty() => Ok(all_roots()),
         None => Ok(asset.scenes[asset.default_scene.unwrap_or(0).min(asset.scenes.len() - 1)].clone()),
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::demo::{DemoParams, demo_character};
-    use crate::model::{Instance, Node, Skeleton, Trs};
-
-    #[test]
-    fn scenes_choose_the_parts() {
-        // The demo plus a second root node drawing the eye mesh, in scene 1 only.
-        let mut a = demo_character(&DemoParams { triangles: 1000, ..DemoParams::default() });
-        let mut nodes = a.skeleton.nodes.clone();
-        nodes.push(Node { name: "lamp".into(), parent: None, rest: Trs::IDENTITY, matrix: None });
-        let lamp = nodes.len() as u32 - 1;
-        a.skeleton = Skeleton::new(nodes).unwrap();
-        a.instances.push(Instance { node: lamp, mesh: 4, skin: None });
-        // No scenes: every root is drawn.
-        assert_eq!(character(&a, None).unwrap().parts.len(), 7);
-        a.scenes = vec![vec![0], vec![lamp]];
-        a.default_scene = Some(1);
-        let nodes = |c: Character| c.parts.iter().map(|p| p.node).collect::<Vec<_>>();
-        assert_eq!(nodes(character(&a, None).unwrap()), [lamp]);
-        assert_eq!(character(&a, Some(0)).unwrap().parts.len(), 6);
-        let e = character(&a, Some(2)).unwrap_err().to_string();
-        assert!(e.contains("scene 2 does not exist (the file has 2)"), "{e}");
-        a.scenes.push(Vec::new());
-        let e = character(&a, Some(2)).unwrap_err().to_string();
-        assert!(e.contains("no node of scene 2 draws a triangle mesh"), "{e}");
-    }
-
-    #[test]
-    fn a_selection_poses_like_its_parts_in_the_whole() {
-        let a = demo_character(&DemoParams { triangles: 1000, ..DemoParams::default() });
-        let whole = a.character().unwrap();
-        // The body (morph face) and the propeller (animated rigid node).
-        let some = whole.select(|i, _| i == 0 || i == 3).unwrap();
-        assert_eq!(some.parts.iter().map(|p| p.node).collect::<Vec<_>>(), [whole.parts[0].node, whole.parts[3].node]);
-        assert!(!some.mesh.morphs.is_empty() && some.mesh.morphs.weights == whole.mesh.morphs.weights);
-        let clip = &a.clips[2];
-        let ((all, _), (sel, _)) =
-            (whole.posed(&a.skeleton, Some(clip), 0.7).unwrap(), some.posed(&a.skeleton, Some(clip), 0.7).unwrap());
-        for (p, q) in [&whole.parts[0], &whole.parts[3]].into_iter().zip(&some.parts) {
-            let range = |p: &Part| p.vertices.start as usize..p.vertices.end as usize;
-            assert_eq!(all[range(p)], sel[range(q)]);
-            let tris = |c: &Character, p: &Part| -> Vec<[u32; 3]> {
-                let t = &c.mesh.triangles[p.triangles.start as usize..p.triangles.end as usize];
-                t.iter().map(|t| t.map(|i| i - p.vertices.start)).collect()
-            };
-            assert_eq!(tris(&whole, p), tris(&some, q));
-        }
-        assert!(whole.select(|_, _| false).is_err());
     }
 }

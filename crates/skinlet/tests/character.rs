@@ -13,11 +13,11 @@ use rig::Rng;
 use skinlet::bake::{Baked, bake, prepare_character};
 use skinlet::bounds::refine::Refinement;
 use skinlet::clip::{Channel, Clip, Interpolation, WeightChannel};
-use skinlet::cull::crowd::{CrowdParams, posed_crowd, run};
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::model::{Influences, Instance, Mesh, MorphTarget, Node, Primitive, Skeleton, Skin, SkinnedMesh, Trs};
 use skinlet::pose::Poser;
 use skinlet::{Asset, PartKind};
+use skinlet_lab::crowd::{CrowdParams, posed_crowd, run};
 
 /// Triangles and drawings (node, primitive) of a glTF file's default scene, read from the
 /// document by the gltf crate alone: what a glTF viewer draws.
@@ -69,7 +69,8 @@ fn the_bake_holds_every_triangle_the_scene_draws() {
             cases.push((path.display().to_string(), asset, triangles, drawings));
         }
     }
-    let demo = skinlet::demo::demo_character(&skinlet::demo::DemoParams { triangles: 3000, ..Default::default() });
+    let demo =
+        skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams { triangles: 3000, ..Default::default() });
     let drawn = demo.instances.iter().map(|i| demo.meshes[i.mesh as usize].primitives[0].geometry.triangles.len());
     let (triangles, drawings) = (drawn.sum(), demo.instances.len());
     cases.push(("@demo".into(), demo, triangles, drawings));
@@ -317,7 +318,8 @@ proptest! {
 
 #[test]
 fn the_demo_poses_like_gltf_and_verifies_as_a_whole() {
-    let asset = skinlet::demo::demo_character(&skinlet::demo::DemoParams { triangles: 3000, ..Default::default() });
+    let asset =
+        skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams { triangles: 3000, ..Default::default() });
     for clip in &asset.clips {
         for k in 0..5 {
             check_parts_pose_like_gltf(&asset, Some(clip), clip.start + clip.duration() * k as f32 / 4.0);

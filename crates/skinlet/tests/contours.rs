@@ -17,7 +17,8 @@ use skinlet::contour::skinned::{SkinnedMethod, SkinnedParams, SkinnedPatches, bu
 use skinlet::contour::{Edges, Projection, Tested, brute_force};
 use skinlet::model::{Influences, Skeleton, Skin, SkinnedMesh};
 use skinlet::pose::{Poser, skinning_matrices};
-use skinlet_lab::contour_eval::{frame, uv_sphere, views};
+use skinlet_lab::contour_eval::{frame, views};
+use skinlet_lab::demo::uv_sphere;
 use skinlet_lab::meshlet_patches;
 use skinlet_lab::snch::Snch;
 
@@ -173,7 +174,7 @@ fn skinned_assets_match_brute_force_over_their_clips() {
         .map(|p| (p.file_name().unwrap().to_string_lossy().to_string(), skinlet::import::load(p).unwrap()))
         .collect();
     assert!(assets.len() >= 8);
-    assets.push(("demo".into(), skinlet::demo::demo_character(&skinlet::demo::DemoParams::default())));
+    assets.push(("demo".into(), skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams::default())));
     let how = Refinement { max_rounds: 2, ..Refinement::NONE };
     for (name, asset) in &assets {
         let character = asset.character().unwrap();

@@ -10,15 +10,16 @@ mod rig;
 use common::assets_dir;
 
 use glam::Vec3;
+use skinlet::Asset;
 use skinlet::bake::{Baked, bake};
 use skinlet::bounds::refine::Refinement;
 use skinlet::clip::Clip;
-use skinlet::cull::crowd::{CrowdParams, posed_crowd, run};
 use skinlet::cull::joint_aabb::{Box3, JointBoxes, JointSpace, fold_leaves, joint_boxes};
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::model::{Skeleton, Skin, SkinnedMesh};
 use skinlet::pose::Poser;
-use skinlet::{Asset, demo};
+use skinlet_lab::crowd::{CrowdParams, posed_crowd, run};
+use skinlet_lab::demo;
 
 fn baked(asset: &Asset) -> Baked {
     let clips: Vec<&Clip> = asset.clips.iter().collect();
@@ -94,7 +95,7 @@ fn crowd_never_culls_a_visible_triangle() {
 #[test]
 fn game_poses_never_cull_a_visible_triangle() {
     use skinlet::bounds::envelope::Envelope;
-    use skinlet::cull::crowd::Animation;
+    use skinlet_lab::crowd::Animation;
     let d = demo::demo_character(&demo::DemoParams { triangles: 4000, ..Default::default() });
     let mut assets = shared_assets();
     assets.push(("demo".into(), d));

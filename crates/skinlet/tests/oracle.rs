@@ -78,7 +78,8 @@ fn poses_agree_with_three_js() {
     let tmp = std::env::temp_dir().join(format!("skinlet-oracle-{}", std::process::id()));
     std::fs::create_dir_all(&tmp).unwrap();
     let mut cases: Vec<(String, PathBuf, Asset)> = Vec::new();
-    let demo = skinlet::demo::demo_character(&skinlet::demo::DemoParams { triangles: 4000, ..Default::default() });
+    let demo =
+        skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams { triangles: 4000, ..Default::default() });
     let demo_glb = tmp.join("demo.glb");
     std::fs::write(&demo_glb, skinlet::export::to_glb(&demo).unwrap()).unwrap();
     cases.push(("@demo".into(), demo_glb, demo));

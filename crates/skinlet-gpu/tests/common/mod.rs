@@ -39,7 +39,7 @@ pub fn assets() -> Vec<(String, Asset)> {
             out.push((p.file_name().unwrap().to_string_lossy().into_owned(), asset));
         }
     }
-    let demo = skinlet::demo::demo_character(&skinlet::demo::DemoParams::default());
+    let demo = skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams::default());
     out.push(("@demo".into(), demo));
     out
 }

@@ -32,37 +32,3 @@ pub use skinlet_runtime::contour_edges as edges;
 pub use skinlet_runtime::contour_edges::{
     Edges, Irregular, Tested, Viewer, brute_force, extract_uncullable, irregular_is_contour, quad_is_contour,
 };
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use glam::Vec3;
-
-    #[test]
-    fn sphere_contour_is_the_equator_band() {
-        // A UV sphere seen from far along +z (and orthographically): contour edges lie
-        // near z = 0, and seen from the pole a closed mesh has a closed, non-empty contour.
-        let (p, t) = crate::demo::uv_sphere(24, 48);
-        let edges = Edges::build(&p, &t).unwrap();
-        let mut out = Vec::new();
-        for proj in
-            [Projection::Perspective { eye: Vec3::new(0.0, 0.0, 1e4) }, Projection::Orthographic { dir: Vec3::NEG_Z }]
-        {
-            let tested = brute_force(&p, &edges, proj, &mut out);
-            assert_eq!(tested.edges, edges.quads.len());
-            assert!(!out.is_empty());
-            for &id in &out {
-                let [a, b] = edges.endpoints(id);
-                assert!(p[a as usize].z.abs() < 0.14 && p[b as usize].z.abs() < 0.14);
-            }
-            // Every vertex of a closed contour curve is used by an even number of its edges.
-            let mut degree = vec![0; p.len()];
-            for &id in &out {
-                for v in edges.endpoints(id) {
-                    degree[v as usize] += 1;
-                }
-            }
-            assert!(degree.iter().all(|d| d % 2 == 0));
-        }
-    }
-}

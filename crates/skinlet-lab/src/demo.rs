@@ -15,9 +15,11 @@
 //! head out along its normals, "mouth" drops and opens the jaw (with normal deltas); default
 //! weights 0.25 and 0, and every clip animates both in its own interpolation mode.
 
-use crate::clip::{Channel, Clip, Interpolation, WeightChannel};
-use crate::model::{Asset, Influences, Instance, Mesh, MorphTarget, Node, Primitive, Skeleton, Skin, SkinnedMesh, Trs};
 use glam::{DMat4, Mat4, Quat, Vec3, Vec4};
+use skinlet::clip::{Channel, Clip, Interpolation, WeightChannel};
+use skinlet::model::{
+    Asset, Influences, Instance, Mesh, MorphTarget, Node, Primitive, Skeleton, Skin, SkinnedMesh, Trs,
+};
 use std::f32::consts::{FRAC_PI_2, PI, TAU};
 
 /// What to build: `seed` varies the proportions, `triangles` is the mesh size (±10%).
@@ -67,7 +69,7 @@ pub fn demo_character(params: &DemoParams) -> Asset {
     let skeleton = Skeleton::new(nodes).expect("the demo hierarchy is a tree");
     let rest: Vec<Trs> = skeleton.nodes.iter().map(|n| n.rest).collect();
     let mut globals = Vec::new();
-    crate::pose::global_transforms(&skeleton, &rest, &mut globals);
+    skinlet::pose::global_transforms(&skeleton, &rest, &mut globals);
     let inverse_bind = |j: u32| globals[j as usize].inverse().as_mat4();
     let skin = Skin {
         name: "demo_skin".into(),
@@ -546,7 +548,7 @@ pub fn uv_sphere(rings: u32, segments: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pose::Poser;
+    use skinlet::pose::Poser;
 
     fn demo(seed: u64, triangles: usize) -> Asset {
         demo_character(&DemoParams { seed, triangles })
@@ -584,7 +586,7 @@ mod tests {
 
     #[test]
     fn the_whole_character_has_every_kind_of_part() {
-        use crate::character::PartKind;
+        use skinlet::character::PartKind;
         let a = demo(7, 2_000);
         let c = a.character().unwrap();
         let kinds: Vec<(u32, PartKind)> = c.parts.iter().map(|p| (p.mesh, p.kind)).collect();
@@ -671,7 +673,7 @@ mod tests {
         Poser::default().skinning_matrices(&a.skeleton, &a.skins[0], None, 0.0, &mut matrices);
         let (mut positions, mut normals) = (vec![Vec3::ZERO; g.positions.len()], vec![Vec3::ZERO; g.normals.len()]);
         let inf = g.influences.as_ref().expect("skinned");
-        crate::skinning::skin(inf, &g.positions, &g.normals, &matrices, &mut positions, &mut normals).unwrap();
+        skinlet::skinning::skin(inf, &g.positions, &g.normals, &matrices, &mut positions, &mut normals).unwrap();
         let (lo, hi) = g.positions.iter().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), &p| (lo.min(p), hi.max(p)));
         let tolerance = 1e-5 * (hi - lo).length();
         for (v, (p, q)) in g.positions.iter().zip(&positions).enumerate() {
@@ -728,7 +730,7 @@ mod tests {
     }
 
     #[test]
-    #[ignore = "timing: cargo test --release -p skinlet --lib demo -- --ignored --nocapture"]
+    #[ignore = "timing: cargo test --release -p skinlet-lab --lib demo -- --ignored --nocapture"]
     fn time_one_million_triangles() {
         let start = std::time::Instant::now();
         let a = demo(7, 1_000_000);

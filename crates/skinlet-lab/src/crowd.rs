@@ -2,23 +2,23 @@
 //! instances of one character in front of a fixed camera, some on the frustum's side
 //! planes, each playing a clip from a random time offset. Every frame, every instance is
 //! culled per meshlet with each of the paper's three pipelines (frustum only, backface only,
-//! both), then per triangle inside the surviving meshlets ([`super::triangle`]), and as a whole mesh by its
+//! both), then per triangle inside the surviving meshlets ([`skinlet::cull::triangle`]), and as a whole mesh by its
 //! per-joint box (the baseline engines use). Optionally, every culled triangle is checked
 //! by brute force on the reference-skinned mesh: outside one frustum plane, back-facing, or
 //! degenerate, within the f32 rounding of the skinned positions. Deterministic for a seed.
 
-use super::joint_aabb::{Box3, JointSpace, fold_leaves, joint_boxes, points_box};
-use super::triangle::{TriangleCounts, cull_triangles, facing};
-use super::{Camera, Projection};
-use crate::Result;
-use crate::bake::Baked;
-use crate::clip::Clip;
-use crate::model::Trs;
-use crate::model::{Skeleton, Skin};
-use crate::pose::{global_transforms, skinning_matrices};
-use crate::skinning;
 use glam::{Affine3A, DMat4, DQuat, DVec3, Quat, Vec3};
 use rayon::prelude::*;
+use skinlet::Result;
+use skinlet::bake::Baked;
+use skinlet::clip::Clip;
+use skinlet::cull::joint_aabb::{Box3, JointSpace, fold_leaves, joint_boxes, points_box};
+use skinlet::cull::triangle::{TriangleCounts, cull_triangles, facing};
+use skinlet::cull::{Camera, Projection};
+use skinlet::model::Trs;
+use skinlet::model::{Skeleton, Skin};
+use skinlet::pose::{global_transforms, skinning_matrices};
+use skinlet::skinning;
 use skinlet_runtime::meshlet_cull::{CullCounts, JointFrame, MeshletCuller, Tests};
 use std::time::{Duration, Instant};
 
@@ -125,11 +125,11 @@ impl Rng {
 pub fn posed_crowd(
     skeleton: &Skeleton,
     skin: &Skin,
-    mesh: &crate::SkinnedMesh,
+    mesh: &skinlet::SkinnedMesh,
     clips: &[&Clip],
     params: &CrowdParams,
 ) -> Result<Crowd> {
-    let posed = crate::skinning::posed_positions(skeleton, skin, mesh, clips.first().copied(), None)?;
+    let posed = skinlet::skinning::posed_positions(skeleton, skin, mesh, clips.first().copied(), None)?;
     crowd(&posed, clips.len(), params)
 }
 
@@ -393,10 +393,10 @@ pub fn run(
         (Animation::Clips, _) => None,
         (_, Some(e)) => Some(culler(&e.bounds, &e.classes)?),
         (a, None) => {
-            return Err(crate::Error::invalid(
-                "crowd",
-                format!("{} animation needs a bake with a pose envelope (skinlet bake --envelope)", a.name()),
-            ));
+            return Err(skinlet::Error::Invalid {
+                location: "crowd".into(),
+                message: format!("{} animation needs a bake with a pose envelope (skinlet bake --envelope)", a.name()),
+            });
         }
     };
     let guard = baked.envelope.as_ref().map(|e| e.envelope.guard()).transpose()?;
