@@ -9,7 +9,10 @@ use skinlet::meshlet::Builder;
 use skinlet_lab::crowd::{CULLING_METHODS, CrowdParams, CrowdStats, WHOLE_MESH_BOUNDS, posed_crowd, run};
 
 /// The report: `meshlets_total` over all instances and frames; the three pipelines'
-/// culled shares (backface test only, frustum test only, both: `culled_total_pct`);
+/// culled shares (backface test only, frustum test only, both: `culled_total_pct`); what
+/// the backface test alone saves (`culled_backface_triangles_pct`,
+/// `culled_backface_skinning_pct`) against the per-triangle limit
+/// (`backfacing_triangles_pct`);
 /// `false_culls` is null unless checked.
 pub fn to_json(s: &CrowdStats, checked: bool) -> Value {
     let loose = s.looseness();
@@ -17,6 +20,9 @@ pub fn to_json(s: &CrowdStats, checked: bool) -> Value {
         "instances": s.instances, "frames": s.frames, "meshlets_total": s.meshlets,
         "culled_backface_pct": s.backface_only_pct(), "culled_frustum_pct": s.frustum_only_pct(),
         "culled_total_pct": s.both_pct(), "triangles_saved_pct": s.triangles_saved_pct(),
+        "culled_backface_triangles_pct": s.backface_only_triangles_pct(),
+        "culled_backface_skinning_pct": s.backface_only_skinning_pct(),
+        "backfacing_triangles_pct": s.backfacing_triangles_pct(),
         "skinning_saved_pct": s.skinning_saved_pct(), "mesh_aabb_culled_pct": s.whole_mesh_pct(),
         "ns_per_meshlet": s.ns_per_meshlet(),
         "whole_mesh_looseness": WHOLE_MESH_BOUNDS.iter().zip(loose).map(|(n, l)| json!({"bound": n, "diagonal_ratio": l})).collect::<Vec<_>>(),
@@ -39,6 +45,13 @@ pub fn print(s: &CrowdStats, verify: bool) {
         s.backface_only_pct(),
         s.frustum_only_pct(),
         s.both_pct()
+    );
+    println!(
+        "  backface test alone: {:.1}% of triangles and {:.1}% of vertex skinning in culled meshlets \
+         ({:.1}% of triangles face away one by one)",
+        s.backface_only_triangles_pct(),
+        s.backface_only_skinning_pct(),
+        s.backfacing_triangles_pct()
     );
     println!(
         "  with both + per-triangle culling: {:.1}% of triangles and {:.1}% of vertex skinning saved",
@@ -86,6 +99,7 @@ pub fn print(s: &CrowdStats, verify: bool) {
 pub fn load(
     file: &str,
     gltf: Option<&str>,
+    builder: Builder,
     args: RefineArgs,
     json: bool,
 ) -> Result<(skinlet::Asset, skinlet::Character, skinlet::bake::Baked)> {
@@ -105,16 +119,18 @@ pub fn load(
     } else {
         anyhow::ensure!(gltf.is_none(), "--gltf goes with a bake file; {file} is not one");
         let (asset, character) = crate::load_character(file)?;
-        let (baked, _) = bake_asset(&asset, &character, None, Builder::SkinAware, args, json)?;
+        let (baked, _) = bake_asset(&asset, &character, None, builder, args, json)?;
         Ok((asset, character, baked))
     }
 }
 
 /// Runs the crowd for `file`: a bake (with `gltf`, the file it was baked from) or a glTF
-/// file, baked first.
+/// file, baked first (with `builder`).
+#[allow(clippy::too_many_arguments)]
 pub fn command(
     file: &str,
     gltf: Option<&str>,
+    builder: &str,
     params: &CrowdParams,
     check: bool,
     additive_deg: f32,
@@ -123,7 +139,8 @@ pub fn command(
 ) -> Result<()> {
     anyhow::ensure!(params.instances >= 1 && params.frames >= 1, "--instances and --frames must be at least 1");
     anyhow::ensure!((0.0..=180.0).contains(&additive_deg), "--additive-deg must be from 0 to 180");
-    let (asset, _, mut baked) = load(file, gltf, args, json)?;
+    let builder = Builder::from_name(builder).context("unknown meshlet builder")?;
+    let (asset, _, mut baked) = load(file, gltf, builder, args, json)?;
     if params.animation != skinlet_lab::crowd::Animation::Clips && baked.envelope.is_none() {
         anyhow::ensure!(
             gltf.is_none(),
@@ -137,11 +154,22 @@ pub fn command(
     let palette = baked.palette();
     let scene = posed_crowd(&asset.skeleton, &palette, &baked.mesh, &clips, params)?;
     let s = run(&baked, &asset.skeleton, &palette, &clips, &scene, params, check)?;
+    let meshlets = baked.meshlets.len();
+    let both = baked.classes.iter().filter(|&&c| c == skinlet::bounds::sphere_cone::Class::Both).count();
+    let both_pct = 100.0 * both as f64 / meshlets.max(1) as f64;
     if json {
-        println!("{}", serde_json::to_string_pretty(&to_json(&s, check))?);
+        let mut report = to_json(&s, check);
+        report["builder"] = json!(baked.settings.builder.name());
+        report["meshlets"] = json!(meshlets);
+        report["class_both_pct"] = json!(both_pct);
+        println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
         let camera = if params.orthographic { "orthographic" } else { "perspective" };
         println!("{file}: crowd scene ({camera} camera, {} animation)", params.animation.name());
+        println!(
+            "  {meshlets} meshlets ({} builder), {both_pct:.0}% of them frustum- and backface-cullable",
+            baked.settings.builder.name()
+        );
         print(&s, check);
     }
     if s.false_culls > 0 {

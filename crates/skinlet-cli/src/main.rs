@@ -171,7 +171,7 @@ enum Command {
     Meshlets {
         /// .glb, .gltf or .obj file, or @demo[:TRIANGLES].
         file: String,
-        #[arg(long, default_value = "all", value_parser = ["scan", "common-influences", "meshopt", "skin-aware", "all"])]
+        #[arg(long, default_value = "all", value_parser = ["scan", "common-influences", "meshopt", "skin-aware", "cone-split", "all"])]
         builder: String,
         /// At most this many vertices per meshlet (<= 256).
         #[arg(long, default_value_t = 64)]
@@ -192,11 +192,15 @@ enum Command {
     /// "both" (frustum- and backface-cullable) when its radius grows at most --sr times over
     /// the rest radius and its normals turn at most alpha beyond the rest cone, "frustum-only"
     /// when only the radius holds, else "none". Columns give % both / frustum-only at alpha =
-    /// 10, 20, 30 degrees, % none, the precomputation time and the refinement rounds.
+    /// 10, 20, 30 degrees, % none, the precomputation time and the refinement rounds. Then,
+    /// over 64 random views (random clip and time, direction even over the sphere, at three
+    /// radii) culled by the backface test alone with the classes at --alpha: the meshlets,
+    /// triangles and vertex skinning in culled meshlets, against the triangles that face away
+    /// one by one (what per-triangle culling removes).
     Bounds {
         /// .glb or .gltf file, or @demo[:TRIANGLES].
         file: String,
-        #[arg(long, default_value = "all", value_parser = ["scan", "common-influences", "meshopt", "skin-aware", "all"])]
+        #[arg(long, default_value = "all", value_parser = ["scan", "common-influences", "meshopt", "skin-aware", "cone-split", "all"])]
         builder: String,
         /// Clip names or indices, comma-separated (default: all clips, as one union).
         #[arg(long)]
@@ -220,7 +224,7 @@ enum Command {
         /// Output bake file.
         #[arg(short, long)]
         out: PathBuf,
-        #[arg(long, default_value = "skin-aware", value_parser = ["scan", "common-influences", "meshopt", "skin-aware"])]
+        #[arg(long, default_value = "skin-aware", value_parser = ["scan", "common-influences", "meshopt", "skin-aware", "cone-split"])]
         builder: String,
         /// Clip names or indices, comma-separated (default: all clips, as one union).
         #[arg(long)]
@@ -264,7 +268,7 @@ enum Command {
         /// Check the bounds stored in this bake file instead of computing them.
         #[arg(long)]
         baked: Option<PathBuf>,
-        #[arg(long, default_value = "skin-aware", value_parser = ["scan", "common-influences", "meshopt", "skin-aware"])]
+        #[arg(long, default_value = "skin-aware", value_parser = ["scan", "common-influences", "meshopt", "skin-aware", "cone-split"])]
         builder: String,
         /// Clip names or indices, comma-separated (default: all clips, as one union).
         #[arg(long)]
@@ -299,6 +303,9 @@ enum Command {
         /// The layout: the paper's crowd.
         #[arg(long, default_value = "crowd", value_parser = ["crowd"])]
         layout: String,
+        /// The meshlet builder a glTF file is baked with (a bake keeps its own).
+        #[arg(long, default_value = "skin-aware", value_parser = ["scan", "common-influences", "meshopt", "skin-aware", "cone-split"])]
+        builder: String,
         #[arg(long, default_value_t = 64)]
         instances: usize,
         #[arg(long, default_value_t = 30)]
@@ -474,6 +481,7 @@ fn main() {
             file,
             gltf,
             layout: _,
+            builder,
             instances,
             frames,
             seed,
@@ -499,7 +507,7 @@ fn main() {
                 animation,
                 ..Default::default()
             };
-            crowd::command(&file, gltf.as_deref(), &params, check, additive_deg, refine, json)
+            crowd::command(&file, gltf.as_deref(), &builder, &params, check, additive_deg, refine, json)
         }
         Command::Overdraw { file, clips, k, lambda, max_keyframes, views, seed, order, heatmap, json } => {
             let order = if order == "distance" { PatchOrder::Distance } else { PatchOrder::Occlusion };
@@ -1012,6 +1020,7 @@ fn prepared_character(file: &str) -> Result<(Asset, Character, skinlet::meshlet:
 
 fn bounds(file: &str, builder: &str, clips: Option<&str>, args: RefineArgs, json: bool) -> Result<()> {
     use skinlet::bounds::sphere_cone::{Class, classify};
+    use skinlet_lab::backface_views::backface_savings;
     let how = args.refinement()?;
     let (asset, character, prepared) = prepared_character(file)?;
     let clips = select_clips(&asset, clips)?;
@@ -1039,17 +1048,23 @@ fn bounds(file: &str, builder: &str, clips: Option<&str>, args: RefineArgs, json
             [10.0, 20.0, 30.0].iter().map(|&a| (a, pct(a, Class::Both), pct(a, Class::FrustumOnly))).collect();
         let at_alpha =
             (pct(args.alpha, Class::Both), pct(args.alpha, Class::FrustumOnly), pct(args.alpha, Class::None));
-        rows.push((b, bounds.len(), by_alpha, at_alpha, precompute_s, refined.rounds, refined.stop));
+        let classes: Vec<Class> = bounds.iter().map(|m| classify(m, sr, args.alpha.to_radians())).collect();
+        let (skeleton, palette, mesh) = (&asset.skeleton, &character.palette, &prepared.mesh);
+        let views = backface_savings(skeleton, palette, &clips, mesh, &meshlets, bounds, &classes, 64, 1)?;
+        rows.push((b, bounds.len(), by_alpha, at_alpha, precompute_s, refined.rounds, refined.stop, views));
     }
     if json {
         let out: Vec<Value> = rows
             .iter()
-            .map(|(b, n, by_alpha, at, secs, rounds, stop)| {
+            .map(|(b, n, by_alpha, at, secs, rounds, stop, v)| {
                 json!({
                     "builder": b.name(), "meshlets": n, "sr": sr, "alpha_deg": args.alpha,
                     "both_pct": at.0, "frustum_only_pct": at.1, "none_pct": at.2, "precompute_s": secs,
                     "rounds": rounds, "stop": stop_name(*stop),
                     "by_alpha": by_alpha.iter().map(|(a, both, fo)| json!({"alpha_deg": a, "both_pct": both, "frustum_only_pct": fo})).collect::<Vec<_>>(),
+                    "backface_views": json!({"views": v.views, "meshlets_culled_pct": v.meshlets_pct,
+                        "triangles_culled_pct": v.triangles_pct, "skinning_saved_pct": v.skinning_pct,
+                        "backfacing_triangles_pct": v.backfacing_triangles_pct}),
                 })
             })
             .collect();
@@ -1062,7 +1077,7 @@ fn bounds(file: &str, builder: &str, clips: Option<&str>, args: RefineArgs, json
         "  {:<18} {:>8} {:>14} {:>14} {:>14} {:>7} {:>12} {:>16}",
         "builder", "meshlets", "10°: both/fr", "20°: both/fr", "30°: both/fr", "none", "precompute s", "rounds"
     );
-    for (b, n, by_alpha, at, secs, rounds, stop) in &rows {
+    for (b, n, by_alpha, at, secs, rounds, stop, _) in &rows {
         let cell = |i: usize| format!("{:.0}% / {:.0}%", by_alpha[i].1, by_alpha[i].2);
         println!(
             "  {:<18} {:>8} {:>14} {:>14} {:>14} {:>6.0}% {:>12.2} {:>16}",
@@ -1074,6 +1089,21 @@ fn bounds(file: &str, builder: &str, clips: Option<&str>, args: RefineArgs, json
             at.2,
             secs,
             format!("{rounds} ({})", stop_name(*stop))
+        );
+    }
+    println!("  backface test alone, {} random views (classes at alpha = {}°):", rows[0].7.views, args.alpha);
+    println!(
+        "  {:<18} {:>10} {:>10} {:>10} {:>22}",
+        "builder", "meshlets", "triangles", "skinning", "back-facing triangles"
+    );
+    for (b, .., v) in &rows {
+        println!(
+            "  {:<18} {:>9.1}% {:>9.1}% {:>9.1}% {:>21.1}%",
+            b.name(),
+            v.meshlets_pct,
+            v.triangles_pct,
+            v.skinning_pct,
+            v.backfacing_triangles_pct
         );
     }
     Ok(())

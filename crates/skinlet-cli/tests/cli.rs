@@ -202,7 +202,7 @@ fn meshlets_json_has_one_row_per_builder() {
     let rows = json_of(&["meshlets", "@demo:3000", "--json"]);
     let rows = rows.as_array().unwrap();
     let names: Vec<&str> = rows.iter().map(|r| r["builder"].as_str().unwrap()).collect();
-    assert_eq!(names, ["scan", "common-influences", "meshopt", "skin-aware"]);
+    assert_eq!(names, ["scan", "common-influences", "meshopt", "skin-aware", "cone-split"]);
     for r in rows {
         for field in [
             "meshlets",
@@ -251,6 +251,11 @@ fn verify_and_bounds_report_in_json() {
     let total: f64 = ["both_pct", "frustum_only_pct", "none_pct"].iter().map(|k| row[k].as_f64().unwrap()).sum();
     assert!((total - 100.0).abs() < 1e-9, "{row}");
     assert!(row["precompute_s"].as_f64().unwrap() >= 0.0);
+    let views = &row["backface_views"];
+    for field in ["meshlets_culled_pct", "triangles_culled_pct", "skinning_saved_pct", "backfacing_triangles_pct"] {
+        assert!(views[field].as_f64().is_some_and(|x| (0.0..=100.0).contains(&x)), "{field} missing in {views}");
+    }
+    assert_eq!(views["views"], 64, "{views}");
     let (code, _, err) = skinlet(&["verify", file.to_str().unwrap(), "--clips", "nope"]);
     assert_eq!(code, 2);
     assert!(err.contains("no clip \"nope\""), "{err}");
@@ -312,11 +317,22 @@ fn cull_reports_table_one_columns_and_never_culls_visible_triangles() {
         "skinning_saved_pct",
         "mesh_aabb_culled_pct",
         "ns_per_meshlet",
+        "culled_backface_triangles_pct",
+        "culled_backface_skinning_pct",
+        "backfacing_triangles_pct",
+        "class_both_pct",
     ] {
         assert!(j[field].as_f64().is_some_and(|x| x >= 0.0), "{field} missing in {j}");
     }
     assert_eq!(j["false_culls"], 0, "{j}");
     assert!(j["checked_triangles"].as_u64().unwrap() > 0);
+    assert_eq!(
+        (j["builder"].as_str(), j["meshlets"].as_u64().unwrap() * 8 * 3),
+        (Some("skin-aware"), j["meshlets_total"].as_u64().unwrap())
+    );
+    let split =
+        json_of(&["cull", "@demo:2000", "--builder", "cone-split", "--instances", "8", "--frames", "3", "--json"]);
+    assert_eq!(split["builder"], "cone-split", "{split}");
     let total = j["culled_total_pct"].as_f64().unwrap();
     assert!(total >= j["culled_frustum_pct"].as_f64().unwrap() && total <= 100.0, "{j}");
     let (code, _, err) = skinlet(&["cull", "@demo:2000", "--instances", "0"]);

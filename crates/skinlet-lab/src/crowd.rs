@@ -110,10 +110,10 @@ pub struct Crowd {
     pub placements: Vec<Placement>,
 }
 
-struct Rng(u64);
+pub(crate) struct Rng(pub(crate) u64);
 
 impl Rng {
-    fn next(&mut self) -> f64 {
+    pub(crate) fn next(&mut self) -> f64 {
         self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
         (self.0 >> 11) as f64 / (1u64 << 53) as f64
     }
@@ -226,6 +226,12 @@ pub struct CrowdStats {
     /// Meshlets culled by each pipeline (the paper's table 1 columns).
     pub culled_frustum_only: usize,
     pub culled_backface_only: usize,
+    /// Backface test alone: triangles and vertex references (skinning) in the meshlets it
+    /// culls; and the triangles back-facing one by one over the whole skinned mesh (the
+    /// limit of any backface culling: about half of a closed mesh).
+    pub backface_only_triangles: usize,
+    pub backface_only_vertex_refs: usize,
+    pub backfacing_triangles: usize,
     pub culled_both: CullCounts,
     /// With both tests: triangles in culled meshlets, and vertex references not skinned.
     pub triangles_in_culled_meshlets: usize,
@@ -291,6 +297,9 @@ impl CrowdStats {
         self.vertex_refs += o.vertex_refs;
         self.culled_frustum_only += o.culled_frustum_only;
         self.culled_backface_only += o.culled_backface_only;
+        self.backface_only_triangles += o.backface_only_triangles;
+        self.backface_only_vertex_refs += o.backface_only_vertex_refs;
+        self.backfacing_triangles += o.backfacing_triangles;
         self.culled_both.add(&o.culled_both);
         self.triangles_in_culled_meshlets += o.triangles_in_culled_meshlets;
         self.vertex_refs_culled += o.vertex_refs_culled;
@@ -320,6 +329,18 @@ impl CrowdStats {
     }
     pub fn backface_only_pct(&self) -> f64 {
         self.pct(self.culled_backface_only, self.meshlets)
+    }
+    /// Triangles in meshlets the backface test alone culls.
+    pub fn backface_only_triangles_pct(&self) -> f64 {
+        self.pct(self.backface_only_triangles, self.triangles)
+    }
+    /// Vertex skinning saved by the backface test alone.
+    pub fn backface_only_skinning_pct(&self) -> f64 {
+        self.pct(self.backface_only_vertex_refs, self.vertex_refs)
+    }
+    /// Triangles back-facing one by one: what per-triangle backface culling removes.
+    pub fn backfacing_triangles_pct(&self) -> f64 {
+        self.pct(self.backfacing_triangles, self.triangles)
     }
     pub fn both_pct(&self) -> f64 {
         self.pct(self.culled_both.frustum + self.culled_both.backface, self.meshlets)
@@ -364,6 +385,7 @@ struct Scratch {
     frame: JointFrame,
     flags: Vec<u8>,
     visible: Vec<u32>,
+    all: Vec<u32>,
     skinned: Vec<Vec3>,
     world: Vec<Vec3>,
 }
@@ -462,16 +484,27 @@ pub fn run(
                     let started = Instant::now();
                     prepare(culler, &s.joint_to_world, &crowd.camera, tests, &mut s.frame);
                     let counts = culler.cull(&s.frame, &mut s.flags, &mut s.visible);
-                    (counts, started.elapsed())
+                    let time = started.elapsed();
+                    // Triangles and vertex references kept (the list is in the culler's order).
+                    let kept = s.visible.iter().fold((0, 0), |(t, r), &m| {
+                        (t + per_meshlet_tris[m as usize], r + per_meshlet_refs[m as usize])
+                    });
+                    (counts, time, kept)
                 };
-                let alone =
-                    |(counts, time): (CullCounts, _)| MethodStats { meshlets: n, culled: n - counts.visible, time };
+                let alone = |(counts, time, _): (CullCounts, _, _)| MethodStats {
+                    meshlets: n,
+                    culled: n - counts.visible,
+                    time,
+                };
                 if boxes_hold {
                     st.methods[2] = alone(run(MeshletCuller::prepare_boxes_only, Tests::Both));
                 }
                 if bounds_hold {
                     st.culled_frustum_only = run(MeshletCuller::prepare, Tests::Frustum).0.frustum;
-                    st.culled_backface_only = run(MeshletCuller::prepare, Tests::Backface).0.backface;
+                    let (counts, _, (tris, refs)) = run(MeshletCuller::prepare, Tests::Backface);
+                    st.culled_backface_only = counts.backface;
+                    st.backface_only_triangles = st.triangles - tris;
+                    st.backface_only_vertex_refs = st.vertex_refs - refs;
                     // Clip bounds without an envelope culler, envelope bounds with one.
                     st.methods[envelope_culler.is_some() as usize] = alone(run(MeshletCuller::prepare, Tests::Both));
                 }
@@ -481,7 +514,7 @@ pub fn run(
                         (true, false) => MeshletCuller::prepare,
                         _ => MeshletCuller::prepare_boxes_only,
                     };
-                    (st.culled_both, st.cull_time) = run(best, Tests::Both);
+                    (st.culled_both, st.cull_time, _) = run(best, Tests::Both);
                 } else {
                     s.visible.clear();
                     s.visible.extend(0..n as u32);
@@ -507,6 +540,12 @@ pub fn run(
                 s.world.clear();
                 s.world.extend(s.skinned.iter().map(|&p| model.transform_point3(p)));
                 st.triangle_culling = cull_triangles(meshlets, &s.visible, &s.world, crowd.camera.projection, None);
+                if bounds_hold {
+                    s.all.clear();
+                    s.all.extend(0..n as u32);
+                    let whole = cull_triangles(meshlets, &s.all, &s.world, crowd.camera.projection, None);
+                    st.backfacing_triangles = whole.backfacing + whole.degenerate;
+                }
                 // Whole-mesh culling by the dynamic box, moved from entity to world space.
                 let started = Instant::now();
                 let mesh_box = mesh_boxes.update(&s.skinning);

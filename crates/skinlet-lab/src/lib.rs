@@ -14,9 +14,12 @@
 //!   rigid, animated and instanced parts, a morph face, three clips), and a UV sphere.
 //! - [`crowd`]: the crowd scene of the conservative-bounds paper (clips, crossfades, additive
 //!   layers, IK), its statistics, and the brute-force check of every culled triangle.
+//! - [`backface_views`]: what the backface test alone saves over random views (meshlets,
+//!   triangles, skinning) against per-triangle backface culling (`skinlet bounds`).
 //! - [`bevy_baseline`]: Bevy's per-joint box update, the baseline skinlet's is measured against.
 //! - [`summary`]: the facts `skinlet inspect` reports.
 
+pub mod backface_views;
 pub mod bevy_baseline;
 pub mod contour_eval;
 pub mod crowd;

@@ -22,18 +22,14 @@ use skinlet_lab::crowd::{CrowdParams, posed_crowd, run};
 use skinlet_lab::demo;
 
 fn baked(asset: &Asset) -> Baked {
+    baked_with(asset, Builder::SkinAware)
+}
+
+fn baked_with(asset: &Asset, builder: Builder) -> Baked {
     let clips: Vec<&Clip> = asset.clips.iter().collect();
-    bake(
-        asset,
-        &asset.character().unwrap(),
-        &clips,
-        Builder::SkinAware,
-        MeshletLimits::NVIDIA,
-        &Refinement::NONE,
-        &mut |_| {},
-    )
-    .unwrap()
-    .0
+    bake(asset, &asset.character().unwrap(), &clips, builder, MeshletLimits::NVIDIA, &Refinement::NONE, &mut |_| {})
+        .unwrap()
+        .0
 }
 
 /// Every shared skinned character and the morph-target test.
@@ -49,7 +45,11 @@ fn shared_assets() -> Vec<(String, Asset)> {
 }
 
 fn check_crowd(name: &str, asset: &Asset, params: &CrowdParams) -> (f64, f64) {
-    let b = baked(asset);
+    check_crowd_with(name, asset, params, Builder::SkinAware)
+}
+
+fn check_crowd_with(name: &str, asset: &Asset, params: &CrowdParams, builder: Builder) -> (f64, f64) {
+    let b = baked_with(asset, builder);
     let clips: Vec<&Clip> = asset.clips.iter().collect();
     let skin = &b.palette();
     let scene = posed_crowd(&asset.skeleton, skin, &b.mesh, &clips, params).unwrap();
@@ -66,6 +66,15 @@ fn check_crowd(name: &str, asset: &Asset, params: &CrowdParams) -> (f64, f64) {
     );
     assert_eq!(stats.false_culls, 0, "{name}: {stats:?}");
     assert!(stats.checked_triangles > 0, "{name}: nothing was culled, nothing checked");
+    // A meshlet the backface test culls holds only triangles that face away (or are edge-on)
+    // one by one: at most the per-triangle count, up to the f32 rounding the brute force
+    // allows a few near-edge-on triangles.
+    assert!(
+        stats.backface_only_triangles <= stats.backfacing_triangles + stats.triangles / 1000,
+        "{name}: {} triangles in backface-culled meshlets, {} back-facing",
+        stats.backface_only_triangles,
+        stats.backfacing_triangles
+    );
     (stats.frustum_only_pct(), stats.backface_only_pct())
 }
 
@@ -79,6 +88,9 @@ fn crowd_never_culls_a_visible_triangle() {
         any_backface |= backface > 0.0;
         if name == "Xbot.glb" {
             check_crowd(&name, &asset, &CrowdParams { orthographic: true, ..params });
+            // Meshlets built for culling: more of them culled by the backface test alone.
+            let (_, split) = check_crowd_with(&name, &asset, &params, Builder::ConeSplit);
+            assert!(split > backface, "cone-split {split:.1}% vs skin-aware {backface:.1}% culled as back-facing");
         }
     }
     let d = demo::demo_character(&demo::DemoParams { triangles: 4000, ..Default::default() });

@@ -2,9 +2,10 @@
 //! `max_triangles` triangles) with a local vertex list and local u8 triangle indices, the
 //! unit of mesh-shader rendering and of skinlet's culling.
 //!
-//! Four builders share one layout ([`Meshlets`]) and one entry point ([`build`]):
+//! Five builders share one layout ([`Meshlets`]) and one entry point ([`build`]):
 //! [`scan`] (thesis listing 4.1), [`common_influences`] (thesis listing 4.2 / A.2),
-//! [`greedy`] (meshoptimizer's builder) and [`skin_aware`] (ours). Every builder works on a
+//! [`greedy`] (meshoptimizer's builder), [`skin_aware`] and [`cone_split`] (ours: skin-aware
+//! meshlets split for backface culling). Every builder works on a
 //! [`prepare()`]d mesh (welded, vertex-cache ordered). Every meshlet whose vertices all have
 //! the same set of influencing joints carries that set once ([`Meshlet::joint_count`] > 0),
 //! so those vertices can use a slim format without joint IDs (thesis section 3.1.1).
@@ -13,6 +14,7 @@
 //! prepared mesh is in exactly one meshlet, with its winding, and no limit is exceeded.
 
 pub mod common_influences;
+pub mod cone_split;
 pub mod flat;
 pub mod greedy;
 pub mod prepare;
@@ -184,10 +186,12 @@ pub enum Builder {
     CommonInfluences,
     Meshopt,
     SkinAware,
+    ConeSplit,
 }
 
 impl Builder {
-    pub const ALL: [Builder; 4] = [Builder::Scan, Builder::CommonInfluences, Builder::Meshopt, Builder::SkinAware];
+    pub const ALL: [Builder; 5] =
+        [Builder::Scan, Builder::CommonInfluences, Builder::Meshopt, Builder::SkinAware, Builder::ConeSplit];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -195,6 +199,7 @@ impl Builder {
             Builder::CommonInfluences => "common-influences",
             Builder::Meshopt => "meshopt",
             Builder::SkinAware => "skin-aware",
+            Builder::ConeSplit => "cone-split",
         }
     }
 
@@ -214,6 +219,7 @@ pub fn build(prepared: &PreparedMesh, builder: Builder, limits: MeshletLimits) -
         Builder::CommonInfluences => common_influences::build(mesh, limits),
         Builder::Meshopt => greedy::build(&mesh.triangles, &mesh.positions, limits, greedy::CONE_WEIGHT),
         Builder::SkinAware => skin_aware::build(mesh, limits, &skin_aware::Params::default()),
+        Builder::ConeSplit => cone_split::build(mesh, limits, &cone_split::Params::default()),
     };
     let mut meshlets = if prepared.parts.len() <= 1 {
         one(mesh)
