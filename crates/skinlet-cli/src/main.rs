@@ -171,7 +171,7 @@ enum Command {
     Meshlets {
         /// .glb, .gltf or .obj file, or @demo[:TRIANGLES].
         file: String,
-        #[arg(long, default_value = "all", value_parser = ["scan", "common-influences", "meshopt", "skin-aware", "cone-split", "all"])]
+        #[arg(long, default_value = "all", value_parser = ["scan", "common-influences", "meshopt", "skin-aware", "cone-split", "meshopt-flex", "meshopt-spatial", "all"])]
         builder: String,
         /// At most this many vertices per meshlet (<= 256).
         #[arg(long, default_value_t = 64)]
@@ -200,7 +200,7 @@ enum Command {
     Bounds {
         /// .glb or .gltf file, or @demo[:TRIANGLES].
         file: String,
-        #[arg(long, default_value = "all", value_parser = ["scan", "common-influences", "meshopt", "skin-aware", "cone-split", "all"])]
+        #[arg(long, default_value = "all", value_parser = ["scan", "common-influences", "meshopt", "skin-aware", "cone-split", "meshopt-flex", "meshopt-spatial", "all"])]
         builder: String,
         /// Clip names or indices, comma-separated (default: all clips, as one union).
         #[arg(long)]
@@ -224,7 +224,7 @@ enum Command {
         /// Output bake file.
         #[arg(short, long)]
         out: PathBuf,
-        #[arg(long, default_value = "skin-aware", value_parser = ["scan", "common-influences", "meshopt", "skin-aware", "cone-split"])]
+        #[arg(long, default_value = "skin-aware", value_parser = ["scan", "common-influences", "meshopt", "skin-aware", "cone-split", "meshopt-flex", "meshopt-spatial"])]
         builder: String,
         /// Clip names or indices, comma-separated (default: all clips, as one union).
         #[arg(long)]
@@ -268,7 +268,7 @@ enum Command {
         /// Check the bounds stored in this bake file instead of computing them.
         #[arg(long)]
         baked: Option<PathBuf>,
-        #[arg(long, default_value = "skin-aware", value_parser = ["scan", "common-influences", "meshopt", "skin-aware", "cone-split"])]
+        #[arg(long, default_value = "skin-aware", value_parser = ["scan", "common-influences", "meshopt", "skin-aware", "cone-split", "meshopt-flex", "meshopt-spatial"])]
         builder: String,
         /// Clip names or indices, comma-separated (default: all clips, as one union).
         #[arg(long)]
@@ -304,7 +304,7 @@ enum Command {
         #[arg(long, default_value = "crowd", value_parser = ["crowd"])]
         layout: String,
         /// The meshlet builder a glTF file is baked with (a bake keeps its own).
-        #[arg(long, default_value = "skin-aware", value_parser = ["scan", "common-influences", "meshopt", "skin-aware", "cone-split"])]
+        #[arg(long, default_value = "skin-aware", value_parser = ["scan", "common-influences", "meshopt", "skin-aware", "cone-split", "meshopt-flex", "meshopt-spatial"])]
         builder: String,
         #[arg(long, default_value_t = 64)]
         instances: usize,

@@ -202,7 +202,10 @@ fn meshlets_json_has_one_row_per_builder() {
     let rows = json_of(&["meshlets", "@demo:3000", "--json"]);
     let rows = rows.as_array().unwrap();
     let names: Vec<&str> = rows.iter().map(|r| r["builder"].as_str().unwrap()).collect();
-    assert_eq!(names, ["scan", "common-influences", "meshopt", "skin-aware", "cone-split"]);
+    assert_eq!(
+        names,
+        ["scan", "common-influences", "meshopt", "skin-aware", "cone-split", "meshopt-flex", "meshopt-spatial"]
+    );
     for r in rows {
         for field in [
             "meshlets",

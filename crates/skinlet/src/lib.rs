@@ -14,7 +14,7 @@
 //! - [`cull`]: the baker's side of culling (any-pose and per-joint boxes, per-triangle tests);
 //!   the run-time culler is `skinlet_runtime`'s (the crowd scene and the Bevy baseline are in
 //!   `skinlet-lab`).
-//! - [`meshlet`]: meshlet layout, five builders (incl. skin-aware and cone-split), flat GPU form, metrics.
+//! - [`meshlet`]: meshlet layout, seven builders (incl. skin-aware and cone-split), flat GPU form, metrics.
 //! - [`contour`]: mesh contour extraction with patch decomposition.
 //! - [`overdraw`]: triangle orders for low overdraw over animation (measures, clustering,
 //!   run-time lookup).

@@ -2,10 +2,10 @@
 //! `max_triangles` triangles) with a local vertex list and local u8 triangle indices, the
 //! unit of mesh-shader rendering and of skinlet's culling.
 //!
-//! Five builders share one layout ([`Meshlets`]) and one entry point ([`build`]):
+//! Seven builders share one layout ([`Meshlets`]) and one entry point ([`build`]):
 //! [`scan`] (thesis listing 4.1), [`common_influences`] (thesis listing 4.2 / A.2),
-//! [`greedy`] (meshoptimizer's builder), [`skin_aware`] and [`cone_split`] (ours: skin-aware
-//! meshlets split for backface culling). Every builder works on a
+//! [`greedy`] (meshoptimizer's three: greedy, flex, spatial), [`skin_aware`] and
+//! [`cone_split`] (ours: skin-aware meshlets split for backface culling). Every builder works on a
 //! [`prepare()`]d mesh (welded, vertex-cache ordered). Every meshlet whose vertices all have
 //! the same set of influencing joints carries that set once ([`Meshlet::joint_count`] > 0),
 //! so those vertices can use a slim format without joint IDs (thesis section 3.1.1).
@@ -187,11 +187,20 @@ pub enum Builder {
     Meshopt,
     SkinAware,
     ConeSplit,
+    MeshoptFlex,
+    MeshoptSpatial,
 }
 
 impl Builder {
-    pub const ALL: [Builder; 5] =
-        [Builder::Scan, Builder::CommonInfluences, Builder::Meshopt, Builder::SkinAware, Builder::ConeSplit];
+    pub const ALL: [Builder; 7] = [
+        Builder::Scan,
+        Builder::CommonInfluences,
+        Builder::Meshopt,
+        Builder::SkinAware,
+        Builder::ConeSplit,
+        Builder::MeshoptFlex,
+        Builder::MeshoptSpatial,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -200,6 +209,8 @@ impl Builder {
             Builder::Meshopt => "meshopt",
             Builder::SkinAware => "skin-aware",
             Builder::ConeSplit => "cone-split",
+            Builder::MeshoptFlex => "meshopt-flex",
+            Builder::MeshoptSpatial => "meshopt-spatial",
         }
     }
 
@@ -220,6 +231,8 @@ pub fn build(prepared: &PreparedMesh, builder: Builder, limits: MeshletLimits) -
         Builder::Meshopt => greedy::build(&mesh.triangles, &mesh.positions, limits, greedy::CONE_WEIGHT),
         Builder::SkinAware => skin_aware::build(mesh, limits, &skin_aware::Params::default()),
         Builder::ConeSplit => cone_split::build(mesh, limits, &cone_split::Params::default()),
+        Builder::MeshoptFlex => greedy::build_with(&mesh.triangles, &mesh.positions, limits, greedy::FLEX),
+        Builder::MeshoptSpatial => greedy::build_with(&mesh.triangles, &mesh.positions, limits, greedy::SPATIAL),
     };
     let mut meshlets = if prepared.parts.len() <= 1 {
         one(mesh)
