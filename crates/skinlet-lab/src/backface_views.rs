@@ -6,7 +6,7 @@
 //! the triangles of a closed mesh). Deterministic for a seed.
 
 use crate::crowd::Rng;
-use glam::{Affine3A, Vec3};
+use glam::Vec3;
 use skinlet::Result;
 use skinlet::bounds::sphere_cone::{Class, MeshletBounds};
 use skinlet::clip::Clip;
@@ -14,7 +14,8 @@ use skinlet::cull::Camera;
 use skinlet::cull::triangle::cull_triangles;
 use skinlet::meshlet::Meshlets;
 use skinlet::model::{Skeleton, Skin, SkinnedMesh};
-use skinlet::pose::Poser;
+use skinlet::pose::{Poser, joint_globals, skinning_matrices};
+use skinlet::skinning::skin_mesh;
 use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller, Tests};
 
 /// Shares over all views (percent).
@@ -51,15 +52,19 @@ pub fn backface_savings(
     let every: Vec<u32> = (0..meshlets.len() as u32).collect();
     let mut rng = Rng(seed);
     let (mut poser, mut frame) = (Poser::default(), JointFrame::default());
-    let (mut flags, mut visible, mut joints) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut flags, mut visible, mut joints, mut matrices, mut weights) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut posed = vec![Vec3::ZERO; mesh.positions.len()];
     let (mut culled, mut culled_tris, mut culled_refs, mut backfacing) = (0, 0, 0, 0);
     for _ in 0..views {
         let clip = (!clips.is_empty()).then(|| clips[(rng.next() * clips.len() as f64) as usize % clips.len()]);
         let t = clip.map_or(0.0, |c| c.start + rng.next() as f32 * c.duration());
+        // One pose: the joints' globals move the bounds, the skinning matrices the vertices.
         let globals = poser.globals(skeleton, clip, t);
-        joints.clear();
-        joints.extend(skin.joints.iter().map(|&j| Affine3A::from_mat4(globals[j as usize].as_mat4())));
-        let posed = skinlet::skinning::posed_positions(skeleton, skin, mesh, clip, Some(t))?;
+        joint_globals(skin, globals, &mut joints);
+        skinning_matrices(skin, globals, &mut matrices);
+        mesh.morphs.weights_at(clip, t, &mut weights);
+        skin_mesh(mesh, &weights, &matrices, &mut posed, &mut [])?;
         let (lo, hi) = posed.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), &p| (l.min(p), h.max(p)));
         let (center, radius) = ((lo + hi) / 2.0, ((hi - lo).length() / 2.0).max(1e-6));
         // A direction even over the sphere.

@@ -508,31 +508,26 @@ pub fn run(
                     // Clip bounds without an envelope culler, envelope bounds with one.
                     st.methods[envelope_culler.is_some() as usize] = alone(run(MeshletCuller::prepare, Tests::Both));
                 }
-                if bounds_hold || boxes_hold {
+                let (kept_tris, kept_refs) = if bounds_hold || boxes_hold {
                     let best: Prepare = match (bounds_hold, boxes_hold) {
                         (true, true) => MeshletCuller::prepare_with_boxes,
                         (true, false) => MeshletCuller::prepare,
                         _ => MeshletCuller::prepare_boxes_only,
                     };
-                    (st.culled_both, st.cull_time, _) = run(best, Tests::Both);
+                    let kept;
+                    (st.culled_both, st.cull_time, kept) = run(best, Tests::Both);
+                    kept
                 } else {
                     s.visible.clear();
                     s.visible.extend(0..n as u32);
                     st.culled_both = CullCounts { meshlets: n, visible: n, ..Default::default() };
-                }
+                    (st.triangles, st.vertex_refs)
+                };
                 if !bounds_hold {
                     st.culled_frustum_only = st.culled_both.frustum;
                 }
-                let mut kept = vec![false; meshlets.len()];
-                for &m in &s.visible {
-                    kept[m as usize] = true;
-                }
-                for (m, &k) in kept.iter().enumerate() {
-                    if !k {
-                        st.triangles_in_culled_meshlets += per_meshlet_tris[m];
-                        st.vertex_refs_culled += per_meshlet_refs[m];
-                    }
-                }
+                st.triangles_in_culled_meshlets = st.triangles - kept_tris;
+                st.vertex_refs_culled = st.vertex_refs - kept_refs;
                 // Skin, move to world and clip space; per-triangle culling in kept meshlets.
                 s.skinned.resize(baked.mesh.positions.len(), Vec3::ZERO);
                 skinning::skin_mesh(&baked.mesh, &s.morph_weights, &s.skinning, &mut s.skinned, &mut [])?;
@@ -559,6 +554,10 @@ pub fn run(
                 let all = [boxes.update(&s.joint_to_model), mesh_box, folded.update(&s.joint_to_model), sphere];
                 st.looseness_sum = all.map(|b| (b.diagonal() / exact) as f64);
                 if verify {
+                    let mut kept = vec![false; meshlets.len()];
+                    for &m in &s.visible {
+                        kept[m as usize] = true;
+                    }
                     let (checked, false_culls) = check_culls(baked, &kept, &s.world, &crowd.camera);
                     st.checked_triangles = checked;
                     st.false_culls = false_culls;
