@@ -99,7 +99,7 @@ pub fn print(s: &CrowdStats, verify: bool) {
 pub fn load(
     file: &str,
     gltf: Option<&str>,
-    builder: Builder,
+    builder: Option<Builder>,
     args: RefineArgs,
     json: bool,
 ) -> Result<(skinlet::Asset, skinlet::Character, skinlet::bake::Baked)> {
@@ -115,22 +115,29 @@ pub fn load(
         let (asset, character) = crate::load_character(gltf)?;
         let baked = skinlet::bake::read(std::path::Path::new(file))?;
         crate::bake::check_source(&baked, &character, gltf, std::path::Path::new(file))?;
+        if let Some(b) = builder.filter(|&b| b != baked.settings.builder) {
+            anyhow::bail!(
+                "{file} was baked with the {} builder, not {}: rebake it, or cull the glTF file with --builder",
+                baked.settings.builder.name(),
+                b.name()
+            );
+        }
         Ok((asset, character, baked))
     } else {
         anyhow::ensure!(gltf.is_none(), "--gltf goes with a bake file; {file} is not one");
         let (asset, character) = crate::load_character(file)?;
-        let (baked, _) = bake_asset(&asset, &character, None, builder, args, json)?;
+        let (baked, _) = bake_asset(&asset, &character, None, builder.unwrap_or(Builder::SkinAware), args, json)?;
         Ok((asset, character, baked))
     }
 }
 
 /// Runs the crowd for `file`: a bake (with `gltf`, the file it was baked from) or a glTF
-/// file, baked first (with `builder`).
+/// file, baked first (with `builder`, skin-aware by default).
 #[allow(clippy::too_many_arguments)]
 pub fn command(
     file: &str,
     gltf: Option<&str>,
-    builder: &str,
+    builder: Option<&str>,
     params: &CrowdParams,
     check: bool,
     additive_deg: f32,
@@ -139,7 +146,7 @@ pub fn command(
 ) -> Result<()> {
     anyhow::ensure!(params.instances >= 1 && params.frames >= 1, "--instances and --frames must be at least 1");
     anyhow::ensure!((0.0..=180.0).contains(&additive_deg), "--additive-deg must be from 0 to 180");
-    let builder = Builder::from_name(builder).context("unknown meshlet builder")?;
+    let builder = builder.map(|b| Builder::from_name(b).context("unknown meshlet builder")).transpose()?;
     let (asset, _, mut baked) = load(file, gltf, builder, args, json)?;
     if params.animation != skinlet_lab::crowd::Animation::Clips && baked.envelope.is_none() {
         anyhow::ensure!(

@@ -134,8 +134,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         "ik" => Animation::Ik,
         _ => Animation::Clips,
     };
-    let (asset, character, mut baked) =
-        crate::crowd::load(file, a.gltf.as_deref(), skinlet::meshlet::Builder::SkinAware, a.refine, a.json)?;
+    let (asset, character, mut baked) = crate::crowd::load(file, a.gltf.as_deref(), None, a.refine, a.json)?;
     let clips = crate::bake::clips_of(&baked, &asset, a.gltf.as_deref().unwrap_or(file))?;
     let envelope_spec = format!("clips:{}", a.additive_deg);
     if animation != Animation::Clips && baked.envelope.is_none() {

@@ -159,8 +159,10 @@ enum Command {
     /// mesh) is welded (equal position + skin data) and vertex-cache ordered, then split;
     /// no meshlet mixes two parts.
     /// Builders: scan (index order, thesis listing 4.1), common-influences (per shared joint
-    /// set, thesis listing 4.2), meshopt (meshoptimizer's greedy builder), skin-aware (ours:
-    /// meshlets that move with one joint). Columns: meshlet count, average vertices and
+    /// set, thesis listing 4.2), meshopt, meshopt-flex and meshopt-spatial (meshoptimizer's
+    /// greedy, flexible-size and spatial builders), skin-aware (ours: meshlets that move with
+    /// one joint), cone-split (ours: skin-aware meshlets split where their normal cone is too
+    /// wide for backface culling, within 1.3x meshopt's count). Columns: meshlet count, average vertices and
     /// triangles, vertex references per unique vertex, % meshlets whose vertices share one
     /// joint set, % with one joint carrying >= 0.9 of the weight, bytes of meshlet data +
     /// vertices (slim vertices where possible; fat in parentheses), % backface-culled by
@@ -171,7 +173,7 @@ enum Command {
     Meshlets {
         /// .glb, .gltf or .obj file, or @demo[:TRIANGLES].
         file: String,
-        #[arg(long, default_value = "all", value_parser = ["scan", "common-influences", "meshopt", "skin-aware", "cone-split", "meshopt-flex", "meshopt-spatial", "all"])]
+        #[arg(long, default_value = "all", value_parser = builder_names(true))]
         builder: String,
         /// At most this many vertices per meshlet (<= 256).
         #[arg(long, default_value_t = 64)]
@@ -200,7 +202,7 @@ enum Command {
     Bounds {
         /// .glb or .gltf file, or @demo[:TRIANGLES].
         file: String,
-        #[arg(long, default_value = "all", value_parser = ["scan", "common-influences", "meshopt", "skin-aware", "cone-split", "meshopt-flex", "meshopt-spatial", "all"])]
+        #[arg(long, default_value = "all", value_parser = builder_names(true))]
         builder: String,
         /// Clip names or indices, comma-separated (default: all clips, as one union).
         #[arg(long)]
@@ -224,7 +226,7 @@ enum Command {
         /// Output bake file.
         #[arg(short, long)]
         out: PathBuf,
-        #[arg(long, default_value = "skin-aware", value_parser = ["scan", "common-influences", "meshopt", "skin-aware", "cone-split", "meshopt-flex", "meshopt-spatial"])]
+        #[arg(long, default_value = "skin-aware", value_parser = builder_names(false))]
         builder: String,
         /// Clip names or indices, comma-separated (default: all clips, as one union).
         #[arg(long)]
@@ -268,7 +270,7 @@ enum Command {
         /// Check the bounds stored in this bake file instead of computing them.
         #[arg(long)]
         baked: Option<PathBuf>,
-        #[arg(long, default_value = "skin-aware", value_parser = ["scan", "common-influences", "meshopt", "skin-aware", "cone-split", "meshopt-flex", "meshopt-spatial"])]
+        #[arg(long, default_value = "skin-aware", value_parser = builder_names(false))]
         builder: String,
         /// Clip names or indices, comma-separated (default: all clips, as one union).
         #[arg(long)]
@@ -303,9 +305,10 @@ enum Command {
         /// The layout: the paper's crowd.
         #[arg(long, default_value = "crowd", value_parser = ["crowd"])]
         layout: String,
-        /// The meshlet builder a glTF file is baked with (a bake keeps its own).
-        #[arg(long, default_value = "skin-aware", value_parser = ["scan", "common-influences", "meshopt", "skin-aware", "cone-split", "meshopt-flex", "meshopt-spatial"])]
-        builder: String,
+        /// The meshlet builder a glTF file is baked with (default skin-aware). A bake keeps
+        /// its own: naming another builder with a bake file is an error.
+        #[arg(long, value_parser = builder_names(false))]
+        builder: Option<String>,
         #[arg(long, default_value_t = 64)]
         instances: usize,
         #[arg(long, default_value_t = 30)]
@@ -507,7 +510,7 @@ fn main() {
                 animation,
                 ..Default::default()
             };
-            crowd::command(&file, gltf.as_deref(), &builder, &params, check, additive_deg, refine, json)
+            crowd::command(&file, gltf.as_deref(), builder.as_deref(), &params, check, additive_deg, refine, json)
         }
         Command::Overdraw { file, clips, k, lambda, max_keyframes, views, seed, order, heatmap, json } => {
             let order = if order == "distance" { PatchOrder::Distance } else { PatchOrder::Occlusion };
@@ -1107,6 +1110,12 @@ fn bounds(file: &str, builder: &str, clips: Option<&str>, args: RefineArgs, json
         );
     }
     Ok(())
+}
+
+/// The builders' names for `--builder`, and `all` where every builder is compared.
+fn builder_names(all: bool) -> clap::builder::PossibleValuesParser {
+    let names = Builder::ALL.iter().map(|b| b.name()).chain(all.then_some("all"));
+    clap::builder::PossibleValuesParser::new(names)
 }
 
 fn stop_name(stop: skinlet::bounds::refine::Stop) -> &'static str {

@@ -356,6 +356,9 @@ fn cull_reports_table_one_columns_and_never_culls_visible_triangles() {
     let (code, _, err) = skinlet(&["cull", bake]);
     assert_eq!(code, 2);
     assert!(err.contains("--gltf"), "{err}");
+    let (code, _, err) = skinlet(&["cull", bake, "--gltf", "@demo:2000", "--builder", "cone-split"]);
+    assert_eq!(code, 2);
+    assert!(err.contains("baked with the skin-aware builder, not cone-split"), "{err}");
     let (code, _, err) = skinlet(&["cull", bake, "--gltf", "@demo:3000"]);
     assert_eq!(code, 2);
     assert!(err.contains("was not baked from"), "{err}");
