@@ -31,6 +31,10 @@ pub struct Args {
     /// Treat a skinned file as static (its bind pose) and compare the static methods.
     #[arg(long = "static")]
     pub as_static: bool,
+    /// Static meshes: simplify to this share of the triangles first (meshoptimizer's
+    /// simplifier), e.g. 0.25 for another decimation of a scan.
+    #[arg(long, value_name = "RATIO")]
+    pub simplify: Option<f32>,
     /// Skinned files: seconds to spend tightening the animated bounds (halving the time
     /// pieces where they are loosest); 0: no limit (then --rounds decides).
     #[arg(long, default_value_t = 60.0)]
@@ -118,15 +122,20 @@ pub fn command(file: &str, o: &Args) -> Result<()> {
     let rest = skinlet::skinning::posed_positions(&asset.skeleton, &character.palette, &character.mesh, None, None)?;
     let drawn =
         skinlet::SkinnedMesh { positions: rest, triangles: character.mesh.triangles.clone(), ..Default::default() };
-    let (mesh, _, _) = skinlet::weld::weld(&drawn);
+    let (mut mesh, _, _) = skinlet::weld::weld(&drawn);
+    if let Some(ratio) = o.simplify {
+        anyhow::ensure!(ratio > 0.0 && ratio <= 1.0, "--simplify must be in (0, 1]");
+        (mesh.positions, mesh.triangles) = skinlet_lab::scans::decimate(&mesh.positions, &mesh.triangles, ratio);
+    }
     let mut edges = Edges::build(&mesh.positions, &mesh.triangles)?;
+    let (median, p90) = skinlet_lab::contour_eval::dihedral_angles(&mesh.positions, &edges);
     if o.visible_only {
         edges.drop_concave(&mesh.positions, |_| true);
     }
     let all_views = views(&mesh.positions);
     let mut params = params;
     let mut header = format!(
-        "{file}: {} triangles, {} edges ({} interior, {} irregular, {} boundary{}), {} views (42 directions x 6 distances)",
+        "{file}: {} triangles, {} edges ({} interior, {} irregular, {} boundary{}), dihedral angles: median {median:.1}°, 90th percentile {p90:.1}°, {} views (42 directions x 6 distances)",
         mesh.triangles.len(),
         edges.len(),
         edges.quads.len(),
@@ -170,6 +179,7 @@ fn skinned(
         ),
     };
     anyhow::ensure!(!o.calibrate, "--calibrate runs on static geometry: add --static");
+    anyhow::ensure!(o.simplify.is_none(), "--simplify runs on static geometry: add --static");
     anyhow::ensure!(o.budget.is_finite() && o.budget >= 0.0, "--budget must be a number of seconds >= 0");
     let clips = crate::select_clips(asset, o.clips.as_deref())?;
     let (mesh, _, _) = skinlet::weld::weld(&character.mesh);
@@ -256,6 +266,9 @@ fn print_rows(rows: &[MethodResult]) {
             r.method, r.patches, r.tested_edges_pct, r.ms_per_view, r.speedup_vs_brute, r.build_s, r.mismatched_views
         );
     }
+    if let Some(r) = rows.first() {
+        println!("contour edges: {:.2}% of the edges over these views (no method tests fewer)", r.contour_edges_pct);
+    }
     if skinned {
         println!("(rigid / animated: quads in patches of each kind; the rest are tested every time)");
     }
@@ -264,6 +277,7 @@ fn print_rows(rows: &[MethodResult]) {
 fn row_json(r: &MethodResult) -> serde_json::Value {
     let mut v = json!({
         "method": r.method, "patches": r.patches, "tested_edges_pct": r.tested_edges_pct,
+        "contour_edges_pct": r.contour_edges_pct,
         "speedup_vs_brute": r.speedup_vs_brute, "build_s": r.build_s, "mismatched_views": r.mismatched_views,
         "ms_per_view": r.ms_per_view,
     });

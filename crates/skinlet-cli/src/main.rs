@@ -29,7 +29,9 @@ mod render;
     long_about = "skinlet bakes glTF characters into GPU-ready data for culling and rendering \
 skinned meshes, and checks every guarantee it makes against reference skinning.\n\n\
 FILE arguments take .glb, .gltf or .obj files, or `@demo` (optionally `@demo:TRIANGLES`) \
-for the built-in procedural demo character.",
+for the built-in procedural demo character; static meshes also `@sphere` (a scan-like noisy \
+sphere) and `@cup` (a thin-shelled cup), 100,000 triangles unless `:TRIANGLES` says, with \
+scanner-like noise of 0.1 mean edge lengths unless `:TRIANGLES:NOISE` says.",
     after_help = "Examples:\n  skinlet demo\n  skinlet inspect character.glb\n  skinlet inspect character.glb --json\n  skinlet pose character.glb --clip walk --time 0.5 --json > pose.json"
 )]
 struct Cli {
@@ -529,17 +531,35 @@ fn main() {
     }
 }
 
-/// Loads a file, or the demo character for `@demo[:TRIANGLES]`.
+/// Loads a file, or a built-in: the demo character (`@demo[:TRIANGLES]`), a scan-like noisy
+/// sphere (`@sphere[:TRIANGLES[:NOISE]]`) or a thin-shelled cup (`@cup[:TRIANGLES[:NOISE]]`).
 fn load(file: &str) -> Result<Asset> {
-    if let Some(rest) = file.strip_prefix("@demo") {
-        let triangles = match rest.strip_prefix(':') {
-            Some(n) => n.parse().with_context(|| format!("bad triangle count in {file:?}"))?,
-            None if rest.is_empty() => DemoParams::default().triangles,
-            None => bail!("unknown built-in {file:?} (did you mean @demo or @demo:20000?)"),
-        };
-        return Ok(demo_character(&DemoParams { triangles, ..DemoParams::default() }));
-    }
-    Ok(skinlet::import::load(Path::new(file))?)
+    use skinlet_lab::scans::{Noise, noisy_sphere, thin_shell_cup};
+    let Some(builtin) = file.strip_prefix('@') else {
+        return Ok(skinlet::import::load(Path::new(file))?);
+    };
+    let mut fields = builtin.split(':');
+    let name = fields.next().unwrap_or_default();
+    let mut number = |what: &str| -> Result<Option<f64>> {
+        let Some(f) = fields.next() else { return Ok(None) };
+        let x: f64 = f.parse().with_context(|| format!("bad {what} {f:?} in {file:?}"))?;
+        anyhow::ensure!(x.is_finite() && x >= 0.0, "{file:?}: the {what} must be a number >= 0");
+        Ok(Some(x))
+    };
+    let triangles = number("triangle count")?;
+    anyhow::ensure!(triangles.is_none_or(|t| t <= 2e7), "{file:?}: at most 20,000,000 triangles");
+    let noise = Noise { amount: number("noise")?.map_or(Noise::default().amount, |n| n as f32), ..Noise::default() };
+    anyhow::ensure!(fields.next().is_none(), "{file:?}: too many fields (NAME[:TRIANGLES[:NOISE]])");
+    let (positions, tris) = match name {
+        "demo" => {
+            let triangles = triangles.map_or(DemoParams::default().triangles, |t| t as usize);
+            return Ok(demo_character(&DemoParams { triangles, ..DemoParams::default() }));
+        }
+        "sphere" => noisy_sphere(triangles.map_or(100_000, |t| t as usize), &noise),
+        "cup" => thin_shell_cup(triangles.map_or(100_000, |t| t as usize), 0.02, &noise),
+        _ => bail!("unknown built-in {file:?} (@demo, @sphere or @cup, optionally with :TRIANGLES)"),
+    };
+    Ok(Asset::from_static(file, positions, tris)?)
 }
 
 fn interp_names(c: &skinlet_lab::summary::ClipSummary) -> Vec<&'static str> {

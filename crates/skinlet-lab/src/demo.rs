@@ -179,20 +179,24 @@ fn rigid_box(half: Vec3) -> SkinnedMesh {
 }
 
 /// splitmix64: tiny and well mixed, plenty for jittering proportions.
-struct Rng(u64);
+pub(crate) struct Rng(pub(crate) u64);
 
 impl Rng {
-    fn next(&mut self) -> u64 {
+    pub(crate) fn next(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
         let z = (self.0 ^ (self.0 >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
         let z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
         z ^ (z >> 31)
     }
 
+    /// Uniform in [0, 1).
+    pub(crate) fn unit(&mut self) -> f32 {
+        (self.next() >> 40) as f32 / (1u64 << 24) as f32
+    }
+
     /// A factor uniform in [1 - amount, 1 + amount].
     fn jitter(&mut self, amount: f32) -> f32 {
-        let unit = (self.next() >> 40) as f32 / (1u64 << 24) as f32;
-        1.0 + amount * (2.0 * unit - 1.0)
+        1.0 + amount * (2.0 * self.unit() - 1.0)
     }
 }
 

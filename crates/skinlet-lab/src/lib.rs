@@ -12,6 +12,8 @@
 //!   meshoptimizer meshlets used as patches, with a correct cone).
 //! - [`demo`]: the built-in demo character `skinlet demo` bakes (a whole character: two skins,
 //!   rigid, animated and instanced parts, a morph face, three clips), and a UV sphere.
+//! - [`scans`]: static meshes of sizes and shapes the shared scans lack (a scan-like noisy
+//!   sphere, a thin-shelled cup, decimations), for the contour targets.
 //! - [`crowd`]: the crowd scene of the conservative-bounds paper (clips, crossfades, additive
 //!   layers, IK), its statistics, and the brute-force check of every culled triangle.
 //! - [`backface_views`]: what the backface test alone saves over random views (meshlets,
@@ -26,5 +28,6 @@ pub mod crowd;
 pub mod demo;
 pub mod meshlet_patches;
 pub mod render;
+pub mod scans;
 pub mod snch;
 pub mod summary;

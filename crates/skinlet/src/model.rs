@@ -513,6 +513,40 @@ impl Asset {
     pub fn character(&self) -> crate::Result<crate::character::Character> {
         crate::character::character(self, None)
     }
+
+    /// A static mesh as an asset: one root node drawing one mesh named `name`. Errors name
+    /// the first vertex that is not finite or triangle that indexes past the vertices.
+    pub fn from_static(name: &str, positions: Vec<Vec3>, triangles: Vec<[u32; 3]>) -> crate::Result<Asset> {
+        use crate::Error;
+        if let Some(v) = positions.iter().position(|p| !p.is_finite()) {
+            return Err(Error::invalid(format!("{name} vertex {v}"), "position is NaN or infinite"));
+        }
+        let n = positions.len();
+        if let Some(t) = triangles.iter().position(|t| t.iter().any(|&i| i as usize >= n)) {
+            return Err(Error::invalid(
+                format!("{name} triangle {t}"),
+                format!("index out of range (only {n} vertices): {:?}", triangles[t]),
+            ));
+        }
+        if triangles.is_empty() {
+            return Err(Error::invalid(name, "no triangles"));
+        }
+        let geometry = SkinnedMesh { positions, triangles, ..SkinnedMesh::default() };
+        let degenerate = geometry.degenerate_triangles();
+        let root = Node { name: "root".into(), parent: None, rest: Trs::IDENTITY, matrix: None };
+        let mut asset = Asset {
+            skeleton: Skeleton::new(vec![root])?,
+            meshes: vec![Mesh {
+                name: name.to_string(),
+                primitives: vec![Primitive { index: 0, geometry, targets: Vec::new() }],
+                weights: Vec::new(),
+            }],
+            instances: vec![Instance { node: 0, mesh: 0, skin: None }],
+            ..Asset::default()
+        };
+        asset.report.degenerate_triangles = degenerate;
+        Ok(asset)
+    }
 }
 
 #[cfg(test)]

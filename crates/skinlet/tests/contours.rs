@@ -106,6 +106,40 @@ fn static_scans_match_brute_force() {
     }
 }
 
+/// Scans of sizes and shapes the shared files lack: exact like every other mesh, and at the
+/// default parameters the patches test at most 15% of the edges over the paper's 252 views
+/// where the mesh is smooth enough for that to be possible (few contour edges).
+#[test]
+fn generated_scans_match_brute_force() {
+    use skinlet_lab::scans::{Noise, decimate, noisy_sphere, thin_shell_cup};
+    let mut scans = vec![
+        ("noisy sphere", noisy_sphere(20_000, &Noise::default())),
+        ("thin-shelled cup", thin_shell_cup(20_000, 0.02, &Noise::default())),
+        ("noisier cup", thin_shell_cup(8_000, 0.02, &Noise { amount: 0.2, ..Noise::default() })),
+    ];
+    if let Some(dir) = assets_dir() {
+        let bunny = skinlet::import::load(&dir.join("static/stanford-bunny.obj")).unwrap();
+        let (mesh, _, _) = skinlet::weld::weld(&bunny.character().unwrap().mesh);
+        scans.push(("bunny decimated to 10%", decimate(&mesh.positions, &mesh.triangles, 0.1)));
+    }
+    for (name, (positions, triangles)) in scans {
+        let edges = Edges::build(&positions, &triangles).unwrap();
+        check_static(name, &positions, &triangles, &edges, &PatchParams::default());
+        let p = patches::build(&positions, &edges, &PatchParams::default());
+        let (mut out, mut tested, mut contours) = (Vec::new(), 0, 0);
+        let all = views(&positions);
+        for &view in &all {
+            tested += p.extract(&positions, &edges, view, &mut out).edges;
+            contours += out.len();
+        }
+        let [tested, contours] = [tested, contours].map(|x| 100.0 * x as f64 / (edges.len() * all.len()) as f64);
+        assert!(tested >= contours, "{name}: tested {tested:.1}% < contour edges {contours:.1}%");
+        if name != "noisier cup" && !name.starts_with("bunny") {
+            assert!(tested <= 15.0, "{name}: patches test {tested:.1}% of the edges");
+        }
+    }
+}
+
 #[allow(clippy::too_many_arguments)]
 fn check_skinned(
     name: &str,

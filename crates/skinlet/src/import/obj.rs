@@ -2,7 +2,7 @@
 //! negative indices count from the end, `v/vt/vn` forms accepted); everything else is
 //! ignored. Errors give the line number.
 
-use crate::model::{Asset, Instance, Mesh, Node, Primitive, Skeleton, SkinnedMesh, Trs};
+use crate::model::Asset;
 use crate::{Error, Result};
 use glam::Vec3;
 
@@ -51,19 +51,5 @@ pub fn load_obj_str(text: &str, name: &str) -> Result<Asset> {
     if triangles.is_empty() {
         return Err(Error::invalid(name, "no faces found (is this an OBJ file?)"));
     }
-    let geometry = SkinnedMesh { positions, triangles, ..SkinnedMesh::default() };
-    let degenerate = geometry.degenerate_triangles();
-    let root = Node { name: "root".into(), parent: None, rest: Trs::IDENTITY, matrix: None };
-    let mut asset = Asset {
-        skeleton: Skeleton::new(vec![root])?,
-        meshes: vec![Mesh {
-            name: name.to_string(),
-            primitives: vec![Primitive { index: 0, geometry, targets: Vec::new() }],
-            weights: Vec::new(),
-        }],
-        instances: vec![Instance { node: 0, mesh: 0, skin: None }],
-        ..Asset::default()
-    };
-    asset.report.degenerate_triangles = degenerate;
-    Ok(asset)
+    Asset::from_static(name, positions, triangles)
 }
