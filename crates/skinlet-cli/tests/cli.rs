@@ -488,6 +488,26 @@ fn contours_compare_methods_exactly_draw_svg_and_bake() {
     assert!(rows.as_array().unwrap().iter().all(|r| r["mismatched_views"] == 0), "{rows}");
     let (code, _, err) = skinlet(&["contours", "@demo:1500", "--method", "nope"]);
     assert!(code != 0 && err.contains("--method"), "{err}");
+    // Generated scans, simplified: the contour share is the floor of every method.
+    let (code, text, err) = skinlet(&["contours", "@sphere:4000", "--simplify", "0.5", "--repeats", "1"]);
+    assert_eq!(code, 0, "{err}");
+    let triangles: f64 = text.split(": ").nth(1).and_then(|t| t.split(' ').next()).map(num).unwrap_or(0.0);
+    assert!((1800.0..=2050.0).contains(&triangles) && text.contains("dihedral angles: median"), "{text}");
+    let rows = json_of(&["contours", "@cup:3000:0.05", "--method", "patches", "--repeats", "1", "--json"]);
+    for r in rows.as_array().unwrap() {
+        let (tested, floor) = (r["tested_edges_pct"].as_f64().unwrap(), r["contour_edges_pct"].as_f64().unwrap());
+        assert!(floor > 0.0 && tested >= floor && r["mismatched_views"] == 0, "{r}");
+    }
+    for (args, says) in [
+        (&["contours", "@sphere:many"][..], "bad triangle count"),
+        (&["contours", "@sphere:100:0.1:3"], "too many fields"),
+        (&["contours", "@cube"], "unknown built-in"),
+        (&["contours", "@sphere:1000", "--simplify", "2"], "--simplify"),
+        (&["contours", "@demo:1500", "--simplify", "0.5"], "--static"),
+    ] {
+        let (code, _, err) = skinlet(args);
+        assert!(code == 2 && err.contains(says), "{args:?}: {err}");
+    }
     // The bake stores patches.
     let out = std::env::temp_dir().join(format!("skinlet-contours-{}.skinlet", std::process::id()));
     let j = json_of(&[
