@@ -267,7 +267,10 @@ fn print_rows(rows: &[MethodResult]) {
         );
     }
     if let Some(r) = rows.first() {
-        println!("contour edges: {:.2}% of the edges over these views (no method tests fewer)", r.contour_edges_pct);
+        println!(
+            "contour edges: {:.2}% of the edges over these views, boundary edges left out (no method tests fewer)",
+            r.contour_edges_pct
+        );
     }
     if skinned {
         println!("(rigid / animated: quads in patches of each kind; the rest are tested every time)");

@@ -548,8 +548,13 @@ fn load(file: &str) -> Result<Asset> {
     };
     let triangles = number("triangle count")?;
     anyhow::ensure!(triangles.is_none_or(|t| t <= 2e7), "{file:?}: at most 20,000,000 triangles");
-    let noise = Noise { amount: number("noise")?.map_or(Noise::default().amount, |n| n as f32), ..Noise::default() };
+    let noise = number("noise")?;
     anyhow::ensure!(fields.next().is_none(), "{file:?}: too many fields (NAME[:TRIANGLES[:NOISE]])");
+    let noise = match noise {
+        Some(_) if name == "demo" => bail!("{file:?}: the demo takes no noise (@demo[:TRIANGLES])"),
+        Some(n) => Noise { amount: n as f32, ..Noise::default() },
+        None => Noise::default(),
+    };
     let (positions, tris) = match name {
         "demo" => {
             let triangles = triangles.map_or(DemoParams::default().triangles, |t| t as usize);

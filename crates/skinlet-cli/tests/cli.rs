@@ -502,6 +502,7 @@ fn contours_compare_methods_exactly_draw_svg_and_bake() {
         (&["contours", "@sphere:many"][..], "bad triangle count"),
         (&["contours", "@sphere:100:0.1:3"], "too many fields"),
         (&["contours", "@cube"], "unknown built-in"),
+        (&["inspect", "@demo:1500:0.1"], "no noise"),
         (&["contours", "@sphere:1000", "--simplify", "2"], "--simplify"),
         (&["contours", "@demo:1500", "--simplify", "0.5"], "--static"),
     ] {
