@@ -236,7 +236,8 @@ enum Command {
         #[command(flatten)]
         refine: RefineArgs,
         /// Also store 5 overdraw-reducing index buffers and their lookup table (Han & Sander's
-        /// "joint" clustering over up to 16 key times per clip, λ = 0.85; see `skinlet overdraw`).
+        /// "joint" clustering over up to 16 key times per clip, compact patches of 32; see
+        /// `skinlet overdraw`).
         #[arg(long)]
         overdraw: bool,
         /// Also store contour patches with bounds over the clips (see `skinlet contours`):
@@ -359,9 +360,15 @@ enum Command {
         /// Index buffers per clustering.
         #[arg(long, default_value_t = 5)]
         k: usize,
-        /// Patch threshold (default: both 0.85 and 3, as in the paper).
-        #[arg(long)]
+        /// Cut the patches the paper's way (fast linear clustering of the Tipsify order) at
+        /// this threshold: 0.85 in the paper, 3 ignores the vertex cache. Default: compact
+        /// patches (--patch-size).
+        #[arg(long, conflicts_with = "patch_size")]
         lambda: Option<f32>,
+        /// Compact patches (meshlets with a normal-cone weight, each in Tipsify order) of at
+        /// most this many vertices and triangles (4 to 256): the default patch rule.
+        #[arg(long, default_value_t = 32)]
+        patch_size: u32,
         /// At most this many keyframes per clip (evenly chosen key times).
         #[arg(long, default_value_t = 32)]
         max_keyframes: usize,
@@ -514,10 +521,13 @@ fn main() {
             };
             crowd::command(&file, gltf.as_deref(), builder.as_deref(), &params, check, additive_deg, refine, json)
         }
-        Command::Overdraw { file, clips, k, lambda, max_keyframes, views, seed, order, heatmap, json } => {
+        Command::Overdraw { file, clips, k, lambda, patch_size, max_keyframes, views, seed, order, heatmap, json } => {
             let order = if order == "distance" { PatchOrder::Distance } else { PatchOrder::Occlusion };
             let params = skinlet::overdraw::cluster::ClusterParams { k, seed, order, ..Default::default() };
-            overdraw::command(&file, clips.as_deref(), lambda, max_keyframes, views, &params, heatmap.as_deref(), json)
+            overdraw::patch_rule(lambda, patch_size).and_then(|patches| {
+                let params = skinlet::overdraw::cluster::ClusterParams { patches, ..params };
+                overdraw::command(&file, clips.as_deref(), max_keyframes, views, &params, heatmap.as_deref(), json)
+            })
         }
         Command::Contours { file, args } => contours::command(&file, &args),
         Command::Bench { what } => bench::command(&what),

@@ -3,7 +3,7 @@
 use crate::{prepared_character, select_clips};
 use anyhow::Result;
 use serde_json::json;
-use skinlet::overdraw::cluster::{ClusterParams, cluster, lookup};
+use skinlet::overdraw::cluster::{ClusterParams, Patches, cluster, lookup};
 use skinlet::overdraw::evaluate::{EvalParams, evaluate, keyframes};
 use skinlet::overdraw::measure::Raster;
 use std::path::Path;
@@ -37,20 +37,27 @@ fn heatmap(
     Ok((ratios[0], ratios[1]))
 }
 
-/// The table for `file`; `base` gives k, the seed and the patch order (λ comes from `lambda`,
-/// or both 0.85 and 3).
-#[allow(clippy::too_many_arguments)]
+/// The patch rule of `--lambda` (linear patches) or else `--patch-size` (compact patches).
+pub fn patch_rule(lambda: Option<f32>, patch_size: u32) -> Result<Patches> {
+    match lambda {
+        Some(lambda) if lambda.is_finite() && lambda > 0.0 => Ok(Patches::Linear { lambda }),
+        Some(lambda) => anyhow::bail!("--lambda must be a number > 0 (got {lambda})"),
+        None if (4..=256).contains(&patch_size) => Ok(Patches::Compact { size: patch_size }),
+        None => anyhow::bail!("--patch-size must be between 4 and 256 (got {patch_size})"),
+    }
+}
+
+/// The table for `file`; `params` gives k, the seed, the patch rule and the patch order.
 pub fn command(
     file: &str,
     clips: Option<&str>,
-    lambda: Option<f32>,
     max_keyframes: usize,
     views: usize,
-    base: &ClusterParams,
+    params: &ClusterParams,
     heatmap_path: Option<&Path>,
     json: bool,
 ) -> Result<()> {
-    anyhow::ensure!((1..=255).contains(&base.k), "--k must be between 1 and 255");
+    anyhow::ensure!((1..=255).contains(&params.k), "--k must be between 1 and 255");
     anyhow::ensure!(max_keyframes >= 1 && views >= 1, "--max-keyframes and --views must be at least 1");
     let (asset, character, prepared) = prepared_character(file)?;
     let clips = select_clips(&asset, clips)?;
@@ -59,10 +66,8 @@ pub fn command(
         .iter()
         .map(|c| Ok(keyframes(&asset.skeleton, &character.palette, &prepared.mesh, c, max_keyframes)?.1))
         .collect::<Result<Vec<Vec<Vec<glam::Vec3>>>>>()?;
-    let lambdas = lambda.map_or(vec![0.85, 3.0], |l| vec![l]);
     if let Some(path) = heatmap_path {
-        let params = ClusterParams { lambda: lambdas[0], ..*base };
-        let (before, after) = heatmap(path, &frames[0], &prepared.mesh.triangles, &params)?;
+        let (before, after) = heatmap(path, &frames[0], &prepared.mesh.triangles, params)?;
         if !json {
             println!(
                 "{}: overdraw heat map of clip {:?}, keyframe 0, front view: original {before:.3} (left), clustered {after:.3} (right)",
@@ -71,15 +76,12 @@ pub fn command(
             );
         }
     }
-    let mut rows = Vec::new();
-    for l in lambdas {
-        let params = EvalParams { cluster: ClusterParams { lambda: l, ..*base }, views, ..EvalParams::default() };
-        rows.extend(evaluate(&frames, &prepared.mesh.triangles, &params));
-    }
+    let rows =
+        evaluate(&frames, &prepared.mesh.triangles, &EvalParams { cluster: *params, views, ..EvalParams::default() });
     if json {
         let out: Vec<_> = rows
             .iter()
-            .map(|r| json!({"method": r.method, "lambda": r.lambda, "buffers": r.buffers, "acmr": r.acmr, "ovr": r.ovr, "preprocess_s": r.preprocess_s}))
+            .map(|r| json!({"method": r.method, "patches": r.patches.to_string(), "lambda": match r.patches { Patches::Linear { lambda } => Some(lambda), Patches::Compact { .. } => None }, "buffers": r.buffers, "acmr": r.acmr, "ovr": r.ovr, "preprocess_s": r.preprocess_s}))
             .collect();
         println!("{}", serde_json::to_string_pretty(&out)?);
         return Ok(());
@@ -90,12 +92,10 @@ pub fn command(
         prepared.mesh.triangles.len(),
         clips.len()
     );
-    println!("  {:<18} {:>6} {:>8} {:>7} {:>7} {:>13}", "method", "lambda", "buffers", "ACMR", "OVR", "preprocess s");
+    println!("  patches: {}", params.patches);
+    println!("  {:<18} {:>8} {:>7} {:>7} {:>13}", "method", "buffers", "ACMR", "OVR", "preprocess s");
     for r in &rows {
-        println!(
-            "  {:<18} {:>6} {:>8} {:>7.3} {:>7.3} {:>13.2}",
-            r.method, r.lambda, r.buffers, r.acmr, r.ovr, r.preprocess_s
-        );
+        println!("  {:<18} {:>8} {:>7.3} {:>7.3} {:>13.2}", r.method, r.buffers, r.acmr, r.ovr, r.preprocess_s);
     }
     println!("  (ACMR: FIFO cache of 16; OVR: shaded fragments per visible pixel, 1 = no overdraw; single: per clip)");
     Ok(())

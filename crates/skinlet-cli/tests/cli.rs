@@ -436,22 +436,35 @@ fn bench_joint_aabb_measures_both_updates() {
 
 #[test]
 fn overdraw_prints_one_row_per_method() {
-    let small = ["overdraw", "@demo:1000", "--max-keyframes", "2", "--views", "20", "--k", "2", "--lambda", "0.85"];
-    for order in ["occlusion", "distance"] {
-        let rows = json_of(&[&small[..], &["--order", order, "--json"]].concat());
+    let small = ["overdraw", "@demo:1000", "--max-keyframes", "2", "--views", "20", "--k", "2"];
+    for (options, patches) in [
+        (&["--order", "occlusion"][..], "compact 32"),
+        (&["--order", "distance", "--lambda", "0.85"][..], "linear λ=0.85"),
+        (&["--patch-size", "16"][..], "compact 16"),
+    ] {
+        let rows = json_of(&[&small[..], options, &["--json"]].concat());
         let rows = rows.as_array().unwrap();
         let methods: Vec<&str> = rows.iter().map(|r| r["method"].as_str().unwrap()).collect();
         assert_eq!(methods, ["original", "tipsify-per-frame", "single", "joint"]);
         for r in rows {
-            for field in ["lambda", "buffers", "acmr", "ovr", "preprocess_s"] {
+            for field in ["buffers", "acmr", "ovr", "preprocess_s"] {
                 assert!(r[field].as_f64().is_some_and(|x| x >= 0.0), "{field} missing in {r}");
             }
+            assert_eq!(r["patches"], patches, "{r}");
+            assert_eq!(r["lambda"].as_f64(), patches.starts_with("linear").then_some(0.85f32 as f64), "{r}");
             assert!(r["ovr"].as_f64().unwrap() >= 1.0 && r["acmr"].as_f64().unwrap() <= 3.0, "{r}");
         }
     }
-    let (code, _, err) = skinlet(&["overdraw", "@demo:1000", "--order", "random"]);
-    assert_eq!(code, 2);
-    assert!(err.contains("--order"), "{err}");
+    for (bad, mentions) in [
+        (&["--order", "random"][..], "--order"),
+        (&["--patch-size", "2"][..], "--patch-size"),
+        (&["--lambda", "0"][..], "--lambda"),
+        (&["--lambda", "1", "--patch-size", "16"][..], "--patch-size"),
+    ] {
+        let (code, _, err) = skinlet(&[&["overdraw", "@demo:1000"][..], bad].concat());
+        assert_ne!(code, 0, "{bad:?}");
+        assert!(err.contains(mentions), "{bad:?}: {err}");
+    }
 }
 
 #[test]

@@ -66,11 +66,59 @@ impl Lookup {
     }
 }
 
+/// How the triangles were cut into the patches an order moves whole.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Patches {
+    /// Sander et al. 2007's fast linear clustering of the Tipsify order at threshold λ
+    /// (the paper's; larger λ: smaller patches, worse vertex-cache use).
+    Linear { lambda: f32 },
+    /// Compact patches of at most `size` vertices and triangles (meshoptimizer meshlets,
+    /// each in Tipsify order; skinlet's default, size 32).
+    Compact { size: u32 },
+}
+
+impl Default for Patches {
+    fn default() -> Self {
+        Patches::Compact { size: 32 }
+    }
+}
+
+impl Patches {
+    /// The one `f32` a bake stores (`docs/FORMAT.md`): λ (> 0) or −size.
+    pub fn to_f32(self) -> f32 {
+        match self {
+            Patches::Linear { lambda } => lambda,
+            Patches::Compact { size } => -(size as f32),
+        }
+    }
+
+    /// The inverse of [`Patches::to_f32`]; `None` for a value neither can store (zero, not
+    /// finite, or a negative non-integer).
+    pub fn from_f32(x: f32) -> Option<Patches> {
+        if x.is_finite() && x > 0.0 {
+            Some(Patches::Linear { lambda: x })
+        } else if x.is_finite() && x <= -1.0 && x.fract() == 0.0 && x >= -(u32::MAX as f32) {
+            Some(Patches::Compact { size: -x as u32 })
+        } else {
+            None
+        }
+    }
+}
+
+impl std::fmt::Display for Patches {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Patches::Linear { lambda } => write!(f, "linear λ={lambda}"),
+            Patches::Compact { size } => write!(f, "compact {size}"),
+        }
+    }
+}
+
 /// What a bake stores for run-time selection: the buffers, the keyframes they were
 /// clustered for, the framing the viewpoints were placed with, and the lookup table.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Orders {
-    pub lambda: f32,
+    pub patches: Patches,
     /// (clip index among the baked clips, time) of each keyframe.
     pub keyframes: Vec<(u32, f32)>,
     pub framing: Framing,
@@ -105,7 +153,8 @@ impl Orders {
         if k == 0 || k > 255 || polar == 0 || azimuth == 0 || f == 0 {
             return Err(s.err(format!("{k} buffers, {f} keyframes, {polar} × {azimuth} cells")));
         }
-        let lambda = s.f32()?;
+        let rule = s.f32()?;
+        let patches = Patches::from_f32(rule).ok_or_else(|| s.err(format!("patch rule {rule} (λ > 0 or −size)")))?;
         let framing = Framing { center: s.vec3()?, radius: s.f32()? };
         if f.saturating_mul(8) > s.remaining() {
             return Err(s.err(format!("{f} keyframes do not fit in the section")));
@@ -150,7 +199,7 @@ impl Orders {
         }
         s.align(4)?;
         s.end()?;
-        Ok(Orders { lambda, keyframes, framing, buffers, lookup: Lookup { keyframes: f, polar, azimuth, table } })
+        Ok(Orders { patches, keyframes, framing, buffers, lookup: Lookup { keyframes: f, polar, azimuth, table } })
     }
 }
 

@@ -199,7 +199,7 @@ pub fn add_overdraw(baked: &mut Baked, asset: &Asset, params: &ClusterParams, ma
         return Err(Error::invalid("bake", "overdraw orders need at least one clip"));
     }
     let c = cluster(&positions, &baked.mesh.triangles, params);
-    let mut orders = crate::overdraw::cluster::orders(&c, keys, params.lambda);
+    let mut orders = crate::overdraw::cluster::orders(&c, keys, params.patches);
     let part_of = |t: &[u32; 3]| baked.parts.partition_point(|p| p.vertices.end <= t[0]);
     for buffer in &mut orders.buffers {
         buffer.sort_by_key(part_of);
@@ -379,7 +379,7 @@ pub fn to_bytes(b: &Baked) -> Vec<u8> {
         for x in [o.buffers.len(), o.keyframes.len(), l.polar, l.azimuth] {
             ov.u32(x as u32);
         }
-        ov.f32(o.lambda);
+        ov.f32(o.patches.to_f32());
         ov.vec3(o.framing.center);
         ov.f32(o.framing.radius);
         for &(clip, t) in &o.keyframes {

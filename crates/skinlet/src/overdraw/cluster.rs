@@ -1,8 +1,9 @@
 //! Index buffers for animated meshes by clustering (keyframe, viewpoint) nodes (Han & Sander
 //! 2016, section 3.2), and the run-time lookup that picks one (section 3.3).
 //!
-//! The triangles are first put in vertex-cache order and cut into patches ([`super::tipsify`],
-//! λ). Bootstrapping: `k` random nodes, each with its patches sorted front to back (patch
+//! The triangles are first cut into patches, each in vertex-cache order: the paper's linear
+//! clustering of the Tipsify order ([`super::tipsify`], λ) or, beyond the paper and the
+//! default, compact patches ([`super::compact`]). Bootstrapping: `k` random nodes, each with its patches sorted front to back (patch
 //! centroid distance to the node's eye). Then k-means: (1) every node goes to the buffer that
 //! renders it with the least overdraw ([`super::measure::Raster`]); (2) every cluster's
 //! buffer becomes its patches sorted by their distance to the eye, averaged over the
@@ -18,20 +19,22 @@
 //! (patches are moved whole); the output is deterministic for a seed (nodes are rendered in
 //! parallel, but each result lands in its own slot).
 
+use super::compact::compact_patches;
 use super::measure::{Fragments, Raster};
 use super::occlusion::Occlusion;
-use super::tipsify::{patches, tipsify};
+use super::tipsify::{patches as linear_patches, tipsify};
 use super::viewpoints::icosphere;
 use glam::Vec3;
 use rayon::prelude::*;
-pub use skinlet_runtime::overdraw_orders::{Framing, Lookup, Orders, direction};
+pub use skinlet_runtime::overdraw_orders::{Framing, Lookup, Orders, Patches, direction};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ClusterParams {
     /// Index buffers to make.
     pub k: usize,
-    /// Patch cutting threshold of fast linear clustering (0.85 in the paper; 3 ignores the cache).
-    pub lambda: f32,
+    /// How the triangles are cut into the patches the orders move whole: compact (ours,
+    /// size 32) or the paper's linear clustering at λ (0.85 in the paper; 3 ignores the cache).
+    pub patches: Patches,
     pub cache_size: u32,
     /// Raster resolution used to measure overdraw while clustering.
     pub resolution: u32,
@@ -62,7 +65,7 @@ impl Default for ClusterParams {
     fn default() -> Self {
         ClusterParams {
             k: 5,
-            lambda: 0.85,
+            patches: Patches::default(),
             cache_size: 16,
             resolution: 64,
             view_levels: 2,
@@ -99,12 +102,23 @@ impl Rng {
     }
 }
 
+/// The triangles patch after patch and the start of each patch: `patches` over `positions`
+/// (e.g. the first keyframe; compact patches are built on it).
+pub fn cut(triangles: &[[u32; 3]], positions: &[Vec3], patches: Patches, cache_size: u32) -> (Vec<[u32; 3]>, Vec<u32>) {
+    match patches {
+        Patches::Linear { lambda } => {
+            let order = tipsify(triangles, positions.len(), cache_size);
+            let starts = linear_patches(&order, positions.len(), cache_size, lambda);
+            (order, starts)
+        }
+        Patches::Compact { size } => compact_patches(triangles, positions, size, cache_size),
+    }
+}
+
 /// Clusters the nodes of `keyframes` (skinned positions per keyframe, all the same length)
 /// and returns `k` index buffers with the assignment.
 pub fn cluster(keyframes: &[Vec<Vec3>], triangles: &[[u32; 3]], params: &ClusterParams) -> Clustering {
-    let vertex_count = keyframes.first().map_or(0, |k| k.len());
-    let order = tipsify(triangles, vertex_count, params.cache_size);
-    let starts = patches(&order, vertex_count, params.cache_size, params.lambda);
+    let (order, starts) = cut(triangles, keyframes.first().map_or(&[][..], |k| k), params.patches, params.cache_size);
     // Patch `p` as a range of indices into `order` (buffers are lists of such indices).
     let range = |p: usize| starts[p]..starts.get(p + 1).copied().unwrap_or(order.len() as u32);
     let patch = |p: usize| &order[starts[p] as usize..range(p).end as usize];
@@ -328,8 +342,8 @@ pub fn lookup(c: &Clustering, polar: usize, azimuth: usize) -> Lookup {
 }
 
 /// What a bake stores of a clustering for run-time selection ([`Orders`]): its buffers,
-/// `keyframes` (clip index and time per keyframe), λ, the framing and the lookup table.
-pub fn orders(c: &Clustering, keyframes: Vec<(u32, f32)>, lambda: f32) -> Orders {
+/// `keyframes` (clip index and time per keyframe), the patch rule, the framing and the lookup table.
+pub fn orders(c: &Clustering, keyframes: Vec<(u32, f32)>, patches: Patches) -> Orders {
     let lookup = lookup(c, Orders::CELLS.0, Orders::CELLS.1);
-    Orders { lambda, keyframes, framing: c.framing, buffers: c.buffers.clone(), lookup }
+    Orders { patches, keyframes, framing: c.framing, buffers: c.buffers.clone(), lookup }
 }

@@ -2,8 +2,8 @@
 //! animated mesh's triangles.
 //!
 //! - `original`: one buffer in vertex-cache order only.
-//! - `tipsify-per-frame`: Sander et al. 2007 on each keyframe (Tipsify, patches, the
-//!   view-independent occlusion order): one buffer per keyframe.
+//! - `tipsify-per-frame`: Sander et al. 2007 on each keyframe (the view-independent
+//!   occlusion order of the same patches the clustering uses): one buffer per keyframe.
 //! - `single`: [`super::cluster`] per clip, `k` buffers each, chosen by the lookup table.
 //! - `joint`: one clustering over every keyframe of every clip, `k` buffers.
 //!
@@ -13,9 +13,9 @@
 //! fraction of the cost). Viewpoints lie at 3 × the bounding-sphere radius. ACMR is the mean
 //! over a method's buffers (FIFO cache of `cache_size`). Deterministic for a seed.
 
-use super::cluster::{ClusterParams, Framing, cluster, lookup};
+use super::cluster::{ClusterParams, Framing, Patches, cluster, cut, lookup};
 use super::measure::{Raster, acmr};
-use super::tipsify::{occlusion_order, patches, tipsify};
+use super::tipsify::occlusion_order;
 use glam::Vec3;
 use rayon::prelude::*;
 use std::time::Instant;
@@ -39,7 +39,8 @@ impl Default for EvalParams {
 #[derive(Clone, Debug, PartialEq)]
 pub struct MethodResult {
     pub method: &'static str,
-    pub lambda: f32,
+    /// The patch rule the buffers were built with.
+    pub patches: Patches,
     /// Index buffers the method needs (per clip for `single`).
     pub buffers: usize,
     pub acmr: f64,
@@ -120,10 +121,10 @@ pub fn evaluate(clips: &[Vec<Vec<Vec3>>], original: &[[u32; 3]], params: &EvalPa
     let mean_acmr = |bufs: &[Vec<[u32; 3]>]| -> f64 {
         bufs.iter().map(|b| acmr(b, vertex_count, cache) as f64).sum::<f64>() / bufs.len().max(1) as f64
     };
-    let lambda = params.cluster.lambda;
+    let patches = params.cluster.patches;
     let mut rows = vec![MethodResult {
         method: "original",
-        lambda,
+        patches,
         buffers: 1,
         acmr: acmr(original, vertex_count, cache) as f64,
         ovr: ovr(&|_, _, _| original),
@@ -131,15 +132,15 @@ pub fn evaluate(clips: &[Vec<Vec<Vec3>>], original: &[[u32; 3]], params: &EvalPa
     }];
 
     let started = Instant::now();
-    let order = tipsify(original, vertex_count, cache);
-    let starts = patches(&order, vertex_count, cache, lambda);
+    let first = clips.iter().flatten().next().map_or(&[][..], |k| k);
+    let (order, starts) = cut(original, first, patches, cache);
     let per_frame: Vec<Vec<Vec<[u32; 3]>>> =
         clips.iter().map(|keys| keys.par_iter().map(|pos| occlusion_order(pos, &order, &starts)).collect()).collect();
     let preprocess_s = started.elapsed().as_secs_f64();
     let flat: Vec<Vec<[u32; 3]>> = per_frame.iter().flatten().cloned().collect();
     rows.push(MethodResult {
         method: "tipsify-per-frame",
-        lambda,
+        patches,
         buffers: flat.len(),
         acmr: mean_acmr(&flat),
         ovr: ovr(&|c, f, _| &per_frame[c][f]),
@@ -156,28 +157,35 @@ pub fn evaluate(clips: &[Vec<Vec<Vec3>>], original: &[[u32; 3]], params: &EvalPa
             (c, lookup)
         })
         .collect();
-    let preprocess_s = started.elapsed().as_secs_f64() / clips.len().max(1) as f64;
+    let single_s = started.elapsed().as_secs_f64() / clips.len().max(1) as f64;
     let bufs: Vec<Vec<[u32; 3]>> = single.iter().flat_map(|(c, _)| c.buffers.clone()).collect();
     rows.push(MethodResult {
         method: "single",
-        lambda,
+        patches,
         buffers: params.cluster.k,
         acmr: mean_acmr(&bufs),
         ovr: ovr(&|c, f, eye| {
             let (cl, lookup) = &single[c];
             &cl.buffers[lookup.get(f, direction(eye, &cl.framing)) as usize]
         }),
-        preprocess_s,
+        preprocess_s: single_s,
     });
 
+    // One clip: "joint" is the same clustering as "single" (same nodes, parameters, seed).
     let started = Instant::now();
-    let joint = cluster(&all, original, &params.cluster);
-    let lookup = lookup(&joint, 37, 72);
-    let preprocess_s = started.elapsed().as_secs_f64();
+    let (joint, lookup) = match &single[..] {
+        [one] => one.clone(),
+        _ => {
+            let joint = cluster(&all, original, &params.cluster);
+            let lookup = lookup(&joint, 37, 72);
+            (joint, lookup)
+        }
+    };
+    let preprocess_s = if clips.len() == 1 { single_s } else { started.elapsed().as_secs_f64() };
     let offsets: Vec<usize> = clips.iter().scan(0, |acc, k| Some(std::mem::replace(acc, *acc + k.len()))).collect();
     rows.push(MethodResult {
         method: "joint",
-        lambda,
+        patches,
         buffers: joint.buffers.len(),
         acmr: mean_acmr(&joint.buffers),
         ovr: ovr(&|c, f, eye| &joint.buffers[lookup.get(offsets[c] + f, direction(eye, &joint.framing)) as usize]),

@@ -199,24 +199,30 @@ impl Fragments {
 }
 
 impl Fragments {
-    /// Calls `emit(front, back)` for every pair of fragments on one pixel whose triangles
-    /// (indices into the list given to [`Raster::fragments`]) are in different groups
-    /// (`group[t]`), the nearer one's group first: the pairs a draw order should keep in
-    /// that order to shade each pixel once. `scratch` is reused.
-    pub fn occlusions(&self, group: &[u32], scratch: &mut Vec<(u32, f64, u32)>, mut emit: impl FnMut(u32, u32)) {
-        scratch.clear();
-        for (w, &g) in self.start.windows(2).zip(group) {
-            let r = w[0] as usize..w[1] as usize;
-            scratch.extend(self.pixel[r.clone()].iter().zip(&self.depth[r]).map(|(&p, &z)| (p, z, g)));
+    /// Calls `emit(front, back)` for the nearest fragment of every pixel and each other
+    /// fragment on that pixel whose triangle (indices into the list given to
+    /// [`Raster::fragments`]) is in another group (`group[t]`): the pairs a draw order
+    /// should keep in that order to shade each pixel once (once the nearest is drawn, the
+    /// order of those behind it no longer matters). `nearest` is scratch space, reused.
+    pub fn occlusions(&self, group: &[u32], nearest: &mut Vec<(f64, u32)>, mut emit: impl FnMut(u32, u32)) {
+        nearest.clear();
+        nearest.resize(self.pixels, (f64::INFINITY, u32::MAX));
+        let fragments = || {
+            self.start.windows(2).zip(group).flat_map(|(w, &g)| {
+                let r = w[0] as usize..w[1] as usize;
+                self.pixel[r.clone()].iter().zip(&self.depth[r]).map(move |(&p, &z)| (p as usize, z, g))
+            })
+        };
+        for (p, z, g) in fragments() {
+            if z < nearest[p].0 {
+                nearest[p] = (z, g);
+            }
         }
-        scratch.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)));
-        for run in scratch.chunk_by(|a, b| a.0 == b.0) {
-            for (i, front) in run.iter().enumerate() {
-                for back in &run[i + 1..] {
-                    if back.2 != front.2 {
-                        emit(front.2, back.2);
-                    }
-                }
+        // Fragments at the nearest depth are never shaded a second time: no pair.
+        for (p, z, g) in fragments() {
+            let (front_z, front) = nearest[p];
+            if z > front_z && g != front {
+                emit(front, g);
             }
         }
     }
@@ -384,5 +390,13 @@ mod tests {
         let mut pairs = std::collections::HashMap::new();
         frags.occlusions(&[0, 0, 1, 1], &mut Vec::new(), |a, b| *pairs.entry((a, b)).or_insert(0) += 1);
         assert_eq!(pairs, std::collections::HashMap::from([((0, 1), 128)]));
+        // A third, farthest quad over everything: only the nearest fragment of a pixel
+        // pairs, so (1, 2) counts the right half alone (all pairs would count it twice).
+        pts.extend(quad(16.0, -3.0));
+        let tris = [[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7], [8, 9, 10], [8, 10, 11]];
+        r.fragments(&pts, &tris, &vp, &mut frags);
+        pairs.clear();
+        frags.occlusions(&[0, 0, 1, 1, 2, 2], &mut Vec::new(), |a, b| *pairs.entry((a, b)).or_insert(0) += 1);
+        assert_eq!(pairs, std::collections::HashMap::from([((0, 1), 128), ((0, 2), 128), ((1, 2), 128)]));
     }
 }

@@ -3,11 +3,13 @@
 //!
 //! The paper sorts a cluster's patches by the distance of their centroids to the eye,
 //! averaged over the cluster's nodes. A centroid says little about a large or curved patch,
-//! so instead we count, over the cluster's nodes, how often a fragment of patch `a` lies in
-//! front of a fragment of patch `b` on the same pixel (`w(a, b)`, from the fragments each
-//! node already rasterized for measuring). A pixel is shaded once when every such `a` comes
-//! before `b`, so a good order is one that violates little weight: the weighted linear
-//! ordering problem. We solve it greedily (Eades, Lin & Smyth 1993, weighted): repeatedly
+//! so instead we count, over the cluster's nodes, how often the nearest fragment of a pixel
+//! is patch `a`'s while patch `b` has a fragment behind it (`w(a, b)`, from the fragments
+//! each node already rasterized for measuring). A pixel is shaded once when its nearest
+//! patch comes first, so a good order is one that violates little weight: the weighted
+//! linear ordering problem. (Counting every pair of a pixel's fragments instead also weighs
+//! the order among hidden layers, which shades nothing once the nearest is drawn: measured,
+//! it removes less overdraw.) We solve it greedily (Eades, Lin & Smyth 1993, weighted): repeatedly
 //! place the patch with the largest (weight in front of remaining patches − weight behind
 //! them), ties by the paper's mean distance. Patches no node sees go last in their old order.
 //!
