@@ -233,3 +233,18 @@ impl Overdraw {
         self.covered += o.covered;
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn patch_rules_round_trip_through_their_stored_number() {
+        for p in [Patches::Linear { lambda: 0.85 }, Patches::Linear { lambda: 3.0 }, Patches::Compact { size: 32 }] {
+            assert_eq!(Patches::from_f32(p.to_f32()), Some(p));
+        }
+        for bad in [0.0, -0.5, -2.5, f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+            assert_eq!(Patches::from_f32(bad), None, "{bad}");
+        }
+    }
+}
