@@ -24,12 +24,23 @@ fn every_builder_is_valid_on_every_asset() {
         let prepared = skinlet::bake::prepare_character(&asset.character().unwrap()).unwrap();
         assert!(!prepared.mesh.triangles.is_empty(), "{}", path.display());
         for limits in [MeshletLimits::NVIDIA, MeshletLimits::LARGE, MeshletLimits::SMALL] {
-            for b in Builder::ALL {
+            let mut count = [0; Builder::ALL.len()];
+            for (b, count) in Builder::ALL.into_iter().zip(&mut count) {
                 let m = build(&prepared, b, limits).unwrap();
                 m.validate(&prepared.mesh.triangles, limits)
                     .unwrap_or_else(|e| panic!("{} {} {limits:?}: {e}", path.display(), b.name()));
                 assert_eq!(flat::from_bytes(&flat::to_bytes(&m)).unwrap(), m);
+                *count = m.len();
             }
+            // cone-split's budget: 1.3× meshoptimizer's count, unless the skin-aware
+            // meshlets already take more.
+            let of = |b: Builder| count[Builder::ALL.iter().position(|&x| x == b).unwrap()];
+            let (split, meshopt, skin_aware) = (of(Builder::ConeSplit), of(Builder::Meshopt), of(Builder::SkinAware));
+            assert!(
+                split as f32 <= 1.3 * meshopt as f32 || split <= skin_aware,
+                "{} {limits:?}: cone-split {split}, meshopt {meshopt}, skin-aware {skin_aware}",
+                path.display()
+            );
         }
     }
 }

@@ -70,7 +70,7 @@ pub fn build(mesh: &SkinnedMesh, limits: MeshletLimits, params: &Params) -> Mesh
 
 /// Relabels triangles of partitions smaller than `min` with the label of the neighbouring
 /// partition sharing the most vertices with them, smallest partition first.
-fn fold_small_partitions(mesh: &SkinnedMesh, key: &mut [u32], min: usize) {
+pub(crate) fn fold_small_partitions(mesh: &SkinnedMesh, key: &mut [u32], min: usize) {
     loop {
         let mut size: BTreeMap<u32, usize> = BTreeMap::new();
         key.iter().for_each(|&k| *size.entry(k).or_default() += 1);
