@@ -163,8 +163,8 @@ enum Command {
     /// Builders: scan (index order, thesis listing 4.1), common-influences (per shared joint
     /// set, thesis listing 4.2), meshopt, meshopt-flex and meshopt-spatial (meshoptimizer's
     /// greedy, flexible-size and spatial builders), skin-aware (ours: meshlets that move with
-    /// one joint), cone-split (ours: skin-aware meshlets split where their normal cone is too
-    /// wide for backface culling, within 1.3x meshopt's count). Columns: meshlet count, average vertices and
+    /// one joint), cone-split (ours: skin-aware partitions cut by face normal, merged and
+    /// split for backface culling, within 1.3x meshopt's count). Columns: meshlet count, average vertices and
     /// triangles, vertex references per unique vertex, % meshlets whose vertices share one
     /// joint set, % with one joint carrying >= 0.9 of the weight, bytes of meshlet data +
     /// vertices (slim vertices where possible; fat in parentheses), % backface-culled by
