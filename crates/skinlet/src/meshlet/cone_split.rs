@@ -63,7 +63,7 @@ pub fn build(mesh: &SkinnedMesh, limits: MeshletLimits, params: &Params) -> Mesh
     build_parts(mesh, &[whole], limits, params)
 }
 
-/// A skin-aware partition: part index and partition key ([`skin_aware::partition_keys`]).
+/// A skin-aware partition: part index and partition key ([`skin_aware::partitions`]).
 type Partition = (u32, u32);
 
 /// A piece of the mesh: its triangles and skin-aware partition.
@@ -86,10 +86,8 @@ pub fn build_parts(mesh: &SkinnedMesh, parts: &[PartRange], limits: MeshletLimit
         reference += greedy::build(&mesh.triangles[range.clone()], &mesh.positions, limits, greedy::CONE_WEIGHT).len();
         let part = mesh.slice(p.vertices.clone(), p.triangles.clone());
         skin_aware.append(&skin_aware::build(&part, limits, &params.skin_aware), p.vertices.start);
-        let mut key = skin_aware::partition_keys(&part);
-        let min = (params.skin_aware.min_partition * limits.max_triangles as f32) as usize;
-        skin_aware::fold_small_partitions(&part, &mut key, min);
-        for (slot, key) in partition[range].iter_mut().zip(key) {
+        let keys = skin_aware::partitions(&part, limits, &params.skin_aware);
+        for (slot, key) in partition[range].iter_mut().zip(keys) {
             *slot = (k as u32, key);
         }
     }
@@ -416,7 +414,7 @@ mod tests {
     }
 
     #[test]
-    fn splits_pay_stay_within_budget_and_are_deterministic() {
+    fn pieces_pay_stay_within_budget_and_are_deterministic() {
         let mesh = super::super::prepare(&tube(24, 120)).mesh;
         let limits = MeshletLimits::NVIDIA;
         let params = Params::default();

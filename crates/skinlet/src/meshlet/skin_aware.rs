@@ -51,15 +51,22 @@ pub fn partition_keys(mesh: &SkinnedMesh) -> Vec<u32> {
         .collect()
 }
 
-pub fn build(mesh: &SkinnedMesh, limits: MeshletLimits, params: &Params) -> Meshlets {
+/// The partition of every triangle: [`partition_keys`] with partitions smaller than
+/// `min_partition` meshlets' worth of triangles folded into a neighbour.
+pub fn partitions(mesh: &SkinnedMesh, limits: MeshletLimits, params: &Params) -> Vec<u32> {
     let mut key = partition_keys(mesh);
     fold_small_partitions(mesh, &mut key, (params.min_partition * limits.max_triangles as f32) as usize);
-    let mut partitions: BTreeMap<u32, Vec<[u32; 3]>> = BTreeMap::new();
+    key
+}
+
+pub fn build(mesh: &SkinnedMesh, limits: MeshletLimits, params: &Params) -> Meshlets {
+    let key = partitions(mesh, limits, params);
+    let mut by_key: BTreeMap<u32, Vec<[u32; 3]>> = BTreeMap::new();
     for (t, &k) in mesh.triangles.iter().zip(&key) {
-        partitions.entry(k).or_default().push(*t);
+        by_key.entry(k).or_default().push(*t);
     }
     let mut out = Meshlets::default();
-    for tris in partitions.values() {
+    for tris in by_key.values() {
         let part = greedy::build(tris, &mesh.positions, limits, params.cone_weight);
         for m in &part.meshlets {
             out.push(part.vertices_of(m), part.triangles_of(m));
@@ -70,7 +77,7 @@ pub fn build(mesh: &SkinnedMesh, limits: MeshletLimits, params: &Params) -> Mesh
 
 /// Relabels triangles of partitions smaller than `min` with the label of the neighbouring
 /// partition sharing the most vertices with them, smallest partition first.
-pub(crate) fn fold_small_partitions(mesh: &SkinnedMesh, key: &mut [u32], min: usize) {
+fn fold_small_partitions(mesh: &SkinnedMesh, key: &mut [u32], min: usize) {
     loop {
         let mut size: BTreeMap<u32, usize> = BTreeMap::new();
         key.iter().for_each(|&k| *size.entry(k).or_default() += 1);
