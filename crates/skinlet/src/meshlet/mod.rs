@@ -390,6 +390,16 @@ mod tests {
             assert_eq!(flat::from_bytes(&flat::to_bytes(&m)).unwrap(), m, "{}: flat layout round trip", b.name());
             assert_eq!(flat::to_bytes(&m).len(), flat::byte_len(&m));
         }
+        // cone-split: deterministic, within 1.3× meshopt's count unless skin-aware takes more.
+        let built = |b| build(&prepared, b, limits).unwrap();
+        let split = built(Builder::ConeSplit);
+        assert_eq!(split, built(Builder::ConeSplit));
+        let (meshopt, skin_aware) = (built(Builder::Meshopt).len(), built(Builder::SkinAware).len());
+        assert!(
+            split.len() as f32 <= 1.3 * meshopt as f32 || split.len() <= skin_aware,
+            "{} vs {meshopt}",
+            split.len()
+        );
     }
 
     proptest! {
