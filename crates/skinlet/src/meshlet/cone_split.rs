@@ -85,8 +85,8 @@ pub fn build_parts(mesh: &SkinnedMesh, parts: &[PartRange], limits: MeshletLimit
         let range = p.triangles.start as usize..p.triangles.end as usize;
         reference += greedy::build(&mesh.triangles[range.clone()], &mesh.positions, limits, greedy::CONE_WEIGHT).len();
         let part = mesh.slice(p.vertices.clone(), p.triangles.clone());
-        skin_aware.append(&skin_aware::build(&part, limits, &params.skin_aware), p.vertices.start);
         let keys = skin_aware::partitions(&part, limits, &params.skin_aware);
+        skin_aware.append(&skin_aware::build_partitioned(&part, &keys, limits, &params.skin_aware), p.vertices.start);
         for (slot, key) in partition[range].iter_mut().zip(keys) {
             *slot = (k as u32, key);
         }

@@ -230,15 +230,15 @@ pub fn build(prepared: &PreparedMesh, builder: Builder, limits: MeshletLimits) -
         Builder::CommonInfluences => common_influences::build(mesh, limits),
         Builder::Meshopt => greedy::build(&mesh.triangles, &mesh.positions, limits, greedy::CONE_WEIGHT),
         Builder::SkinAware => skin_aware::build(mesh, limits, &skin_aware::Params::default()),
-        // One part; several are built at once below (the budget counts over all of them).
+        // One part; several go through `build_parts` below (one budget over all of them).
         Builder::ConeSplit => cone_split::build(mesh, limits, &cone_split::Params::default()),
         Builder::MeshoptFlex => greedy::build_with(&mesh.triangles, &mesh.positions, limits, greedy::FLEX),
         Builder::MeshoptSpatial => greedy::build_with(&mesh.triangles, &mesh.positions, limits, greedy::SPATIAL),
     };
-    let mut meshlets = if builder == Builder::ConeSplit {
-        cone_split::build_parts(mesh, &prepared.parts, limits, &cone_split::Params::default())
-    } else if prepared.parts.len() <= 1 {
+    let mut meshlets = if prepared.parts.len() <= 1 {
         one(mesh)
+    } else if builder == Builder::ConeSplit {
+        cone_split::build_parts(mesh, &prepared.parts, limits, &cone_split::Params::default())
     } else {
         let mut all = Meshlets::default();
         for p in &prepared.parts {

@@ -60,9 +60,13 @@ pub fn partitions(mesh: &SkinnedMesh, limits: MeshletLimits, params: &Params) ->
 }
 
 pub fn build(mesh: &SkinnedMesh, limits: MeshletLimits, params: &Params) -> Meshlets {
-    let key = partitions(mesh, limits, params);
+    build_partitioned(mesh, &partitions(mesh, limits, params), limits, params)
+}
+
+/// The skin-aware meshlets of a mesh whose triangles' partitions are `key` ([`partitions`]).
+pub fn build_partitioned(mesh: &SkinnedMesh, key: &[u32], limits: MeshletLimits, params: &Params) -> Meshlets {
     let mut by_key: BTreeMap<u32, Vec<[u32; 3]>> = BTreeMap::new();
-    for (t, &k) in mesh.triangles.iter().zip(&key) {
+    for (t, &k) in mesh.triangles.iter().zip(key) {
         by_key.entry(k).or_default().push(*t);
     }
     let mut out = Meshlets::default();
