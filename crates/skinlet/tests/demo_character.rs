@@ -638,7 +638,8 @@ mod measure {
         let mut frags = Fragments::default();
         let mut depth = Vec::new();
         for (k, vp) in axis_views(&mesh.positions).iter().enumerate() {
-            r.fragments(&mesh.positions, &mesh.triangles, vp, &mut frags);
+            // One group per triangle, then groups of 7 triangles.
+            r.fragments(&mesh.positions, &mesh.triangles, &[], vp, &mut frags);
             let n = mesh.triangles.len() as u32;
             let order: Vec<u32> = if k % 2 == 0 { (0..n).collect() } else { (0..n).rev().collect() };
             let tris: Vec<[u32; 3]> = order.iter().map(|&t| mesh.triangles[t as usize]).collect();
@@ -646,6 +647,19 @@ mod measure {
             assert_eq!(frags.covered, full.covered);
             assert_eq!(frags.shade(order.iter().copied(), u64::MAX, &mut depth), Some(full.shaded));
             assert_eq!(frags.shade(order.iter().copied(), full.shaded - 1, &mut depth), None);
+            let groups: Vec<u32> = (0..n).step_by(7).collect();
+            r.fragments(&mesh.positions, &mesh.triangles, &groups, vp, &mut frags);
+            let group_order: Vec<u32> = (0..groups.len() as u32).rev().collect();
+            let tris: Vec<[u32; 3]> = group_order
+                .iter()
+                .flat_map(|&g| {
+                    &mesh.triangles[groups[g as usize] as usize..(groups[g as usize] as usize + 7).min(n as usize)]
+                })
+                .copied()
+                .collect();
+            let full = r.render(&mesh.positions, &tris, vp);
+            assert_eq!(frags.covered, full.covered);
+            assert_eq!(frags.shade(group_order.iter().copied(), u64::MAX, &mut depth), Some(full.shaded));
         }
     }
 }

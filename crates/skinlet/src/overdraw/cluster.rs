@@ -69,7 +69,7 @@ impl Default for ClusterParams {
             cache_size: 16,
             resolution: 64,
             view_levels: 2,
-            iterations: 6,
+            iterations: 4,
             seed: 1,
             cache_bytes: 1 << 30,
             order: PatchOrder::default(),
@@ -119,10 +119,8 @@ pub fn cut(triangles: &[[u32; 3]], positions: &[Vec3], patches: Patches, cache_s
 /// and returns `k` index buffers with the assignment.
 pub fn cluster(keyframes: &[Vec<Vec3>], triangles: &[[u32; 3]], params: &ClusterParams) -> Clustering {
     let (order, starts) = cut(triangles, keyframes.first().map_or(&[][..], |k| k), params.patches, params.cache_size);
-    // Patch `p` as a range of indices into `order` (buffers are lists of such indices).
-    let range = |p: usize| starts[p]..starts.get(p + 1).copied().unwrap_or(order.len() as u32);
-    let patch = |p: usize| &order[starts[p] as usize..range(p).end as usize];
-    let patch_of: Vec<u32> = (0..starts.len()).flat_map(|p| std::iter::repeat_n(p as u32, range(p).len())).collect();
+    let patches = starts.len();
+    let patch = |p: usize| &order[starts[p] as usize..starts.get(p + 1).map_or(order.len(), |&e| e as usize)];
     let framing = Framing::of(keyframes);
     let views = icosphere(params.view_levels);
     let nodes = keyframes.len() * views.len();
@@ -130,7 +128,7 @@ pub fn cluster(keyframes: &[Vec<Vec3>], triangles: &[[u32; 3]], params: &Cluster
     let centroids: Vec<Vec<Vec3>> = keyframes
         .iter()
         .map(|pos| {
-            (0..starts.len())
+            (0..patches)
                 .map(|p| {
                     let tris = patch(p);
                     tris.iter()
@@ -142,11 +140,12 @@ pub fn cluster(keyframes: &[Vec<Vec3>], triangles: &[[u32; 3]], params: &Cluster
         })
         .collect();
     let node = |n: usize| (n / views.len(), framing.eye(views[n % views.len()], 3.0));
-    // Patches sorted by a key (None: never seen, last), ties in patch order.
-    let by_key = |key: &mut dyn FnMut(usize) -> Option<f32>| -> Vec<u32> {
-        let mut keyed: Vec<(f32, usize)> = (0..starts.len()).map(|p| (key(p).unwrap_or(f32::INFINITY), p)).collect();
+    // Buffers are patch orders while clustering. Patches sorted by a key (None: never seen,
+    // last), ties in patch order.
+    let by_key = |key: &dyn Fn(usize) -> Option<f32>| -> Vec<u32> {
+        let mut keyed: Vec<(f32, u32)> = (0..patches).map(|p| (key(p).unwrap_or(f32::INFINITY), p as u32)).collect();
         keyed.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        keyed.iter().flat_map(|&(_, p)| range(p)).collect()
+        keyed.into_iter().map(|(_, p)| p).collect()
     };
     // Bootstrap: k distinct random nodes, patches front to back from each.
     let mut rng = Rng(params.seed ^ 0x00DD_BA11);
@@ -161,60 +160,92 @@ pub fn cluster(keyframes: &[Vec<Vec3>], triangles: &[[u32; 3]], params: &Cluster
         .iter()
         .map(|&n| {
             let (f, eye) = node(n);
-            by_key(&mut |p| Some(centroids[f][p].distance(eye)))
+            by_key(&|p| Some(centroids[f][p].distance(eye)))
         })
         .collect();
-    // Which patches have a front-facing triangle from each node's eye (a bit set), and each
-    // node's fragments, rasterized once (orders change, the geometry does not) while they fit
-    // in `cache_bytes`; beyond it (many keyframes of a large mesh) they are rasterized again
-    // in every iteration instead.
-    let words = starts.len().div_ceil(64);
-    let visible: Vec<Vec<u64>> = (0..nodes)
-        .into_par_iter()
-        .map(|n| {
-            let (f, eye) = node(n);
-            let pos = &keyframes[f];
-            let mut bits = vec![0u64; words];
-            for p in 0..starts.len() {
-                let seen = patch(p).iter().any(|t| {
-                    let (a, b, c) = (pos[t[0] as usize], pos[t[1] as usize], pos[t[2] as usize]);
-                    (a - eye).dot((b - a).cross(c - a)) < 0.0
-                });
-                bits[p / 64] |= (seen as u64) << (p % 64);
-            }
-            bits
-        })
-        .collect();
+    // Each node's fragments by patch, rasterized once (orders change, the geometry does not)
+    // while they fit in `cache_bytes`; beyond it (many keyframes of a large mesh) they are
+    // rasterized again in every iteration instead. And what does not depend on the order:
+    // the patches each node sees, its covered pixels and its occlusion weights.
     let rasterize = |raster: &mut Raster, n: usize, frags: &mut Fragments| {
         let (f, eye) = node(n);
-        raster.fragments(&keyframes[f], &order, &framing.view_proj(eye), frags);
+        raster.fragments(&keyframes[f], &order, &starts, &framing.view_proj(eye), frags);
     };
+    let new_raster = || Raster::new(params.resolution, params.resolution);
     let sample: usize = (0..nodes.min(16))
         .map(|i| {
             let mut frags = Fragments::default();
-            rasterize(
-                &mut Raster::new(params.resolution, params.resolution),
-                i * nodes / nodes.clamp(1, 16),
-                &mut frags,
-            );
+            rasterize(&mut new_raster(), i * nodes / nodes.clamp(1, 16), &mut frags);
             frags.bytes()
         })
         .sum();
     let cache = sample / nodes.clamp(1, 16) * nodes <= params.cache_bytes;
-    let cached: Vec<Fragments> = if cache {
-        (0..nodes)
-            .into_par_iter()
-            .map_init(
-                || Raster::new(params.resolution, params.resolution),
-                |raster, n| {
-                    let mut frags = Fragments::default();
-                    rasterize(raster, n, &mut frags);
-                    frags
-                },
-            )
-            .collect()
-    } else {
-        Vec::new()
+    struct Node {
+        fragments: Option<Fragments>,
+        visible: Vec<bool>,
+        covered: u64,
+        occlusion: Vec<(u64, u32)>,
+    }
+    let rendered: Vec<Node> = (0..nodes)
+        .into_par_iter()
+        .map_init(
+            || (new_raster(), Vec::new()),
+            |(raster, scratch), n| {
+                let mut frags = Fragments::default();
+                rasterize(raster, n, &mut frags);
+                let visible = (0..patches).map(|p| frags.seen(p)).collect();
+                let occlusion = Occlusion::of_view(&frags, scratch);
+                Node { covered: frags.covered, fragments: cache.then_some(frags), visible, occlusion }
+            },
+        )
+        .collect();
+    // Calls `f` with the fragments of each node in `of`.
+    let with_frags = |of: &mut dyn Iterator<Item = usize>, f: &mut dyn FnMut(usize, &Fragments)| {
+        let (mut raster, mut scratch) = (None, Fragments::default());
+        for n in of {
+            match &rendered[n].fragments {
+                Some(frags) => f(n, frags),
+                None => {
+                    rasterize(raster.get_or_insert_with(new_raster), n, &mut scratch);
+                    f(n, &scratch);
+                }
+            }
+        }
+    };
+    // A cluster's order from its nodes: patches by distance averaged over the nodes that see
+    // them; beyond the paper ([`PatchOrder::Occlusion`]) the occlusion order, the distance
+    // order or the `current` one, whichever shades the fewest fragments over the nodes (so
+    // no iteration makes a cluster worse for its nodes).
+    let order_for = |members: &[usize], current: &Vec<u32>| -> Vec<u32> {
+        let mut sum = vec![0.0f64; patches];
+        let mut seen = vec![0u32; patches];
+        for &n in members {
+            let (f, eye) = node(n);
+            for p in (0..patches).filter(|&p| rendered[n].visible[p]) {
+                sum[p] += centroids[f][p].distance(eye) as f64;
+                seen[p] += 1;
+            }
+        }
+        let key: Vec<Option<f32>> =
+            (0..patches).map(|p| (seen[p] > 0).then(|| (sum[p] / seen[p] as f64) as f32)).collect();
+        let distance = by_key(&|p| key[p]);
+        if params.order == PatchOrder::Distance {
+            return distance;
+        }
+        let mut occlusion = Occlusion::default();
+        for &n in members {
+            occlusion.add(&rendered[n].occlusion);
+        }
+        let candidates = [occlusion.order(&key), distance, current.clone()];
+        let mut shaded = [0u64; 3];
+        let mut scratch = Vec::new();
+        with_frags(&mut members.iter().copied(), &mut |_, frags| {
+            for (s, c) in shaded.iter_mut().zip(&candidates) {
+                *s = s.saturating_add(frags.shade(c.iter().copied(), u64::MAX, &mut scratch).unwrap_or(u64::MAX));
+            }
+        });
+        let best = (0..3).min_by_key(|&i| shaded[i]).unwrap_or(0);
+        candidates.into_iter().nth(best).unwrap_or_default()
     };
     let mut assignment = vec![u8::MAX; nodes];
     let mut node_overdraw = vec![0.0f32; nodes];
@@ -224,27 +255,20 @@ pub fn cluster(keyframes: &[Vec<Vec3>], triangles: &[[u32; 3]], params: &Cluster
         // Step 1: each node to the buffer with the least overdraw: a depth-tested pass over
         // the node's fragments per buffer, abandoned as soon as it shades more than the best
         // so far (coverage is the same for every order).
-        let best: Vec<(u8, f32)> = (0..nodes)
-            .into_par_iter()
-            .map_init(
-                || (Raster::new(params.resolution, params.resolution), Fragments::default(), Vec::new()),
-                |(raster, scratch, depth), n| {
-                    let frags = if cache {
-                        &cached[n]
-                    } else {
-                        rasterize(raster, n, scratch);
-                        &*scratch
-                    };
-                    let mut best = (0u8, u64::MAX);
-                    for (b, buf) in buffers.iter().enumerate() {
-                        if let Some(shaded) = frags.shade(buf.iter().copied(), best.1.saturating_sub(1), depth) {
-                            best = (b as u8, shaded);
-                        }
+        let mut best = vec![(0u8, 0.0f32); nodes];
+        best.par_chunks_mut(64).enumerate().for_each(|(chunk, out)| {
+            let mut depth = Vec::new();
+            with_frags(&mut (chunk * 64..chunk * 64 + out.len()), &mut |n, frags| {
+                let mut pick = (0u8, u64::MAX);
+                for (b, buf) in buffers.iter().enumerate() {
+                    if let Some(shaded) = frags.shade(buf.iter().copied(), pick.1.saturating_sub(1), &mut depth) {
+                        pick = (b as u8, shaded);
                     }
-                    (best.0, if frags.covered == 0 { 0.0 } else { best.1 as f32 / frags.covered as f32 })
-                },
-            )
-            .collect();
+                }
+                let covered = rendered[n].covered;
+                out[n - chunk * 64] = (pick.0, if covered == 0 { 0.0 } else { pick.1 as f32 / covered as f32 });
+            });
+        });
         let changed = best.iter().zip(&assignment).any(|(b, &a)| b.0 != a);
         for (n, (b, r)) in best.into_iter().enumerate() {
             assignment[n] = b;
@@ -253,71 +277,16 @@ pub fn cluster(keyframes: &[Vec<Vec3>], triangles: &[[u32; 3]], params: &Cluster
         if !changed {
             break;
         }
-        // Step 2: each cluster's patches by distance averaged over the nodes that see them.
+        // Step 2: each cluster's order from its nodes.
         buffers = (0..buffers.len())
             .into_par_iter()
             .map(|b| {
                 let members: Vec<usize> = (0..nodes).filter(|&n| assignment[n] as usize == b).collect();
-                if members.is_empty() {
-                    return buffers[b].clone();
-                }
-                let mut sum = vec![0.0f64; starts.len()];
-                let mut seen = vec![0u32; starts.len()];
-                for &n in &members {
-                    let (f, eye) = node(n);
-                    for p in 0..starts.len() {
-                        if visible[n][p / 64] >> (p % 64) & 1 == 1 {
-                            sum[p] += centroids[f][p].distance(eye) as f64;
-                            seen[p] += 1;
-                        }
-                    }
-                }
-                let key: Vec<Option<f32>> =
-                    (0..starts.len()).map(|p| (seen[p] > 0).then(|| (sum[p] / seen[p] as f64) as f32)).collect();
-                if params.order == PatchOrder::Distance {
-                    return by_key(&mut |p| key[p]);
-                }
-                // The occlusion order, the distance order or the current buffer, whichever
-                // shades the fewest fragments over the cluster's nodes (so no iteration makes
-                // a cluster worse for its nodes).
-                let mut occlusion = Occlusion::default();
-                let (mut raster, mut scratch, mut pairs) = (None, Fragments::default(), Vec::new());
-                let mut with_frags = |f: &mut dyn FnMut(&Fragments)| {
-                    for &n in &members {
-                        if cache {
-                            f(&cached[n]);
-                        } else {
-                            let r = raster.get_or_insert_with(|| Raster::new(params.resolution, params.resolution));
-                            rasterize(r, n, &mut scratch);
-                            f(&scratch);
-                        }
-                    }
-                };
-                with_frags(&mut |frags| frags.occlusions(&patch_of, &mut pairs, |a, b| occlusion.add(a, b)));
-                let candidates = [
-                    occlusion.order(&key).into_iter().flat_map(|p| range(p as usize)).collect(),
-                    by_key(&mut |p| key[p]),
-                    buffers[b].clone(),
-                ];
-                let mut shaded = [0u64; 3];
-                let mut depth = Vec::new();
-                with_frags(&mut |frags| {
-                    for (s, c) in shaded.iter_mut().zip(&candidates) {
-                        *s = s.saturating_add(frags.shade(c.iter().copied(), u64::MAX, &mut depth).unwrap_or(u64::MAX));
-                    }
-                });
-                let [occluding, distance, current] = candidates;
-                if shaded[0] <= shaded[1].min(shaded[2]) {
-                    occluding
-                } else if shaded[1] <= shaded[2] {
-                    distance
-                } else {
-                    current
-                }
+                if members.is_empty() { buffers[b].clone() } else { order_for(&members, &buffers[b]) }
             })
             .collect();
     }
-    let buffers = buffers.iter().map(|b| b.iter().map(|&t| order[t as usize]).collect()).collect();
+    let buffers = buffers.iter().map(|b| b.iter().flat_map(|&p| patch(p as usize)).copied().collect()).collect();
     Clustering { buffers, views, assignment, node_overdraw, framing, iterations }
 }
 

@@ -64,6 +64,13 @@ pub struct Raster {
     depth: Vec<f64>,
     /// Fragments that passed the depth test, per pixel (for heat maps).
     pub shaded: Vec<u32>,
+    // Scratch space: projected vertices, and for [`Raster::fragments`].
+    screen: Vec<Option<(i64, i64, f64)>>,
+    raw_pixel: Vec<u32>,
+    raw_depth: Vec<f64>,
+    count: Vec<u32>,
+    bucket: Vec<u32>,
+    rank: Vec<u32>,
 }
 
 const SUB: i64 = 256;
@@ -71,7 +78,18 @@ const SUB: i64 = 256;
 impl Raster {
     pub fn new(width: u32, height: u32) -> Raster {
         let n = width as usize * height as usize;
-        Raster { width, height, depth: vec![f64::INFINITY; n], shaded: vec![0; n] }
+        Raster {
+            width,
+            height,
+            depth: vec![f64::INFINITY; n],
+            shaded: vec![0; n],
+            screen: Vec::new(),
+            raw_pixel: Vec::new(),
+            raw_depth: Vec::new(),
+            count: Vec::new(),
+            bucket: Vec::new(),
+            rank: Vec::new(),
+        }
     }
 
     /// Renders `triangles` in order (counter-clockwise front faces, back faces culled) and
@@ -79,7 +97,8 @@ impl Raster {
     pub fn render(&mut self, positions: &[Vec3], triangles: &[[u32; 3]], view_proj: &Mat4) -> Overdraw {
         self.depth.fill(f64::INFINITY);
         self.shaded.fill(0);
-        let screen = self.project(positions, view_proj);
+        self.project(positions, view_proj);
+        let screen = &self.screen;
         let mut shaded = 0u64;
         let (depth, counts, width) = (&mut self.depth, &mut self.shaded, self.width as i64);
         for t in triangles {
@@ -97,49 +116,120 @@ impl Raster {
         Overdraw { shaded, covered }
     }
 
-    /// Rasterizes every front-facing triangle once, without a depth test, keeping each
-    /// triangle's fragments: [`Fragments::shade`] then measures any order of the same
-    /// triangles without rasterizing again.
-    pub fn fragments(&mut self, positions: &[Vec3], triangles: &[[u32; 3]], view_proj: &Mat4, out: &mut Fragments) {
-        let screen = self.project(positions, view_proj);
-        out.start.clear();
-        out.pixel.clear();
-        out.depth.clear();
-        out.pixels = self.width as usize * self.height as usize;
-        self.depth.fill(f64::INFINITY);
-        for t in triangles {
-            out.start.push(out.pixel.len() as u32);
-            if let (Some(a), Some(b), Some(c)) = (screen[t[0] as usize], screen[t[1] as usize], screen[t[2] as usize]) {
-                let (pixel, depth, seen) = (&mut out.pixel, &mut out.depth, &mut self.depth);
-                rasterize(a, b, c, self.width as i64, self.height as i64, |i, z| {
-                    pixel.push(i as u32);
-                    depth.push(z);
-                    seen[i] = 0.0;
-                });
+    /// Rasterizes every front-facing triangle once, without a depth test, keeping the
+    /// fragments of each group of triangles (group `g` is `triangles[groups[g]..groups[g + 1]]`,
+    /// the last group running to the end; `groups` empty: one group per triangle):
+    /// [`Fragments::shade`] then measures any order of the groups without rasterizing again.
+    /// Triangles keep their order within a group.
+    pub fn fragments(
+        &mut self,
+        positions: &[Vec3],
+        triangles: &[[u32; 3]],
+        groups: &[u32],
+        view_proj: &Mat4,
+        out: &mut Fragments,
+    ) {
+        self.project(positions, view_proj);
+        let screen = &self.screen;
+        let n = self.width as usize * self.height as usize;
+        let group_count = if groups.is_empty() { triangles.len() } else { groups.len() };
+        let group_start = |g: usize| if groups.is_empty() { g } else { groups[g] as usize };
+        // Every fragment, group after group, with its depth.
+        let (pixel, depth) = (&mut self.raw_pixel, &mut self.raw_depth);
+        pixel.clear();
+        depth.clear();
+        let mut raw_start = Vec::with_capacity(group_count + 1);
+        out.seen.clear();
+        out.seen.resize(group_count.div_ceil(64), 0);
+        for g in 0..group_count {
+            raw_start.push(pixel.len() as u32);
+            let end = if g + 1 < group_count { group_start(g + 1) } else { triangles.len() };
+            for t in &triangles[group_start(g)..end] {
+                if let (Some(a), Some(b), Some(c)) =
+                    (screen[t[0] as usize], screen[t[1] as usize], screen[t[2] as usize])
+                {
+                    let front = rasterize(a, b, c, self.width as i64, self.height as i64, |i, z| {
+                        pixel.push(i as u32);
+                        depth.push(z);
+                    });
+                    out.seen[g / 64] |= (front as u64) << (g % 64);
+                }
             }
         }
-        out.start.push(out.pixel.len() as u32);
-        out.start.shrink_to_fit();
-        out.pixel.shrink_to_fit();
-        out.depth.shrink_to_fit();
-        out.covered = self.depth.iter().filter(|d| d.is_finite()).count() as u64;
+        raw_start.push(pixel.len() as u32);
+        // Fragments per pixel, then each pixel's fragments by depth: their rank (equal depths,
+        // equal ranks) orders them exactly as their depths do.
+        let count = &mut self.count;
+        count.clear();
+        count.resize(n + 1, 0);
+        for &p in pixel.iter() {
+            count[p as usize + 1] += 1;
+        }
+        out.covered = count.iter().filter(|&&c| c > 0).count() as u64;
+        out.single = count.iter().filter(|&&c| c == 1).count() as u64;
+        for i in 0..n {
+            count[i + 1] += count[i];
+        }
+        let bucket = &mut self.bucket;
+        bucket.clear();
+        bucket.resize(pixel.len(), 0);
+        let mut fill = count[..n].to_vec();
+        for (f, &p) in pixel.iter().enumerate() {
+            bucket[fill[p as usize] as usize] = f as u32;
+            fill[p as usize] += 1;
+        }
+        let rank = &mut self.rank;
+        rank.clear();
+        rank.resize(pixel.len(), 0);
+        for p in 0..n {
+            let of_pixel = &mut bucket[count[p] as usize..count[p + 1] as usize];
+            if of_pixel.len() < 2 {
+                continue;
+            }
+            of_pixel.sort_by(|&a, &b| depth[a as usize].total_cmp(&depth[b as usize]).then(a.cmp(&b)));
+            let mut r = 0;
+            for w in 0..of_pixel.len() {
+                if w > 0 && depth[of_pixel[w] as usize] > depth[of_pixel[w - 1] as usize] {
+                    r += 1;
+                }
+                rank[of_pixel[w] as usize] = r;
+            }
+        }
+        // Kept: fragments on pixels that more than one fragment covers (a pixel covered once is
+        // shaded once whatever the order).
+        let kept: u32 = count.windows(2).map(|c| c[1] - c[0]).filter(|&c| c > 1).sum();
+        out.start.clear();
+        out.start.reserve_exact(group_count + 1);
+        out.fragments.clear();
+        out.fragments.reserve_exact(kept as usize);
+        out.pixels = n;
+        for g in 0..group_count {
+            out.start.push(out.fragments.len() as u32);
+            for f in raw_start[g] as usize..raw_start[g + 1] as usize {
+                let p = pixel[f] as usize;
+                if count[p + 1] - count[p] > 1 {
+                    out.fragments.push((pixel[f], rank[f]));
+                }
+            }
+        }
+        out.start.push(out.fragments.len() as u32);
     }
 
-    /// Screen positions (1/256 pixel, y down) and depth; `None` at or behind the eye.
-    fn project(&self, positions: &[Vec3], view_proj: &Mat4) -> Vec<Option<(i64, i64, f64)>> {
+    /// Screen positions (1/256 pixel, y down) and depth into `self.screen`; `None` at or
+    /// behind the eye.
+    fn project(&mut self, positions: &[Vec3], view_proj: &Mat4) {
         let (w, h) = (self.width as f64, self.height as f64);
-        positions
-            .iter()
-            .map(|p| {
-                let c = *view_proj * p.extend(1.0);
-                (c.w > 0.0).then(|| {
-                    let (x, y, z) = (c.x as f64 / c.w as f64, c.y as f64 / c.w as f64, c.z as f64 / c.w as f64);
-                    let sx = ((x + 1.0) * 0.5 * w * SUB as f64).round() as i64;
-                    let sy = ((1.0 - y) * 0.5 * h * SUB as f64).round() as i64;
-                    (sx, sy, z)
-                })
+        self.screen.clear();
+        self.screen.extend(positions.iter().map(|p| {
+            let c = *view_proj * p.extend(1.0);
+            (c.w > 0.0).then(|| {
+                let inv = 1.0 / c.w as f64;
+                let (x, y, z) = (c.x as f64 * inv, c.y as f64 * inv, c.z as f64 * inv);
+                let sx = round((x + 1.0) * 0.5 * w * SUB as f64);
+                let sy = round((1.0 - y) * 0.5 * h * SUB as f64);
+                (sx, sy, z)
             })
-            .collect()
+        }));
     }
 }
 
@@ -158,14 +248,19 @@ pub fn heatmap(shaded: &[u32]) -> Vec<u8> {
     shaded.iter().flat_map(|&n| COLORS[(n as usize).min(5)]).collect()
 }
 
-/// The fragments of one view's triangles (see [`Raster::fragments`]).
+/// The fragments of one view, by group of triangles (see [`Raster::fragments`]).
 #[derive(Clone, Debug, Default)]
 pub struct Fragments {
-    /// Fragments of triangle `t`: `start[t]..start[t + 1]`.
+    /// Fragments of group `g`: `start[g]..start[g + 1]`.
     start: Vec<u32>,
-    pixel: Vec<u32>,
-    depth: Vec<f64>,
+    /// (pixel, depth rank among that pixel's fragments: 0 nearest, equal depths equal ranks)
+    /// of the fragments on pixels covered more than once.
+    fragments: Vec<(u32, u32)>,
     pixels: usize,
+    /// Pixels covered exactly once: shaded once whatever the order (their fragments are not kept).
+    single: u64,
+    /// Groups with a triangle facing the eye (all its vertices before it), a bit each.
+    seen: Vec<u64>,
     /// Pixels covered by any triangle: the same for every order.
     pub covered: u64,
 }
@@ -173,20 +268,28 @@ pub struct Fragments {
 impl Fragments {
     /// Heap bytes held.
     pub fn bytes(&self) -> usize {
-        4 * self.start.capacity() + 4 * self.pixel.capacity() + 8 * self.depth.capacity()
+        4 * self.start.capacity() + 8 * self.fragments.capacity() + 8 * self.seen.capacity()
     }
 
-    /// Fragments passing the depth test when the triangles (indices into the list given to
-    /// [`Raster::fragments`]) are drawn in `order`; `None` as soon as they exceed `limit`.
-    pub fn shade(&self, order: impl IntoIterator<Item = u32>, limit: u64, depth: &mut Vec<f64>) -> Option<u64> {
-        depth.clear();
-        depth.resize(self.pixels, f64::INFINITY);
-        let mut shaded = 0u64;
-        for t in order {
-            let r = self.start[t as usize] as usize..self.start[t as usize + 1] as usize;
-            for (&i, &z) in self.pixel[r.clone()].iter().zip(&self.depth[r]) {
-                if z < depth[i as usize] {
-                    depth[i as usize] = z;
+    /// Whether group `g` has a triangle facing the eye (covering a pixel center or not).
+    pub fn seen(&self, g: usize) -> bool {
+        self.seen.get(g / 64).is_some_and(|w| w >> (g % 64) & 1 == 1)
+    }
+
+    fn of(&self, g: u32) -> &[(u32, u32)] {
+        &self.fragments[self.start[g as usize] as usize..self.start[g as usize + 1] as usize]
+    }
+
+    /// Fragments passing the depth test when the groups are drawn in `order` (each group once);
+    /// `None` as soon as they exceed `limit`. `nearest` is scratch space, reused.
+    pub fn shade(&self, order: impl IntoIterator<Item = u32>, limit: u64, nearest: &mut Vec<u32>) -> Option<u64> {
+        nearest.clear();
+        nearest.resize(self.pixels, u32::MAX);
+        let mut shaded = self.single;
+        for g in order {
+            for &(p, r) in self.of(g) {
+                if r < nearest[p as usize] {
+                    nearest[p as usize] = r;
                     shaded += 1;
                 }
             }
@@ -194,42 +297,51 @@ impl Fragments {
                 return None;
             }
         }
-        Some(shaded)
+        (shaded <= limit).then_some(shaded)
+    }
+
+    /// Calls `emit(front, back)` for the nearest fragment of every pixel and each other
+    /// fragment on that pixel in another group: the pairs a draw order should keep in that
+    /// order to shade each pixel once (once the nearest is drawn, the order of those behind
+    /// it no longer matters). Fragments as near as the nearest pair with nothing (never
+    /// shaded a second time). `front` is scratch space, reused.
+    pub fn occlusions(&self, front: &mut Vec<u32>, mut emit: impl FnMut(u32, u32)) {
+        front.clear();
+        front.resize(self.pixels, u32::MAX);
+        let groups = self.start.len().saturating_sub(1) as u32;
+        for g in 0..groups {
+            for &(p, r) in self.of(g) {
+                if r == 0 && front[p as usize] == u32::MAX {
+                    front[p as usize] = g;
+                }
+            }
+        }
+        for g in 0..groups {
+            for &(p, r) in self.of(g) {
+                let f = front[p as usize];
+                if r > 0 && f != g {
+                    emit(f, g);
+                }
+            }
+        }
     }
 }
 
-impl Fragments {
-    /// Calls `emit(front, back)` for the nearest fragment of every pixel and each other
-    /// fragment on that pixel whose triangle (indices into the list given to
-    /// [`Raster::fragments`]) is in another group (`group[t]`): the pairs a draw order
-    /// should keep in that order to shade each pixel once (once the nearest is drawn, the
-    /// order of those behind it no longer matters). `nearest` is scratch space, reused.
-    pub fn occlusions(&self, group: &[u32], nearest: &mut Vec<(f64, u32)>, mut emit: impl FnMut(u32, u32)) {
-        nearest.clear();
-        nearest.resize(self.pixels, (f64::INFINITY, u32::MAX));
-        let fragments = || {
-            self.start.windows(2).zip(group).flat_map(|(w, &g)| {
-                let r = w[0] as usize..w[1] as usize;
-                self.pixel[r.clone()].iter().zip(&self.depth[r]).map(move |(&p, &z)| (p as usize, z, g))
-            })
-        };
-        for (p, z, g) in fragments() {
-            if z < nearest[p].0 {
-                nearest[p] = (z, g);
-            }
-        }
-        // Fragments at the nearest depth are never shaded a second time: no pair.
-        for (p, z, g) in fragments() {
-            let (front_z, front) = nearest[p];
-            if z > front_z && g != front {
-                emit(front, g);
-            }
-        }
+/// `v.round() as i64` without the library call (`round` is one on baseline x86-64):
+/// `v − trunc(v)` is exact below 2^52, beyond which every f64 is an integer.
+fn round(v: f64) -> i64 {
+    if v.abs() < 4.0e15 {
+        let t = v as i64;
+        let f = v - t as f64;
+        t + (f >= 0.5) as i64 - (f <= -0.5) as i64
+    } else {
+        v as i64
     }
 }
 
 /// Rasterizes one triangle (screen coordinates in 1/256 pixel, y down), calling `emit`
-/// with the pixel index and depth of every covered pixel center.
+/// with the pixel index and depth of every covered pixel center. Returns whether it faces
+/// the viewer (covering a pixel center or not).
 fn rasterize(
     a: (i64, i64, f64),
     b: (i64, i64, f64),
@@ -237,7 +349,7 @@ fn rasterize(
     width: i64,
     height: i64,
     mut emit: impl FnMut(usize, f64),
-) {
+) -> bool {
     let edge =
         |p: (i64, i64, f64), q: (i64, i64, f64), x: i64, y: i64| (q.0 - p.0) * (y - p.1) - (q.1 - p.1) * (x - p.0);
     // Counter-clockwise in NDC (y up) is clockwise on screen (y down), where this edge
@@ -245,7 +357,7 @@ fn rasterize(
     // inside is positive for every edge.
     let area = edge(a, b, c.0, c.1);
     if area >= 0 {
-        return; // back-facing or degenerate
+        return false; // back-facing or degenerate
     }
     let (b, c, area) = (c, b, -area);
     // Top-left rule for this orientation: a top edge runs right (dy = 0, dx > 0), a left
@@ -255,10 +367,14 @@ fn rasterize(
         if (dy == 0 && dx > 0) || dy < 0 { 0 } else { -1 }
     };
     let (bab, bbc, bca) = (bias(a, b), bias(b, c), bias(c, a));
-    let minx = (a.0.min(b.0).min(c.0) / SUB).max(0);
-    let maxx = ((a.0.max(b.0).max(c.0) + SUB - 1) / SUB).min(width - 1);
-    let miny = (a.1.min(b.1).min(c.1) / SUB).max(0);
-    let maxy = ((a.1.max(b.1).max(c.1) + SUB - 1) / SUB).min(height - 1);
+    // The pixels whose centers (`p * SUB + SUB / 2`) lie in the bounding box: a triangle
+    // smaller than a pixel often has none.
+    let first = |lo: i64| -(-(lo - SUB / 2)).div_euclid(SUB);
+    let last = |hi: i64| (hi - SUB / 2).div_euclid(SUB);
+    let minx = first(a.0.min(b.0).min(c.0)).max(0);
+    let maxx = last(a.0.max(b.0).max(c.0)).min(width - 1);
+    let miny = first(a.1.min(b.1).min(c.1)).max(0);
+    let maxy = last(a.1.max(b.1).max(c.1)).min(height - 1);
     for py in miny..=maxy {
         let y = py * SUB + SUB / 2;
         for px in minx..=maxx {
@@ -271,6 +387,7 @@ fn rasterize(
             emit(py as usize * width as usize + px as usize, z);
         }
     }
+    true
 }
 
 /// The six axis-aligned orthographic views meshoptimizer's `analyzeOverdraw` uses (it
@@ -315,6 +432,17 @@ mod tests {
                 let ours = acmr(&tris, verts as usize, cache);
                 let theirs = meshopt::analyze_vertex_cache(&flat, verts as usize, cache, 0, 0).acmr;
                 assert!((ours - theirs).abs() < 1e-6, "case {case}, cache {cache}: {ours} vs {theirs}");
+            }
+        }
+    }
+
+    #[test]
+    fn round_matches_the_library() {
+        let mut v = 0.37f64;
+        for i in 0..20_000 {
+            v = (v * 1.3 + 0.71).rem_euclid(1e6) * if i % 2 == 0 { 1.0 } else { -1.0 };
+            for x in [v, v.trunc() + 0.5, v.trunc() - 0.5, 3.0e15 + 0.5, -7.0e15, 1e300, f64::NAN] {
+                assert_eq!(round(x), x.round() as i64, "{x}");
             }
         }
     }
@@ -386,17 +514,18 @@ mod tests {
         pts.extend(quad(16.0, -1.0));
         let tris = [[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]];
         let mut frags = Fragments::default();
-        r.fragments(&pts, &tris, &vp, &mut frags);
+        r.fragments(&pts, &tris, &[0, 2], &vp, &mut frags);
+        assert!(frags.seen(0) && frags.seen(1) && !frags.seen(2));
         let mut pairs = std::collections::HashMap::new();
-        frags.occlusions(&[0, 0, 1, 1], &mut Vec::new(), |a, b| *pairs.entry((a, b)).or_insert(0) += 1);
+        frags.occlusions(&mut Vec::new(), |a, b| *pairs.entry((a, b)).or_insert(0) += 1);
         assert_eq!(pairs, std::collections::HashMap::from([((0, 1), 128)]));
         // A third, farthest quad over everything: only the nearest fragment of a pixel
         // pairs, so (1, 2) counts the right half alone (all pairs would count it twice).
         pts.extend(quad(16.0, -3.0));
         let tris = [[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7], [8, 9, 10], [8, 10, 11]];
-        r.fragments(&pts, &tris, &vp, &mut frags);
+        r.fragments(&pts, &tris, &[0, 2, 4], &vp, &mut frags);
         pairs.clear();
-        frags.occlusions(&[0, 0, 1, 1, 2, 2], &mut Vec::new(), |a, b| *pairs.entry((a, b)).or_insert(0) += 1);
+        frags.occlusions(&mut Vec::new(), |a, b| *pairs.entry((a, b)).or_insert(0) += 1);
         assert_eq!(pairs, std::collections::HashMap::from([((0, 1), 128), ((0, 2), 128), ((1, 2), 128)]));
     }
 }
