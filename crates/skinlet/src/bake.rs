@@ -199,7 +199,7 @@ pub fn add_overdraw(baked: &mut Baked, asset: &Asset, params: &ClusterParams, ma
         return Err(Error::invalid("bake", "overdraw orders need at least one clip"));
     }
     let c = cluster(&positions, &baked.mesh.triangles, params);
-    let mut orders = crate::overdraw::cluster::orders(&c, keys, params.patches);
+    let mut orders = crate::overdraw::cluster::orders(&c, keys);
     let part_of = |t: &[u32; 3]| baked.parts.partition_point(|p| p.vertices.end <= t[0]);
     for buffer in &mut orders.buffers {
         buffer.sort_by_key(part_of);

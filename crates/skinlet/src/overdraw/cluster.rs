@@ -82,6 +82,8 @@ impl Default for ClusterParams {
 pub struct Clustering {
     /// The `k` index buffers (fewer when there were fewer nodes).
     pub buffers: Vec<Vec<[u32; 3]>>,
+    /// The patch rule the buffers were cut with (compact patches may have grown).
+    pub patches: Patches,
     /// Viewpoint directions (unit) used as nodes.
     pub views: Vec<Vec3>,
     /// Buffer of each node, node = keyframe × views + view.
@@ -102,23 +104,33 @@ impl Rng {
     }
 }
 
-/// The triangles patch after patch and the start of each patch: `patches` over `positions`
-/// (e.g. the first keyframe; compact patches are built on it).
-pub fn cut(triangles: &[[u32; 3]], positions: &[Vec3], patches: Patches, cache_size: u32) -> (Vec<[u32; 3]>, Vec<u32>) {
+/// The triangles patch after patch, the start of each patch and the patch rule used (compact
+/// patches may grow, [`super::compact::compact_patches`]): `patches` over `positions` (e.g.
+/// the first keyframe; compact patches are built on it).
+pub fn cut(
+    triangles: &[[u32; 3]],
+    positions: &[Vec3],
+    patches: Patches,
+    cache_size: u32,
+) -> (Vec<[u32; 3]>, Vec<u32>, Patches) {
     match patches {
         Patches::Linear { lambda } => {
             let order = tipsify(triangles, positions.len(), cache_size);
             let starts = linear_patches(&order, positions.len(), cache_size, lambda);
-            (order, starts)
+            (order, starts, patches)
         }
-        Patches::Compact { size } => compact_patches(triangles, positions, size, cache_size),
+        Patches::Compact { size } => {
+            let (order, starts, size) = compact_patches(triangles, positions, size, cache_size);
+            (order, starts, Patches::Compact { size })
+        }
     }
 }
 
 /// Clusters the nodes of `keyframes` (skinned positions per keyframe, all the same length)
 /// and returns `k` index buffers with the assignment.
 pub fn cluster(keyframes: &[Vec<Vec3>], triangles: &[[u32; 3]], params: &ClusterParams) -> Clustering {
-    let (order, starts) = cut(triangles, keyframes.first().map_or(&[][..], |k| k), params.patches, params.cache_size);
+    let (order, starts, rule) =
+        cut(triangles, keyframes.first().map_or(&[][..], |k| k), params.patches, params.cache_size);
     let patches = starts.len();
     let patch = |p: usize| &order[starts[p] as usize..starts.get(p + 1).map_or(order.len(), |&e| e as usize)];
     let framing = Framing::of(keyframes);
@@ -287,7 +299,7 @@ pub fn cluster(keyframes: &[Vec<Vec3>], triangles: &[[u32; 3]], params: &Cluster
             .collect();
     }
     let buffers = buffers.iter().map(|b| b.iter().flat_map(|&p| patch(p as usize)).copied().collect()).collect();
-    Clustering { buffers, views, assignment, node_overdraw, framing, iterations }
+    Clustering { buffers, patches: rule, views, assignment, node_overdraw, framing, iterations }
 }
 
 /// The run-time table of a clustering ([`Lookup`]) with `polar` × `azimuth` cells per keyframe.
@@ -312,7 +324,7 @@ pub fn lookup(c: &Clustering, polar: usize, azimuth: usize) -> Lookup {
 
 /// What a bake stores of a clustering for run-time selection ([`Orders`]): its buffers,
 /// `keyframes` (clip index and time per keyframe), the patch rule, the framing and the lookup table.
-pub fn orders(c: &Clustering, keyframes: Vec<(u32, f32)>, patches: Patches) -> Orders {
+pub fn orders(c: &Clustering, keyframes: Vec<(u32, f32)>) -> Orders {
     let lookup = lookup(c, Orders::CELLS.0, Orders::CELLS.1);
-    Orders { patches, keyframes, framing: c.framing, buffers: c.buffers.clone(), lookup }
+    Orders { patches: c.patches, keyframes, framing: c.framing, buffers: c.buffers.clone(), lookup }
 }

@@ -121,7 +121,10 @@ pub fn evaluate(clips: &[Vec<Vec<Vec3>>], original: &[[u32; 3]], params: &EvalPa
     let mean_acmr = |bufs: &[Vec<[u32; 3]>]| -> f64 {
         bufs.iter().map(|b| acmr(b, vertex_count, cache) as f64).sum::<f64>() / bufs.len().max(1) as f64
     };
-    let patches = params.cluster.patches;
+    let first = clips.iter().flatten().next().map_or(&[][..], |k| k);
+    let started = Instant::now();
+    let (order, starts, patches) = cut(original, first, params.cluster.patches, cache);
+    let cut_s = started.elapsed().as_secs_f64();
     let mut rows = vec![MethodResult {
         method: "original",
         patches,
@@ -132,11 +135,9 @@ pub fn evaluate(clips: &[Vec<Vec<Vec3>>], original: &[[u32; 3]], params: &EvalPa
     }];
 
     let started = Instant::now();
-    let first = clips.iter().flatten().next().map_or(&[][..], |k| k);
-    let (order, starts) = cut(original, first, patches, cache);
     let per_frame: Vec<Vec<Vec<[u32; 3]>>> =
         clips.iter().map(|keys| keys.par_iter().map(|pos| occlusion_order(pos, &order, &starts)).collect()).collect();
-    let preprocess_s = started.elapsed().as_secs_f64();
+    let preprocess_s = cut_s + started.elapsed().as_secs_f64();
     let flat: Vec<Vec<[u32; 3]>> = per_frame.iter().flatten().cloned().collect();
     rows.push(MethodResult {
         method: "tipsify-per-frame",
