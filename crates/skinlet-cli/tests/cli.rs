@@ -440,7 +440,7 @@ fn overdraw_prints_one_row_per_method() {
     for (options, patches) in [
         (&["--order", "occlusion"][..], "compact 32"),
         (&["--order", "distance", "--lambda", "0.85"][..], "linear λ=0.85"),
-        (&["--patch-size", "16"][..], "compact 16"),
+        (&["--patch-size", "48"][..], "compact 48"),
     ] {
         let rows = json_of(&[&small[..], options, &["--json"]].concat());
         let rows = rows.as_array().unwrap();

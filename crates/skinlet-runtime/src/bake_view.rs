@@ -204,7 +204,7 @@ fn u32_at(b: &[u8], at: usize) -> Option<u32> {
 
 impl<'a> BakeView<'a> {
     /// Checks the header (magic, version) and the section table (every section inside the
-    /// file). `bytes` must start at a 4-byte aligned address, as a memory map or a buffer
+    /// file, no tag twice). `bytes` must start at a 4-byte aligned address, as a memory map or a buffer
     /// from the allocator does. Errors say what is wrong and where.
     pub fn new(bytes: &'a [u8]) -> Result<BakeView<'a>> {
         let head = |message: String| Error::invalid("bake header", message);
@@ -242,12 +242,19 @@ impl<'a> BakeView<'a> {
                 .ok_or_else(|| {
                     head(format!("byte {}: section {} lies outside the file", 16 + k * ENTRY, tag_name(&tag)))
                 })?;
+            if let Some(first) = sections.iter().position(|(t, _)| *t == tag) {
+                return Err(head(format!(
+                    "byte {}: section {} appears twice in the table (entries {first} and {k})",
+                    16 + k * ENTRY,
+                    tag_name(&tag)
+                )));
+            }
             sections.push((tag, body));
         }
         Ok(BakeView { sections })
     }
 
-    /// The bytes of section `tag` (the first with that tag), if the file has it.
+    /// The bytes of section `tag`, if the file has it.
     pub fn section(&self, tag: &[u8; 4]) -> Option<&'a [u8]> {
         self.sections.iter().find(|(t, _)| t == tag).map(|(_, b)| *b)
     }
@@ -899,6 +906,8 @@ mod tests {
         assert!(matches!(BakeView::new(&newer), Err(Error::Unsupported { .. })));
         let outside = file(&[(b"BNDS", 96, 64)], 144);
         assert!(error(bytemuck::cast_slice(&outside)).contains("section BNDS lies outside the file"));
+        let twice = file(&[(b"SKIN", 96, 4), (b"MLET", 112, 16), (b"SKIN", 128, 16)], 144);
+        assert!(error(bytemuck::cast_slice(&twice)).contains("byte 64: section SKIN appears twice"));
         let missing = file(&[(b"SKIN", 96, 4)], 144);
         assert!(error(bytemuck::cast_slice(&missing)).contains("section BNDS is missing"));
         let words = file(&[(b"SKIN", 96, 4), (b"MLET", 112, 16), (b"BNDS", 128, 16)], 148);

@@ -206,7 +206,10 @@ pub fn cluster(keyframes: &[Vec<Vec3>], triangles: &[[u32; 3]], params: &Cluster
                 let mut frags = Fragments::default();
                 rasterize(raster, n, &mut frags);
                 let visible = (0..patches).map(|p| frags.seen(p)).collect();
-                let occlusion = Occlusion::of_view(&frags, scratch);
+                let occlusion = match params.order {
+                    PatchOrder::Occlusion => Occlusion::of_view(&frags, scratch),
+                    PatchOrder::Distance => Vec::new(),
+                };
                 Node { covered: frags.covered, fragments: cache.then_some(frags), visible, occlusion }
             },
         )
