@@ -78,10 +78,13 @@ pub fn command(
     }
     let rows =
         evaluate(&frames, &prepared.mesh.triangles, &EvalParams { cluster: *params, views, ..EvalParams::default() });
+    // The share of the way from the original order's overdraw to none (None: no overdraw).
+    let original = rows.first().map_or(1.0, |r| r.ovr);
+    let share = |ovr: f64| (original > 1.0).then(|| (original - ovr) / (original - 1.0));
     if json {
         let out: Vec<_> = rows
             .iter()
-            .map(|r| json!({"method": r.method, "patches": r.patches.to_string(), "lambda": match r.patches { Patches::Linear { lambda } => Some(lambda), Patches::Compact { .. } => None }, "buffers": r.buffers, "acmr": r.acmr, "ovr": r.ovr, "preprocess_s": r.preprocess_s}))
+            .map(|r| json!({"method": r.method, "patches": r.patches.to_string(), "lambda": match r.patches { Patches::Linear { lambda } => Some(lambda), Patches::Compact { .. } => None }, "buffers": r.buffers, "acmr": r.acmr, "ovr": r.ovr, "share_to_no_overdraw": share(r.ovr), "preprocess_s": r.preprocess_s}))
             .collect();
         println!("{}", serde_json::to_string_pretty(&out)?);
         return Ok(());
@@ -93,10 +96,16 @@ pub fn command(
         clips.len()
     );
     println!("  patches: {}", params.patches);
-    println!("  {:<18} {:>8} {:>7} {:>7} {:>13}", "method", "buffers", "ACMR", "OVR", "preprocess s");
+    println!("  {:<18} {:>8} {:>7} {:>7} {:>7} {:>13}", "method", "buffers", "ACMR", "OVR", "share", "preprocess s");
     for r in &rows {
-        println!("  {:<18} {:>8} {:>7.3} {:>7.3} {:>13.2}", r.method, r.buffers, r.acmr, r.ovr, r.preprocess_s);
+        let share = share(r.ovr).map_or("-".to_string(), |x| format!("{:.0}%", 100.0 * x));
+        println!(
+            "  {:<18} {:>8} {:>7.3} {:>7.3} {share:>7} {:>13.2}",
+            r.method, r.buffers, r.acmr, r.ovr, r.preprocess_s
+        );
     }
-    println!("  (ACMR: FIFO cache of 16; OVR: shaded fragments per visible pixel, 1 = no overdraw; single: per clip)");
+    println!(
+        "  (ACMR: FIFO cache of 16; OVR: shaded fragments per visible pixel, 1 = no overdraw; share: of the way from the original OVR to 1; single: per clip)"
+    );
     Ok(())
 }

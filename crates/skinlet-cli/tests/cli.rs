@@ -453,6 +453,10 @@ fn overdraw_prints_one_row_per_method() {
             assert_eq!(r["patches"], patches, "{r}");
             assert_eq!(r["lambda"].as_f64(), patches.starts_with("linear").then_some(0.85f32 as f64), "{r}");
             assert!(r["ovr"].as_f64().unwrap() >= 1.0 && r["acmr"].as_f64().unwrap() <= 3.0, "{r}");
+            // The share of the way to no overdraw, from the original row's OVR.
+            let original = rows[0]["ovr"].as_f64().unwrap();
+            let share = r["share_to_no_overdraw"].as_f64().unwrap();
+            assert!((share - (original - r["ovr"].as_f64().unwrap()) / (original - 1.0)).abs() < 1e-9, "{r}");
         }
     }
     for (bad, mentions) in [
