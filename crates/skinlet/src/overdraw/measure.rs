@@ -409,6 +409,41 @@ pub fn axis_views(positions: &[Vec3]) -> [Mat4; 6] {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(200))]
+
+        /// Fragments grouped and ranked measure any group order exactly as rendering that
+        /// order does: random triangles on a coarse grid (so depths tie, triangles repeat and
+        /// cover one another), random groups, a random order of the groups.
+        #[test]
+        fn grouped_fragments_shade_like_a_render(
+            points in prop::collection::vec((0i32..9, 0i32..9, -3i32..4), 3..24),
+            tris in prop::collection::vec((0usize..24, 0usize..24, 0usize..24), 1..60),
+            cuts in prop::collection::vec(any::<bool>(), 60),
+            keys in prop::collection::vec(any::<u32>(), 60),
+        ) {
+            let positions: Vec<Vec3> =
+                points.iter().map(|&(x, y, z)| Vec3::new(x as f32 * 2.0, y as f32 * 2.0, z as f32)).collect();
+            let n = positions.len();
+            let triangles: Vec<[u32; 3]> = tris.iter().map(|&(a, b, c)| [(a % n) as u32, (b % n) as u32, (c % n) as u32]).collect();
+            let groups: Vec<u32> =
+                (0..triangles.len() as u32).filter(|&t| t == 0 || cuts[t as usize]).collect();
+            let mut order: Vec<u32> = (0..groups.len() as u32).collect();
+            order.sort_by_key(|&g| keys[g as usize]);
+            let end = |g: u32| groups.get(g as usize + 1).map_or(triangles.len(), |&e| e as usize);
+            let drawn: Vec<[u32; 3]> =
+                order.iter().flat_map(|&g| &triangles[groups[g as usize] as usize..end(g)]).copied().collect();
+            let vp = Mat4::orthographic_rh(0.0, 16.0, 0.0, 16.0, -10.0, 10.0);
+            let mut r = Raster::new(16, 16);
+            let mut frags = Fragments::default();
+            r.fragments(&positions, &triangles, &groups, &vp, &mut frags);
+            let full = r.render(&positions, &drawn, &vp);
+            prop_assert_eq!(frags.covered, full.covered);
+            prop_assert_eq!(frags.shade(order.iter().copied(), u64::MAX, &mut Vec::new()), Some(full.shaded));
+        }
+    }
 
     fn ortho() -> Mat4 {
         // Maps [0, 64] × [0, 64] to the 64 × 64 viewport, looking down −z.
