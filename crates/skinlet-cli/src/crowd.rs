@@ -12,10 +12,13 @@ use skinlet_lab::crowd::{CULLING_METHODS, CrowdParams, CrowdStats, WHOLE_MESH_BO
 /// culled shares (backface test only, frustum test only, both: `culled_total_pct`); what
 /// the backface test alone saves (`culled_backface_triangles_pct`,
 /// `culled_backface_skinning_pct`) against the per-triangle limit
-/// (`backfacing_triangles_pct`);
+/// (`backfacing_triangles_pct`); meshlet vertex references per instance-frame without
+/// culling and skinned after it (`vertex_refs_per_instance_frame`,
+/// `vertex_refs_skinned_per_instance_frame`: absolute, to compare builders);
 /// `false_culls` is null unless checked.
 pub fn to_json(s: &CrowdStats, checked: bool) -> Value {
     let loose = s.looseness();
+    let [refs, skinned] = s.vertex_refs_per_instance_frame();
     json!({
         "instances": s.instances, "frames": s.frames, "meshlets_total": s.meshlets,
         "culled_backface_pct": s.backface_only_pct(), "culled_frustum_pct": s.frustum_only_pct(),
@@ -24,6 +27,7 @@ pub fn to_json(s: &CrowdStats, checked: bool) -> Value {
         "culled_backface_skinning_pct": s.backface_only_skinning_pct(),
         "backfacing_triangles_pct": s.backfacing_triangles_pct(),
         "skinning_saved_pct": s.skinning_saved_pct(), "mesh_aabb_culled_pct": s.whole_mesh_pct(),
+        "vertex_refs_per_instance_frame": refs, "vertex_refs_skinned_per_instance_frame": skinned,
         "ns_per_meshlet": s.ns_per_meshlet(),
         "whole_mesh_looseness": WHOLE_MESH_BOUNDS.iter().zip(loose).map(|(n, l)| json!({"bound": n, "diagonal_ratio": l})).collect::<Vec<_>>(),
         "checked_triangles": s.checked_triangles,
@@ -58,6 +62,8 @@ pub fn print(s: &CrowdStats, verify: bool) {
         s.triangles_saved_pct(),
         s.skinning_saved_pct()
     );
+    let [refs, skinned] = s.vertex_refs_per_instance_frame();
+    println!("  meshlet vertex references skinned per instance-frame: {skinned:.0} of {refs:.0}");
     println!(
         "  whole-mesh culling by per-joint boxes alone: {:.1}% of meshlets; meshlet culling: {:.2} ns per meshlet",
         s.whole_mesh_pct(),

@@ -259,6 +259,7 @@ fn verify_and_bounds_report_in_json() {
         assert!(views[field].as_f64().is_some_and(|x| (0.0..=100.0).contains(&x)), "{field} missing in {views}");
     }
     assert_eq!(views["views"], 64, "{views}");
+    assert!(views["vertex_refs_skinned_per_view"].as_f64().is_some_and(|x| x > 0.0), "{views}");
     let (code, _, err) = skinlet(&["verify", file.to_str().unwrap(), "--clips", "nope"]);
     assert_eq!(code, 2);
     assert!(err.contains("no clip \"nope\""), "{err}");
@@ -329,6 +330,11 @@ fn cull_reports_table_one_columns_and_never_culls_visible_triangles() {
     }
     assert_eq!(j["false_culls"], 0, "{j}");
     assert!(j["checked_triangles"].as_u64().unwrap() > 0);
+    let (refs, skinned) = (
+        j["vertex_refs_per_instance_frame"].as_f64().unwrap(),
+        j["vertex_refs_skinned_per_instance_frame"].as_f64().unwrap(),
+    );
+    assert!(0.0 < skinned && skinned < refs, "{j}");
     assert_eq!(
         (j["builder"].as_str(), j["meshlets"].as_u64().unwrap() * 8 * 3),
         (Some("skin-aware"), j["meshlets_total"].as_u64().unwrap())

@@ -27,6 +27,9 @@ pub struct BackfaceSavings {
     /// Triangles and vertex references (skinning) in those meshlets.
     pub triangles_pct: f64,
     pub skinning_pct: f64,
+    /// Meshlet vertex references left to skin per view: absolute, to compare builders (more,
+    /// narrower meshlets share fewer vertices).
+    pub vertex_refs_skinned: f64,
     /// Triangles back-facing or edge-on one by one after skinning.
     pub backfacing_triangles_pct: f64,
 }
@@ -88,6 +91,7 @@ pub fn backface_savings(
         meshlets_pct: pct(culled, meshlets.len()),
         triangles_pct: pct(culled_tris, all_tris),
         skinning_pct: pct(culled_refs, all_refs),
+        vertex_refs_skinned: (all_refs * views - culled_refs) as f64 / views.max(1) as f64,
         backfacing_triangles_pct: pct(backfacing, all_tris),
     })
 }
@@ -126,5 +130,6 @@ mod tests {
         let (rest_base, rest_split) = (savings(&base, &[]), savings(&split, &[]));
         assert!(rest_base.meshlets_pct > 0.0, "{rest_base:?}");
         assert!(rest_split.triangles_pct > rest_base.triangles_pct, "{rest_split:?} vs {rest_base:?}");
+        assert!(rest_split.vertex_refs_skinned < rest_base.vertex_refs_skinned, "{rest_split:?} vs {rest_base:?}");
     }
 }

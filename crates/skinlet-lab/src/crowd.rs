@@ -353,6 +353,14 @@ impl CrowdStats {
     pub fn skinning_saved_pct(&self) -> f64 {
         self.pct(self.vertex_refs_culled, self.vertex_refs)
     }
+    /// Meshlet vertex references skinned per instance-frame without culling and after
+    /// culling with both tests: absolute counts, comparable across builders (a builder with
+    /// more, narrower meshlets shares fewer vertices, so a larger culled share can still
+    /// leave more to skin).
+    pub fn vertex_refs_per_instance_frame(&self) -> [f64; 2] {
+        let n = (self.instances * self.frames).max(1) as f64;
+        [self.vertex_refs as f64 / n, (self.vertex_refs - self.vertex_refs_culled) as f64 / n]
+    }
     pub fn whole_mesh_pct(&self) -> f64 {
         self.pct(self.whole_mesh_culled, self.meshlets)
     }

@@ -5,8 +5,8 @@
 //! Seven builders share one layout ([`Meshlets`]) and one entry point ([`build`]):
 //! [`scan`] (thesis listing 4.1), [`common_influences`] (thesis listing 4.2 / A.2),
 //! [`greedy`] (meshoptimizer's three: greedy, flex, spatial), [`skin_aware`] and
-//! [`cone_split`] (ours: skin-aware partitions cut, merged and split for backface culling). Every builder works on a
-//! [`prepare()`]d mesh (welded, vertex-cache ordered). Every meshlet whose vertices all have
+//! [`cone_split`] (ours: skin-aware meshlets cut by face normal where that saves skinning).
+//! Every builder works on a [`prepare()`]d mesh (welded, vertex-cache ordered). Every meshlet whose vertices all have
 //! the same set of influencing joints carries that set once ([`Meshlet::joint_count`] > 0),
 //! so those vertices can use a slim format without joint IDs (thesis section 3.1.1).
 //!
