@@ -217,11 +217,27 @@ mod tests {
 
     /// A thin open tube along y (a limb): `segments` around, `rings` along, one joint.
     fn tube(segments: u32, rings: u32) -> SkinnedMesh {
+        bumpy_tube(segments, rings, 0.0, 0)
+    }
+
+    /// The tube with its radius swelling by up to `bump` and every vertex moved by a
+    /// pseudo-random offset of up to 0.01 (none for seed 0).
+    fn bumpy_tube(segments: u32, rings: u32, bump: f32, seed: u64) -> SkinnedMesh {
+        let mut state = seed;
+        let mut jitter = || {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            if seed == 0 { 0.0 } else { 0.01 * ((state >> 40) as f32 / (1u64 << 24) as f32 - 0.5) }
+        };
         let mut positions = Vec::new();
         for r in 0..rings {
             for s in 0..segments {
                 let a = std::f32::consts::TAU * s as f32 / segments as f32;
-                positions.push(Vec3::new(0.1 * a.cos(), 0.05 * r as f32, -0.1 * a.sin()));
+                let radius = 0.1 * (1.0 + bump * (0.3 * r as f32).sin());
+                positions.push(Vec3::new(
+                    radius * a.cos() + jitter(),
+                    0.05 * r as f32 + jitter(),
+                    -radius * a.sin() + jitter(),
+                ));
             }
         }
         let at = |r: u32, s: u32| r * segments + s % segments;
@@ -268,5 +284,31 @@ mod tests {
         // No budget beyond the base: the skin-aware meshlets, repacked.
         let none = build(&mesh, limits, &Params { budget: 0.0, ..params });
         assert_eq!(none.len(), base.len());
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig { cases: 32, ..Default::default() })]
+        /// Every cut lowers the expected skinning, so the result never skins more than the
+        /// skin-aware meshlets it starts from; valid, within budget and deterministic.
+        #[test]
+        fn never_more_expected_skinning_than_skin_aware(
+            segments in 3u32..40,
+            rings in 2u32..60,
+            bump in 0.0f32..1.5,
+            seed in 0u64..1000,
+            small in proptest::bool::ANY,
+        ) {
+            let mesh = super::super::prepare(&bumpy_tube(segments, rings, bump, seed)).mesh;
+            let limits = if small { MeshletLimits::SMALL } else { MeshletLimits::NVIDIA };
+            let params = Params::default();
+            let ours = build(&mesh, limits, &params);
+            ours.validate(&mesh.triangles, limits).unwrap();
+            proptest::prop_assert_eq!(&ours, &build(&mesh, limits, &params));
+            let base = skin_aware::build(&mesh, limits, &params.skin_aware);
+            let reference = greedy::build(&mesh.triangles, &mesh.positions, limits, greedy::CONE_WEIGHT);
+            proptest::prop_assert!(ours.len() as f32 <= params.budget * reference.len() as f32 || ours.len() == base.len());
+            let (ours_work, base_work) = (expected(&mesh, &ours).0, expected(&mesh, &base).0);
+            proptest::prop_assert!(ours_work <= base_work + 1e-6, "{} vs skin-aware {}", ours_work, base_work);
+        }
     }
 }
