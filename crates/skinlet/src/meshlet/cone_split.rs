@@ -13,16 +13,20 @@
 //!
 //! Method. A meshlet's *expected work* is its vertex count × `(1 − p)`, with α the
 //! narrowest cone around its rest face normals ([`crate::bounds::cone::reference_axis`]).
-//! Each meshlet's best cut is 2-means on its face normals (seeded with the normal farthest
-//! from the cone axis and the one farthest from that). Cuts are made largest saving of
-//! expected work first, the halves' own cuts considered in turn, while a cut saves work and
-//! the count stays within the budget: `budget` × meshoptimizer's meshlet count on the same
-//! parts and limits, or the skin-aware count where that is more. The halves of a meshlet
-//! stay within its skin-aware partition (one dominant joint, rigid or blended), so the joint
-//! coherence that keeps animated bounds tight is kept.
+//! The start is the skin-aware builder with one change: each skin partition is packed by
+//! meshoptimizer's greedy builder (the skin-aware cone weight) or by its flex builder,
+//! whichever leaves less expected work. Each meshlet's best cut is 2-means on its face
+//! normals (seeded with the normal farthest from the cone axis and the one farthest from
+//! that). Cuts are made largest saving of expected work first, the halves' own cuts
+//! considered in turn, while a cut saves work and the count stays within the budget:
+//! `budget` × meshoptimizer's meshlet count on the same parts and limits, or the skin-aware
+//! count where that is more. A start over the budget, or with more expected work than the
+//! skin-aware meshlets, is replaced by them, so the result never has more expected work
+//! than they do. The halves hold a subset of a starting meshlet's triangles, so a cut never
+//! adds a joint to a meshlet: the joint coherence that keeps animated bounds tight is kept.
 //!
 //! Guarantee: the output is a valid meshlet set of the same triangles ([`Meshlets::validate`]),
-//! each meshlet within one part, in the skin-aware meshlets' order (so the parts stay in
+//! each meshlet within one part, in the starting meshlets' order (so the parts stay in
 //! order); for the same mesh and parameters it is the same (no randomness, ties broken by
 //! index).
 
@@ -53,7 +57,7 @@ pub fn build(mesh: &SkinnedMesh, limits: MeshletLimits, params: &Params) -> Mesh
     build_parts(mesh, &[whole], limits, params)
 }
 
-/// A piece of the mesh: its triangles and the skin-aware meshlet it came from.
+/// A piece of the mesh: its triangles and the starting meshlet it came from.
 struct Piece {
     triangles: Vec<[u32; 3]>,
     origin: usize,
@@ -62,20 +66,31 @@ struct Piece {
 /// Builds the meshlets of a mesh made of `parts` ([`super::prepare_parts`]); the budget
 /// counts over all parts.
 pub fn build_parts(mesh: &SkinnedMesh, parts: &[PartRange], limits: MeshletLimits, params: &Params) -> Meshlets {
-    let mut reference = 0;
-    let mut skin_aware = Meshlets::default();
+    let (mut reference, mut skin_aware, mut start) = (0, Meshlets::default(), Meshlets::default());
     for p in parts {
         let range = p.triangles.start as usize..p.triangles.end as usize;
         reference += greedy::build(&mesh.triangles[range], &mesh.positions, limits, greedy::CONE_WEIGHT).len();
         let part = mesh.slice(p.vertices.clone(), p.triangles.clone());
-        skin_aware.append(&skin_aware::build(&part, limits, &params.skin_aware), p.vertices.start);
+        let keys = skin_aware::partitions(&part, limits, &params.skin_aware);
+        skin_aware.append(&skin_aware::build_partitioned(&part, &keys, limits, &params.skin_aware), p.vertices.start);
+        let pack = |tris: &[[u32; 3]]| {
+            let plain = greedy::build(tris, &part.positions, limits, params.skin_aware.cone_weight);
+            let flex = greedy::build_with(tris, &part.positions, limits, greedy::FLEX);
+            if total_work(&part.positions, &flex) < total_work(&part.positions, &plain) { flex } else { plain }
+        };
+        start.append(
+            &skin_aware::build_partitioned_by(&part, &keys, limits, &params.skin_aware, pack),
+            p.vertices.start,
+        );
     }
     let budget = ((params.budget.max(0.0) * reference as f32) as usize).max(skin_aware.len());
-    let pieces: Vec<Piece> = skin_aware
+    let cheaper = total_work(&mesh.positions, &start) <= total_work(&mesh.positions, &skin_aware);
+    let start = if start.len() <= budget && cheaper { start } else { skin_aware };
+    let pieces: Vec<Piece> = start
         .meshlets
         .iter()
         .enumerate()
-        .map(|(origin, m)| Piece { triangles: skin_aware.mesh_triangles(m).collect(), origin })
+        .map(|(origin, m)| Piece { triangles: start.mesh_triangles(m).collect(), origin })
         .collect();
     let mut pieces = split(&mesh.positions, pieces, budget);
     pieces.sort_by_key(|p| p.origin);
@@ -123,6 +138,11 @@ fn expected_work(positions: &[Vec3], tris: &[[u32; 3]]) -> f64 {
     verts.sort_unstable();
     verts.dedup();
     verts.len() as f64 * (1.0 - culled_share(&normals))
+}
+
+/// Expected vertex skinning of a set of meshlets ([`expected_work`] summed).
+fn total_work(positions: &[Vec3], meshlets: &Meshlets) -> f64 {
+    meshlets.meshlets.iter().map(|m| expected_work(positions, &meshlets.mesh_triangles(m).collect::<Vec<_>>())).sum()
 }
 
 /// A cut of piece `index` into two halves, taken largest `saving` first; ties by index.
@@ -281,7 +301,7 @@ mod tests {
         let ((ours_work, ours_culled), (base_work, base_culled)) = (expected(&mesh, &ours), expected(&mesh, &base));
         assert!(ours_work < base_work, "skinning {ours_work} vs skin-aware {base_work}");
         assert!(ours_culled > 1.1 * base_culled, "culled triangles {ours_culled} vs skin-aware {base_culled}");
-        // No budget beyond the base: the skin-aware meshlets, repacked.
+        // No budget beyond the skin-aware count: no cut, as many meshlets.
         let none = build(&mesh, limits, &Params { budget: 0.0, ..params });
         assert_eq!(none.len(), base.len());
     }

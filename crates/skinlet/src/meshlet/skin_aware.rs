@@ -65,13 +65,27 @@ pub fn build(mesh: &SkinnedMesh, limits: MeshletLimits, params: &Params) -> Mesh
 
 /// The skin-aware meshlets of a mesh whose triangles' partitions are `key` ([`partitions`]).
 pub fn build_partitioned(mesh: &SkinnedMesh, key: &[u32], limits: MeshletLimits, params: &Params) -> Meshlets {
+    build_partitioned_by(mesh, key, limits, params, |tris| {
+        greedy::build(tris, &mesh.positions, limits, params.cone_weight)
+    })
+}
+
+/// [`build_partitioned`] with each partition's triangles packed by `pack` instead of
+/// meshoptimizer's greedy builder.
+pub(super) fn build_partitioned_by(
+    mesh: &SkinnedMesh,
+    key: &[u32],
+    limits: MeshletLimits,
+    params: &Params,
+    pack: impl Fn(&[[u32; 3]]) -> Meshlets,
+) -> Meshlets {
     let mut by_key: BTreeMap<u32, Vec<[u32; 3]>> = BTreeMap::new();
     for (t, &k) in mesh.triangles.iter().zip(key) {
         by_key.entry(k).or_default().push(*t);
     }
     let mut out = Meshlets::default();
     for tris in by_key.values() {
-        let part = greedy::build(tris, &mesh.positions, limits, params.cone_weight);
+        let part = pack(tris);
         for m in &part.meshlets {
             out.push(part.vertices_of(m), part.triangles_of(m));
         }
