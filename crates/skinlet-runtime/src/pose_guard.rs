@@ -63,7 +63,9 @@ pub struct NodeRange {
     pub node: u32,
     /// Unit centre rotation.
     pub centre: Quat,
-    /// Largest rotation angle from the centre that the bounds cover (radians, at most π).
+    /// Largest rotation angle from the centre that the bounds cover (radians, from
+    /// 2 × [`GUARD_SLACK`] to π: the guard admits rotations up to `GUARD_SLACK` less, so a
+    /// narrower cap could admit none; envelopes made by the baker add `2 × GUARD_SLACK`).
     pub angle: f32,
     /// Translation and scale boxes (min, max).
     pub translation: (Vec3, Vec3),
@@ -71,7 +73,7 @@ pub struct NodeRange {
 }
 
 /// Checks an envelope's ranges from outside (a file): nodes listed once (and below
-/// `node_count` when given), unit finite centres, angles in [0, π], ordered finite boxes,
+/// `node_count` when given), unit finite centres, angles in [2 × [`GUARD_SLACK`], π], ordered finite boxes,
 /// `weight_count` morph weight ranges, ordered and finite.
 pub fn check_ranges(
     nodes: &[NodeRange],
@@ -94,6 +96,13 @@ pub fn check_ranges(
         if !(unit && (0.0..=std::f32::consts::PI).contains(&r.angle) && ordered(r.translation) && ordered(r.scale)) {
             return bad(format!("node {}: {r:?} (need a unit centre, an angle in [0, π], ordered boxes)", r.node));
         }
+        if (r.angle as f64) < 2.0 * GUARD_SLACK {
+            return bad(format!(
+                "node {}: cap angle {:e} rad is below twice the guard's slack ({:e} rad): the guard could admit no \
+                 rotation",
+                r.node, r.angle, GUARD_SLACK
+            ));
+        }
     }
     if weights.len() != weight_count {
         return bad(format!("{} morph weight ranges for {weight_count} morph weights", weights.len()));
@@ -109,7 +118,8 @@ pub fn check_ranges(
 /// for it hold. Per listed node one quaternion product and two box tests, in f32, no
 /// allocation. A rotation `q` is compared by the vector part of `centre⁻¹·q` (accurate for
 /// small angles too, where a cosine is flat): `|v|² ≤ tan²(θ/2)·w²` for an angle
-/// [`GUARD_SLACK`] smaller than the bounds cover; boxes and ranges are widened by
+/// [`GUARD_SLACK`] smaller than the bounds cover (a cap of π covers, and admits, every
+/// rotation); boxes and ranges are widened by
 /// [`BOX_SLACK`], half what the bounds cover. Built once per envelope ([`PoseGuard::new`]).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct PoseGuard {
@@ -138,6 +148,10 @@ impl PoseGuard {
             centres: nodes.iter().map(|r| r.centre.conjugate()).collect(),
             tan2: (nodes.iter())
                 .map(|r| {
+                    // A cap of π holds every rotation: nothing to keep a slack from.
+                    if r.angle >= std::f32::consts::PI {
+                        return f32::INFINITY;
+                    }
                     let half = (r.angle as f64 - GUARD_SLACK) / 2.0;
                     if half < 0.0 { -1.0 } else { half.tan().powi(2) as f32 }
                 })
@@ -161,7 +175,7 @@ impl PoseGuard {
             let Some(l) = locals.get(self.nodes[i] as usize) else { return false };
             let rel = self.centres[i] * l.rotation;
             let v2 = rel.x * rel.x + rel.y * rel.y + rel.z * rel.z;
-            v2 <= self.tan2[i] * rel.w * rel.w
+            (v2 <= self.tan2[i] * rel.w * rel.w || (self.tan2[i] == f32::INFINITY && rel.is_finite()))
                 && inside(l.translation, self.translation[i])
                 && inside(l.scale, self.scale[i])
         }) && self.admits_weights(weights)
@@ -171,5 +185,62 @@ impl PoseGuard {
     /// any joints then.
     pub fn admits_weights(&self, weights: &[f32]) -> bool {
         weights.len() == self.weights.len() && weights.iter().zip(&self.weights).all(|(w, r)| (r.0..=r.1).contains(w))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn range(centre: Quat, angle: f32) -> NodeRange {
+        NodeRange { node: 0, centre, angle, translation: (Vec3::ZERO, Vec3::ZERO), scale: (Vec3::ONE, Vec3::ONE) }
+    }
+
+    #[test]
+    fn a_cap_narrower_than_the_slack_is_refused_with_a_reason() {
+        let err = PoseGuard::new(&[range(Quat::IDENTITY, 3e-6)], &[]).unwrap_err().to_string();
+        assert!(err.contains("node 0") && err.contains("slack"), "{err}");
+        assert!(PoseGuard::new(&[range(Quat::IDENTITY, (2.0 * GUARD_SLACK) as f32 * 1.0001)], &[]).is_ok());
+    }
+
+    proptest! {
+        /// The narrowest cap the guard takes still admits its centre and every rotation
+        /// `2 × GUARD_SLACK` inside it, for any centre and axis (the f32 product's rounding
+        /// stays within the slack); and refuses rotations past the cap.
+        #[test]
+        fn narrow_and_wide_caps_admit_what_they_cover(
+            c in prop::array::uniform4(-1.0f32..1.0),
+            a in prop::array::uniform3(-1.0f32..1.0),
+            wide in 0.0f32..3.0,
+            f in 0.0f32..1.0,
+        ) {
+            let centre = Quat::from_array(c);
+            let axis = Vec3::from_array(a);
+            prop_assume!(centre.length() > 0.1 && axis.length() > 0.1);
+            let (centre, axis) = (centre.normalize(), axis.normalize());
+            for angle in [(2.0 * GUARD_SLACK) as f32 * 1.0001, wide + (2.0 * GUARD_SLACK) as f32] {
+                let guard = PoseGuard::new(&[range(centre, angle)], &[]).unwrap();
+                let pose = |turn: f32| {
+                    [Trs { rotation: (Quat::from_axis_angle(axis, turn) * centre).normalize(), translation: Vec3::ZERO, scale: Vec3::ONE }]
+                };
+                let inside = (angle - (2.0 * GUARD_SLACK) as f32).max(0.0);
+                prop_assert!(guard.admits(&pose(0.0), &[]), "centre of a cap of {angle}");
+                for turn in [f * inside, inside] {
+                    prop_assert!(guard.admits(&pose(turn), &[]), "{turn} inside a cap of {angle}");
+                }
+                if angle + 0.01 < std::f32::consts::PI {
+                    prop_assert!(!guard.admits(&pose(angle + 0.01), &[]), "past a cap of {angle}");
+                }
+            }
+            // A cap of π (envelopes clamp there) holds every rotation, half a turn included.
+            let guard = PoseGuard::new(&[range(centre, std::f32::consts::PI)], &[]).unwrap();
+            for turn in [f * std::f32::consts::PI, std::f32::consts::PI] {
+                let rotation = (Quat::from_axis_angle(axis, turn) * centre).normalize();
+                prop_assert!(guard.admits(&[Trs { rotation, ..Trs::IDENTITY }], &[]), "{turn} in a cap of π");
+            }
+            let nan = Trs { rotation: Quat::from_xyzw(f32::NAN, 0.0, 0.0, 1.0), ..Trs::IDENTITY };
+            prop_assert!(!guard.admits(&[nan], &[]));
+        }
     }
 }

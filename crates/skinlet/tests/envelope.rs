@@ -11,13 +11,14 @@ mod rig;
 use glam::{Quat, Vec3};
 use proptest::prelude::*;
 use rig::{Rng, random_character, random_morphs, random_triangles};
-use skinlet::bounds::envelope::{Envelope, NodeRange, envelope_bounds};
+use skinlet::bounds::envelope::{Envelope, GUARD_SLACK, NodeRange, envelope_bounds};
 use skinlet::bounds::verify::verify_poses;
 use skinlet::meshlet::{Builder, MeshletLimits, build, prepare};
 use skinlet::model::{Skeleton, Trs};
 
-/// A random envelope around the rest pose: caps up to 80° (so blends stay inside), boxes up
-/// to 0.5 wide around the rest translation and scale (scales kept away from zero).
+/// A random envelope around the rest pose: caps up to 80° (so blends stay inside; never
+/// below the guard's `2 × GUARD_SLACK`, as the baker's envelopes), boxes up to 0.5 wide
+/// around the rest translation and scale (scales kept away from zero).
 fn random_envelope(r: &mut Rng, skeleton: &Skeleton, weights: usize) -> Envelope {
     let nodes = (skeleton.nodes.iter().enumerate())
         .filter(|(_, n)| n.matrix.is_none())
@@ -37,7 +38,7 @@ fn random_envelope(r: &mut Rng, skeleton: &Skeleton, weights: usize) -> Envelope
             NodeRange {
                 node: i as u32,
                 centre: (Quat::from_axis_angle(r.axis(), r.range(0.0, 0.5)) * n.rest.rotation).normalize(),
-                angle: r.range(0.0, 1.4),
+                angle: r.range(0.0, 1.4) + 2.0 * GUARD_SLACK as f32,
                 translation: around(r, n.rest.translation),
                 scale,
             }
@@ -237,4 +238,15 @@ proptest! {
 fn any_pose_boxes_cull_often_enough_to_matter() {
     let culled: usize = (0..100u64).map(|s| check_any_pose(s).unwrap()).sum();
     assert!(culled > 500, "only {culled} meshlets culled");
+}
+
+/// Seeds that once failed: a random envelope whose cap was narrower than the guard's slack
+/// (the guard refused every pose; caps now cover at least `2 × GUARD_SLACK`), and an
+/// envelope from a clip whose cap was clamped at π, where the guard's slack refused the
+/// clip's own rotation 6.5e-6 rad short of π (a cap of π now admits every rotation).
+#[test]
+fn seeds_that_once_failed() {
+    for seed in [12654716821585209138, 10040265092934127543] {
+        check_envelope(seed).unwrap();
+    }
 }
