@@ -96,7 +96,7 @@ pub fn check_ranges(
         if !(unit && (0.0..=std::f32::consts::PI).contains(&r.angle) && ordered(r.translation) && ordered(r.scale)) {
             return bad(format!("node {}: {r:?} (need a unit centre, an angle in [0, π], ordered boxes)", r.node));
         }
-        if (r.angle as f64) < 2.0 * GUARD_SLACK {
+        if r.angle < (2.0 * GUARD_SLACK) as f32 {
             return bad(format!(
                 "node {}: cap angle {:e} rad is below twice the guard's slack ({:e} rad): the guard could admit no \
                  rotation",
@@ -201,7 +201,7 @@ mod tests {
     fn a_cap_narrower_than_the_slack_is_refused_with_a_reason() {
         let err = PoseGuard::new(&[range(Quat::IDENTITY, 3e-6)], &[]).unwrap_err().to_string();
         assert!(err.contains("node 0") && err.contains("slack"), "{err}");
-        assert!(PoseGuard::new(&[range(Quat::IDENTITY, (2.0 * GUARD_SLACK) as f32 * 1.0001)], &[]).is_ok());
+        assert!(PoseGuard::new(&[range(Quat::IDENTITY, (2.0 * GUARD_SLACK) as f32)], &[]).is_ok());
     }
 
     proptest! {
@@ -219,7 +219,7 @@ mod tests {
             let axis = Vec3::from_array(a);
             prop_assume!(centre.length() > 0.1 && axis.length() > 0.1);
             let (centre, axis) = (centre.normalize(), axis.normalize());
-            for angle in [(2.0 * GUARD_SLACK) as f32 * 1.0001, wide + (2.0 * GUARD_SLACK) as f32] {
+            for angle in [(2.0 * GUARD_SLACK) as f32, wide + (2.0 * GUARD_SLACK) as f32] {
                 let guard = PoseGuard::new(&[range(centre, angle)], &[]).unwrap();
                 let pose = |turn: f32| {
                     [Trs { rotation: (Quat::from_axis_angle(axis, turn) * centre).normalize(), translation: Vec3::ZERO, scale: Vec3::ONE }]
