@@ -73,8 +73,8 @@ pub struct NodeRange {
 }
 
 /// Checks an envelope's ranges from outside (a file): nodes listed once (and below
-/// `node_count` when given), unit finite centres, angles in [2 × [`GUARD_SLACK`], π], ordered finite boxes,
-/// `weight_count` morph weight ranges, ordered and finite.
+/// `node_count` when given), unit finite centres, angles in [2 × [`GUARD_SLACK`], π],
+/// ordered finite boxes, `weight_count` morph weight ranges, ordered and finite.
 pub fn check_ranges(
     nodes: &[NodeRange],
     weights: &[(f32, f32)],
@@ -119,8 +119,8 @@ pub fn check_ranges(
 /// allocation. A rotation `q` is compared by the vector part of `centre⁻¹·q` (accurate for
 /// small angles too, where a cosine is flat): `|v|² ≤ tan²(θ/2)·w²` for an angle
 /// [`GUARD_SLACK`] smaller than the bounds cover (a cap of π covers, and admits, every
-/// rotation); boxes and ranges are widened by
-/// [`BOX_SLACK`], half what the bounds cover. Built once per envelope ([`PoseGuard::new`]).
+/// rotation); boxes and ranges are widened by [`BOX_SLACK`], half what the bounds cover.
+/// Built once per envelope ([`PoseGuard::new`]).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct PoseGuard {
     nodes: Vec<u32>,
@@ -152,8 +152,8 @@ impl PoseGuard {
                     if r.angle >= std::f32::consts::PI {
                         return f32::INFINITY;
                     }
-                    let half = (r.angle as f64 - GUARD_SLACK) / 2.0;
-                    if half < 0.0 { -1.0 } else { half.tan().powi(2) as f32 }
+                    // `check_ranges` keeps the angle at least twice the slack.
+                    ((r.angle as f64 - GUARD_SLACK) / 2.0).tan().powi(2) as f32
                 })
                 .collect(),
             translation: nodes.iter().map(|r| widen(r.translation)).collect(),
