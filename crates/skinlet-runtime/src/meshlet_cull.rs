@@ -855,7 +855,7 @@ mod tests {
     proptest! {
         #![proptest_config(ProptestConfig { cases: 3000, ..ProptestConfig::default() })]
 
-        /// Whatever the joint matrix and camera: when the frustum test culls, every sampled
+        /// Whatever the joint matrix and camera (also far from the origin): when the frustum test culls, every sampled
         /// point of the moved sphere (random surface points and each plane's extreme point)
         /// is outside one plane; when the backface test culls, every sampled point sees every
         /// sampled normal of the moved cone (moved by cof(A)) from behind.
@@ -869,7 +869,11 @@ mod tests {
             ortho in any::<bool>(), eye in prop::array::uniform3(-12.0f64..12.0),
             target in prop::array::uniform3(-3.0f64..3.0),
             samples in prop::collection::vec((prop::array::uniform3(-1.0f64..1.0), 0.0f64..1.0, 0.0f64..6.3), 48),
+            far in prop_oneof![Just([0.0; 3]), prop::array::uniform3(-1e5f64..1e5)],
         ) {
+            // Game worlds: the joint and the camera may both be far from the origin.
+            let (t, eye, target) = ([0, 1, 2].map(|i| t[i] + far[i]), [0, 1, 2].map(|i| eye[i] + far[i]),
+                [0, 1, 2].map(|i| target[i] + far[i]));
             let axis = unit(a);
             let b = MeshletBounds {
                 joint: 0, center: DVec3::from(c).as_vec3(), radius: radius as f32, rest_radius: radius as f32,
