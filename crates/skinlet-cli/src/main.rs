@@ -952,7 +952,9 @@ fn meshlets(file: &str, builder: &str, limits: MeshletLimits, json: bool) -> Res
     let mut rows = Vec::new();
     for b in builders {
         let started = std::time::Instant::now();
-        let m = skinlet::meshlet::build(&prepared, b, limits)?;
+        let all: Vec<&Clip> = asset.clips.iter().collect();
+        let motion = skinlet::meshlet::motion_for(b, &asset.skeleton, &character.palette, &prepared.mesh, &all)?;
+        let m = skinlet::meshlet::build_moving(&prepared, b, limits, motion.as_ref())?;
         let build_ms = started.elapsed().as_secs_f64() * 1e3;
         m.validate(&prepared.mesh.triangles, limits)?;
         let spread = skinlet::meshlet::stats::animated_radius_ratio(&prepared.mesh, &m, &poses);
@@ -1067,7 +1069,8 @@ fn bounds(file: &str, builder: &str, clips: Option<&str>, args: RefineArgs, json
     let sr = args.sr;
     let mut rows = Vec::new();
     for b in builders {
-        let meshlets = skinlet::meshlet::build(&prepared, b, MeshletLimits::NVIDIA)?;
+        let motion = skinlet::meshlet::motion_for(b, &asset.skeleton, &character.palette, &prepared.mesh, &clips)?;
+        let meshlets = skinlet::meshlet::build_moving(&prepared, b, MeshletLimits::NVIDIA, motion.as_ref())?;
         let started = std::time::Instant::now();
         let refined = skinlet::bounds::refine::refine(
             &asset.skeleton,

@@ -122,7 +122,7 @@ mod tests {
             s
         };
         let base = skin_aware::build(mesh, limits, &Default::default());
-        let split = cone_split::build(mesh, limits, &cone_split::Params { budget: 2.0, ..Default::default() });
+        let split = cone_split::build(mesh, limits, &cone_split::Params { budget: 2.0, ..Default::default() }, None);
         // Over the clips, and in the rest pose (every cone under 90° usable), where splitting
         // wide cones must pay.
         let clips: Vec<&Clip> = asset.clips.iter().collect();

@@ -19,7 +19,9 @@ use crate::character::{Character, PartKind};
 use crate::clip::Clip;
 use crate::contour::skinned::{SkinnedParams, skinned_edges};
 use crate::cull::any_pose::AnyPoseBoxes;
-use crate::meshlet::{Builder, MeshletLimits, Meshlets, PartRange, PreparedMesh, build, flat, prepare_parts};
+use crate::meshlet::{
+    Builder, MeshletLimits, Meshlets, PartRange, PreparedMesh, build_moving, flat, motion_for, prepare_parts,
+};
 use crate::model::{Asset, Influences, Morphs, Skin, SkinnedMesh};
 use crate::overdraw::cluster::{ClusterParams, Orders, cluster};
 use crate::overdraw::evaluate::keyframes;
@@ -132,7 +134,8 @@ pub fn bake(
 ) -> Result<(Baked, BakeStats)> {
     let s = &character.palette;
     let prepared = prepare_character(character)?;
-    let meshlets = build(&prepared, builder, limits)?;
+    let motion = motion_for(builder, &asset.skeleton, s, &prepared.mesh, clips)?;
+    let meshlets = build_moving(&prepared, builder, limits, motion.as_ref())?;
     let mut parts = Vec::with_capacity(character.parts.len());
     let mut first_meshlet = 0u32;
     for (p, r) in character.parts.iter().zip(&prepared.parts) {

@@ -223,6 +223,17 @@ impl Builder {
 /// holds triangles of two parts; the meshlets follow the parts' order), and records shared
 /// joint sets.
 pub fn build(prepared: &PreparedMesh, builder: Builder, limits: MeshletLimits) -> Result<Meshlets> {
+    build_moving(prepared, builder, limits, None)
+}
+
+/// [`build`], with the poses the bounds will cover sampled for the builders that read them
+/// (cone-split: cones over the poses, not the rest pose alone).
+pub fn build_moving(
+    prepared: &PreparedMesh,
+    builder: Builder,
+    limits: MeshletLimits,
+    motion: Option<&cone_split::Motion>,
+) -> Result<Meshlets> {
     limits.check()?;
     let mesh = &prepared.mesh;
     let one = |mesh: &crate::model::SkinnedMesh| match builder {
@@ -231,14 +242,14 @@ pub fn build(prepared: &PreparedMesh, builder: Builder, limits: MeshletLimits) -
         Builder::Meshopt => greedy::build(&mesh.triangles, &mesh.positions, limits, greedy::CONE_WEIGHT),
         Builder::SkinAware => skin_aware::build(mesh, limits, &skin_aware::Params::default()),
         // One part; several go through `build_parts` below (one budget over all of them).
-        Builder::ConeSplit => cone_split::build(mesh, limits, &cone_split::Params::default()),
+        Builder::ConeSplit => cone_split::build(mesh, limits, &cone_split::Params::default(), motion),
         Builder::MeshoptFlex => greedy::build_with(&mesh.triangles, &mesh.positions, limits, greedy::FLEX),
         Builder::MeshoptSpatial => greedy::build_with(&mesh.triangles, &mesh.positions, limits, greedy::SPATIAL),
     };
     let mut meshlets = if prepared.parts.len() <= 1 {
         one(mesh)
     } else if builder == Builder::ConeSplit {
-        cone_split::build_parts(mesh, &prepared.parts, limits, &cone_split::Params::default())
+        cone_split::build_parts(mesh, &prepared.parts, limits, &cone_split::Params::default(), motion)
     } else {
         let mut all = Meshlets::default();
         for p in &prepared.parts {
@@ -250,6 +261,22 @@ pub fn build(prepared: &PreparedMesh, builder: Builder, limits: MeshletLimits) -
         annotate_joint_sets(&mut meshlets, inf);
     }
     Ok(meshlets)
+}
+
+/// The poses [`build_moving`] reads for `builder` over `clips` (about 48 in all, 2 to 8 per
+/// clip); `None` for builders that read none, or without clips.
+pub fn motion_for(
+    builder: Builder,
+    skeleton: &crate::model::Skeleton,
+    skin: &crate::model::Skin,
+    mesh: &crate::model::SkinnedMesh,
+    clips: &[&crate::clip::Clip],
+) -> Result<Option<cone_split::Motion>> {
+    if builder != Builder::ConeSplit || clips.is_empty() || mesh.influences.is_none() {
+        return Ok(None);
+    }
+    let per_clip = (48 / clips.len()).clamp(2, 8);
+    cone_split::Motion::sample(skeleton, skin, mesh, clips, per_clip).map(Some)
 }
 
 /// Sorted non-zero joints of vertex `v`.
