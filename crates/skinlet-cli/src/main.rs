@@ -164,7 +164,8 @@ enum Command {
     /// set, thesis listing 4.2), meshopt, meshopt-flex and meshopt-spatial (meshoptimizer's
     /// greedy, flexible-size and spatial builders), skin-aware (ours: meshlets that move with
     /// one joint), cone-split (ours: skin-aware meshlets cut by face normal where that saves
-    /// skinning over the views backface culling skips, within 1.3x meshopt's count). Columns: meshlet count, average vertices and
+    /// skinning over the views backface culling skips, cones taken over poses sampled from
+    /// the clips, within 1.3x meshopt's count). Columns: meshlet count, average vertices and
     /// triangles, vertex references per unique vertex, % meshlets whose vertices share one
     /// joint set, % with one joint carrying >= 0.9 of the weight, bytes of meshlet data +
     /// vertices (slim vertices where possible; fat in parentheses), % backface-culled by
