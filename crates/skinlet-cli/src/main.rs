@@ -950,11 +950,11 @@ fn meshlets(file: &str, builder: &str, limits: MeshletLimits, json: bool) -> Res
         Some(b) => vec![b],
         None => Builder::ALL.to_vec(),
     };
+    let clips: Vec<&Clip> = asset.clips.iter().collect();
     let mut rows = Vec::new();
     for b in builders {
         let started = std::time::Instant::now();
-        let all: Vec<&Clip> = asset.clips.iter().collect();
-        let motion = skinlet::meshlet::motion_for(b, &asset.skeleton, &character.palette, &prepared.mesh, &all)?;
+        let motion = skinlet::meshlet::motion_for(b, &asset.skeleton, &character.palette, &prepared.mesh, &clips)?;
         let m = skinlet::meshlet::build_moving(&prepared, b, limits, motion.as_ref())?;
         let build_ms = started.elapsed().as_secs_f64() * 1e3;
         m.validate(&prepared.mesh.triangles, limits)?;

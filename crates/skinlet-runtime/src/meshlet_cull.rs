@@ -855,10 +855,11 @@ mod tests {
     proptest! {
         #![proptest_config(ProptestConfig { cases: 3000, ..ProptestConfig::default() })]
 
-        /// Whatever the joint matrix and camera (also far from the origin): when the frustum test culls, every sampled
-        /// point of the moved sphere (random surface points and each plane's extreme point)
-        /// is outside one plane; when the backface test culls, every sampled point sees every
-        /// sampled normal of the moved cone (moved by cof(A)) from behind.
+        /// Whatever the joint matrix and camera (also far from the origin): when the frustum
+        /// test culls, every sampled point of the moved sphere (random surface points and each
+        /// plane's extreme point) is outside one plane; when the backface test culls, every
+        /// sampled point sees every sampled normal of the moved cone (moved by cof(A)) from
+        /// behind.
         #[test]
         fn culls_only_what_brute_force_confirms(
             c in prop::array::uniform3(-2.0f64..2.0), radius in 0.0f64..1.5,

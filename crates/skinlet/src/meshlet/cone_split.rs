@@ -17,11 +17,11 @@
 //! holds every face normal of every pose, moved back into the meshlet's principal joint's
 //! bind space as the animated bounds are: a cut then has to pay under animation, not only
 //! at rest, and 2-means compares faces by their normals over all poses, so faces that turn
-//! together stay together. The start is the skin-aware builder with one change: each skin partition is packed by
-//! meshoptimizer's greedy builder (the skin-aware cone weight) or by its flex builder,
-//! whichever leaves less expected work. Each meshlet's best cut is 2-means on its face
-//! normals (seeded with the normal farthest from the cone axis and the one farthest from
-//! that). Cuts are made largest saving of expected work first, the halves' own cuts
+//! together stay together. The start is the skin-aware builder with one change: each skin
+//! partition is packed by meshoptimizer's greedy builder (the skin-aware cone weight) or by
+//! its flex builder, whichever leaves less expected work. Each meshlet's best cut is 2-means
+//! on its face normals (seeded with the face farthest from the rest cone's axis and the one
+//! farthest from that). Cuts are made largest saving of expected work first, the halves' own cuts
 //! considered in turn, while a cut saves work and the count stays within the budget:
 //! `budget` × meshoptimizer's meshlet count on the same parts and limits, or the skin-aware
 //! count where that is more. A start over the budget, or with more expected work than the
@@ -31,8 +31,8 @@
 //!
 //! Guarantee: the output is a valid meshlet set of the same triangles ([`Meshlets::validate`]),
 //! each meshlet within one part, in the starting meshlets' order (so the parts stay in
-//! order); for the same mesh and parameters it is the same (no randomness, ties broken by
-//! index).
+//! order); for the same mesh, parameters and poses it is the same (no randomness, ties
+//! broken by index).
 
 use super::stats::principal_joint;
 use super::{MeshletLimits, Meshlets, PartRange, greedy, skin_aware};

@@ -264,7 +264,8 @@ pub fn build_moving(
 }
 
 /// The poses [`build_moving`] reads for `builder` over `clips` (about 48 in all, 2 to 8 per
-/// clip); `None` for builders that read none, or without clips.
+/// clip, fewer on meshes of over 87k vertices: at most 4M skinned positions, 48 MB, unless
+/// that leaves fewer than 2 per clip); `None` for builders that read none, or without clips.
 pub fn motion_for(
     builder: Builder,
     skeleton: &crate::model::Skeleton,
@@ -275,7 +276,8 @@ pub fn motion_for(
     if builder != Builder::ConeSplit || clips.is_empty() || mesh.influences.is_none() {
         return Ok(None);
     }
-    let per_clip = (48 / clips.len()).clamp(2, 8);
+    let poses = 48.min((1 << 22) / mesh.positions.len().max(1));
+    let per_clip = (poses / clips.len()).clamp(2, 8);
     cone_split::Motion::sample(skeleton, skin, mesh, clips, per_clip).map(Some)
 }
 
