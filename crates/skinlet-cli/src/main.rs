@@ -229,6 +229,10 @@ enum Command {
         /// Output bake file.
         #[arg(short, long)]
         out: PathBuf,
+        /// The meshlet builder: skin-aware (meshlets that move with one joint: the tightest
+        /// animated bounds) or cone-split (built for backface culling: skin-aware meshlets cut
+        /// by face normal, over poses sampled from the clips, where the cut saves skinning;
+        /// 11-22% more meshlets, docs/BOUNDS.md). `skinlet meshlets FILE` compares all seven.
         #[arg(long, default_value = "skin-aware", value_parser = builder_names(false))]
         builder: String,
         /// Clip names or indices, comma-separated (default: all clips, as one union).
