@@ -213,10 +213,7 @@ impl Shape<'_> {
 
     /// [`culled_share`] of triangles over the rest pose and every sampled pose.
     fn culled_share(&self, tris: &[[u32; 3]]) -> f64 {
-        self.normals(tris).map_or(0.0, |n| {
-            let rest = n[..tris.len()].iter().flatten().count();
-            culled_share(&n.into_iter().flatten().collect::<Vec<_>>(), rest)
-        })
+        self.normals(tris).map_or(0.0, |n| culled_share(&n, tris.len()))
     }
 }
 
@@ -229,18 +226,21 @@ fn distinct(tris: &[[u32; 3]]) -> Vec<u32> {
 }
 
 /// Share of evenly spread views that backface-cull triangles with these normals:
-/// `(1 − sin α) / 2` for a cone (half-angle α) around them, 0 from 90° on. The cone is the
-/// narrowest around the first `rest` normals ([`reference_axis`]), or around the mean of
-/// all, whichever holds all normals more narrowly (the smallest cap of every pose's normals
-/// would cost far more and is rarely narrower).
-fn culled_share(normals: &[DVec3], rest: usize) -> f64 {
+/// `(1 − sin α) / 2` for a cone (half-angle α) around them, 0 from 90° on. `normals` are
+/// [`Shape::normals`]' (rest first, `per_pose` per pose). The cone is the narrowest around
+/// the rest normals ([`reference_axis`]), or around the mean of all, whichever holds all
+/// normals more narrowly (the smallest cap of every pose's normals would cost far more and
+/// is rarely narrower).
+fn culled_share(normals: &[Option<DVec3>], per_pose: usize) -> f64 {
+    let rest = normals[..per_pose.min(normals.len())].iter().flatten().count();
+    let normals: Vec<DVec3> = normals.iter().flatten().copied().collect();
     if normals.is_empty() {
         return 0.0;
     }
-    let (axis, mut cos) = reference_axis(&normals[..rest.min(normals.len())]);
+    let (axis, mut cos) = reference_axis(&normals[..rest]);
     if rest < normals.len() {
         let mean = normals.iter().sum::<DVec3>().normalize_or_zero();
-        cos = min_cos(axis, normals).max(if mean == DVec3::ZERO { -1.0 } else { min_cos(mean, normals) });
+        cos = min_cos(axis, &normals).max(if mean == DVec3::ZERO { -1.0 } else { min_cos(mean, &normals) });
     }
     if cos <= 0.0 {
         return 0.0;
@@ -330,7 +330,9 @@ fn best_cut(shape: Shape, index: usize, tris: &[[u32; 3]]) -> Option<Cut> {
     if halves.iter().any(|h| h.is_empty()) {
         return None;
     }
-    let saving = expected_work(shape, tris) - expected_work(shape, &halves[0]) - expected_work(shape, &halves[1]);
+    // The piece's own work from the normals already at hand.
+    let work = distinct(tris).len() as f64 * (1.0 - culled_share(&normals, tris.len()));
+    let saving = work - expected_work(shape, &halves[0]) - expected_work(shape, &halves[1]);
     Some(Cut { saving, index, halves })
 }
 
