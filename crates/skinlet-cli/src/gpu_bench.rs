@@ -17,8 +17,8 @@ use serde_json::json;
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::global_transforms;
 use skinlet_gpu::mesh::{GpuMesh, Pose};
-use skinlet_gpu::{Gpu, GpuOptions};
 use skinlet_lab::crowd::{Animation, CrowdParams, instance_pose, posed_crowd};
+use skinlet_lab::headless::{self, GpuOptions};
 use skinlet_lab::render::{CrowdDraw, Culling, PosedInstance, Renderer, Skinning};
 use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller, Tests};
 
@@ -150,7 +150,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let skin = &palette;
     let params = CrowdParams { instances: a.instances, frames: a.frames + 1, animation, ..CrowdParams::default() };
     let scene = posed_crowd(&asset.skeleton, skin, &baked.mesh, &clips, &params)?;
-    let gpu = Gpu::new(GpuOptions { software: a.software, ..GpuOptions::default() })?;
+    let gpu = headless::gpu(GpuOptions { software: a.software, ..GpuOptions::default() })?;
     let height = (a.width * 9 / 16).max(1);
     let renderer = Renderer::new(&gpu, a.width, height)?;
     let mesh = GpuMesh::new(&gpu, &baked.mesh.mesh_data(Some(baked.meshlets.view(&baked.meshlets.headers()))))?;

@@ -13,7 +13,7 @@ use skinlet::overdraw::cluster::ClusterParams;
 use skinlet::pose::Poser;
 use skinlet_gpu::contours::{ContourExtraction, ContourView, GpuContours};
 use skinlet_gpu::mesh::{GpuMesh, Pose};
-use skinlet_gpu::{Gpu, GpuOptions};
+use skinlet_lab::headless::{self, GpuOptions};
 use skinlet_lab::render::{Image, Renderer, Skinning, framing};
 use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller, Tests};
 
@@ -92,7 +92,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let pose = Pose { matrices: &matrices, morph_weights: &weights };
     let mut posed = vec![Vec3::ZERO; mesh.positions.len()];
     skinlet::skinning::skin_mesh(mesh, &weights, &matrices, &mut posed, &mut [])?;
-    let gpu = Gpu::new(GpuOptions { software: a.software, ..GpuOptions::default() })?;
+    let gpu = headless::gpu(GpuOptions { software: a.software, ..GpuOptions::default() })?;
     let renderer = Renderer::new(&gpu, a.size, a.size)?;
     let need_mesh_shaders =
         !matches!(a.view.as_str(), "shaded" | "contours" | "overdraw") || a.skinning.starts_with("mesh");

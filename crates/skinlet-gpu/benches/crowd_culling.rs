@@ -8,9 +8,10 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use glam::{Affine3A, Mat4};
+use skinlet_gpu::Gpu;
 use skinlet_gpu::crowd_culling::{CrowdCulling, CullInstance, CullMode, CullPipelines, GpuCharacter};
-use skinlet_gpu::{Gpu, GpuOptions};
 use skinlet_lab::crowd::{CrowdParams, crowd};
+use skinlet_lab::headless::{self, GpuOptions};
 use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller, Tests, joints_from_skinning};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -120,7 +121,7 @@ fn bench_asset(c: &mut Criterion, gpu: &Gpu, label: &str, asset: &skinlet::Asset
                     gpu.queue.submit([encoder.finish()]);
                     read.slice(..).map_async(wgpu::MapMode::Read, |r| r.unwrap());
                     wait();
-                    let ticks: Vec<u64> = bytemuck::pod_collect_to_vec(&read.slice(..).get_mapped_range().unwrap());
+                    let ticks: Vec<u64> = bytemuck::pod_collect_to_vec(&read.slice(..).get_mapped_range());
                     read.unmap();
                     total += Duration::from_nanos((ticks[1].saturating_sub(ticks[0]) as f64 * period) as u64);
                 }
@@ -132,7 +133,7 @@ fn bench_asset(c: &mut Criterion, gpu: &Gpu, label: &str, asset: &skinlet::Asset
 }
 
 fn benches(c: &mut Criterion) {
-    let gpu = match Gpu::new(GpuOptions::default()) {
+    let gpu = match headless::gpu(GpuOptions::default()) {
         Ok(gpu) => gpu,
         Err(e) => return eprintln!("skipping: {e}"),
     };

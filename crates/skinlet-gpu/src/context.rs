@@ -1,81 +1,21 @@
-//! The device: a headless Vulkan adapter (a real GPU, or Mesa's lavapipe on CPU-only
-//! machines) with the optional features the adapter offers.
+//! The device skinlet's GPU objects live on (the caller's: skinlet-gpu creates none; the
+//! headless device of skinlet's own tools is `skinlet_lab::headless`), with the buffer,
+//! pipeline and error-scope helpers the modules share.
 
 use crate::{GpuError, Result};
 use wgpu::util::DeviceExt;
-
-/// How to pick the adapter.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct GpuOptions {
-    /// Only a software adapter (lavapipe), even where a GPU exists.
-    pub software: bool,
-    /// Do not ask for mesh shaders even where the adapter has them (tests the fallback).
-    pub no_mesh_shaders: bool,
-    /// Do not ask for subgroup operations (tests the atomics-only compaction).
-    pub no_subgroups: bool,
-}
 
 /// A device and its queue, with what the adapter is and can do.
 pub struct Gpu {
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
     pub info: wgpu::AdapterInfo,
-    /// Features enabled on the device (a subset of mesh shaders, timestamps, subgroups, f64).
+    /// Features enabled on the device (what skinlet may use: mesh shaders, timestamps,
+    /// subgroups, f64, indirect first instance).
     pub features: wgpu::Features,
 }
 
 impl Gpu {
-    /// The first Vulkan adapter, with mesh shaders, timestamp queries, subgroup operations and
-    /// 64-bit floats in shaders enabled where the adapter has them.
-    pub fn new(options: GpuOptions) -> Result<Gpu> {
-        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
-            backends: wgpu::Backends::VULKAN,
-            ..wgpu::InstanceDescriptor::new_without_display_handle()
-        });
-        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
-            force_fallback_adapter: options.software,
-            ..Default::default()
-        }))
-        .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
-        let mut wanted =
-            wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::SHADER_F64 | wgpu::Features::INDIRECT_FIRST_INSTANCE;
-        if !options.no_subgroups {
-            wanted |= wgpu::Features::SUBGROUP;
-        }
-        if !options.no_mesh_shaders {
-            wanted |= wgpu::Features::EXPERIMENTAL_MESH_SHADER;
-        }
-        let features = adapter.features() & wanted;
-        let mesh = features.contains(wgpu::Features::EXPERIMENTAL_MESH_SHADER);
-        let desc = wgpu::DeviceDescriptor {
-            label: Some("skinlet"),
-            required_features: features,
-            required_limits: if mesh {
-                // Task-culled slim mesh shading binds 10 storage buffers to the mesh stage.
-                let limits = wgpu::Limits::defaults().using_recommended_minimum_mesh_shader_values();
-                let storage = adapter.limits().max_storage_buffers_per_shader_stage.min(16);
-                wgpu::Limits {
-                    max_storage_buffers_per_shader_stage: limits.max_storage_buffers_per_shader_stage.max(storage),
-                    ..limits
-                }
-            } else {
-                wgpu::Limits::defaults()
-            },
-            // SAFETY: mesh shaders are an experimental wgpu feature; we opt in only when the
-            // adapter reports them, and every mesh pipeline is checked against the CPU path.
-            experimental_features: if mesh {
-                unsafe { wgpu::ExperimentalFeatures::enabled() }
-            } else {
-                wgpu::ExperimentalFeatures::disabled()
-            },
-            memory_hints: wgpu::MemoryHints::Performance,
-            trace: wgpu::Trace::Off,
-        };
-        let (device, queue) =
-            pollster::block_on(adapter.request_device(&desc)).map_err(|e| GpuError::Device(e.to_string()))?;
-        Ok(Gpu { device, queue, info: adapter.get_info(), features })
-    }
-
     /// skinlet's GPU objects on the caller's own device and queue (handles of the same
     /// device, as wgpu's `clone` gives), with the caller's adapter's `info`. What skinlet may
     /// use is what the device was created with (`device.features()`): mesh-shader paths need
@@ -167,7 +107,7 @@ impl Gpu {
             .poll(wgpu::PollType::Wait { submission_index: Some(index), timeout: None })
             .map_err(|e| gpu_err(e.to_string()))?;
         rx.recv().map_err(|e| gpu_err(e.to_string()))?.map_err(|e| gpu_err(e.to_string()))?;
-        let view = staging.slice(..).get_mapped_range().map_err(|e| gpu_err(e.to_string()))?;
+        let view = staging.slice(..).get_mapped_range();
         let out = view.to_vec();
         drop(view);
         staging.unmap();
@@ -221,9 +161,20 @@ pub(crate) fn checked<T>(device: &wgpu::Device, location: &'static str, work: im
     let memory = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
     let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
     let out = work();
-    let errors = [pollster::block_on(validation.pop()), pollster::block_on(memory.pop())];
+    let errors = [ready(validation.pop()), ready(memory.pop())];
     match errors.into_iter().flatten().next() {
-        Some(e) => Err(GpuError::Gpu { location, message: e.to_string() }),
+        Some(message) => Err(GpuError::Gpu { location, message }),
         None => Ok(out),
+    }
+}
+
+/// The outcome of an error scope, which native wgpu resolves when the scope is popped: polled
+/// once, so that this crate needs no executor. A scope still pending (a backend that answers
+/// later) reads as an error rather than as success.
+fn ready(scope: impl std::future::Future<Output = Option<wgpu::Error>>) -> Option<String> {
+    let mut scope = std::pin::pin!(scope);
+    match scope.as_mut().poll(&mut std::task::Context::from_waker(std::task::Waker::noop())) {
+        std::task::Poll::Ready(error) => error.map(|e| e.to_string()),
+        std::task::Poll::Pending => Some("the error scope did not resolve when popped".into()),
     }
 }

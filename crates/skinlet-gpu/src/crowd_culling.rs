@@ -515,11 +515,20 @@ mod tests {
 
     #[test]
     fn encode_allocates_only_what_its_wgpu_calls_allocate() {
-        let gpu = match crate::Gpu::new(Default::default()) {
-            Ok(gpu) => gpu,
+        // Any adapter, as a caller's would be (skinlet-lab's headless device is another copy
+        // of this crate, so a unit test makes its own).
+        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle());
+        let adapter = match pollster::block_on(instance.request_adapter(&Default::default())) {
+            Ok(adapter) => adapter,
             Err(e) if std::env::var("SKINLET_REQUIRE_GPU").is_ok_and(|v| v == "1") => panic!("{e}"),
             Err(e) => return eprintln!("skipping: {e}"),
         };
+        let desc = wgpu::DeviceDescriptor {
+            required_features: adapter.features() & wgpu::Features::INDIRECT_FIRST_INSTANCE,
+            ..Default::default()
+        };
+        let (device, queue) = pollster::block_on(adapter.request_device(&desc)).unwrap();
+        let gpu = crate::Gpu::from_device(device, queue, adapter.get_info());
         let device = &gpu.device;
         // A small character: 12 joints, 4 meshlets each.
         let joints = 12;

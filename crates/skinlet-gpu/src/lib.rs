@@ -1,8 +1,9 @@
-//! skinlet's GPU runtime on wgpu (exact version pinned) with WGSL shaders (issue 8).
+//! skinlet's GPU runtime on wgpu 29 (Bevy 0.19's) with WGSL shaders.
 //!
-//! - [`Gpu`]: the device skinlet's objects live on: yours ([`Gpu::from_device`]) or a
-//!   headless Vulkan device with the optional features the adapter offers (mesh shaders,
-//!   timestamps, subgroups, f64), with the buffer and pipeline helpers the modules share.
+//! - [`Gpu`]: the device skinlet's objects live on, yours ([`Gpu::from_device`]): this crate
+//!   creates no device, forces no wgpu backend and blocks on no executor (skinlet's own tools
+//!   make a headless Vulkan device in `skinlet-lab`), with the buffer and pipeline helpers the
+//!   modules share.
 //! - [`mesh`]: a skinned mesh (morph target deltas included) and its meshlets on the GPU,
 //!   uploaded from a bake's `skinlet_runtime::bake_view::MeshData`; a [`mesh::Pose`] is one
 //!   draw's skinning matrices and morph weights.
@@ -51,7 +52,7 @@ pub mod cull;
 pub mod mesh;
 pub mod skinning;
 
-pub use context::{Gpu, GpuOptions};
+pub use context::Gpu;
 
 /// The README's Rust examples (baker, runtime and GPU crates), compiled as doc-tests so they
 /// cannot rot.

@@ -10,9 +10,10 @@ use glam::{Affine3A, Vec3};
 mod common;
 use common::{assets, gpu};
 use skinlet::pose::Poser;
+use skinlet_gpu::Gpu;
 use skinlet_gpu::mesh::{GpuMesh, Pose};
 use skinlet_gpu::skinning::ComputeSkinning;
-use skinlet_gpu::{Gpu, GpuOptions};
+use skinlet_lab::headless::{self, GpuOptions};
 
 #[test]
 fn compute_skinning_matches_the_cpu_reference() {
@@ -63,7 +64,7 @@ fn compute_skinning_matches_the_cpu_reference() {
 fn mesh_shaders_can_be_turned_off() {
     let Some(gpu) = gpu() else { return };
     drop(gpu);
-    let plain = Gpu::new(GpuOptions { no_mesh_shaders: true, ..GpuOptions::default() }).unwrap();
+    let plain = headless::gpu(GpuOptions { no_mesh_shaders: true, ..GpuOptions::default() }).unwrap();
     assert!(!plain.has_mesh_shaders());
 }
 

@@ -20,12 +20,14 @@
 //!   triangles, skinning) against per-triangle backface culling (`skinlet bounds`).
 //! - [`bevy_baseline`]: Bevy's per-joint box update, the baseline skinlet's is measured against.
 //! - [`summary`]: the facts `skinlet inspect` reports.
+//! - [`headless`]: the headless Vulkan device the tools and tests draw on.
 
 pub mod backface_views;
 pub mod bevy_baseline;
 pub mod contour_eval;
 pub mod crowd;
 pub mod demo;
+pub mod headless;
 pub mod meshlet_patches;
 pub mod render;
 pub mod scans;

@@ -10,8 +10,9 @@ use common::{Posed, assets, gpu};
 use glam::Vec3;
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::Poser;
+use skinlet_gpu::Gpu;
 use skinlet_gpu::mesh::{GpuMesh, Pose};
-use skinlet_gpu::{Gpu, GpuOptions};
+use skinlet_lab::headless::{self, GpuOptions};
 use skinlet_lab::render::{CrowdDraw, Culling, PosedInstance, Renderer, Skinning, framing};
 
 #[test]
@@ -101,10 +102,10 @@ fn culled_drawing_gives_the_unculled_image() {
     // close enough to cut the character make the frustum test work too. The triangles drawn
     // are those of the CPU's visible meshlets, and with per-triangle culling the CPU's kept ones.
     let Some(gpu) = gpu() else { return };
-    let fallback = Gpu::new(GpuOptions { no_mesh_shaders: true, ..GpuOptions::default() }).unwrap();
+    let fallback = headless::gpu(GpuOptions { no_mesh_shaders: true, ..GpuOptions::default() }).unwrap();
     assert!(!fallback.has_mesh_shaders());
     let mut devices = vec![(&fallback, Renderer::new(&fallback, 160, 160).unwrap())];
-    let no_subgroups = Gpu::new(GpuOptions { no_subgroups: true, ..GpuOptions::default() }).unwrap();
+    let no_subgroups = headless::gpu(GpuOptions { no_subgroups: true, ..GpuOptions::default() }).unwrap();
     assert!(!no_subgroups.has_subgroups());
     if gpu.has_mesh_shaders() {
         devices.push((&gpu, Renderer::new(&gpu, 160, 160).unwrap()));

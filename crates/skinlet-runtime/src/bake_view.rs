@@ -6,7 +6,7 @@
 //! of range and never sees a non-finite number.
 //!
 //! Every section: the bake settings and clip names (`INFO`), the drivers' inverse bind
-//! matrices and nodes (`SKIN`), vertices (`VERT`), triangles (`TRIS`), meshlets (`MLET`),
+//! matrices, nodes and node names (`SKIN`), vertices (`VERT`), triangles (`TRIS`), meshlets (`MLET`),
 //! meshlet bounds with their classes (`BNDS`), parts (`PART`), morph targets (`MRPH`), the
 //! pose envelope with its bounds and any-pose boxes (`ENVL`) as typed slices; the overdraw
 //! orders (`OVDR`) and contour patches (`CONT`, with the edges it indexes, which the file
@@ -288,6 +288,17 @@ impl<'a> BakeView<'a> {
     pub fn joint_nodes(&self) -> Result<&'a [u32]> {
         let n = self.joint_count()?;
         cast(&self.required(b"SKIN")?[4 + 64 * n..4 + 68 * n], "SKIN")
+    }
+
+    /// Each driver's node name (empty for unnamed nodes), checked: UTF-8, the section read to
+    /// its end. Allocates the list: for load-time checks that a scene is the baked one.
+    pub fn joint_names(&self) -> Result<Vec<&'a str>> {
+        let n = self.joint_count()?;
+        let mut s = Cursor::new("SKIN", self.required(b"SKIN")?);
+        s.bytes(4 + 68 * n)?;
+        let names = (0..n).map(|_| s.str()).collect::<Result<Vec<_>>>()?;
+        s.end()?;
+        Ok(names)
     }
 
     /// The meshlet count, from `MLET`'s header.

@@ -13,6 +13,8 @@
 //!   GPU culling passes read.
 //! - [`any_pose`]: per-meshlet boxes per influencing joint, valid for any pose.
 //! - [`joint_boxes`]: whole-mesh boxes from per-joint boxes (the Bevy PR's method).
+//! - [`part_bounds`]: one box per part (an engine's entity) every frame, morph targets
+//!   included: per-joint boxes for any pose, narrowed by the clip or envelope bounds.
 //! - [`pose_guard`]: whether a pose (blend, additive layer, IK) lies inside a pose envelope.
 //! - [`overdraw_orders`]: which of a bake's overdraw-reducing index buffers to draw.
 //! - [`contour_edges`]: a mesh's edges and the contour test (Tsiapkolis & Bénard 2024), brute
@@ -66,6 +68,7 @@ pub mod joint_boxes;
 pub mod meshlet_bounds;
 pub mod meshlet_cull;
 pub mod overdraw_orders;
+pub mod part_bounds;
 pub mod pose_guard;
 
 pub use error::{Error, Result};

@@ -841,23 +841,20 @@ mod tests {
         flags[0]
     }
 
-    /// A camera at `eye` looking at `target`; `None` where no view exists (eye at the target
-    /// or looking along the up axis).
-    fn camera(ortho: bool, eye: [f64; 3], target: [f64; 3]) -> Option<Camera> {
-        let (e, t) = (DVec3::from(eye).as_vec3(), DVec3::from(target).as_vec3());
-        if ortho {
-            Camera::orthographic(e, t, Vec3::Y, 3.0, 2.0, 0.1, 30.0).ok()
-        } else {
-            Camera::perspective(e, t, Vec3::Y, 1.0, 1.5, 0.1, 30.0).ok()
-        }
+    /// A camera of one of glam's projections (`kind`, see `camera::glam_camera`) at `eye`
+    /// looking at `target`; `None` where no view exists (eye at the target or looking along
+    /// the up axis).
+    fn camera(kind: usize, eye: [f64; 3], target: [f64; 3]) -> Option<crate::camera::GlamCamera> {
+        crate::camera::glam_camera(kind, DVec3::from(eye).as_vec3(), DVec3::from(target).as_vec3())
     }
 
     proptest! {
         #![proptest_config(ProptestConfig { cases: 3000, ..ProptestConfig::default() })]
 
-        /// Whatever the joint matrix and camera (also far from the origin): when the frustum
-        /// test culls, every sampled point of the moved sphere (random surface points and each
-        /// plane's extreme point) is outside one plane; when the backface test culls, every
+        /// Whatever the joint matrix and camera (every projection glam builds, also far from
+        /// the origin): when the frustum test culls, every sampled point of the moved sphere
+        /// (random surface points and each plane's extreme point) is outside one plane, and
+        /// outside the clip volume of the matrix glam built; when the backface test culls, every
         /// sampled point sees every sampled normal of the moved cone (moved by cof(A)) from
         /// behind.
         #[test]
@@ -867,7 +864,7 @@ mod tests {
             r in prop::array::uniform3(-1.0f64..1.0), rot in -3.1f64..3.1,
             scale in prop::array::uniform3(prop_oneof![0.3f64..3.0, -3.0f64..-0.3, -0.01f64..0.01]),
             shear in -1.0f64..1.0, t in prop::array::uniform3(-6.0f64..6.0),
-            ortho in any::<bool>(), eye in prop::array::uniform3(-12.0f64..12.0),
+            kind in 0..crate::camera::GLAM_KINDS, eye in prop::array::uniform3(-12.0f64..12.0),
             target in prop::array::uniform3(-3.0f64..3.0),
             samples in prop::collection::vec((prop::array::uniform3(-1.0f64..1.0), 0.0f64..1.0, 0.0f64..6.3), 48),
             far in prop_oneof![Just([0.0; 3]), prop::array::uniform3(-1e5f64..1e5)],
@@ -881,7 +878,8 @@ mod tests {
                 cone_axis: axis.as_vec3(), cone_angle: angle as f32, rest_cone_angle: angle as f32,
             };
             let g = joint(r, rot, scale, shear, t);
-            let Some(cam) = camera(ortho, eye, target) else { return Ok(()) };
+            let Some(glam) = camera(kind, eye, target) else { return Ok(()) };
+            let cam = glam.camera;
             let flags = culled(b, g, &cam);
             let gd = dmat(&g);
             let a3 = DMat3::from_mat4(gd);
@@ -897,6 +895,8 @@ mod tests {
                     world.iter().all(|q| p.truncate().as_dvec3().dot(*q) + p.w as f64 <= 1e-9)
                 });
                 prop_assert!(out, "frustum-culled, but a point of the sphere is inside");
+                let depth = world.iter().map(|&q| glam.clip_depth(q)).fold(f64::NEG_INFINITY, f64::max);
+                prop_assert!(depth <= 1e-6, "{}: frustum-culled, but a point is {depth} inside the clip volume", glam.name);
             }
             if flags & 2 != 0 {
                 let m = cofactor(&a3);
@@ -948,11 +948,11 @@ mod tests {
             r in prop::array::uniform3(-1.0f64..1.0), rot in -3.1f64..3.1,
             scale in prop::array::uniform3(prop_oneof![0.3f64..3.0, -3.0f64..-0.3, -0.01f64..0.01]),
             shear in -1.0f64..1.0, t in prop::array::uniform3(-6.0f64..6.0),
-            ortho in any::<bool>(), eye in prop::array::uniform3(-12.0f64..12.0),
+            kind in 0..crate::camera::GLAM_KINDS, eye in prop::array::uniform3(-12.0f64..12.0),
             target in prop::array::uniform3(-3.0f64..3.0),
         ) {
             let g = joint(r, rot, scale, shear, t);
-            let Some(cam) = camera(ortho, eye, target) else { return Ok(()) };
+            let Some(cam) = camera(kind, eye, target).map(|g| g.camera) else { return Ok(()) };
             let (c, h) = (DVec3::from(c).as_vec3(), DVec3::from(h).as_vec3());
             let gd = dmat(&g);
             let corners: Vec<DVec3> = (0..8)

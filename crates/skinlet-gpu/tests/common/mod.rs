@@ -4,8 +4,9 @@
 
 use glam::{Affine3A, Vec3};
 use skinlet::Asset;
+use skinlet_gpu::Gpu;
 use skinlet_gpu::mesh::Pose;
-use skinlet_gpu::{Gpu, GpuOptions};
+use skinlet_lab::headless::{self, GpuOptions};
 use skinlet_runtime::meshlet_cull::MeshletCuller;
 use std::path::PathBuf;
 
@@ -15,7 +16,7 @@ pub use shared::{assets_dir, required};
 
 /// The default device, or `None` with a note (a failure with `SKINLET_REQUIRE_GPU=1`).
 pub fn gpu() -> Option<Gpu> {
-    match Gpu::new(GpuOptions::default()) {
+    match headless::gpu(GpuOptions::default()) {
         Ok(g) => Some(g),
         Err(e) if required("SKINLET_REQUIRE_GPU") => panic!("{e} (SKINLET_REQUIRE_GPU=1)"),
         Err(e) => {
@@ -107,7 +108,7 @@ pub fn read_buffer<T: bytemuck::Pod>(gpu: &Gpu, buffer: &wgpu::Buffer, size: u64
     let index = gpu.queue.submit([encoder.finish()]);
     staging.slice(..).map_async(wgpu::MapMode::Read, |r| r.unwrap());
     gpu.device.poll(wgpu::PollType::Wait { submission_index: Some(index), timeout: None }).unwrap();
-    let out = bytemuck::pod_collect_to_vec(&staging.slice(..).get_mapped_range().unwrap());
+    let out = bytemuck::pod_collect_to_vec(&staging.slice(..).get_mapped_range());
     staging.unmap();
     out
 }
