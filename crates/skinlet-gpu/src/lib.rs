@@ -54,12 +54,6 @@ pub mod skinning;
 
 pub use context::Gpu;
 
-/// The README's Rust examples (baker, runtime and GPU crates), compiled as doc-tests so they
-/// cannot rot.
-#[cfg(doctest)]
-#[doc = include_str!("../../../README.md")]
-struct ReadmeExamples;
-
 /// What went wrong on the GPU side.
 #[derive(Debug, thiserror::Error)]
 pub enum GpuError {

@@ -1,0 +1,202 @@
+//! Shared by the Bevy tests: an asset folder with the characters and their bakes, a
+//! headless Bevy app, and the ground truth: every vertex of a scene's mesh entities morphed
+//! and skinned on the CPU (skinlet's reference skinning of the same glTF file) with the joint
+//! matrices and morph weights Bevy's ECS holds that frame.
+#![allow(dead_code)]
+
+use bevy::math::Affine3A;
+use bevy::prelude::*;
+use bevy_skinlet::gltf_tags::{GltfNodeIndex, GltfPrimitiveIndex};
+use skinlet::Asset;
+use std::path::{Path, PathBuf};
+
+#[path = "../../../skinlet/tests/common/mod.rs"]
+mod shared;
+pub use shared::{assets_dir, required};
+
+/// One character in the test folder: its glTF file name, the asset, the bake's name.
+pub struct Character {
+    pub file: String,
+    pub asset: Asset,
+    pub character: skinlet::Character,
+}
+
+/// A folder under the test target directory holding `files` (from the shared assets, or
+/// `@demo` for the demo character as `demo.glb`), each with a bake beside it
+/// (`NAME.skinlet`, baked as a default recipe bakes: skin-aware meshlets, every clip, an
+/// envelope around the clips widened by 10°). `None` (with a note) without the shared assets, unless they are required.
+pub fn asset_folder(name: &str, files: &[&str]) -> Option<(PathBuf, Vec<Character>)> {
+    // Tests have a scratch folder under the target directory; examples use the system's.
+    let scratch =
+        option_env!("CARGO_TARGET_TMPDIR").map_or_else(|| std::env::temp_dir().join("bevy_skinlet"), PathBuf::from);
+    let dir = scratch.join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let shared = assets_dir();
+    let mut out = Vec::new();
+    for &f in files {
+        let (file, bytes) = if f == "@demo" {
+            let demo = skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams {
+                triangles: 3000,
+                ..Default::default()
+            });
+            ("demo.glb".to_string(), skinlet::export::to_glb(&demo).unwrap())
+        } else {
+            let Some(shared) = &shared else {
+                if required("SKINLET_REQUIRE_ASSETS") {
+                    panic!("no shared assets (SKINLET_REQUIRE_ASSETS=1)");
+                }
+                eprintln!("skipping: no shared assets");
+                return None;
+            };
+            let path = shared.join(f);
+            (path.file_name().unwrap().to_string_lossy().into_owned(), std::fs::read(&path).unwrap())
+        };
+        std::fs::write(dir.join(&file), &bytes).unwrap();
+        let asset = skinlet::import::load_bytes(&bytes, &dir.join(&file)).unwrap();
+        let character = asset.character().unwrap();
+        let stem = Path::new(&file).file_stem().unwrap().to_string_lossy().into_owned();
+        let recipe = bevy_skinlet::bake_processor::BakeRecipe::new(file.clone());
+        let baked = bevy_skinlet::bake_processor::bake_gltf(&bytes, Path::new(&file), &recipe).unwrap();
+        std::fs::write(dir.join(format!("{stem}.skinlet")), baked).unwrap();
+        out.push(Character { file, asset, character });
+    }
+    Some((dir, out))
+}
+
+/// A headless app (no window) reading assets from `dir`, with skinlet's plugin and a fixed
+/// 1/30 s step. `render`: Bevy's renderer on the machine's Vulkan device (lavapipe on CPU-only
+/// machines); otherwise no GPU is touched.
+pub fn app(dir: &Path, render: bool) -> App {
+    app_with(AssetPlugin { file_path: dir.to_string_lossy().into_owned(), ..Default::default() }, render)
+}
+
+/// [`app`] with Bevy's asset settings given (e.g. asset processing on).
+pub fn app_with(assets: AssetPlugin, render: bool) -> App {
+    let mut app = App::new();
+    let plugins = DefaultPlugins.set(assets).set(bevy::window::WindowPlugin {
+        primary_window: None,
+        exit_condition: bevy::window::ExitCondition::DontExit,
+        ..Default::default()
+    });
+    if render {
+        app.add_plugins(plugins);
+    } else {
+        // Bevy's renderer with no device: nothing is drawn, every main-world system runs.
+        app.add_plugins(plugins.set(bevy::render::RenderPlugin {
+            render_creation: bevy::render::settings::WgpuSettings { backends: None, ..Default::default() }.into(),
+            ..Default::default()
+        }));
+        // What the renderer would say of compressed textures without a device: none.
+        app.insert_resource(bevy::image::CompressedImageFormatSupport(bevy::image::CompressedImageFormats::NONE));
+    }
+    app.add_plugins(bevy_skinlet::SkinletPlugin::default());
+    app.insert_resource(bevy::time::TimeUpdateStrategy::ManualDuration(std::time::Duration::from_secs_f64(1.0 / 30.0)));
+    app
+}
+
+/// Finishes building `app`'s plugins as `App::run` would (the renderer's device is made
+/// asynchronously; `finish` registers, among others, Bevy's image loader), once.
+pub fn start(app: &mut App) {
+    use bevy::app::PluginsState;
+    while app.plugins_state() == PluginsState::Adding {
+        bevy::tasks::tick_global_task_pools_on_main_thread();
+    }
+    if app.plugins_state() == PluginsState::Ready {
+        app.finish();
+        app.cleanup();
+    }
+}
+
+/// Updates `app` until `done` holds (at most `limit` updates; panics past it with `what`).
+pub fn update_until(app: &mut App, limit: usize, what: &str, mut done: impl FnMut(&mut World) -> bool) {
+    start(app);
+    for _ in 0..limit {
+        app.update();
+        if done(app.world_mut()) {
+            return;
+        }
+    }
+    panic!("{what}: not after {limit} updates");
+}
+
+/// The descendants of `root` tagged with a glTF node index, by index.
+pub fn node_entities(world: &mut World, root: Entity) -> Vec<Option<Entity>> {
+    let mut q = world.query::<(Entity, &GltfNodeIndex)>();
+    let mut children = world.query::<&Children>();
+    let descendants: Vec<Entity> = children.query(world).iter_descendants(root).collect();
+    let mut out = Vec::new();
+    for e in descendants {
+        if let Ok((e, n)) = q.get(world, e) {
+            let i = n.index as usize;
+            if out.len() <= i {
+                out.resize(i + 1, None);
+            }
+            out[i] = Some(e);
+        }
+    }
+    out
+}
+
+/// The entity drawing part `part` of `c` (its node's child with the part's mesh primitive).
+pub fn part_entity(world: &mut World, nodes: &[Option<Entity>], part: &skinlet::Part) -> Entity {
+    let node = nodes[part.node as usize].expect("the part's node is in the scene");
+    let children: Vec<Entity> = world.get::<Children>(node).unwrap().iter().collect();
+    *children
+        .iter()
+        .find(|&&c| {
+            world.get::<GltfPrimitiveIndex>(c).is_some_and(|p| (p.mesh, p.primitive) == (part.mesh, part.primitive))
+        })
+        .expect("the part's primitive is drawn")
+}
+
+/// Every vertex of `c`, morphed and skinned on the CPU with the joint matrices (each driver
+/// node's `GlobalTransform` times its inverse bind matrix) and morph weights (`MorphWeights`
+/// of the weight's node, else its default) Bevy's ECS holds now: world space.
+pub fn skinned_from_ecs(world: &World, c: &Character, nodes: &[Option<Entity>]) -> Vec<Vec3> {
+    let palette = &c.character.palette;
+    let skinning: Vec<Affine3A> = (palette.joints.iter().zip(&palette.inverse_bind))
+        .map(|(&n, ibm)| {
+            let g = nodes[n as usize].and_then(|e| world.get::<GlobalTransform>(e)).expect("a driver's transform");
+            Affine3A::from_mat4((g.to_matrix().as_dmat4() * ibm.as_dmat4()).as_mat4())
+        })
+        .collect();
+    let mesh = &c.character.mesh;
+    let weights: Vec<f32> = (mesh.morphs.weights.iter())
+        .map(|w| {
+            let m = nodes
+                .get(w.node as usize)
+                .copied()
+                .flatten()
+                .and_then(|e| world.get::<bevy::mesh::morph::MorphWeights>(e));
+            m.and_then(|m| m.weights().get(w.target as usize).copied()).unwrap_or(w.default)
+        })
+        .collect();
+    let mut out = vec![Vec3::ZERO; mesh.positions.len()];
+    skinlet::skinning::skin_mesh(mesh, &weights, &skinning, &mut out, &mut []).unwrap();
+    out
+}
+
+/// Whether a Vulkan adapter is there for Bevy's renderer (lavapipe on CPU-only machines);
+/// without one the rendering tests skip with a note, unless `SKINLET_REQUIRE_GPU=1` (CI).
+pub fn vulkan_available() -> bool {
+    match skinlet_lab::headless::gpu(skinlet_lab::headless::GpuOptions {
+        software: false,
+        no_mesh_shaders: true,
+        no_subgroups: true,
+    }) {
+        Ok(_) => true,
+        Err(e) if required("SKINLET_REQUIRE_GPU") => panic!("{e} (SKINLET_REQUIRE_GPU=1)"),
+        Err(e) => {
+            eprintln!("skipping: {e}");
+            false
+        }
+    }
+}
+
+/// The character's size at rest: the largest extent of its vertices' box (scene space).
+pub fn rest_size(c: &Character) -> f32 {
+    let (positions, _) = c.character.posed(&c.asset.skeleton, None, 0.0).unwrap();
+    let (lo, hi) = positions.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+    (hi - lo).max_element()
+}
