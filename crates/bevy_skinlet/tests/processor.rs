@@ -17,7 +17,8 @@ use std::path::Path;
 fn load(source: &Path, processed: Option<&Path>, file: &str) -> Result<Vec<u8>, String> {
     let assets = AssetPlugin {
         file_path: source.to_string_lossy().into_owned(),
-        processed_file_path: processed.map_or_else(String::new, |p| p.to_string_lossy().into_owned()),
+        processed_file_path: processed
+            .map_or_else(|| format!("{}-processed", source.display()), |p| p.to_string_lossy().into_owned()),
         mode: if processed.is_some() { AssetMode::Processed } else { AssetMode::Unprocessed },
         ..Default::default()
     };

@@ -68,7 +68,16 @@ pub fn asset_folder(name: &str, files: &[&str]) -> Option<(PathBuf, Vec<Characte
 /// 1/30 s step. `render`: Bevy's renderer on the machine's Vulkan device (lavapipe on CPU-only
 /// machines); otherwise no GPU is touched.
 pub fn app(dir: &Path, render: bool) -> App {
-    app_with(AssetPlugin { file_path: dir.to_string_lossy().into_owned(), ..Default::default() }, render)
+    // Where Bevy's processor would write (the `bake` feature turns it on): beside the folder.
+    let processed = format!("{}-processed", dir.display());
+    app_with(
+        AssetPlugin {
+            file_path: dir.to_string_lossy().into_owned(),
+            processed_file_path: processed,
+            ..Default::default()
+        },
+        render,
+    )
 }
 
 /// [`app`] with Bevy's asset settings given (e.g. asset processing on).
