@@ -116,9 +116,23 @@ fn main() {
     order = (0..total).map(|i| order[(i * stride) % total]).collect();
     let mut roots = Vec::with_capacity(total);
     let camera;
+    // One animation graph per file, made first: the graphs hold the clips, so Bevy keeps them
+    // loaded (a clip asked for after its handles were dropped reloads the whole file, and the
+    // scenes spawned from it are spawned again).
+    let graphs: Vec<(Handle<AnimationGraph>, Vec<AnimationNodeIndex>)>;
     {
         let world = app.world_mut();
         let assets = world.resource::<AssetServer>().clone();
+        graphs = characters
+            .iter()
+            .map(|c| {
+                let clips = (0..c.asset.clips.len())
+                    .map(|k| assets.load(GltfAssetLabel::Animation(k).from_asset(c.file.clone())));
+                let (graph, nodes) = AnimationGraph::from_clips(clips);
+                (world.resource_mut::<Assets<AnimationGraph>>().add(graph), nodes)
+            })
+            .collect();
+
         let handles: Vec<(Handle<WorldAsset>, Handle<Bake>, f32)> = characters
             .iter()
             .zip(heights)
@@ -150,20 +164,10 @@ fn main() {
         std::process::exit(1);
     }
 
-    // One animation graph per file; every instance starts a clip at its own phase.
+    // Every instance starts a clip at its own phase.
     let mut instances = Vec::with_capacity(total);
     {
         let world = app.world_mut();
-        let assets = world.resource::<AssetServer>().clone();
-        let graphs: Vec<(Handle<AnimationGraph>, Vec<AnimationNodeIndex>)> = characters
-            .iter()
-            .map(|c| {
-                let clips = (0..c.asset.clips.len())
-                    .map(|k| assets.load(GltfAssetLabel::Animation(k).from_asset(c.file.clone())));
-                let (graph, nodes) = AnimationGraph::from_clips(clips);
-                (world.resource_mut::<Assets<AnimationGraph>>().add(graph), nodes)
-            })
-            .collect();
         let mut players = world.query_filtered::<Entity, With<AnimationPlayer>>();
         for (i, &(root, c)) in roots.iter().enumerate() {
             let nodes = common::node_entities(world, root);
@@ -190,6 +194,8 @@ fn main() {
         Query<(&Mesh3d, Option<&SkinnedMesh>)>,
     )> = SystemState::new(app.world_mut());
     let mut tally = Tally::default();
+    // Per character file: (skinlet's false culls, Bevy's).
+    let mut false_by_file = vec![(0usize, 0usize); characters.len()];
     let (mut skinlet_boxes, mut bevy_boxes): (Vec<(Entity, Aabb)>, Vec<Aabb>) = (Vec::new(), Vec::new());
     let (mut entities, mut parts): (Vec<Entity>, Vec<usize>) = (Vec::new(), Vec::new());
     // Frames per kind of stored bounds skinlet used (PoseBounds order: any, clips, envelope).
@@ -229,6 +235,11 @@ fn main() {
         {
             let (mut skinlet_instances, bakes, inputs, bounds, meshes, bindposes, drawn) =
                 state.get_mut(world).unwrap();
+            // The mesh entities, in skinlet's order.
+            entities.clear();
+            for inst in &instances {
+                entities.extend_from_slice(skinlet_instances.get(inst.root).unwrap().part_entities());
+            }
             let mut run_skinlet = |out: &mut Vec<(Entity, Aabb)>, parts: &mut Vec<usize>| {
                 (out.clear(), parts.clear());
                 for inst in &instances {
@@ -256,11 +267,6 @@ fn main() {
                     out.push(aabb);
                 }
             };
-            // The mesh entities, in skinlet's order (the same every frame).
-            if entities.is_empty() {
-                run_skinlet(&mut skinlet_boxes, &mut parts);
-                entities.extend(skinlet_boxes.iter().map(|b| b.0));
-            }
             let t0 = Instant::now();
             if frame % 2 == 0 {
                 run_skinlet(&mut skinlet_boxes, &mut parts);
@@ -308,6 +314,8 @@ fn main() {
                 let seen = part.vertices.clone().any(|v| inside(&frustum, skinned[v as usize]));
                 tally.skinlet_false += (ours && seen) as usize;
                 tally.bevy_false += (bevys && seen) as usize;
+                false_by_file[inst.character].0 += (ours && seen) as usize;
+                false_by_file[inst.character].1 += (bevys && seen) as usize;
             }
         }
     }
@@ -324,6 +332,9 @@ fn main() {
         "bevy_culled_pct": pct(tally.bevy_culled),
         "skinlet_false_culls": tally.skinlet_false,
         "bevy_false_culls": tally.bevy_false,
+        "false_culls_by_file": characters.iter().zip(&false_by_file)
+            .map(|(c, &(ours, bevys))| (c.file.clone(), serde_json::json!({ "skinlet": ours, "bevy": bevys })))
+            .collect::<serde_json::Map<_, _>>(),
         "skinlet_pose_bounds_pct": {
             "clips": pose_pct(poses[PoseBounds::Clips as usize]),
             "envelope": pose_pct(poses[PoseBounds::Envelope as usize]),
