@@ -54,6 +54,17 @@ struct Args {
     json: bool,
 }
 
+/// What the measurement reads of the world after each update.
+type Measured = (
+    Query<'static, 'static, &'static mut SkinletInstance>,
+    Res<'static, Assets<Bake>>,
+    PoseInputs<'static, 'static>,
+    Query<'static, 'static, &'static SkinletBounds>,
+    Res<'static, Assets<Mesh>>,
+    Res<'static, Assets<SkinnedMeshInverseBindposes>>,
+    Query<'static, 'static, (&'static Mesh3d, Option<&'static SkinnedMesh>)>,
+);
+
 /// One character instance: its scene root, which file, and its node entities by glTF index.
 struct Instance {
     root: Entity,
@@ -184,15 +195,7 @@ fn main() {
         }
     }
 
-    let mut state: SystemState<(
-        Query<&mut SkinletInstance>,
-        Res<Assets<Bake>>,
-        PoseInputs,
-        Query<&SkinletBounds>,
-        Res<Assets<Mesh>>,
-        Res<Assets<SkinnedMeshInverseBindposes>>,
-        Query<(&Mesh3d, Option<&SkinnedMesh>)>,
-    )> = SystemState::new(app.world_mut());
+    let mut state: SystemState<Measured> = SystemState::new(app.world_mut());
     let mut tally = Tally::default();
     // Per character file: (skinlet's false culls, Bevy's).
     let mut false_by_file = vec![(0usize, 0usize); characters.len()];
@@ -241,7 +244,8 @@ fn main() {
                 entities.extend_from_slice(skinlet_instances.get(inst.root).unwrap().part_entities());
             }
             let mut run_skinlet = |out: &mut Vec<(Entity, Aabb)>, parts: &mut Vec<usize>| {
-                (out.clear(), parts.clear());
+                out.clear();
+                parts.clear();
                 for inst in &instances {
                     let mut si = skinlet_instances.get_mut(inst.root).unwrap();
                     let bake = bakes.get(&bounds.get(inst.root).unwrap().0).unwrap();

@@ -89,14 +89,15 @@ type Tags<'a> = (
     Has<Mesh3d>,
 );
 
+/// Scene roots not bound yet (nor failed), and those bound or failed.
+type Unbound = (Without<SkinletInstance>, Without<SkinletError>);
+type Bound = (With<SkinletInstance>, With<SkinletError>);
+
 /// Binds every ready scene instance with [`SkinletBounds`] to its loaded bake.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn bind_instances(
     mut commands: Commands,
-    roots: Query<
-        (Entity, &SkinletBounds, &WorldInstance, Option<&WorldAssetRoot>),
-        (Without<SkinletInstance>, Without<SkinletError>),
-    >,
+    roots: Query<(Entity, &SkinletBounds, &WorldInstance, Option<&WorldAssetRoot>), Unbound>,
     spawner: Res<WorldInstanceSpawner>,
     bakes: Res<Assets<Bake>>,
     assets: Res<AssetServer>,
@@ -158,7 +159,7 @@ pub(crate) fn rebind_respawned(
 pub(crate) fn rebind_changed_bakes(
     mut commands: Commands,
     mut events: MessageReader<AssetEvent<Bake>>,
-    roots: Query<(Entity, &SkinletBounds), Or<(With<SkinletInstance>, With<SkinletError>)>>,
+    roots: Query<(Entity, &SkinletBounds), Or<Bound>>,
 ) {
     for event in events.read() {
         if let AssetEvent::Modified { id } = event {
