@@ -28,7 +28,7 @@ use bevy::math::{Affine3A, Vec3A};
 use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes, entity_aabb_from_skinned_mesh_bounds};
 use bevy::prelude::*;
 use bevy_skinlet::instance::{PoseInputs, update_instance};
-use bevy_skinlet::{Bake, SkinletBounds, SkinletInstance};
+use bevy_skinlet::{Bake, BakeSettings, SkinletBounds, SkinletInstance};
 use clap::Parser;
 use skinlet_runtime::part_bounds::PoseBounds;
 use std::time::{Duration, Instant};
@@ -49,6 +49,10 @@ struct Args {
     /// Frames measured (at 30 frames per second of animation), after the crowd is loaded.
     #[arg(long, default_value_t = 240)]
     frames: usize,
+    /// Load the bakes unpruned (`BakeSettings { prune: false }`): clip and envelope bounds
+    /// are used wherever they hold, also where they are no tighter than the any-pose boxes.
+    #[arg(long)]
+    keep_all_bounds: bool,
     /// One JSON object on standard output instead of a summary.
     #[arg(long)]
     json: bool,
@@ -150,7 +154,9 @@ fn main() {
             .map(|(c, h)| {
                 let stem = c.file.rsplit_once('.').unwrap().0.to_string();
                 let scene = assets.load(GltfAssetLabel::Scene(0).from_asset(c.file.clone()));
-                (scene, assets.load(format!("{stem}.skinlet")), h / common::rest_size(c))
+                let settings = BakeSettings { prune: !args.keep_all_bounds };
+                let bake = assets.load_builder().with_settings(move |s: &mut BakeSettings| *s = settings);
+                (scene, bake.load(format!("{stem}.skinlet")), h / common::rest_size(c))
             })
             .collect();
         for (i, &c) in order.iter().enumerate() {
@@ -196,6 +202,18 @@ fn main() {
     }
 
     let mut state: SystemState<Measured> = SystemState::new(app.world_mut());
+    // Bevy computes an unskinned mesh's box once, when the mesh is added: so does the
+    // measurement, before timing.
+    let mesh_boxes: bevy::platform::collections::HashMap<Entity, Aabb> = {
+        let (skinlet_instances, _, _, _, meshes, _, drawn) = state.get_mut(app.world_mut()).unwrap();
+        (instances.iter())
+            .flat_map(|inst| skinlet_instances.get(inst.root).unwrap().part_entities().iter().copied())
+            .filter_map(|e| {
+                let (mesh3d, skinned) = drawn.get(e).unwrap();
+                skinned.is_none().then(|| (e, meshes.get(mesh3d).unwrap().compute_aabb().unwrap()))
+            })
+            .collect()
+    };
     let mut tally = Tally::default();
     // Per character file: (skinlet's false culls, Bevy's).
     let mut false_by_file = vec![(0usize, 0usize); characters.len()];
@@ -258,15 +276,14 @@ fn main() {
                 out.clear();
                 for &e in entities {
                     let (mesh3d, skinned) = drawn.get(e).unwrap();
-                    let mesh = meshes.get(mesh3d).unwrap();
                     let aabb = match skinned {
                         Some(skinned) => {
+                            let mesh = meshes.get(mesh3d).unwrap();
                             let ibp = bindposes.get(&skinned.inverse_bindposes).unwrap();
                             let g = &inputs.globals;
                             entity_aabb_from_skinned_mesh_bounds(g, mesh, skinned, ibp, g.get(e).ok()).unwrap().into()
                         }
-                        // Not skinned: the mesh's own box (Bevy computes it once; a copy here).
-                        None => mesh.compute_aabb().unwrap(),
+                        None => mesh_boxes[&e],
                     };
                     out.push(aabb);
                 }
@@ -328,6 +345,7 @@ fn main() {
     let pose_pct = |n: usize| 100.0 * n as f64 / poses.iter().sum::<usize>().max(1) as f64;
     let out = serde_json::json!({
         "instances": { "fox": args.foxes, "morph_stress_test": args.morphs, "xbot": args.xbots },
+        "pruned": !args.keep_all_bounds,
         "mesh_entities": tally.entity_frames / tally.frames.max(1),
         "frames": tally.frames,
         "skinlet_bounds_us_per_frame": per_frame(tally.skinlet_time),

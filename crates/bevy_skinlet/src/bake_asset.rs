@@ -11,6 +11,22 @@ use skinlet_runtime::bake_view::BakeView;
 use skinlet_runtime::part_bounds::PartBounds;
 use skinlet_runtime::pose_guard::PoseGuard;
 
+/// How a `.skinlet` file is loaded (`AssetServer::load_with_settings`, or its `.meta` file).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct BakeSettings {
+    /// Drop each part's clip and envelope bounds where they are no tighter than its any-pose
+    /// boxes at the bind pose (`PartBounds::pruned`): those parts then move the any-pose boxes
+    /// alone, and an instance whose parts all do skips working out its pose. On by default;
+    /// off, every stored bound is used where it holds (both are conservative).
+    pub prune: bool,
+}
+
+impl Default for BakeSettings {
+    fn default() -> Self {
+        BakeSettings { prune: true }
+    }
+}
+
 /// A bake file, checked, with what the bounds systems read every frame.
 #[derive(Asset, TypePath, Debug)]
 pub struct Bake {
@@ -41,8 +57,14 @@ pub enum BakeLoadError {
 }
 
 impl Bake {
-    /// A bake from the bytes of a `.skinlet` file. Errors on anything `BakeView` refuses.
+    /// A bake from the bytes of a `.skinlet` file, with the default [`BakeSettings`]. Errors
+    /// on anything `BakeView` refuses.
     pub fn from_bytes(bytes: &[u8]) -> Result<Bake, skinlet_runtime::Error> {
+        Bake::with_settings(bytes, &BakeSettings::default())
+    }
+
+    /// A bake from the bytes of a `.skinlet` file, loaded as `settings` say.
+    pub fn with_settings(bytes: &[u8], settings: &BakeSettings) -> Result<Bake, skinlet_runtime::Error> {
         let mut words = vec![0u32; bytes.len().div_ceil(4)];
         bytemuck::cast_slice_mut::<u32, u8>(&mut words)[..bytes.len()].copy_from_slice(bytes);
         let view = BakeView::new(&bytemuck::cast_slice(&words)[..bytes.len()])?;
@@ -55,6 +77,7 @@ impl Bake {
         let envelope = view.envelope(morph_weights.len())?;
         let guard = envelope.map(|e| e.guard()).transpose()?;
         let parts = PartBounds::new(&view)?;
+        let parts = if settings.prune { parts.pruned() } else { parts };
         let clips = view.info()?.clips.iter().map(|c| c.to_string()).collect();
         let node_count = (drivers.iter().map(|d| d.0))
             .chain(parts.parts().iter().map(|p| p.node))
@@ -98,18 +121,19 @@ pub struct BakeLoader;
 
 impl AssetLoader for BakeLoader {
     type Asset = Bake;
-    type Settings = ();
+    type Settings = BakeSettings;
     type Error = BakeLoadError;
 
     async fn load(
         &self,
         reader: &mut dyn Reader,
-        _: &(),
+        settings: &BakeSettings,
         context: &mut LoadContext<'_>,
     ) -> Result<Bake, BakeLoadError> {
         let mut bytes = Vec::new();
         reader.read_to_end(&mut bytes).await?;
-        Bake::from_bytes(&bytes).map_err(|error| BakeLoadError::Bake { path: context.path().to_string(), error })
+        Bake::with_settings(&bytes, settings)
+            .map_err(|error| BakeLoadError::Bake { path: context.path().to_string(), error })
     }
 
     fn extensions(&self) -> &[&str] {

@@ -20,7 +20,7 @@
 //! by the margin (10° by default; `None`: no envelope). A `.gltf` file must embed its
 //! buffers.
 
-use crate::bake_asset::{Bake, BakeLoader};
+use crate::bake_asset::{Bake, BakeLoader, BakeSettings};
 use bevy::asset::io::{Reader, Writer};
 use bevy::asset::processor::LoadTransformAndSave;
 use bevy::asset::saver::{AssetSaver, SavedAsset};
@@ -163,8 +163,9 @@ impl AssetSaver for BakeSaver {
         asset: SavedAsset<'_, '_, Bake>,
         _: &(),
         _: AssetPath<'_>,
-    ) -> Result<(), std::io::Error> {
-        writer.write_all(asset.bytes()).await
+    ) -> Result<BakeSettings, std::io::Error> {
+        writer.write_all(asset.bytes()).await?;
+        Ok(BakeSettings::default())
     }
 }
 

@@ -10,15 +10,18 @@
 //!
 //! Every frame (after transform propagation, before Bevy's visibility check), each part's
 //! entity gets its `Aabb` from `skinlet_runtime::part_bounds`, in the entity's space: the
-//! any-pose boxes (morph targets always covered), narrowed by the clip bounds when the
-//! instance's animation player plays one baked clip alone (weight 1, no mask, straight under
-//! the graph's root, every node and morph weight the clip does not animate at rest), or by
-//! the envelope bounds when the bake's pose guard admits the pose.
+//! clip bounds when the instance's animation player plays one baked clip alone (weight 1, no
+//! mask, straight under the graph's root; the nodes it has no curve for that move one driver
+//! relative to another, and the morph weights it has no curve for, at rest), else the
+//! envelope bounds when the bake's pose guard admits the pose, else the any-pose boxes (morph
+//! targets always covered). Only the joints those boxes read are fetched; a bake whose parts
+//! keep no clip or envelope bounds (pruned) skips the pose checks.
 
 use crate::bake_asset::Bake;
 use crate::gltf_tags::{GltfNodeIndex, GltfPrimitiveIndex, GltfSceneSource};
+use bevy::animation::animation_curves::AnimatableProperty;
 use bevy::animation::graph::{AnimationGraph, AnimationGraphHandle, AnimationNodeType};
-use bevy::animation::{AnimationClip, AnimationPlayer, AnimationTargetId};
+use bevy::animation::{AnimationClip, AnimationPlayer, AnimationTargetId, animated_field};
 use bevy::asset::{AssetId, LoadState};
 use bevy::camera::primitives::Aabb;
 use bevy::camera::visibility::{DynamicSkinnedMeshBounds, NoAutoAabb};
@@ -53,6 +56,9 @@ pub struct SkinletInstance {
     morph_nodes: Vec<Option<Entity>>,
     /// Per glTF node index up to the bake's largest, its entity and rest transform.
     nodes: Vec<Option<(Entity, Transform)>>,
+    /// Per glTF node index, whether its local transform changes where a driver the bounds use
+    /// is relative to another (it is above some of them, and not above all).
+    relative: Vec<bool>,
     player: Option<Entity>,
     /// The animation targets of the scene's nodes (glTF index, target id).
     targets: Vec<(usize, AnimationTargetId)>,
@@ -60,12 +66,14 @@ pub struct SkinletInstance {
     /// bounds hold for it.
     scene: String,
     baked: Vec<bool>,
-    /// Per clip asset seen playing: `None` when it is no baked clip of this file, else the
-    /// nodes it does not animate (Bevy reloads a file's clips under new asset ids when their
-    /// handles were dropped; clips are matched by asset path, `FILE#AnimationK`).
-    clips: HashMap<AssetId<AnimationClip>, Option<Vec<usize>>>,
-    // Scratch space, reused every frame.
+    /// Per clip asset seen playing: `None` when it is no baked clip of this file, else what
+    /// it leaves at rest (Bevy reloads a file's clips under new asset ids when their handles
+    /// were dropped; clips are matched by asset path, `FILE#AnimationK`). A few entries: a
+    /// list, searched in order.
+    clips: Vec<(AssetId<AnimationClip>, Option<AtRest>)>,
+    // Scratch space, reused every frame: the drivers' matrices, fetched when a box needs them.
     globals: Vec<Affine3A>,
+    fetched: Vec<bool>,
     weights: Vec<f32>,
     locals: Vec<Trs>,
     /// Which stored bounds held last frame.
@@ -77,6 +85,14 @@ impl SkinletInstance {
     pub fn part_entities(&self) -> &[Entity] {
         &self.parts
     }
+}
+
+/// What a baked clip leaves alone, which must be at rest for its bounds to hold: nodes (their
+/// entities and rest transforms) and morph weights (indices into the bake's).
+#[derive(Debug)]
+struct AtRest {
+    nodes: Vec<(Entity, Transform)>,
+    weights: Vec<usize>,
 }
 
 /// What binding reads of the scene's entities.
@@ -237,6 +253,33 @@ fn bind(
         entities.iter().copied().filter(|e| tags.get(*e).is_ok_and(|t| t.5) && !parts.contains(e)).collect();
     let morph_nodes =
         bake.morph_weights.iter().map(|w| nodes.get(w.0 as usize).copied().flatten().map(|n| n.0)).collect();
+    // Nodes above some drivers the bounds read and not above all of them: only their local
+    // transforms change one driver relative to another (a common ancestor moves them all
+    // alike, which every stored bound follows).
+    let index: HashMap<Entity, usize> =
+        nodes.iter().enumerate().filter_map(|(n, e)| Some((e.as_ref()?.0, n))).collect();
+    let mut parent = vec![None; nodes.len()];
+    for (n, node) in nodes.iter().enumerate() {
+        for c in node.and_then(|(e, _)| children.get(e).ok()).into_iter().flatten() {
+            if let Some(&m) = index.get(c) {
+                parent[m] = Some(n);
+            }
+        }
+    }
+    let mut read = vec![false; bake.drivers.len()];
+    for i in 0..bake.parts.parts().len() {
+        bake.parts.drivers_read(i, PoseBounds::Any).for_each(|d| read[d] = true);
+    }
+    let mut above = vec![0usize; nodes.len()];
+    for (d, _) in read.iter().enumerate().filter(|r| *r.1) {
+        let mut n = Some(bake.drivers[d].0 as usize);
+        while let Some(m) = n {
+            above[m] += 1;
+            n = parent[m];
+        }
+    }
+    let total = read.iter().filter(|r| **r).count();
+    let relative = above.iter().map(|&a| 0 < a && a < total).collect();
     // Baked clips: the file's clips by position when the bake holds every clip of the file in
     // file order (what `skinlet bake` and the recipes do: unnamed clips too), else a clip
     // whose glTF name is one, and only one, baked clip's.
@@ -257,12 +300,14 @@ fn bind(
         parts,
         morph_nodes,
         nodes,
+        relative,
         player,
         targets,
         scene: source.path.clone(),
         baked,
-        clips: HashMap::default(),
-        globals: Vec::new(),
+        clips: Vec::new(),
+        globals: vec![Affine3A::NAN; bake.drivers.len()],
+        fetched: vec![false; bake.drivers.len()],
         weights: Vec::new(),
         locals: Vec::new(),
         pose: PoseBounds::Any,
@@ -313,15 +358,21 @@ pub fn update_instance(
     mut out: impl FnMut(Entity, Aabb),
 ) {
     let global = |e: Entity| inputs.globals.get(e).map_or(Affine3A::NAN, |g| g.affine());
-    instance.globals.clear();
-    instance.globals.extend(instance.drivers.iter().map(|&e| global(e)));
     instance.weights.clear();
     for (w, node) in bake.morph_weights.iter().zip(&instance.morph_nodes) {
         let value = node.and_then(|n| inputs.morphs.get(n).ok()).and_then(|m| m.weights().get(w.1 as usize).copied());
         instance.weights.push(value.unwrap_or(w.2));
     }
     instance.pose = pose_bounds(instance, bake, inputs);
+    instance.fetched.fill(false);
     for (i, &e) in instance.parts.iter().enumerate() {
+        // Only the joints this part's boxes read (the clip bounds' principal joints, say).
+        for d in bake.parts.drivers_read(i, instance.pose) {
+            if !instance.fetched[d] {
+                instance.globals[d] = global(instance.drivers[d]);
+                instance.fetched[d] = true;
+            }
+        }
         let to_entity = global(e).inverse();
         let b = bake.parts.part_box(i, &to_entity, &instance.globals, &instance.weights, instance.pose);
         let aabb = if b.min.is_finite() && b.max.is_finite() && b.min.cmple(b.max).all() {
@@ -336,44 +387,67 @@ pub fn update_instance(
 
 /// Which stored bounds hold for the instance's pose this frame.
 fn pose_bounds(instance: &mut SkinletInstance, bake: &Bake, inputs: &PoseInputs) -> PoseBounds {
-    if let Some(clip) = playing_clip(instance, inputs) {
-        // Whether it is a baked clip of this file, and the nodes it does not animate: found
-        // once per clip asset (when the asset is there).
-        if !instance.clips.contains_key(&clip)
+    if bake.parts.narrows(PoseBounds::Clips)
+        && let Some(clip) = playing_clip(instance, inputs)
+    {
+        // Whether it is a baked clip of this file, and what it leaves at rest: found once
+        // per clip asset (when the asset is there).
+        if !instance.clips.iter().any(|c| c.0 == clip)
             && let Some(asset) = inputs.clips.get(clip)
         {
             let k = inputs.assets.get_path(clip).and_then(|p| {
                 let k = p.label()?.strip_prefix("Animation")?.parse::<usize>().ok()?;
                 (p.without_label().to_string() == instance.scene).then_some(k)
             });
-            let unanimated = k.filter(|&k| instance.baked.get(k) == Some(&true)).map(|_| {
-                let (targets, nodes) = (&instance.targets, &instance.nodes);
-                let animated = |n: usize| targets.iter().any(|&(m, t)| m == n && asset.curves_for_target(t).is_some());
-                (0..nodes.len()).filter(|&n| nodes[n].is_some() && !animated(n)).collect()
-            });
-            instance.clips.insert(clip, unanimated);
+            let rest = k.filter(|&k| instance.baked.get(k) == Some(&true)).map(|_| at_rest(instance, bake, asset));
+            instance.clips.push((clip, rest));
         }
-        let slot = instance.clips.get(&clip).and_then(Option::as_ref);
-        // Nodes and morph weights the clip does not animate must be at rest.
-        let at_rest = slot.is_some_and(|unanimated| {
-            unanimated.iter().all(|&n| {
-                let Some((e, rest)) = instance.nodes[n] else { return true };
-                let weights_at_rest =
-                    bake.morph_weights.iter().zip(&instance.weights).all(|(w, &v)| w.0 as usize != n || v == w.2);
-                inputs.transforms.get(e).is_ok_and(|t| *t == rest) && weights_at_rest
-            })
+        let rest = instance.clips.iter().find(|c| c.0 == clip).and_then(|c| c.1.as_ref());
+        let at_rest = rest.is_some_and(|rest| {
+            let nodes = rest.nodes.iter().all(|(e, rest)| inputs.transforms.get(*e).is_ok_and(|t| t == rest));
+            nodes && rest.weights.iter().all(|&i| instance.weights[i] == bake.morph_weights[i].2)
         });
         if at_rest {
             return PoseBounds::Clips;
         }
     }
-    let Some(guard) = &bake.guard else { return PoseBounds::Any };
+    let Some(guard) = bake.guard.as_ref().filter(|_| bake.parts.narrows(PoseBounds::Envelope)) else {
+        return PoseBounds::Any;
+    };
     instance.locals.clear();
     instance.locals.extend(instance.nodes.iter().map(|n| {
         let t = n.and_then(|(e, _)| inputs.transforms.get(e).ok().copied()).unwrap_or_default();
         Trs { translation: t.translation, rotation: t.rotation, scale: t.scale }
     }));
     if guard.admits(&instance.locals, &instance.weights) { PoseBounds::Envelope } else { PoseBounds::Any }
+}
+
+/// What `clip` leaves alone of what its bounds depend on: the nodes in the `relative` set it
+/// has no curve for, and the morph weights of nodes it has no weight curve for (glTF clips
+/// hold translation, rotation, scale and weight curves only: a curve that is none of the
+/// first three is taken for weights).
+fn at_rest(instance: &SkinletInstance, bake: &Bake, clip: &AnimationClip) -> AtRest {
+    let (t, r, s) = (
+        animated_field!(Transform::translation),
+        animated_field!(Transform::rotation),
+        animated_field!(Transform::scale),
+    );
+    let transform = [t.evaluator_id(), r.evaluator_id(), s.evaluator_id()];
+    // Per node: whether the clip animates it at all, and its weights.
+    let mut animated = vec![(false, false); instance.nodes.len()];
+    for &(n, target) in &instance.targets {
+        for curve in clip.curves_for_target(target).into_iter().flatten() {
+            animated[n].0 = true;
+            animated[n].1 |= !transform.contains(&curve.0.evaluator_id());
+        }
+    }
+    let nodes = (instance.nodes.iter().enumerate())
+        .filter_map(|(n, node)| node.filter(|_| instance.relative[n] && !animated[n].0))
+        .collect();
+    let weights = (0..bake.morph_weights.len())
+        .filter(|&i| !animated.get(bake.morph_weights[i].0 as usize).is_some_and(|a| a.1))
+        .collect();
+    AtRest { nodes, weights }
 }
 
 /// The playing clip, when the instance's player plays exactly one animation, a clip straight

@@ -2,8 +2,8 @@
 //!
 //! Bevy culls each mesh entity by its `Aabb`. For a skinned mesh that box is Bevy's per-joint
 //! box (`DynamicSkinnedMeshBounds`), which misses morph targets; skinlet's covers them, and
-//! narrows to the bounds baked over the clips, or over a pose envelope, when the pose is one
-//! they hold for. Add [`SkinletPlugin`], load the character's bake (a `.skinlet` file from
+//! uses the bounds baked over the clips, or over a pose envelope, when the pose is one they
+//! hold for and they are the tighter. Add [`SkinletPlugin`], load the character's bake (a `.skinlet` file from
 //! `skinlet bake`) and put [`SkinletBounds`] beside the scene's `WorldAssetRoot`:
 //!
 //! ```no_run
@@ -39,7 +39,7 @@ pub mod bake_processor;
 pub mod gltf_tags;
 pub mod instance;
 
-pub use bake_asset::{Bake, BakeLoader};
+pub use bake_asset::{Bake, BakeLoader, BakeSettings};
 pub use instance::{SkinletBounds, SkinletError, SkinletInstance};
 pub use skinlet_gpu;
 pub use skinlet_runtime;

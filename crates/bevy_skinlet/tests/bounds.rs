@@ -3,7 +3,8 @@
 //! face) play clips alone, crossfade two clips, or are posed by hand (a pose no clip makes);
 //! every frame, every vertex of every bound mesh entity, morphed and skinned on the CPU from
 //! the joint matrices and morph weights in Bevy's ECS, lies in the entity's `Aabb`. A bake
-//! of another file is an error that names both files.
+//! of another file is an error that names both files. The bakes are loaded unpruned
+//! (`BakeSettings { prune: false }`): every clip and envelope bound is used where it holds.
 
 mod common;
 
@@ -11,7 +12,7 @@ use bevy::animation::graph::{AnimationGraph, AnimationGraphHandle, AnimationNode
 use bevy::camera::primitives::Aabb;
 use bevy::camera::visibility::{DynamicSkinnedMeshBounds, NoAutoAabb};
 use bevy::prelude::*;
-use bevy_skinlet::{Bake, SkinletBounds, SkinletError, SkinletInstance};
+use bevy_skinlet::{Bake, BakeSettings, SkinletBounds, SkinletError, SkinletInstance};
 use common::{Character, app, asset_folder, node_entities, part_entity, skinned_from_ecs, update_until};
 
 /// How an instance moves.
@@ -23,6 +24,9 @@ enum Motion {
     Blend,
     /// Every node turned by hand each frame, no player.
     ByHand,
+    /// Clip 0, and every node it has no curve for turned by hand each frame (the clip's
+    /// bounds then no longer hold).
+    ClipAndHand,
 }
 
 #[test]
@@ -36,13 +40,19 @@ fn every_vertex_lies_in_its_entitys_box_every_frame() {
         let assets = world.resource::<AssetServer>().clone();
         for (c, character) in characters.iter().enumerate() {
             let stem = character.file.rsplit_once('.').unwrap().0.to_string();
-            let bake: Handle<Bake> = assets.load(format!("{stem}.skinlet"));
+            // Every stored bound kept, so the clip and envelope bounds are checked too (pruned
+            // bakes use fewer of them; `tests/rendered.rs` and the example use those).
+            let unpruned = |s: &mut BakeSettings| s.prune = false;
+            let bake: Handle<Bake> = assets.load_builder().with_settings(unpruned).load(format!("{stem}.skinlet"));
             let scene = assets.load(GltfAssetLabel::Scene(0).from_asset(character.file.clone()));
             let clips = character.asset.clips.len();
             let mut motions = vec![Motion::ByHand];
             motions.extend((0..clips).map(Motion::Clip));
             if clips >= 2 {
                 motions.push(Motion::Blend);
+            }
+            if clips >= 1 {
+                motions.push(Motion::ClipAndHand);
             }
             for (k, &motion) in motions.iter().enumerate() {
                 let at = Transform::from_xyz(3.0 * k as f32, 0.0, 4.0 * c as f32)
@@ -77,6 +87,9 @@ fn every_vertex_lies_in_its_entitys_box_every_frame() {
             Motion::Clip(i) => {
                 p.play(nodes[i]).repeat();
             }
+            Motion::ClipAndHand => {
+                p.play(nodes[0]).repeat();
+            }
             Motion::Blend => {
                 p.play(nodes[0]).repeat().set_weight(0.5);
                 p.play(nodes[1]).repeat().set_weight(0.5).set_speed(1.3);
@@ -91,13 +104,23 @@ fn every_vertex_lies_in_its_entitys_box_every_frame() {
     let mut poses = std::collections::BTreeMap::<String, usize>::new();
     for frame in 0..45 {
         // Hand-posed instances: every node of the scene turned a little, differently each frame.
-        for &(root, _, motion) in &spawned {
-            if motion != Motion::ByHand {
-                continue;
-            }
+        for &(root, c, motion) in &spawned {
+            let animated: Vec<u32> = match motion {
+                Motion::ByHand => Vec::new(),
+                Motion::ClipAndHand => {
+                    let clip = &characters[c].asset.clips[0];
+                    (clip.translations.iter().map(|ch| ch.node))
+                        .chain(clip.rotations.iter().map(|ch| ch.node))
+                        .chain(clip.scales.iter().map(|ch| ch.node))
+                        .chain(clip.weights.iter().map(|ch| ch.channel.node))
+                        .collect()
+                }
+                _ => continue,
+            };
             let world = app.world_mut();
-            let nodes: Vec<Entity> = node_entities(world, root).into_iter().flatten().collect();
-            for (k, n) in nodes.into_iter().enumerate() {
+            let nodes = node_entities(world, root).into_iter().enumerate();
+            let turned = nodes.filter_map(|(i, n)| n.filter(|_| !animated.contains(&(i as u32))));
+            for (k, n) in turned.enumerate() {
                 let angle = 0.05 * ((frame * 7 + k * 3) % 11) as f32;
                 world
                     .get_mut::<Transform>(n)
@@ -141,7 +164,7 @@ fn every_vertex_lies_in_its_entitys_box_every_frame() {
     }
     assert!(checked > 0);
     // Each kind of bounds was used: clips alone, the envelope for blends, any-pose boxes.
-    for want in ["Clip(0) Clips", "Blend Envelope", "ByHand Any"] {
+    for want in ["Clip(0) Clips", "Blend Envelope", "ByHand Any", "ClipAndHand Envelope"] {
         assert!(poses.contains_key(want), "no {want:?} frame: {poses:?}");
     }
 }

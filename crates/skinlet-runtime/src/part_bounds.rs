@@ -2,7 +2,9 @@
 //! engine culls as one entity), every frame, morph targets included.
 //!
 //! Three bounds, each conservative for the poses it is valid for; [`PartBounds::part_box`]
-//! intersects those that hold:
+//! moves the clip or envelope bounds when they hold, else the any-pose boxes
+//! ([`PartBounds::pruned`] drops stored bounds that are no tighter than the any-pose boxes
+//! at the bind pose).
 //! - **Any pose** (always): per-joint boxes, the method of Bevy's per-joint skinned bounds
 //!   (`per-joint-skinned-bounds-bevy-pr.txt`), in each driver's bind space, grown by each
 //!   morph weight's delta box. A skinned vertex `Σ wⱼ Gⱼ Bⱼ (p + Σₖ μₖ dₖ)` (skin weights ≥ 0
@@ -13,14 +15,18 @@
 //!   whatever the joint matrices and morph weights.
 //! - **The baked clips** ([`PoseBounds::Clips`]): the part's meshlet spheres (`BNDS`, in each
 //!   meshlet's principal joint's bind space), which hold over every time of the baked clips
-//!   (conservative-bounds paper, section 5), their morph weights included; each sphere moved
-//!   exactly (the box of the ellipsoid it becomes).
+//!   (conservative-bounds paper, section 5), their morph weights included. The spheres on one
+//!   principal joint are merged at load into one box of their centers grown by a ball of
+//!   their largest radius (a superset of each sphere), so a frame moves one shape per joint,
+//!   not one per meshlet.
 //! - **The pose envelope** ([`PoseBounds::Envelope`]): the same for `ENVL`'s bounds, which hold
 //!   for every pose the pose guard admits.
 //!
-//! Boxes are moved with Arvo's method; the f32 rounding of every move is covered by a relative
-//! margin of 1e-5 of the magnitudes involved (far above the few ulps it can be). A matrix that
-//! is not finite gives the infinite box.
+//! A box grown by a ball `{c + h∘u + r·b : |u|∞ ≤ 1, |b| ≤ 1}` moved by `x ↦ A·x + t` is
+//! bounded exactly per axis `i` by `(A·c + t)ᵢ ± (Σⱼ |Aᵢⱼ| hⱼ + r·|row i of A|)` (Arvo's method
+//! plus the ball's reach). The f32 rounding of every move is covered by a relative margin of
+//! 1e-5 of the magnitudes involved (far above the few ulps it can be). A matrix that is not
+//! finite gives the infinite box.
 
 use crate::bake_view::{BakeView, BakedBounds, BakedPartRecord};
 use crate::joint_boxes::Box3;
@@ -38,12 +44,14 @@ pub enum PoseBounds {
     Envelope,
 }
 
-/// A box in one driver's bind space (center, half extents), with a range of morph boxes.
+/// A box grown by a ball in one driver's bind space (center, half extents, radius), with a
+/// range of morph boxes.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct JointBox {
     driver: u32,
     center: Vec3A,
     half: Vec3A,
+    radius: f32,
     /// Its morph boxes, `morphs[start..end]`.
     morphs: [u32; 2],
 }
@@ -56,22 +64,7 @@ struct MorphBox {
     half: Vec3A,
 }
 
-/// The meshlet spheres of one part on one principal joint (a range of `sphere_list`).
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct SphereGroup {
-    driver: u32,
-    spheres: [u32; 2],
-}
-
-/// A meshlet sphere in its principal joint's bind space (radius grown for the f32 store).
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct Sphere {
-    center: Vec3A,
-    radius: f32,
-}
-
-/// Ranges of one part's any-pose boxes and its clip and envelope sphere groups, `[start,
-/// end)` each.
+/// Ranges of `boxes` for one part's any-pose, clip and envelope bounds, `[start, end)` each.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct PartRanges {
     any: [u32; 2],
@@ -86,35 +79,46 @@ pub struct PartBounds {
     ranges: Vec<PartRanges>,
     boxes: Vec<JointBox>,
     morphs: Vec<MorphBox>,
-    spheres: Vec<SphereGroup>,
-    sphere_list: Vec<Sphere>,
     drivers: usize,
     weights: usize,
+    envelope: bool,
+    /// Every driver's matrix at the bind pose (the inverse of its inverse bind matrix).
+    bind: Vec<Affine3A>,
 }
+
+/// The relative margin that covers the f32 rounding of moving a box (a few ulps, ~1e-7).
+const MOVE_MARGIN: f32 = 1e-5;
 
 /// Grows an f64 box outward and stores it in f32 (center, half extents): by 2e-6 of its
 /// largest coordinate magnitude (at least 1e-30), far above the f32 rounding of the store.
+/// The half extents also carry `MOVE_MARGIN·|center|`, so a move that covers its own
+/// rounding only adds `MOVE_MARGIN` of the half extents and translation it makes.
 fn stored(lo: DVec3, hi: DVec3) -> (Vec3A, Vec3A) {
     let grow = 2e-6 * lo.abs().max(hi.abs()).max_element().max(1e-30);
     let (lo, hi) = (lo - grow, hi + grow);
-    (((lo + hi) / 2.0).as_vec3a(), ((hi - lo) / 2.0 * (1.0 + 1e-6)).as_vec3a())
+    let center = ((lo + hi) / 2.0).as_vec3a();
+    (center, ((hi - lo) / 2.0 * (1.0 + 1e-6)).as_vec3a() + center.abs() * MOVE_MARGIN)
 }
 
-/// A part's meshlet spheres grouped by principal joint; returns the range of groups.
-fn sphere_groups(records: &[BakedBounds], part: &BakedPartRecord, out: &mut PartBounds) -> [u32; 2] {
-    let start = out.spheres.len() as u32;
+/// A part's meshlet spheres, one box grown by a ball per principal joint; returns the range
+/// of `out.boxes` they went to.
+fn merged_spheres(records: &[BakedBounds], part: &BakedPartRecord, out: &mut PartBounds) -> [u32; 2] {
+    let start = out.boxes.len() as u32;
     let mut records: Vec<&BakedBounds> = records[part.meshlets[0] as usize..part.meshlets[1] as usize].iter().collect();
     records.sort_by_key(|b| b.joint);
     for run in records.chunk_by(|a, b| a.joint == b.joint) {
-        let first = out.sphere_list.len() as u32;
-        out.sphere_list.extend(run.iter().map(|b| {
+        let (mut lo, mut hi, mut radius) = (DVec3::INFINITY, DVec3::NEG_INFINITY, 0.0f32);
+        for b in run {
             let c = Vec3::from(b.center);
+            (lo, hi) = (lo.min(c.as_dvec3()), hi.max(c.as_dvec3()));
             // Stored centers are exact; the radius grows by 2e-6 of the sphere's magnitude.
-            Sphere { center: c.into(), radius: b.radius + 2e-6 * (c.abs().max_element() + b.radius) }
-        }));
-        out.spheres.push(SphereGroup { driver: run[0].joint, spheres: [first, out.sphere_list.len() as u32] });
+            radius = radius.max(b.radius + 2e-6 * (c.abs().max_element() + b.radius));
+        }
+        let (center, half) = stored(lo, hi);
+        let morphs = [out.morphs.len() as u32; 2];
+        out.boxes.push(JointBox { driver: run[0].joint, center, half, radius: radius * (1.0 + 1e-6), morphs });
     }
-    [start, out.spheres.len() as u32]
+    [start, out.boxes.len() as u32]
 }
 
 impl PartBounds {
@@ -136,10 +140,10 @@ impl PartBounds {
             ranges: Vec::new(),
             boxes: Vec::new(),
             morphs: Vec::new(),
-            spheres: Vec::new(),
-            sphere_list: Vec::new(),
             drivers,
             weights,
+            envelope: false,
+            bind: Vec::new(),
         };
         for (i, part) in parts.iter().enumerate() {
             let err = |what: String| Error::invalid("bake section PART", format!("part {i}: {what}"));
@@ -191,18 +195,49 @@ impl PartBounds {
                     let (center, half) = stored(lo, hi);
                     out.morphs.push(MorphBox { weight, center, half });
                 }
-                out.boxes.push(JointBox { driver: d as u32, center, half, morphs: [start, out.morphs.len() as u32] });
+                out.boxes.push(JointBox {
+                    driver: d as u32,
+                    center,
+                    half,
+                    radius: 0.0,
+                    morphs: [start, out.morphs.len() as u32],
+                });
             }
             let any = [any_start, out.boxes.len() as u32];
-            let clips = sphere_groups(bounds, part, &mut out);
+            let clips = merged_spheres(bounds, part, &mut out);
             let envelope = match &envelope {
-                Some(e) => sphere_groups(e.bounds, part, &mut out),
+                Some(e) => merged_spheres(e.bounds, part, &mut out),
                 None => [0, 0],
             };
             out.ranges.push(PartRanges { any, clips, envelope });
         }
         out.parts = parts;
+        out.envelope = envelope.is_some();
+        out.bind = inverse_bind.iter().map(|m| Affine3A::from_mat4(*m).inverse()).collect();
         Ok(out)
+    }
+
+    /// Drops each part's clip and envelope bounds whose box at the bind pose is no smaller
+    /// than its any-pose boxes' (few, large meshlets, say): for those poses each frame then
+    /// moves the any-pose boxes alone. Whichever is moved, the box is conservative; this keeps
+    /// the tighter at the bind pose and skips the other's work.
+    pub fn pruned(mut self) -> PartBounds {
+        let rest = vec![0.0; self.weights];
+        let volume = |range: [u32; 2]| {
+            let b = self.moved(range, &Affine3A::IDENTITY, &self.bind, &rest);
+            (b.max - b.min).element_product()
+        };
+        let keep: Vec<[bool; 2]> = (self.ranges.iter())
+            .map(|r| {
+                let any = volume(r.any);
+                [r.clips, r.envelope].map(|n| n[0] < n[1] && volume(n) < any)
+            })
+            .collect();
+        for (r, [clips, envelope]) in self.ranges.iter_mut().zip(keep) {
+            r.clips = if clips { r.clips } else { [0, 0] };
+            r.envelope = if envelope { r.envelope } else { [0, 0] };
+        }
+        self
     }
 
     /// The parts, in the bake's order (node, mesh and primitive of each: how an engine finds
@@ -211,18 +246,50 @@ impl PartBounds {
         &self.parts
     }
 
-    /// Whether the bake has envelope bounds ([`PoseBounds::Envelope`] narrows anything).
+    /// Whether the bake has envelope bounds.
     pub fn has_envelope(&self) -> bool {
-        self.ranges.iter().any(|r| r.envelope[0] < r.envelope[1])
+        self.envelope
+    }
+
+    /// Whether `pose` changes which boxes some part moves: false when no part keeps stored
+    /// bounds for it (an engine then need not work out the pose at all).
+    pub fn narrows(&self, pose: PoseBounds) -> bool {
+        self.ranges.iter().any(|r| {
+            let n = match pose {
+                PoseBounds::Any => return false,
+                PoseBounds::Clips => r.clips,
+                PoseBounds::Envelope => r.envelope,
+            };
+            n[0] < n[1]
+        })
+    }
+
+    /// The drivers whose matrices [`PartBounds::part_box`] reads for `part` and `pose` (each
+    /// once; none for a part out of range): an engine fetches only these joints' matrices.
+    pub fn drivers_read(&self, part: usize, pose: PoseBounds) -> impl Iterator<Item = usize> + '_ {
+        let range = self.ranges.get(part).map_or([0, 0], |r| self.range(r, pose));
+        self.boxes[range[0] as usize..range[1] as usize].iter().map(|b| b.driver as usize)
+    }
+
+    /// The boxes `part_box` moves: the clip or envelope bounds when `pose` says they hold
+    /// and the part has them, else the any-pose boxes.
+    fn range(&self, r: &PartRanges, pose: PoseBounds) -> [u32; 2] {
+        let range = match pose {
+            PoseBounds::Any => r.any,
+            PoseBounds::Clips => r.clips,
+            PoseBounds::Envelope => r.envelope,
+        };
+        if range[0] < range[1] { range } else { r.any }
     }
 
     /// Part `part`'s box in a target space (an entity's, or the world's) for one frame.
     /// `to_target` maps world space into the target space; `joint_globals[j]` is driver `j`'s
     /// world matrix (its node's global transform: the skinning matrix times the inverse of
     /// the inverse bind matrix), for every driver of the bake; `morph_weights` are the bake's
-    /// morph weights (`MRPH`'s order) this frame; `pose` says which stored bounds hold besides
-    /// the any-pose boxes. Never panics: a part index out of range, too few matrices or
-    /// weights, or a matrix that is not finite gives the infinite box (never culled).
+    /// morph weights (`MRPH`'s order) this frame; `pose` says which stored bounds hold: the
+    /// clip or envelope bounds when they do (and the part has them), else the any-pose boxes.
+    /// Never panics: a part index out of range, too few matrices or weights, or a matrix that
+    /// is not finite gives the infinite box (never culled).
     pub fn part_box(
         &self,
         part: usize,
@@ -236,62 +303,43 @@ impl PartBounds {
         if joint_globals.len() < self.drivers || morph_weights.len() < self.weights {
             return ALL;
         }
-        // The any-pose boxes, morphed and moved by Arvo's method.
-        let boxes = |range: [u32; 2]| {
-            let (mut lo, mut hi, mut finite) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY, true);
-            for b in &self.boxes[range[0] as usize..range[1] as usize] {
-                let (mut c, mut h) = (b.center, b.half);
+        let range = self.range(r, pose);
+        self.moved(range, to_target, joint_globals, morph_weights)
+    }
+
+    /// The boxes `range`, moved and morphed, and their union.
+    fn moved(&self, range: [u32; 2], to_target: &Affine3A, joint_globals: &[Affine3A], morph_weights: &[f32]) -> Box3 {
+        const ALL: Box3 = Box3 { min: Vec3::NEG_INFINITY, max: Vec3::INFINITY };
+        let (mut lo, mut hi, mut magnitude) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY, Vec3A::ZERO);
+        for b in &self.boxes[range[0] as usize..range[1] as usize] {
+            let (mut c, mut h) = (b.center, b.half);
+            if b.morphs[0] < b.morphs[1] {
                 for m in &self.morphs[b.morphs[0] as usize..b.morphs[1] as usize] {
                     let w = morph_weights[m.weight as usize];
                     (c, h) = (c + m.center * w, h + m.half * w.abs());
                 }
-                // The sums' rounding, far inside the margin below.
-                h += (c.abs() + h) * 1e-6;
-                let g = *to_target * joint_globals[b.driver as usize];
-                let a = &g.matrix3;
-                let center = a.x_axis * c.x + a.y_axis * c.y + a.z_axis * c.z + g.translation;
-                let (ax, ay, az) = (a.x_axis.abs(), a.y_axis.abs(), a.z_axis.abs());
-                let half = ax * h.x + ay * h.y + az * h.z;
-                let scale = ax * c.x.abs() + ay * c.y.abs() + az * c.z.abs() + half + g.translation.abs();
-                let half = half + scale * 1e-5;
-                finite &= center.is_finite() && half.is_finite();
-                lo = lo.min(center - half);
-                hi = hi.max(center + half);
+                // The sums' rounding, and the move's margin for the new center.
+                h += c.abs() * MOVE_MARGIN + h * 1e-6;
             }
-            if finite && lo.is_finite() && hi.is_finite() { Box3 { min: lo.into(), max: hi.into() } } else { ALL }
-        };
-        // Meshlet spheres, each moved exactly: the ellipsoid `A·(c + r·ball) + t` reaches
-        // `r·|row i of A|` from its center along axis i.
-        let spheres = |range: [u32; 2]| {
-            let (mut lo, mut hi, mut finite) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY, true);
-            for group in &self.spheres[range[0] as usize..range[1] as usize] {
-                let g = *to_target * joint_globals[group.driver as usize];
-                let a = &g.matrix3;
+            let g = *to_target * joint_globals[b.driver as usize];
+            let a = &g.matrix3;
+            let center = a.x_axis * c.x + a.y_axis * c.y + a.z_axis * c.z + g.translation;
+            let mut half = a.x_axis.abs() * h.x + a.y_axis.abs() * h.y + a.z_axis.abs() * h.z;
+            if b.radius > 0.0 {
                 let rows = (a.x_axis * a.x_axis + a.y_axis * a.y_axis + a.z_axis * a.z_axis).sqrt();
-                let (ax, ay, az) = (a.x_axis.abs(), a.y_axis.abs(), a.z_axis.abs());
-                for s in &self.sphere_list[group.spheres[0] as usize..group.spheres[1] as usize] {
-                    let c = s.center;
-                    let center = a.x_axis * c.x + a.y_axis * c.y + a.z_axis * c.z + g.translation;
-                    let half = rows * s.radius;
-                    let scale = ax * c.x.abs() + ay * c.y.abs() + az * c.z.abs() + half + g.translation.abs();
-                    let half = half + scale * 1e-5;
-                    finite &= center.is_finite() && half.is_finite();
-                    lo = lo.min(center - half);
-                    hi = hi.max(center + half);
-                }
+                half += rows * b.radius;
             }
-            if finite && lo.is_finite() && hi.is_finite() { Box3 { min: lo.into(), max: hi.into() } } else { ALL }
-        };
-        let mut out = boxes(r.any);
-        let narrower = match pose {
-            PoseBounds::Any => None,
-            PoseBounds::Clips => Some(r.clips),
-            PoseBounds::Envelope => Some(r.envelope).filter(|e| e[0] < e[1]),
-        };
-        if let Some(range) = narrower {
-            let b = spheres(range);
-            out = Box3 { min: out.min.max(b.min), max: out.max.min(b.max) };
+            // The rounding of `center` (its `|A|·|c|` part is in `h`) and of `half`.
+            let half = half * (1.0 + MOVE_MARGIN) + g.translation.abs() * MOVE_MARGIN;
+            // NaN and infinity propagate into the sum: one check at the end.
+            magnitude += center.abs() + half;
+            lo = lo.min(center - half);
+            hi = hi.max(center + half);
         }
-        out
+        if magnitude.is_finite() && lo.is_finite() && hi.is_finite() {
+            Box3 { min: lo.into(), max: hi.into() }
+        } else {
+            ALL
+        }
     }
 }

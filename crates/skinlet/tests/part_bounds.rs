@@ -75,6 +75,10 @@ fn check(
     let to = glam::Mat4::from(*to_target).as_dmat4();
     for (i, part) in character.parts.iter().enumerate() {
         let b = bounds.part_box(i, to_target, &frame.drivers, &frame.weights, pose);
+        // It reads no matrix but those `drivers_read` names (an engine fetches only those).
+        let mut only = vec![Affine3A::NAN; frame.drivers.len()];
+        bounds.drivers_read(i, pose).for_each(|d| only[d] = frame.drivers[d]);
+        assert_eq!(b, bounds.part_box(i, to_target, &only, &frame.weights, pose), "{name}, {what}: part {i}");
         for v in part.vertices.clone() {
             let p = to.transform_point3(frame.posed[v as usize].as_dvec3()).as_vec3();
             assert!(b.contains(p), "{name}, {what}: vertex {v} of part {i} at {p} is outside its box {b:?}");
@@ -108,6 +112,10 @@ fn every_vertex_lies_in_its_part_box() {
         let morphs = character.mesh.morphs.weights.len();
         let mut checked = 0;
         let case = (name.as_str(), &bounds, &character);
+        // Pruned: stored bounds no tighter than the any-pose boxes at the bind pose dropped.
+        let pruned = bounds.clone().pruned();
+        let pruned_case = (name.as_str(), &pruned, &character);
+        assert!(clips.is_empty() || bounds.narrows(PoseBounds::Clips), "{name}: no clip bounds");
 
         // Any pose: random local transforms and morph weights, in world and entity space.
         for k in 0..24 {
@@ -147,6 +155,13 @@ fn every_vertex_lies_in_its_part_box() {
                     let what = format!("clip {:?} at {t}, {pose:?}", clip.name);
                     checked += check(case, &what, &frame, &Affine3A::IDENTITY, pose);
                 }
+                check(
+                    pruned_case,
+                    &format!("clip {:?} at {t}, pruned", clip.name),
+                    &frame,
+                    &Affine3A::IDENTITY,
+                    PoseBounds::Clips,
+                );
             }
         }
         // Poses inside the envelope (on its boundary every other one), admitted by the
@@ -162,6 +177,7 @@ fn every_vertex_lies_in_its_part_box() {
                 let frame = pose(&character, &globals, weights);
                 let what = format!("envelope pose {k}");
                 checked += check(case, &what, &frame, &Affine3A::IDENTITY, PoseBounds::Envelope);
+                check(pruned_case, &what, &frame, &Affine3A::IDENTITY, PoseBounds::Envelope);
             }
         }
         assert!(checked > 0, "{name}: no vertex checked");
