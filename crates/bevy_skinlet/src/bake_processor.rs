@@ -129,17 +129,9 @@ impl AssetLoader for BakeRecipeLoader {
             .map_err(|e| BakeRecipeError::Recipe { path: path.clone(), error: e.to_string() })?;
         let gltf_err = |error: String| BakeRecipeError::Gltf { path: path.clone(), gltf: recipe.gltf.clone(), error };
         let bytes = context.read_asset_bytes(gltf_path.clone()).await.map_err(|e| gltf_err(e.to_string()))?;
-        let name = Path::new(&recipe.gltf);
-        let baked = bake_gltf(&bytes, name, &recipe).map_err(|error| BakeRecipeError::Bake {
-            path: path.clone(),
-            gltf: recipe.gltf.clone(),
-            error,
-        })?;
-        Bake::from_bytes(&baked).map_err(|e| BakeRecipeError::Bake {
-            path: path.clone(),
-            gltf: recipe.gltf.clone(),
-            error: e.to_string(),
-        })
+        let bake_err = |error: String| BakeRecipeError::Bake { path: path.clone(), gltf: recipe.gltf.clone(), error };
+        let baked = bake_gltf(&bytes, Path::new(&recipe.gltf), &recipe).map_err(bake_err)?;
+        Bake::from_bytes(&baked).map_err(|e| bake_err(e.to_string()))
     }
 
     fn extensions(&self) -> &[&str] {

@@ -2,7 +2,8 @@
 //! index on the entities it spawns, so a glTF extension handler (Bevy's hooks into its own
 //! loader) tags them as they are made: every node entity with its glTF node index and name,
 //! every primitive entity with its mesh and primitive index, and the scene's root entity
-//! with the file it came from and the names of the file's animations. The tags are plain reflected components, so they survive scene spawning.
+//! with the file it came from and the names of the file's animations. The tags are plain
+//! reflected components, so they survive scene spawning.
 
 use bevy::asset::LoadContext;
 use bevy::ecs::world::{EntityWorldMut, World};
