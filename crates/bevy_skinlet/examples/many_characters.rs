@@ -219,8 +219,8 @@ fn main() {
     let mut false_by_file = vec![(0usize, 0usize); characters.len()];
     let (mut skinlet_boxes, mut bevy_boxes): (Vec<(Entity, Aabb)>, Vec<Aabb>) = (Vec::new(), Vec::new());
     let (mut entities, mut parts): (Vec<Entity>, Vec<usize>) = (Vec::new(), Vec::new());
-    // Frames per kind of stored bounds skinlet used (PoseBounds order: any, clips, envelope).
-    let mut poses = [0usize; 3];
+    // Instance frames per kind of bounds skinlet used: any pose, clips, clip windows, envelope.
+    let mut poses = [0usize; 4];
     let mut time = 0.0f32;
     for frame in 0..args.frames {
         // Crossfade to the next clip (0.6 s) when an instance's period is up.
@@ -303,7 +303,12 @@ fn main() {
                 tally.skinlet_time += t1.elapsed();
             }
             for inst in &instances {
-                poses[skinlet_instances.get(inst.root).unwrap().pose as usize] += 1;
+                poses[match skinlet_instances.get(inst.root).unwrap().pose {
+                    PoseBounds::Any => 0,
+                    PoseBounds::Clips => 1,
+                    PoseBounds::ClipAt { .. } => 2,
+                    PoseBounds::Envelope => 3,
+                }] += 1;
             }
         }
         tally.frames += 1;
@@ -358,9 +363,10 @@ fn main() {
             .map(|(c, &(ours, bevys))| (c.file.clone(), serde_json::json!({ "skinlet": ours, "bevy": bevys })))
             .collect::<serde_json::Map<_, _>>(),
         "skinlet_pose_bounds_pct": {
-            "clips": pose_pct(poses[PoseBounds::Clips as usize]),
-            "envelope": pose_pct(poses[PoseBounds::Envelope as usize]),
-            "any_pose": pose_pct(poses[PoseBounds::Any as usize]),
+            "clip_windows": pose_pct(poses[2]),
+            "clips": pose_pct(poses[1]),
+            "envelope": pose_pct(poses[3]),
+            "any_pose": pose_pct(poses[0]),
         },
     });
     if args.json {

@@ -9,13 +9,16 @@
 //! again (a reloaded glTF file) or a reloaded bake is bound again.
 //!
 //! Every frame (after transform propagation, before Bevy's visibility check), each part's
-//! entity gets its `Aabb` from `skinlet_runtime::part_bounds`, in the entity's space: the
-//! clip bounds when the instance's animation player plays one baked clip alone (weight 1, no
-//! mask, straight under the graph's root; the nodes it has no curve for that move one driver
-//! relative to another, and the morph weights it has no curve for, at rest), else the
-//! envelope bounds when the bake's pose guard admits the pose, else the any-pose boxes (morph
-//! targets always covered). Only the joints those boxes read are fetched; a bake whose parts
-//! keep no clip or envelope bounds (pruned) skips the pose checks.
+//! entity gets its `Aabb` from `skinlet_runtime::part_bounds`, in the entity's space: when
+//! the instance's animation player plays one baked clip alone (weight 1, no mask, straight
+//! under the graph's root; the nodes it has no curve for that move one driver relative to
+//! another, and the morph weights it has no curve for, at rest), the part's box over the clip
+//! window holding the player's seek time (one box, one joint), or the clip bounds for a bake
+//! without windows; else the envelope bounds when the bake's pose guard admits the pose, else
+//! the any-pose boxes (morph targets always covered). Only the joints those boxes read are
+//! fetched; a bake with neither windows nor clip or envelope bounds (pruned) skips the pose
+//! checks. An app that edits animated joints after Bevy's animation (IK) marks the instance
+//! [`PoseEdited`], which turns the clip bounds off for it.
 
 use crate::bake_asset::Bake;
 use crate::gltf_tags::{GltfNodeIndex, GltfPrimitiveIndex, GltfSceneSource};
@@ -38,6 +41,13 @@ use skinlet_runtime::part_bounds::PoseBounds;
 /// skinlet's bounds from this bake, every frame.
 #[derive(Component, Clone, Debug)]
 pub struct SkinletBounds(pub Handle<Bake>);
+
+/// Put on a scene root whose pose an app edits after Bevy's animation and before transform
+/// propagation (IK, look-at or physics on joints a clip animates): skinlet cannot see such
+/// edits, so for this instance it never uses the bounds baked over the clips; the envelope
+/// bounds (the pose guard checks the edited pose itself) and the any-pose boxes still hold.
+#[derive(Component, Clone, Copy, Debug, Default)]
+pub struct PoseEdited;
 
 /// Why a scene could not be bound to its bake (on the root entity; the scene keeps Bevy's
 /// own bounds). Also logged once.
@@ -62,15 +72,15 @@ pub struct SkinletInstance {
     player: Option<Entity>,
     /// The animation targets of the scene's nodes (glTF index, target id).
     targets: Vec<(usize, AnimationTargetId)>,
-    /// The glTF file's asset path, and per animation of the file whether the bake's clip
-    /// bounds hold for it.
+    /// The glTF file's asset path, and per animation of the file the bake's clip that is it
+    /// (an index into the bake's clips), if any.
     scene: String,
-    baked: Vec<bool>,
-    /// Per clip asset seen playing: `None` when it is no baked clip of this file, else what
-    /// it leaves at rest (Bevy reloads a file's clips under new asset ids when their handles
-    /// were dropped; clips are matched by asset path, `FILE#AnimationK`). A few entries: a
-    /// list, searched in order.
-    clips: Vec<(AssetId<AnimationClip>, Option<AtRest>)>,
+    baked: Vec<Option<u32>>,
+    /// Per clip asset seen playing: `None` when it is no baked clip of this file, else which
+    /// baked clip and what it leaves at rest (Bevy reloads a file's clips under new asset ids
+    /// when their handles were dropped; clips are matched by asset path, `FILE#AnimationK`).
+    /// A few entries: a list, searched in order.
+    clips: Vec<(AssetId<AnimationClip>, Option<BakedClip>)>,
     // Scratch space, reused every frame: the drivers' matrices, fetched when a box needs them.
     globals: Vec<Affine3A>,
     fetched: Vec<bool>,
@@ -78,6 +88,8 @@ pub struct SkinletInstance {
     locals: Vec<Trs>,
     /// Which stored bounds held last frame.
     pub pose: PoseBounds,
+    /// Whether the root has [`PoseEdited`] (set each frame by the plugin).
+    pub pose_edited: bool,
 }
 
 impl SkinletInstance {
@@ -87,10 +99,12 @@ impl SkinletInstance {
     }
 }
 
-/// What a baked clip leaves alone, which must be at rest for its bounds to hold: nodes (their
-/// entities and rest transforms) and morph weights (indices into the bake's).
+/// A baked clip (its index among the bake's clips) and what it leaves alone, which must be at
+/// rest for its bounds to hold: nodes (their entities and rest transforms) and morph weights
+/// (indices into the bake's).
 #[derive(Debug)]
-struct AtRest {
+struct BakedClip {
+    index: u32,
     nodes: Vec<(Entity, Transform)>,
     weights: Vec<usize>,
 }
@@ -268,6 +282,7 @@ fn bind(
     }
     let mut read = vec![false; bake.drivers.len()];
     for i in 0..bake.parts.parts().len() {
+        // The any-pose boxes read every driver that moves a vertex of the part.
         bake.parts.drivers_read(i, PoseBounds::Any).for_each(|d| read[d] = true);
     }
     let mut above = vec![0usize; nodes.len()];
@@ -286,12 +301,14 @@ fn bind(
     let names: Vec<&str> = source.clips.iter().map(String::as_str).collect();
     let in_order = names.iter().copied().eq(bake.clips.iter().map(String::as_str));
     let once = |list: &mut dyn Iterator<Item = &str>, name: &str| list.filter(|n| *n == name).count() == 1;
-    let baked = (names.iter())
-        .map(|&name| {
-            in_order
-                || (!name.is_empty()
-                    && once(&mut bake.clips.iter().map(String::as_str), name)
-                    && once(&mut names.iter().copied(), name))
+    let baked = (names.iter().enumerate())
+        .map(|(k, &name)| match in_order {
+            true => Some(k as u32),
+            false => (!name.is_empty()
+                && once(&mut bake.clips.iter().map(String::as_str), name)
+                && once(&mut names.iter().copied(), name))
+            .then(|| bake.clips.iter().position(|c| c == name).map(|i| i as u32))
+            .flatten(),
         })
         .collect();
     let instance = SkinletInstance {
@@ -311,6 +328,7 @@ fn bind(
         weights: Vec::new(),
         locals: Vec::new(),
         pose: PoseBounds::Any,
+        pose_edited: false,
     };
     Ok((instance, unbaked))
 }
@@ -330,7 +348,7 @@ pub struct PoseInputs<'w, 's> {
 
 /// Sets the `Aabb` of every bound part entity from skinlet's bounds for this frame.
 pub(crate) fn update_bounds(
-    mut instances: Query<&mut SkinletInstance>,
+    mut instances: Query<(&mut SkinletInstance, Has<PoseEdited>)>,
     bakes: Res<Assets<Bake>>,
     inputs: PoseInputs,
     mut aabbs: Query<&mut Aabb>,
@@ -339,7 +357,8 @@ pub(crate) fn update_bounds(
     if settings.bounds != crate::BoundsSource::Skinlet {
         return;
     }
-    for mut instance in &mut instances {
+    for (mut instance, edited) in &mut instances {
+        instance.pose_edited = edited;
         let Some(bake) = bakes.get(instance.bake) else { continue };
         update_instance(&mut instance, bake, &inputs, |e, aabb| {
             if let Ok(mut a) = aabbs.get_mut(e) {
@@ -359,8 +378,14 @@ pub fn update_instance(
 ) {
     let global = |e: Entity| inputs.globals.get(e).map_or(Affine3A::NAN, |g| g.affine());
     instance.weights.clear();
-    for (w, node) in bake.morph_weights.iter().zip(&instance.morph_nodes) {
-        let value = node.and_then(|n| inputs.morphs.get(n).ok()).and_then(|m| m.weights().get(w.1 as usize).copied());
+    // One lookup per node (a node's weights are adjacent in the bake).
+    let mut last: Option<(Entity, Option<&MorphWeights>)> = None;
+    for (w, &node) in bake.morph_weights.iter().zip(&instance.morph_nodes) {
+        let weights = node.and_then(|n| match last {
+            Some((e, m)) if e == n => m,
+            _ => last.insert((n, inputs.morphs.get(n).ok())).1,
+        });
+        let value = weights.and_then(|m| m.weights().get(w.1 as usize).copied());
         instance.weights.push(value.unwrap_or(w.2));
     }
     instance.pose = pose_bounds(instance, bake, inputs);
@@ -387,11 +412,12 @@ pub fn update_instance(
 
 /// Which stored bounds hold for the instance's pose this frame.
 fn pose_bounds(instance: &mut SkinletInstance, bake: &Bake, inputs: &PoseInputs) -> PoseBounds {
-    if bake.parts.narrows(PoseBounds::Clips)
-        && let Some(clip) = playing_clip(instance, inputs)
+    if (bake.parts.narrows(PoseBounds::Clips) || bake.parts.has_clip_windows())
+        && !instance.pose_edited
+        && let Some((clip, time)) = playing_clip(instance, inputs)
     {
-        // Whether it is a baked clip of this file, and what it leaves at rest: found once
-        // per clip asset (when the asset is there).
+        // Which baked clip of this file it is, and what it leaves at rest: found once per
+        // clip asset (when the asset is there).
         if !instance.clips.iter().any(|c| c.0 == clip)
             && let Some(asset) = inputs.clips.get(clip)
         {
@@ -399,16 +425,15 @@ fn pose_bounds(instance: &mut SkinletInstance, bake: &Bake, inputs: &PoseInputs)
                 let k = p.label()?.strip_prefix("Animation")?.parse::<usize>().ok()?;
                 (p.without_label().to_string() == instance.scene).then_some(k)
             });
-            let rest = k.filter(|&k| instance.baked.get(k) == Some(&true)).map(|_| at_rest(instance, bake, asset));
-            instance.clips.push((clip, rest));
+            let index = k.and_then(|k| instance.baked.get(k).copied().flatten());
+            instance.clips.push((clip, index.map(|index| baked_clip(instance, bake, asset, index))));
         }
-        let rest = instance.clips.iter().find(|c| c.0 == clip).and_then(|c| c.1.as_ref());
-        let at_rest = rest.is_some_and(|rest| {
-            let nodes = rest.nodes.iter().all(|(e, rest)| inputs.transforms.get(*e).is_ok_and(|t| t == rest));
-            nodes && rest.weights.iter().all(|&i| instance.weights[i] == bake.morph_weights[i].2)
-        });
-        if at_rest {
-            return PoseBounds::Clips;
+        let baked = instance.clips.iter().find(|c| c.0 == clip).and_then(|c| c.1.as_ref());
+        if let Some(baked) = baked {
+            let nodes = baked.nodes.iter().all(|(e, rest)| inputs.transforms.get(*e).is_ok_and(|t| t == rest));
+            if nodes && baked.weights.iter().all(|&i| instance.weights[i] == bake.morph_weights[i].2) {
+                return PoseBounds::ClipAt { clip: baked.index, time };
+            }
         }
     }
     let Some(guard) = bake.guard.as_ref().filter(|_| bake.parts.narrows(PoseBounds::Envelope)) else {
@@ -422,11 +447,11 @@ fn pose_bounds(instance: &mut SkinletInstance, bake: &Bake, inputs: &PoseInputs)
     if guard.admits(&instance.locals, &instance.weights) { PoseBounds::Envelope } else { PoseBounds::Any }
 }
 
-/// What `clip` leaves alone of what its bounds depend on: the nodes in the `relative` set it
-/// has no curve for, and the morph weights of nodes it has no weight curve for (glTF clips
-/// hold translation, rotation, scale and weight curves only: a curve that is none of the
-/// first three is taken for weights).
-fn at_rest(instance: &SkinletInstance, bake: &Bake, clip: &AnimationClip) -> AtRest {
+/// Baked clip `index` (`clip`) with what it leaves alone of what its bounds depend on: the
+/// nodes in the `relative` set it has no curve for, and the morph weights of nodes it has no
+/// weight curve for (glTF clips hold translation, rotation, scale and weight curves only: a
+/// curve that is none of the first three is taken for weights).
+fn baked_clip(instance: &SkinletInstance, bake: &Bake, clip: &AnimationClip, index: u32) -> BakedClip {
     let (t, r, s) = (
         animated_field!(Transform::translation),
         animated_field!(Transform::rotation),
@@ -447,12 +472,13 @@ fn at_rest(instance: &SkinletInstance, bake: &Bake, clip: &AnimationClip) -> AtR
     let weights = (0..bake.morph_weights.len())
         .filter(|&i| !animated.get(bake.morph_weights[i].0 as usize).is_some_and(|a| a.1))
         .collect();
-    AtRest { nodes, weights }
+    BakedClip { index, nodes, weights }
 }
 
-/// The playing clip, when the instance's player plays exactly one animation, a clip straight
-/// under its graph's root, unmasked, at full weight.
-fn playing_clip(instance: &SkinletInstance, inputs: &PoseInputs) -> Option<AssetId<AnimationClip>> {
+/// The playing clip and the time Bevy sampled it at this frame, when the instance's player
+/// plays exactly one animation, a clip straight under its graph's root, unmasked, at full
+/// weight.
+fn playing_clip(instance: &SkinletInstance, inputs: &PoseInputs) -> Option<(AssetId<AnimationClip>, f32)> {
     let (player, graph) = inputs.players.get(instance.player?).ok()?;
     let graph = inputs.graphs.get(&graph?.0)?;
     let mut playing = player.playing_animations().filter(|(_, a)| a.weight() != 0.0);
@@ -466,5 +492,5 @@ fn playing_clip(instance: &SkinletInstance, inputs: &PoseInputs) -> Option<Asset
     let mut parents = graph.graph.raw_edges().iter().filter(|e| e.target() == index).map(|e| e.source());
     let under_root = parents.next() == Some(graph.root) && parents.next().is_none();
     let full = (active.weight() * node.weight - 1.0).abs() <= 1e-6 && root.weight == 1.0;
-    (full && node.mask == 0 && root.mask == 0 && under_root).then(|| clip.id())
+    (full && node.mask == 0 && root.mask == 0 && under_root).then(|| (clip.id(), active.seek_time()))
 }

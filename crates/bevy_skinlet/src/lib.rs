@@ -40,7 +40,7 @@ pub mod gltf_tags;
 pub mod instance;
 
 pub use bake_asset::{Bake, BakeLoader, BakeSettings};
-pub use instance::{SkinletBounds, SkinletError, SkinletInstance};
+pub use instance::{PoseEdited, SkinletBounds, SkinletError, SkinletInstance};
 pub use skinlet_gpu;
 pub use skinlet_runtime;
 

@@ -1,6 +1,7 @@
 //! skinlet's bounds in a Bevy app (headless, no GPU): scenes of the shared characters, the
 //! morph-target test and the demo character (two skins, rigid and instanced parts, a morph
-//! face) play clips alone, crossfade two clips, or are posed by hand (a pose no clip makes);
+//! face) play clips alone, crossfade two clips, are posed by hand (a pose no clip makes), or
+//! play a clip whose joints a system turns after Bevy's animation (marked `PoseEdited`);
 //! every frame, every vertex of every bound mesh entity, morphed and skinned on the CPU from
 //! the joint matrices and morph weights in Bevy's ECS, lies in the entity's `Aabb`. A bake
 //! of another file is an error that names both files. The bakes are loaded unpruned
@@ -12,8 +13,10 @@ use bevy::animation::graph::{AnimationGraph, AnimationGraphHandle, AnimationNode
 use bevy::camera::primitives::Aabb;
 use bevy::camera::visibility::{DynamicSkinnedMeshBounds, NoAutoAabb};
 use bevy::prelude::*;
-use bevy_skinlet::{Bake, BakeSettings, SkinletBounds, SkinletError, SkinletInstance};
+use bevy_skinlet::gltf_tags::GltfNodeIndex;
+use bevy_skinlet::{Bake, BakeSettings, PoseEdited, SkinletBounds, SkinletError, SkinletInstance};
 use common::{Character, app, asset_folder, node_entities, part_entity, skinned_from_ecs, update_until};
+use skinlet_runtime::part_bounds::PoseBounds;
 
 /// How an instance moves.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -27,6 +30,30 @@ enum Motion {
     /// Clip 0, and every node it has no curve for turned by hand each frame (the clip's
     /// bounds then no longer hold).
     ClipAndHand,
+    /// Clip 0, and every node it animates turned by a system after Bevy's animation (as IK
+    /// would), the root marked [`PoseEdited`].
+    ClipEdited,
+}
+
+/// On a root whose animated nodes [`edit_after_animation`] turns.
+#[derive(Component)]
+struct EditAfterAnimation(Vec<u32>);
+
+/// Turns the nodes an instance's clip animates, after Bevy's animation wrote them.
+fn edit_after_animation(
+    roots: Query<(Entity, &EditAfterAnimation)>,
+    mut transforms: Query<(&mut Transform, &GltfNodeIndex)>,
+    children: Query<&Children>,
+) {
+    for (root, edit) in &roots {
+        for e in children.iter_descendants(root) {
+            if let Ok((mut t, node)) = transforms.get_mut(e)
+                && edit.0.contains(&node.index)
+            {
+                t.rotate_local(Quat::from_axis_angle(Vec3::new(0.3, 1.0, 0.2).normalize(), 0.6));
+            }
+        }
+    }
 }
 
 #[test]
@@ -34,6 +61,10 @@ fn every_vertex_lies_in_its_entitys_box_every_frame() {
     let files = ["skinned/Fox.glb", "skinned/CesiumMan.glb", "morph/MorphStressTest.gltf", "@demo"];
     let Some((dir, characters)) = asset_folder("bounds", &files) else { return };
     let mut app = app(&dir, false);
+    app.add_systems(
+        PostUpdate,
+        edit_after_animation.after(bevy::app::AnimationSystems).before(bevy::transform::TransformSystems::Propagate),
+    );
     let mut spawned: Vec<(Entity, usize, Motion)> = Vec::new();
     {
         let world = app.world_mut();
@@ -52,12 +83,17 @@ fn every_vertex_lies_in_its_entitys_box_every_frame() {
                 motions.push(Motion::Blend);
             }
             if clips >= 1 {
-                motions.push(Motion::ClipAndHand);
+                motions.extend([Motion::ClipAndHand, Motion::ClipEdited]);
             }
             for (k, &motion) in motions.iter().enumerate() {
                 let at = Transform::from_xyz(3.0 * k as f32, 0.0, 4.0 * c as f32)
                     .with_rotation(Quat::from_rotation_y(k as f32));
                 let e = world.spawn((WorldAssetRoot(scene.clone()), SkinletBounds(bake.clone()), at)).id();
+                if motion == Motion::ClipEdited {
+                    let clip = &character.asset.clips[0];
+                    let nodes = clip.rotations.iter().map(|ch| ch.node).collect();
+                    world.entity_mut(e).insert((PoseEdited, EditAfterAnimation(nodes)));
+                }
                 spawned.push((e, c, motion));
             }
         }
@@ -87,7 +123,7 @@ fn every_vertex_lies_in_its_entitys_box_every_frame() {
             Motion::Clip(i) => {
                 p.play(nodes[i]).repeat();
             }
-            Motion::ClipAndHand => {
+            Motion::ClipAndHand | Motion::ClipEdited => {
                 p.play(nodes[0]).repeat();
             }
             Motion::Blend => {
@@ -135,7 +171,11 @@ fn every_vertex_lies_in_its_entitys_box_every_frame() {
             let nodes = node_entities(world, root);
             let skinned = skinned_from_ecs(world, character, &nodes);
             let pose = world.get::<SkinletInstance>(root).unwrap().pose;
-            *poses.entry(format!("{motion:?} {pose:?}")).or_default() += 1;
+            if let (Motion::Clip(k), PoseBounds::ClipAt { clip, .. }) = (motion, pose) {
+                assert_eq!(clip as usize, k, "{}: clip {k} taken for baked clip {clip}", character.file);
+            }
+            let kind = format!("{pose:?}");
+            *poses.entry(format!("{motion:?} {}", kind.split(' ').next().unwrap())).or_default() += 1;
             for (i, part) in character.character.parts.iter().enumerate() {
                 let e = part_entity(world, &nodes, part);
                 assert!(
@@ -163,8 +203,9 @@ fn every_vertex_lies_in_its_entitys_box_every_frame() {
         }
     }
     assert!(checked > 0);
-    // Each kind of bounds was used: clips alone, the envelope for blends, any-pose boxes.
-    for want in ["Clip(0) Clips", "Blend Envelope", "ByHand Any", "ClipAndHand Envelope"] {
+    // Each kind of bounds was used: clip windows for clips alone, the envelope for blends,
+    // any-pose boxes.
+    for want in ["Clip(0) ClipAt", "Blend Envelope", "ByHand Any", "ClipAndHand Envelope", "ClipEdited Any"] {
         assert!(poses.contains_key(want), "no {want:?} frame: {poses:?}");
     }
 }

@@ -8,15 +8,15 @@
 //! Every section: the bake settings and clip names (`INFO`), the drivers' inverse bind
 //! matrices, nodes and node names (`SKIN`), vertices (`VERT`), triangles (`TRIS`), meshlets (`MLET`),
 //! meshlet bounds with their classes (`BNDS`), parts (`PART`), morph targets (`MRPH`), the
-//! pose envelope with its bounds and any-pose boxes (`ENVL`) as typed slices; the overdraw
-//! orders (`OVDR`) and contour patches (`CONT`, with the edges it indexes, which the file
-//! does not store) read into arrays once, at load. The baker's reader
+//! pose envelope with its bounds and any-pose boxes (`ENVL`) as typed slices; the parts'
+//! boxes per clip window (`PWIN`), the overdraw orders (`OVDR`) and contour patches (`CONT`,
+//! with the edges it indexes, which the file does not store) read into arrays once, at load. The baker's reader
 //! (`skinlet::bake::from_bytes`) goes through this view for every section but `SKIN`'s names,
 //! `VERT`, `TRIS` and `MLET`, which it parses into its own types.
 
 use crate::any_pose::AnyPoseBoxes;
 use crate::contour_edges::Edges;
-use crate::contour_patches::{BakedContours, rigid_vertices, skinned_edges};
+use crate::contour_patches::{BakedContours, ClipWindows, rigid_vertices, skinned_edges};
 use crate::meshlet_bounds::{Class, MeshletBounds};
 use crate::meshlet_cull::MeshletCuller;
 use crate::overdraw_orders::Orders;
@@ -730,6 +730,27 @@ pub struct InfoView<'a> {
     pub clips: Vec<&'a str>,
 }
 
+/// `PWIN`: per part, one box per time window of each baked clip, in the skinning space of the
+/// part's anchor driver (`inverse_bind⁻¹ · global⁻¹ · p`: mesh space at the bind pose); it
+/// holds every vertex of the part at every time of the window, moved by
+/// `global(anchor) · inverse_bind(anchor)` (`docs/FORMAT.md`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct BakedPartWindows {
+    /// Per baked clip (`INFO`'s order), its windows, numbered clip after clip.
+    pub clips: Vec<ClipWindows>,
+    /// Per part, its anchor driver.
+    pub anchors: Vec<u32>,
+    /// Per part, per window, the box's min and max: `boxes[part * windows + w]`.
+    pub boxes: Vec<[Vec3; 2]>,
+}
+
+impl BakedPartWindows {
+    /// Windows of all clips.
+    pub fn windows(&self) -> usize {
+        self.clips.last().map_or(0, |c| (c.first + c.count) as usize)
+    }
+}
+
 /// One part of a baked character in `PART` (40 bytes): which node draws which glTF mesh
 /// primitive, its skin (`u32::MAX`: a rigid part), and its `[start, end)` ranges of vertices,
 /// triangles and meshlets.
@@ -804,6 +825,58 @@ impl<'a> BakeView<'a> {
             return Err(Error::invalid(location, "the parts do not cover every vertex, triangle and meshlet"));
         }
         Ok(parts)
+    }
+
+    /// The optional `PWIN` section, read and checked: its part and clip counts are `PART`'s
+    /// and `INFO`'s, the clips' windows are numbered in order from 0, every anchor is a
+    /// driver, every number is finite, every box has `min ≤ max`. Allocates: run it once, at load.
+    pub fn part_windows(&self) -> Result<Option<BakedPartWindows>> {
+        let Some(b) = self.section(b"PWIN") else { return Ok(None) };
+        let mut s = Cursor::new("PWIN", b);
+        let (parts, clips, windows) = (s.u32()? as usize, s.u32()? as usize, s.u32()? as usize);
+        s.u32()?;
+        let (want_parts, want_clips) = (self.parts()?.len(), self.info()?.clips.len());
+        if (parts, clips) != (want_parts, want_clips) {
+            return Err(
+                s.err(format!("{parts} parts and {clips} clips, where PART has {want_parts} and INFO {want_clips}"))
+            );
+        }
+        let size = (parts.checked_mul(windows).and_then(|n| n.checked_mul(24)))
+            .and_then(|n| n.checked_add(16 + 16 * clips + 4 * parts));
+        if size != Some(b.len()) {
+            return Err(s.err(format!("{} bytes for {parts} parts, {clips} clips and {windows} windows", b.len())));
+        }
+        let mut list = Vec::with_capacity(clips);
+        for c in 0..clips {
+            let w = ClipWindows { start: s.f32()?, end: s.f32()?, count: s.u32()?, first: s.u32()? };
+            let first = list.last().map_or(0, |p: &ClipWindows| p.first + p.count);
+            if !(w.start <= w.end && w.count >= 1 && w.first == first) {
+                return Err(s.err(format!("clip {c}: windows {w:?} (the next window is {first})")));
+            }
+            list.push(w);
+        }
+        if list.last().map_or(0, |w| w.first + w.count) as usize != windows {
+            return Err(s.err(format!("the clips' windows do not add up to {windows}")));
+        }
+        let drivers = self.joint_count()?;
+        let anchors = (0..parts)
+            .map(|p| match s.u32()? {
+                a if (a as usize) < drivers => Ok(a),
+                a => Err(s.err(format!("part {p}: anchor {a} of {drivers} drivers"))),
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let boxes = (0..parts * windows)
+            .map(|i| {
+                let (min, max) = (s.vec3()?, s.vec3()?);
+                if min.cmple(max).all() {
+                    Ok([min, max])
+                } else {
+                    Err(s.err(format!("part {}, window {}: box {min} to {max}", i / windows, i % windows)))
+                }
+            })
+            .collect::<Result<Vec<_>>>()?;
+        s.end()?;
+        Ok(Some(BakedPartWindows { clips: list, anchors, boxes }))
     }
 
     /// The optional `OVDR` section, read and checked ([`Orders::read`]): the overdraw orders'

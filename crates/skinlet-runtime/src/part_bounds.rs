@@ -1,10 +1,10 @@
 //! One box per part of a baked character (a glTF node drawing one mesh primitive: what an
 //! engine culls as one entity), every frame, morph targets included.
 //!
-//! Three bounds, each conservative for the poses it is valid for; [`PartBounds::part_box`]
-//! moves the clip or envelope bounds when they hold, else the any-pose boxes
-//! ([`PartBounds::pruned`] drops stored bounds that are no tighter than the any-pose boxes
-//! at the bind pose).
+//! Four bounds, each conservative for the poses it is valid for; [`PartBounds::part_box`]
+//! moves the clip window's box, or the clip or envelope bounds, when they hold, else the
+//! any-pose boxes ([`PartBounds::pruned`] drops clip and envelope bounds that are no tighter
+//! than the any-pose boxes at the bind pose).
 //! - **Any pose** (always): per-joint boxes, the method of Bevy's per-joint skinned bounds
 //!   (`per-joint-skinned-bounds-bevy-pr.txt`), in each driver's bind space, grown by each
 //!   morph weight's delta box. A skinned vertex `Σ wⱼ Gⱼ Bⱼ (p + Σₖ μₖ dₖ)` (skin weights ≥ 0
@@ -19,6 +19,11 @@
 //!   principal joint are merged at load into one box of their centers grown by a ball of
 //!   their largest radius (a superset of each sphere), so a frame moves one shape per joint,
 //!   not one per meshlet.
+//! - **A clip at a known time** ([`PoseBounds::ClipAt`]): the part's box over the clip window
+//!   holding the time (`PWIN`, built by `skinlet::bounds::part_windows` from the paper's
+//!   conservative vertex boxes over every key interval touching the window), in the skinning
+//!   space of one driver, the part's anchor: one box moved by one matrix, whatever the number
+//!   of joints.
 //! - **The pose envelope** ([`PoseBounds::Envelope`]): the same for `ENVL`'s bounds, which hold
 //!   for every pose the pose guard admits.
 //!
@@ -29,17 +34,23 @@
 //! finite gives the infinite box.
 
 use crate::bake_view::{BakeView, BakedBounds, BakedPartRecord};
+use crate::contour_patches::ClipWindows;
 use crate::joint_boxes::Box3;
+use crate::meshlet_bounds::round_up;
 use crate::{Error, Result};
 use glam::{Affine3A, DVec3, Mat4, Vec3, Vec3A};
 
 /// Which stored bounds hold for this frame's pose, besides the any-pose boxes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum PoseBounds {
     /// Only the any-pose boxes (procedural poses, ragdolls, blends the guard refused).
     Any,
     /// The pose is one of the baked clips' (one baked clip playing alone).
     Clips,
+    /// The pose is baked clip `clip` (`INFO`'s order) at `time` seconds (played alone): the
+    /// part's box over the window holding `time` (`PWIN`) when the bake has them, else as
+    /// [`PoseBounds::Clips`] (also for a time that is not finite).
+    ClipAt { clip: u32, time: f32 },
     /// The pose guard admitted the pose (`pose_guard::PoseGuard::admits`).
     Envelope,
 }
@@ -72,6 +83,16 @@ struct PartRanges {
     envelope: [u32; 2],
 }
 
+/// A part's box over one clip window (`PWIN`), in its anchor's skinning space: center, half
+/// extents, and `reach = |B|·(|center| + half) + |t_B|` (the magnitude of its points in the
+/// anchor's node space, `B` the anchor's inverse bind matrix) that sizes the rounding margin.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct WindowBox {
+    center: Vec3A,
+    half: Vec3A,
+    reach: Vec3A,
+}
+
 /// Every part's boxes, built once from a bake; [`PartBounds::part_box`] every frame.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PartBounds {
@@ -84,6 +105,12 @@ pub struct PartBounds {
     envelope: bool,
     /// Every driver's matrix at the bind pose (the inverse of its inverse bind matrix).
     bind: Vec<Affine3A>,
+    /// `PWIN`: per clip its windows; per part its anchor driver and that driver's inverse
+    /// bind matrix; per part and window a box (`windows[part * window_count + w]`).
+    clip_windows: Vec<ClipWindows>,
+    anchors: Vec<(u32, Affine3A)>,
+    windows: Vec<WindowBox>,
+    window_count: usize,
 }
 
 /// The relative margin that covers the f32 rounding of moving a box (a few ulps, ~1e-7).
@@ -98,6 +125,11 @@ fn stored(lo: DVec3, hi: DVec3) -> (Vec3A, Vec3A) {
     let (lo, hi) = (lo - grow, hi + grow);
     let center = ((lo + hi) / 2.0).as_vec3a();
     (center, ((hi - lo) / 2.0 * (1.0 + 1e-6)).as_vec3a() + center.abs() * MOVE_MARGIN)
+}
+
+/// `|m|·v + |t|`: the magnitude bound of `m·x` for `|x| ≤ v` (entrywise absolute values).
+fn abs_move(m: &Affine3A, v: Vec3A) -> Vec3A {
+    m.matrix3.x_axis.abs() * v.x + m.matrix3.y_axis.abs() * v.y + m.matrix3.z_axis.abs() * v.z + m.translation.abs()
 }
 
 /// A part's meshlet spheres, one box grown by a ball per principal joint; returns the range
@@ -144,6 +176,10 @@ impl PartBounds {
             weights,
             envelope: false,
             bind: Vec::new(),
+            clip_windows: Vec::new(),
+            anchors: Vec::new(),
+            windows: Vec::new(),
+            window_count: 0,
         };
         for (i, part) in parts.iter().enumerate() {
             let err = |what: String| Error::invalid("bake section PART", format!("part {i}: {what}"));
@@ -211,6 +247,19 @@ impl PartBounds {
             };
             out.ranges.push(PartRanges { any, clips, envelope });
         }
+        if let Some(w) = view.part_windows()? {
+            out.anchors = w.anchors.iter().map(|&a| (a, Affine3A::from_mat4(inverse_bind[a as usize]))).collect();
+            out.window_count = w.windows();
+            for (i, b) in w.boxes.iter().enumerate() {
+                let (lo, hi) = (b[0].as_dvec3(), b[1].as_dvec3());
+                let c = (lo + hi) / 2.0;
+                let h = (hi - c.as_vec3().as_dvec3()).max(c.as_vec3().as_dvec3() - lo);
+                let (center, half) = (c.as_vec3a(), Vec3A::new(round_up(h.x), round_up(h.y), round_up(h.z)));
+                let reach = abs_move(&out.anchors[i / out.window_count.max(1)].1, center.abs() + half) * (1.0 + 1e-6);
+                out.windows.push(WindowBox { center, half, reach });
+            }
+            out.clip_windows = w.clips;
+        }
         out.parts = parts;
         out.envelope = envelope.is_some();
         out.bind = inverse_bind.iter().map(|m| Affine3A::from_mat4(*m).inverse()).collect();
@@ -246,6 +295,11 @@ impl PartBounds {
         &self.parts
     }
 
+    /// Whether the bake has boxes per clip window (`PWIN`, for [`PoseBounds::ClipAt`]).
+    pub fn has_clip_windows(&self) -> bool {
+        !self.anchors.is_empty()
+    }
+
     /// Whether the bake has envelope bounds.
     pub fn has_envelope(&self) -> bool {
         self.envelope
@@ -254,21 +308,41 @@ impl PartBounds {
     /// Whether `pose` changes which boxes some part moves: false when no part keeps stored
     /// bounds for it (an engine then need not work out the pose at all).
     pub fn narrows(&self, pose: PoseBounds) -> bool {
+        if let PoseBounds::ClipAt { clip, time } = pose
+            && self.window(clip, time).is_some()
+        {
+            return !self.anchors.is_empty();
+        }
         self.ranges.iter().any(|r| {
             let n = match pose {
                 PoseBounds::Any => return false,
-                PoseBounds::Clips => r.clips,
+                PoseBounds::Clips | PoseBounds::ClipAt { .. } => r.clips,
                 PoseBounds::Envelope => r.envelope,
             };
             n[0] < n[1]
         })
     }
 
+    /// The window of `PWIN` holding `time` of clip `clip`, when the bake has them and the
+    /// time is finite.
+    fn window(&self, clip: u32, time: f32) -> Option<usize> {
+        let w = self.clip_windows.get(clip as usize).filter(|_| time.is_finite())?;
+        Some(w.at(time) as usize)
+    }
+
     /// The drivers whose matrices [`PartBounds::part_box`] reads for `part` and `pose` (each
     /// once; none for a part out of range): an engine fetches only these joints' matrices.
     pub fn drivers_read(&self, part: usize, pose: PoseBounds) -> impl Iterator<Item = usize> + '_ {
-        let range = self.ranges.get(part).map_or([0, 0], |r| self.range(r, pose));
-        self.boxes[range[0] as usize..range[1] as usize].iter().map(|b| b.driver as usize)
+        let anchor = match pose {
+            PoseBounds::ClipAt { clip, time } if self.window(clip, time).is_some() => self.anchors.get(part),
+            _ => None,
+        };
+        let range = match (anchor, self.ranges.get(part)) {
+            (None, Some(r)) => self.range(r, pose),
+            _ => [0, 0],
+        };
+        let boxes = self.boxes[range[0] as usize..range[1] as usize].iter().map(|b| b.driver as usize);
+        anchor.map(|a| a.0 as usize).into_iter().chain(boxes)
     }
 
     /// The boxes `part_box` moves: the clip or envelope bounds when `pose` says they hold
@@ -276,7 +350,7 @@ impl PartBounds {
     fn range(&self, r: &PartRanges, pose: PoseBounds) -> [u32; 2] {
         let range = match pose {
             PoseBounds::Any => r.any,
-            PoseBounds::Clips => r.clips,
+            PoseBounds::Clips | PoseBounds::ClipAt { .. } => r.clips,
             PoseBounds::Envelope => r.envelope,
         };
         if range[0] < range[1] { range } else { r.any }
@@ -303,8 +377,36 @@ impl PartBounds {
         if joint_globals.len() < self.drivers || morph_weights.len() < self.weights {
             return ALL;
         }
+        if let PoseBounds::ClipAt { clip, time } = pose
+            && let Some(w) = self.window(clip, time)
+        {
+            return self.window_box(part, w, to_target, joint_globals);
+        }
         let range = self.range(r, pose);
         self.moved(range, to_target, joint_globals, morph_weights)
+    }
+
+    /// Part `part`'s box over window `w`, moved by `to_target · global(anchor) · inverse_bind`.
+    /// The f32 products and the move round by at most a few ulps of `|T|·|G|·reach` (the
+    /// magnitudes multiplied, `T = to_target`, `G` the anchor's global matrix): the box grows
+    /// by `MOVE_MARGIN` of that.
+    fn window_box(&self, part: usize, w: usize, to_target: &Affine3A, joint_globals: &[Affine3A]) -> Box3 {
+        const ALL: Box3 = Box3 { min: Vec3::NEG_INFINITY, max: Vec3::INFINITY };
+        let (Some(&(anchor, inverse_bind)), Some(b)) =
+            (self.anchors.get(part), self.windows.get(part * self.window_count + w))
+        else {
+            return ALL;
+        };
+        let g = joint_globals[anchor as usize];
+        let m = *to_target * g * inverse_bind;
+        let a = &m.matrix3;
+        let center = a.x_axis * b.center.x + a.y_axis * b.center.y + a.z_axis * b.center.z + m.translation;
+        let half = a.x_axis.abs() * b.half.x
+            + a.y_axis.abs() * b.half.y
+            + a.z_axis.abs() * b.half.z
+            + abs_move(to_target, abs_move(&g, b.reach)) * MOVE_MARGIN;
+        let (lo, hi) = (center - half, center + half);
+        if lo.is_finite() && hi.is_finite() { Box3 { min: lo.into(), max: hi.into() } } else { ALL }
     }
 
     /// The boxes `range`, moved and morphed, and their union.

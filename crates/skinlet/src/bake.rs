@@ -13,6 +13,7 @@
 //! sections with tags they do not know, so later versions can add sections.
 
 use crate::bounds::envelope::{Envelope, envelope_bounds};
+use crate::bounds::part_windows::{PartWindows, part_windows};
 use crate::bounds::refine::{Progress, Refinement, Stop, refine_with_progress};
 use crate::bounds::sphere_cone::{Class, MeshletBounds, classify};
 use crate::character::{Character, PartKind};
@@ -28,6 +29,7 @@ use crate::overdraw::evaluate::keyframes;
 use crate::{Error, Result};
 use glam::{Mat4, Vec3};
 use skinlet_runtime::bake_view::{BakeView, bounds_and_classes};
+use skinlet_runtime::part_bounds::{PartBounds, PoseBounds};
 use std::io::Write;
 use std::ops::Range;
 use std::path::Path;
@@ -87,6 +89,8 @@ pub struct Baked {
     pub contours: Option<BakedContours>,
     /// A pose envelope with its bounds, and the any-pose boxes (optional section ENVL).
     pub envelope: Option<BakedEnvelope>,
+    /// Per part, a box per time window of each clip (section PWIN; none without clips).
+    pub part_windows: Option<PartWindows>,
 }
 
 /// Bounds for the poses games make: a pose envelope with meshlet bounds (and their classes)
@@ -155,6 +159,12 @@ pub fn bake(
     }
     let started = std::time::Instant::now();
     let refined = refine_with_progress(&asset.skeleton, s, clips, &prepared.mesh, &meshlets, how, progress)?;
+    let part_windows = if clips.is_empty() {
+        None
+    } else {
+        let ranges: Vec<Range<u32>> = parts.iter().map(|p| p.vertices.clone()).collect();
+        Some(part_windows(&asset.skeleton, s, clips, &prepared.mesh, &ranges)?)
+    };
     let stats = BakeStats { precompute: started.elapsed(), work: refined.work };
     let baked = Baked {
         settings: BakeSettings {
@@ -177,6 +187,7 @@ pub fn bake(
         overdraw: None,
         contours: None,
         envelope: None,
+        part_windows,
     };
     Ok((baked, stats))
 }
@@ -255,9 +266,9 @@ fn baked_clips<'a>(baked: &Baked, asset: &'a Asset) -> Result<Vec<&'a Clip>> {
 }
 
 /// Section tags: the seven required ones, then the optional overdraw orders, contours, morph
-/// targets and pose envelope.
-const TAGS: [&[u8; 4]; 11] =
-    [b"INFO", b"SKIN", b"VERT", b"TRIS", b"MLET", b"BNDS", b"PART", b"OVDR", b"CONT", b"MRPH", b"ENVL"];
+/// targets, pose envelope and part windows.
+const TAGS: [&[u8; 4]; 12] =
+    [b"INFO", b"SKIN", b"VERT", b"TRIS", b"MLET", b"BNDS", b"PART", b"OVDR", b"CONT", b"MRPH", b"ENVL", b"PWIN"];
 const HEADER: usize = 16;
 const ENTRY: usize = 24;
 
@@ -483,6 +494,22 @@ pub fn to_bytes(b: &Baked) -> Vec<u8> {
         ev.0.resize(ev.0.len().next_multiple_of(4), 0);
         sections.push(ev.0);
     }
+    if let Some(w) = &b.part_windows {
+        tags.push(TAGS[11]);
+        let mut pw = Out::default();
+        for x in [w.anchors.len(), w.clips.len(), w.windows(), 0] {
+            pw.u32(x as u32);
+        }
+        for c in &w.clips {
+            pw.f32(c.start);
+            pw.f32(c.end);
+            pw.u32(c.count);
+            pw.u32(c.first);
+        }
+        w.anchors.iter().for_each(|&a| pw.u32(a));
+        w.boxes.iter().flatten().for_each(|&v| pw.vec3(v));
+        sections.push(pw.0);
+    }
     let mut out = Vec::new();
     out.extend_from_slice(&MAGIC);
     out.extend_from_slice(&VERSION.to_le_bytes());
@@ -534,8 +561,8 @@ pub fn read(path: &Path) -> Result<Baked> {
 
 /// Runs every run-time consumer of a bake once, on the rest pose: the meshlet culler (built,
 /// prepared and culled for a camera; also with the envelope bounds), the any-pose boxes and
-/// the envelope guard, the overdraw lookup, joint boxes, skinning with morphs, and contour
-/// extraction with every bound set. Whatever [`from_bytes`] accepts must pass:
+/// the envelope guard, the overdraw lookup, joint boxes, skinning with morphs, contour
+/// extraction with every bound set, and the per-part boxes for every kind of pose. Whatever [`from_bytes`] accepts must pass:
 /// the bake tests and the `bake` fuzz target (`fuzz/`) call it on corrupted files; an error
 /// names the consumer that refused.
 pub fn check_consumers(b: &Baked) -> Result<()> {
@@ -583,6 +610,18 @@ pub fn check_consumers(b: &Baked) -> Result<()> {
         let eye = Projection::Perspective { eye: Vec3::new(0.0, 1.0, 4.0) };
         for at in std::iter::once(None).chain((0..c.patches.clips.len()).map(|k| Some((k, 0.0)))) {
             c.patches.extract(&posed, &edges, &globals, at, eye, &mut Vec::new());
+        }
+    }
+    // The per-part boxes an engine culls entities with, as a game reads them, for every kind
+    // of pose (every clip at its start and past its end).
+    let bytes = to_bytes(b);
+    let words: Vec<u32> = bytemuck::pod_collect_to_vec(&[&bytes[..], &[0; 3][..(4 - bytes.len() % 4) % 4]].concat());
+    let parts = PartBounds::new(&BakeView::new(&bytemuck::cast_slice::<u32, u8>(&words)[..bytes.len()])?)?;
+    let clips = (0..b.settings.clips.len() as u32)
+        .flat_map(|clip| [0.0, f32::MAX].map(|time| PoseBounds::ClipAt { clip, time }));
+    for pose in [PoseBounds::Any, PoseBounds::Clips, PoseBounds::Envelope].into_iter().chain(clips) {
+        for i in 0..b.parts.len() {
+            parts.part_box(i, &glam::Affine3A::IDENTITY, &joints, &weights, pose);
         }
     }
     Ok(())
@@ -723,6 +762,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
     let overdraw = view.overdraw_orders()?;
     let contours = view.contours()?.map(|(c, _)| c);
     let envelope = if found[10].is_some() { Some(read_envelope(&view, section(10)?, &mesh)?) } else { None };
+    let part_windows = view.part_windows()?;
     Ok(Baked {
         settings,
         joint_nodes,
@@ -736,6 +776,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
         overdraw,
         contours,
         envelope,
+        part_windows,
     })
 }
 

@@ -58,7 +58,7 @@ mod bake {
         // Damage the last buffer's first index: no longer a reordering, refused.
         let table = o.lookup.table.len().next_multiple_of(4);
         let n = b.mesh.triangles.len();
-        let at = bytes.len() - table - 12 * n;
+        let at = section_end(&bytes, b"OVDR") - table - 12 * n;
         let mut bad = bytes.clone();
         bad[at..at + 4].copy_from_slice(&0u32.to_le_bytes());
         bad[at + 4..at + 8].copy_from_slice(&0u32.to_le_bytes());
@@ -90,10 +90,34 @@ mod bake {
         assert_eq!(got, want);
         // Damage: the last window bound's sine out of range.
         let mut bad = bytes.clone();
-        let n = bad.len();
+        let n = section_end(&bytes, b"CONT");
         bad[n - 8..n - 4].copy_from_slice(&2f32.to_le_bytes());
         let e = from_bytes(&bad).unwrap_err().to_string();
         assert!(e.contains("CONT") && e.contains("window bound"), "{e}");
+    }
+
+    #[test]
+    fn part_windows_round_trip_and_are_checked() {
+        let b = baked();
+        let w = b.part_windows.as_ref().expect("a bake with clips has part windows");
+        assert_eq!((w.anchors.len(), w.clips.len()), (b.parts.len(), b.settings.clips.len()));
+        assert_eq!(w.boxes.len(), b.parts.len() * w.windows());
+        let bytes = to_bytes(&b);
+        assert_eq!(from_bytes(&bytes).unwrap().part_windows.as_ref(), Some(w));
+        let pwin = section(&bytes, b"PWIN");
+        let damaged = |at: usize, value: [u8; 4], want: &str| {
+            let mut bad = bytes.clone();
+            bad[pwin.start + at..pwin.start + at + 4].copy_from_slice(&value);
+            let e = from_bytes(&bad).unwrap_err().to_string();
+            assert!(e.contains("PWIN") && e.contains(want), "{want}: {e}");
+        };
+        let (clips, parts) = (w.clips.len(), w.anchors.len());
+        damaged(0, (parts as u32 + 1).to_le_bytes(), "parts");
+        damaged(16 + 8, 0u32.to_le_bytes(), "clip 0: windows");
+        damaged(16 + 16 * clips, (b.inverse_bind.len() as u32).to_le_bytes(), "anchor");
+        damaged(pwin.len() - 4, f32::NAN.to_le_bytes(), "non-finite");
+        damaged(pwin.len() - 4, (-1e30f32).to_le_bytes(), "box");
+        assert!(from_bytes(&bytes[..pwin.end - 4]).is_err());
     }
 
     #[test]
@@ -185,11 +209,20 @@ mod bake {
         assert_eq!(from_bytes(&shifted[1..]).unwrap(), b);
     }
 
-    /// Where section `tag` starts in bake bytes (from the section table).
-    fn section_start(bytes: &[u8], tag: &[u8; 4]) -> usize {
+    /// Where section `tag` starts and ends in bake bytes (from the section table).
+    fn section(bytes: &[u8], tag: &[u8; 4]) -> std::ops::Range<usize> {
         let n = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
         let e = (0..n).map(|i| HEADER + i * ENTRY).find(|&e| &bytes[e..e + 4] == tag).expect("the section");
-        u64::from_le_bytes(bytes[e + 8..e + 16].try_into().unwrap()) as usize
+        let at = |k: usize| u64::from_le_bytes(bytes[e + k..e + k + 8].try_into().unwrap()) as usize;
+        at(8)..at(8) + at(16)
+    }
+
+    fn section_start(bytes: &[u8], tag: &[u8; 4]) -> usize {
+        section(bytes, tag).start
+    }
+
+    fn section_end(bytes: &[u8], tag: &[u8; 4]) -> usize {
+        section(bytes, tag).end
     }
 
     #[test]

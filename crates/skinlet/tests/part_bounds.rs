@@ -6,7 +6,8 @@
 //! - any-pose boxes: random local transforms of every node (shear from non-uniform scales
 //!   down the hierarchy, negative scales) and random morph weights, also moved into a random
 //!   entity space;
-//! - clip boxes: every baked clip at dense times (with its morph weights);
+//! - clip boxes: every baked clip at dense times (with its morph weights), and the boxes of
+//!   the clip window holding each time, also in a random entity space;
 //! - envelope boxes: poses sampled inside an envelope made from the clips (half on its
 //!   boundary) that the bake's pose guard admits.
 
@@ -20,6 +21,7 @@ use skinlet::Asset;
 use skinlet::bake::{add_envelope, bake, to_bytes};
 use skinlet::bounds::envelope::Envelope;
 use skinlet::bounds::refine::Refinement;
+use skinlet::bounds::verify::sample_times;
 use skinlet::clip::Clip;
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::model::Trs;
@@ -142,19 +144,28 @@ fn every_vertex_lies_in_its_part_box() {
             checked += check(case, "any pose", &frame, &to_target, PoseBounds::Any);
         }
 
-        // The baked clips at dense times: the clip boxes and the envelope boxes hold.
+        // The baked clips at dense times (every key, every key interval's midpoint, and
+        // before and after the clip): the clip boxes and the clip windows' boxes hold.
         let mut poser = Poser::default();
-        for clip in &clips {
-            for s in 0..=40 {
-                let t = clip.start + (clip.end - clip.start) * s as f32 / 40.0;
+        for (c, clip) in clips.iter().enumerate() {
+            let mut times = sample_times(clip, 40);
+            times.extend([clip.start - 0.5, clip.end + 0.5]);
+            for t in times {
                 let globals = poser.globals(&asset.skeleton, Some(clip), t).to_vec();
                 let mut weights = Vec::new();
                 character.mesh.morphs.weights_at(Some(clip), t, &mut weights);
                 let frame = pose(&character, &globals, weights);
-                for pose in [PoseBounds::Clips, PoseBounds::Any] {
+                let at = PoseBounds::ClipAt { clip: c as u32, time: t };
+                for pose in [PoseBounds::Clips, at, PoseBounds::Any] {
                     let what = format!("clip {:?} at {t}, {pose:?}", clip.name);
                     checked += check(case, &what, &frame, &Affine3A::IDENTITY, pose);
                 }
+                let to_entity = Affine3A::from_scale_rotation_translation(
+                    rng.scale(),
+                    Quat::from_axis_angle(rng.axis(), 1.0),
+                    rng.v3(5.0),
+                );
+                check(case, &format!("clip {:?} at {t}, entity space", clip.name), &frame, &to_entity, at);
                 check(
                     pruned_case,
                     &format!("clip {:?} at {t}, pruned", clip.name),

@@ -18,6 +18,7 @@
 pub mod cone;
 pub mod envelope;
 pub mod motion;
+pub mod part_windows;
 pub mod refine;
 pub mod sphere_cone;
 pub mod verify;
