@@ -269,7 +269,8 @@ enum Command {
     /// every key-interval midpoint, skins every vertex, and checks every vertex against its
     /// meshlet's sphere and every triangle's normal against its cone, in the meshlet's joint
     /// space as the runtime culls. A bake's pose envelope (`bake --envelope`) is checked at
-    /// --samples poses inside it, half on its boundary. The bounds are computed afresh, or read from a bake file (--baked; its
+    /// --samples poses inside it, half on its boundary; the parts' boxes per clip window at
+    /// every sample time. The bounds are computed afresh, or read from a bake file (--baked; its
     /// clips are checked, and FILE must be the file it was baked from). Exits with status 1 on
     /// any violation beyond float rounding.
     Verify {
@@ -1216,7 +1217,20 @@ fn verify(
         }
         None => None,
     };
-    let violations = r.violations() + envelope.map_or(0, |e| e.violations());
+    // The parts' boxes per clip window: every vertex at every sample time.
+    let part_windows = b.part_windows.as_ref().map(|w| {
+        let parts: Vec<_> = b.parts.iter().map(|p| p.vertices.clone()).collect();
+        skinlet::bounds::part_windows::verify_part_windows(
+            &asset.skeleton,
+            skin,
+            &clips,
+            &b.mesh,
+            &parts,
+            w,
+            samples.max(2),
+        )
+    });
+    let violations = r.violations() + envelope.map_or(0, |e| e.violations()) + part_windows.map_or(0, |w| w.1);
     if json {
         let out = json!({
             "samples": r.samples, "vertex_checks": r.vertex_checks, "normal_checks": r.normal_checks,
@@ -1224,6 +1238,7 @@ fn verify(
             "singular_vertex_checks": r.singular, "max_violation": r.max_violation, "mean_radius_ratio": r.mean_radius_ratio, "mean_angle_ratio": r.mean_angle_ratio,
             "envelope": envelope.map(|e| json!({"poses": e.samples, "vertex_checks": e.vertex_checks,
                 "normal_checks": e.normal_checks, "violations": e.violations(), "mean_radius_ratio": e.mean_radius_ratio})),
+            "part_windows": part_windows.map(|(checks, violations)| json!({"vertex_checks": checks, "violations": violations})),
         });
         println!("{}", serde_json::to_string_pretty(&out)?);
     } else {
@@ -1258,6 +1273,11 @@ fn verify(
                 e.vertex_checks,
                 e.normal_checks,
                 e.violations()
+            );
+        }
+        if let Some((checks, violations)) = part_windows {
+            println!(
+                "  part boxes per clip window: {checks} vertex checks in each part's anchor space, {violations} violations"
             );
         }
     }

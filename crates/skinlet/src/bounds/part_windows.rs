@@ -134,6 +134,58 @@ pub fn part_windows(
     Ok(PartWindows { clips: windows, anchors, boxes })
 }
 
+/// Ground truth for [`part_windows`], in the space and with the test the runtime relies on:
+/// each clip at `sample_times(clip, uniform)` and before and after its keys, every vertex of
+/// every part morphed and skinned in f64 (`Σ wⱼ·Gⱼ·Bⱼ·p`), moved into its anchor's skinning
+/// space (`(G·B)⁻¹`), must lie in the box of the window holding the time (within 1e-9 of its
+/// magnitude: f64 rounding). Returns the vertex checks and the violations.
+pub fn verify_part_windows(
+    skeleton: &Skeleton,
+    palette: &Skin,
+    clips: &[&Clip],
+    mesh: &SkinnedMesh,
+    parts: &[Range<u32>],
+    windows: &PartWindows,
+    uniform: usize,
+) -> (usize, usize) {
+    let Some(inf) = &mesh.influences else { return (0, 0) };
+    let times: Vec<(usize, f32)> = (clips.iter().enumerate())
+        .flat_map(|(c, clip)| {
+            let mut t = super::verify::sample_times(clip, uniform);
+            t.extend([clip.start - 1.0, clip.end + 1.0]);
+            t.into_iter().map(move |t| (c, t))
+        })
+        .collect();
+    let total = windows.windows();
+    let per_time = |&(c, t): &(usize, f32)| -> (usize, usize) {
+        let Some(w) = windows.clips.get(c) else { return (0, 0) };
+        let globals = crate::pose::Poser::default().globals(skeleton, Some(clips[c]), t).to_vec();
+        let skinning: Vec<glam::DMat4> = (palette.joints.iter().zip(&palette.inverse_bind))
+            .map(|(&j, b)| globals[j as usize] * b.as_dmat4())
+            .collect();
+        let mut weights = Vec::new();
+        mesh.morphs.weights_at(Some(clips[c]), t, &mut weights);
+        let (morphed, _) = mesh.morphed(&weights);
+        let (mut checks, mut violations) = (0, 0);
+        for (p, (r, &anchor)) in parts.iter().zip(&windows.anchors).enumerate() {
+            let to_box = skinning[anchor as usize].inverse();
+            let [lo, hi] = windows.boxes[p * total + w.at(t) as usize];
+            for v in r.clone() {
+                let q = morphed[v as usize].as_dvec3();
+                let skinned = inf
+                    .of(v as usize)
+                    .fold(glam::DVec3::ZERO, |acc, (j, wt)| acc + skinning[j as usize].transform_point3(q) * wt as f64);
+                let x = to_box.transform_point3(skinned);
+                let slack = 1e-9 * (x.abs().max_element() + 1.0);
+                checks += 1;
+                violations += !(x.cmpge(lo.as_dvec3() - slack).all() && x.cmple(hi.as_dvec3() + slack).all()) as usize;
+            }
+        }
+        (checks, violations)
+    };
+    times.par_iter().map(per_time).reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -197,6 +249,12 @@ mod tests {
             }
         }
         assert!(hit.iter().all(|h| *h));
+        let times = super::super::verify::sample_times(&clip, 50).len() + 2;
+        assert_eq!(verify_part_windows(&skeleton, &skin, &[&clip], &mesh, &parts, &w, 50), (8 * times, 0));
+        // Each box a tenth narrower in z (the sweep's axis): caught.
+        let mut narrow = w.clone();
+        narrow.boxes.iter_mut().for_each(|b| b[0].z += 0.1 * (b[1].z - b[0].z));
+        assert!(verify_part_windows(&skeleton, &skin, &[&clip], &mesh, &parts, &narrow, 50).1 > 0);
         // The first window (1/15 s) touches the first key interval (0.1 s), in which the bar's
         // end (1.75 from the root) turns by 0.12 rad about y; the clip turns it by 1.2 rad.
         let all = boxes.iter().fold(Aabb::EMPTY, |a, b| a.union(b));
