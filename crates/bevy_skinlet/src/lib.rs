@@ -2,9 +2,10 @@
 //!
 //! Bevy culls each mesh entity by its `Aabb`. For a skinned mesh that box is Bevy's per-joint
 //! box (`DynamicSkinnedMeshBounds`), which misses morph targets; skinlet's covers them, and
-//! uses the bounds baked over the clips, or over a pose envelope, when the pose is one they
-//! hold for and they are the tighter. Add [`SkinletPlugin`], load the character's bake (a `.skinlet` file from
-//! `skinlet bake`) and put [`SkinletBounds`] beside the scene's `WorldAssetRoot`:
+//! while one baked clip plays alone moves one box per entity, baked over the clip's window
+//! holding the player's time in one joint's space, where Bevy's moves one per joint. Add
+//! [`SkinletPlugin`], load the character's bake (a `.skinlet` file from `skinlet bake`) and put
+//! [`SkinletBounds`] beside the scene's `WorldAssetRoot`:
 //!
 //! ```no_run
 //! use bevy::prelude::*;
