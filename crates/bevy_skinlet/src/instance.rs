@@ -302,13 +302,14 @@ fn bind(
     let in_order = names.iter().copied().eq(bake.clips.iter().map(String::as_str));
     let once = |list: &mut dyn Iterator<Item = &str>, name: &str| list.filter(|n| *n == name).count() == 1;
     let baked = (names.iter().enumerate())
-        .map(|(k, &name)| match in_order {
-            true => Some(k as u32),
-            false => (!name.is_empty()
+        .map(|(k, &name)| {
+            if in_order {
+                return Some(k as u32);
+            }
+            let unique = !name.is_empty()
                 && once(&mut bake.clips.iter().map(String::as_str), name)
-                && once(&mut names.iter().copied(), name))
-            .then(|| bake.clips.iter().position(|c| c == name).map(|i| i as u32))
-            .flatten(),
+                && once(&mut names.iter().copied(), name);
+            unique.then(|| bake.clips.iter().position(|c| c == name)).flatten().map(|i| i as u32)
         })
         .collect();
     let instance = SkinletInstance {

@@ -113,6 +113,9 @@ pub struct PartBounds {
     window_count: usize,
 }
 
+/// The box no frustum misses: what nothing known gives.
+const ALL: Box3 = Box3 { min: Vec3::NEG_INFINITY, max: Vec3::INFINITY };
+
 /// The relative margin that covers the f32 rounding of moving a box (a few ulps, ~1e-7).
 const MOVE_MARGIN: f32 = 1e-5;
 
@@ -372,7 +375,6 @@ impl PartBounds {
         morph_weights: &[f32],
         pose: PoseBounds,
     ) -> Box3 {
-        const ALL: Box3 = Box3 { min: Vec3::NEG_INFINITY, max: Vec3::INFINITY };
         let Some(r) = self.ranges.get(part) else { return ALL };
         if joint_globals.len() < self.drivers || morph_weights.len() < self.weights {
             return ALL;
@@ -391,7 +393,6 @@ impl PartBounds {
     /// magnitudes multiplied, `T = to_target`, `G` the anchor's global matrix): the box grows
     /// by `MOVE_MARGIN` of that.
     fn window_box(&self, part: usize, w: usize, to_target: &Affine3A, joint_globals: &[Affine3A]) -> Box3 {
-        const ALL: Box3 = Box3 { min: Vec3::NEG_INFINITY, max: Vec3::INFINITY };
         let (Some(&(anchor, inverse_bind)), Some(b)) =
             (self.anchors.get(part), self.windows.get(part * self.window_count + w))
         else {
@@ -411,7 +412,6 @@ impl PartBounds {
 
     /// The boxes `range`, moved and morphed, and their union.
     fn moved(&self, range: [u32; 2], to_target: &Affine3A, joint_globals: &[Affine3A], morph_weights: &[f32]) -> Box3 {
-        const ALL: Box3 = Box3 { min: Vec3::NEG_INFINITY, max: Vec3::INFINITY };
         let (mut lo, mut hi, mut magnitude) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY, Vec3A::ZERO);
         for b in &self.boxes[range[0] as usize..range[1] as usize] {
             let (mut c, mut h) = (b.center, b.half);

@@ -1,9 +1,10 @@
 //! The bake file: everything the runtime needs to draw and cull one skinned character, in
 //! one versioned little-endian binary file (layout in `docs/FORMAT.md`): the prepared
 //! vertices and skin weights, the inverse bind matrices, the triangles, the meshlets (the
-//! flat layout of [`crate::meshlet::flat`]) and their conservative bounds and classes, and
-//! optionally overdraw-reducing index buffers with their lookup table ([`add_overdraw`]) and
-//! contour patches with bounds over the clips ([`add_contours`]).
+//! flat layout of [`crate::meshlet::flat`]) and their conservative bounds and classes, per
+//! part a box per clip window ([`crate::bounds::part_windows`]), and optionally
+//! overdraw-reducing index buffers with their lookup table ([`add_overdraw`]), contour patches
+//! with bounds over the clips ([`add_contours`]) and a pose envelope ([`add_envelope`]).
 //!
 //! Guarantees: [`to_bytes`] is a pure function of the [`Baked`] value (same input and
 //! options, same bytes); [`from_bytes`] accepts exactly what `to_bytes` can produce and

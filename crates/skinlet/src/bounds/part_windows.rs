@@ -1,8 +1,8 @@
 //! One box per part (an entity an engine culls whole) and time window of each clip, in the
 //! skinning space of one driver, the part's *anchor* (the lowest driver above every joint that
-//! moves the part, so that the box turns with the character rather than with a limb). A frame in which one baked clip plays alone
-//! moves one box per part with one matrix, where per-joint boxes (Bevy's method) move one box
-//! per joint.
+//! moves the part, so that the box turns with the character rather than with a limb). A frame
+//! in which one baked clip plays alone moves one box per part with one matrix, where per-joint
+//! boxes (Bevy's method) move one box per joint.
 //!
 //! Built from the conservative vertex boxes of [`super::vertex`] (conservative-bounds paper,
 //! sections 3.1 and 3.3): per key interval, every vertex of the part, morph targets included,
@@ -124,11 +124,14 @@ pub fn part_windows(
             }
         }
     }
-    let down = |x: f64| -round_up(-x);
+    // Rounded outward; a part without vertices gets a point, and an unbounded box (a scale
+    // through zero) the largest finite one, which the runtime's move overflows to "never cull".
+    let up = |x: f64| round_up(x).clamp(-f32::MAX, f32::MAX);
+    let down = |x: f64| -up(-x);
     let boxes = (boxes.iter())
-        .map(|b| {
-            let (lo, hi) = (b.min, b.max);
-            [Vec3::new(down(lo.x), down(lo.y), down(lo.z)), Vec3::new(round_up(hi.x), round_up(hi.y), round_up(hi.z))]
+        .map(|b| match b.min.cmple(b.max).all() {
+            true => [b.min.to_array().map(down).into(), b.max.to_array().map(up).into()],
+            false => [Vec3::ZERO; 2],
         })
         .collect();
     Ok(PartWindows { clips: windows, anchors, boxes })
