@@ -30,6 +30,11 @@ pub const MAGIC: [u8; 8] = *b"SKINLET\0";
 pub const VERSION: u32 = 3;
 /// Bytes per section table entry: tag, zero, offset (u64), length (u64).
 const ENTRY: usize = 24;
+/// Most drivers a bake can have: `VERT` numbers them in 16 bits.
+pub const MAX_DRIVERS: usize = 1 << 16;
+/// How far from 1 a stored cone axis's squared length may be (f32 normalization is off by a
+/// few ulps; the culling tests' margins cover far more).
+const UNIT: f32 = 1e-5;
 
 /// One meshlet's record in `BNDS` (48 bytes, `docs/FORMAT.md`).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -77,7 +82,8 @@ impl BakedBounds {
 }
 
 /// Checks bounds records for `joints` joints: finite numbers, principal joints below
-/// `joints`, known classes, radii not negative, cone angles in [0, π]. Errors name the
+/// `joints`, known classes, radii not negative, cone angles in [0, π], unit axes for cones
+/// below π/2. Errors name the
 /// meshlet; `location` says where the records came from.
 pub fn check_bounds(records: &[BakedBounds], joints: usize, location: &str) -> Result<()> {
     for (i, r) in records.iter().enumerate() {
@@ -95,6 +101,14 @@ pub fn check_bounds(records: &[BakedBounds], joints: usize, location: &str) -> R
         }
         if r.radius < 0.0 || r.rest_radius < 0.0 || !(0.0..=std::f32::consts::PI).contains(&r.cone_angle) {
             return bad("a negative radius or a cone angle outside [0, π]".into());
+        }
+        if !(0.0..=std::f32::consts::PI).contains(&r.rest_cone_angle) {
+            return bad(format!("rest cone angle {} outside [0, π]", r.rest_cone_angle));
+        }
+        // The axis of a cone the culler uses (below π/2) is a unit vector.
+        let axis = Vec3::from(r.cone_axis);
+        if r.cone_angle < std::f32::consts::FRAC_PI_2 && (axis.length_squared() - 1.0).abs() > UNIT {
+            return bad(format!("cone axis {axis} is not a unit vector"));
         }
     }
     Ok(())
@@ -242,14 +256,18 @@ impl<'a> BakeView<'a> {
                 .ok_or_else(|| {
                     head(format!("byte {}: section {} lies outside the file", 16 + k * ENTRY, tag_name(&tag)))
                 })?;
-            if let Some(first) = sections.iter().position(|(t, _)| *t == tag) {
-                return Err(head(format!(
-                    "byte {}: section {} appears twice in the table (entries {first} and {k})",
-                    16 + k * ENTRY,
-                    tag_name(&tag)
-                )));
-            }
             sections.push((tag, body));
+        }
+        // No tag twice: sorted by tag (then entry), equal neighbours are a repeat.
+        let mut order: Vec<usize> = (0..n).collect();
+        order.sort_by_key(|&k| (sections[k].0, k));
+        if let Some(w) = order.windows(2).filter(|w| sections[w[0]].0 == sections[w[1]].0).min_by_key(|w| w[1]) {
+            let (first, k) = (w[0], w[1]);
+            return Err(head(format!(
+                "byte {}: section {} appears twice in the table (entries {first} and {k})",
+                16 + k * ENTRY,
+                tag_name(&sections[k].0)
+            )));
         }
         Ok(BakeView { sections })
     }
@@ -268,6 +286,12 @@ impl<'a> BakeView<'a> {
     pub fn joint_count(&self) -> Result<usize> {
         let s = self.required(b"SKIN")?;
         let n = u32_at(s, 0).ok_or_else(|| Error::invalid("bake section SKIN", "byte 0: truncated"))? as usize;
+        if n > MAX_DRIVERS {
+            return Err(Error::invalid(
+                "bake section SKIN",
+                format!("byte 0: {n} drivers; the format numbers them in 16 bits (at most 65,536)"),
+            ));
+        }
         if n.saturating_mul(68) > s.len() - 4 {
             return Err(Error::invalid("bake section SKIN", format!("byte 0: {n} joints do not fit in the section")));
         }

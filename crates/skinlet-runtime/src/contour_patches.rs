@@ -472,8 +472,7 @@ impl BakedContours {
                 || first as usize != at
                 || count == 0
                 || radius < 0.0
-                || !(-1.0..=1.0).contains(&sin_angle)
-                || !(-1.0..=1.0).contains(&cos_angle)
+                || !cone_ok(axis, sin_angle, cos_angle)
             {
                 return Err(s.err(format!(
                     "patch {i}: joint {joint}, edges {first}+{count}, radius {radius}, sin/cos {sin_angle}/{cos_angle}"
@@ -515,7 +514,7 @@ impl BakedContours {
         let mut window_bounds = Vec::with_capacity(cells);
         for i in 0..cells {
             let (radius, sin_angle, cos_angle) = (s.f32()?, s.f32()?, s.f32()?);
-            if radius < 0.0 || !(-1.0..=1.0).contains(&sin_angle) || !(-1.0..=1.0).contains(&cos_angle) {
+            if radius < 0.0 || !cone_ok(p.bounds[i % n].axis, sin_angle, cos_angle) {
                 return Err(s.err(format!("window bound {i}: radius {radius}, sin/cos {sin_angle}/{cos_angle}")));
             }
             window_bounds.push(PatchBounds { radius, sin_angle, cos_angle, ..p.bounds[i % n] });
@@ -534,6 +533,16 @@ impl BakedContours {
             },
         })
     }
+}
+
+/// A stored cone as the patch tests read it: a half-angle in [0, π] by its sine (≥ 0) and
+/// cosine; where the cone is used (`cos α > 0`; at 90° or more every patch is accepted) the
+/// two agree (`sin² + cos² = 1` within f32 rounding) and the axis is a unit vector.
+fn cone_ok(axis: Vec3, sin_angle: f32, cos_angle: f32) -> bool {
+    let unit = |x: f32| (x - 1.0).abs() <= 1e-5;
+    (0.0..=1.0).contains(&sin_angle)
+        && (-1.0..=1.0).contains(&cos_angle)
+        && (cos_angle <= 0.0 || (unit(sin_angle * sin_angle + cos_angle * cos_angle) && unit(axis.length_squared())))
 }
 
 #[cfg(test)]

@@ -124,15 +124,32 @@ pub struct JointBoxes {
 impl Default for JointBoxes {
     /// No boxes (joint space).
     fn default() -> JointBoxes {
-        JointBoxes::from_boxes(JointSpace::Joint, &[])
+        JointBoxes {
+            space: JointSpace::Joint,
+            joints: Vec::new(),
+            center: Vec::new(),
+            half: Vec::new(),
+            pairs: Vec::new(),
+            needs: 0,
+        }
     }
 }
 
 impl JointBoxes {
     /// Boxes from their f64 extents, one `(min, max)` per skin joint (a joint without
     /// vertices has an empty box, `min > max` on some axis): stored in f32, grown by
-    /// [`INFLATE`] and rounded outwards.
-    pub fn from_boxes(space: JointSpace, boxes: &[(DVec3, DVec3)]) -> JointBoxes {
+    /// [`INFLATE`] and rounded outwards. Errors on more than 65,536 joints (stored in 16 bits)
+    /// and on a box with a NaN or an infinite bound that is not empty.
+    pub fn from_boxes(space: JointSpace, boxes: &[(DVec3, DVec3)]) -> Result<JointBoxes> {
+        if boxes.len() > 1 << 16 {
+            return Err(Error::invalid("joint boxes", format!("{} joints (at most 65,536)", boxes.len())));
+        }
+        let bad = |&(min, max): &(DVec3, DVec3)| {
+            min.is_nan() || max.is_nan() || (min.cmple(max).all() && !(min.is_finite() && max.is_finite()))
+        };
+        if let Some(j) = boxes.iter().position(bad) {
+            return Err(Error::invalid("joint boxes", format!("joint {j}: box {:?} is not finite", boxes[j])));
+        }
         let mut out =
             JointBoxes { space, joints: Vec::new(), center: Vec::new(), half: Vec::new(), pairs: Vec::new(), needs: 0 };
         for (j, &(min, max)) in boxes.iter().enumerate() {
@@ -148,7 +165,7 @@ impl JointBoxes {
         }
         out.needs = out.joints.iter().map(|&j| j as usize + 1).max().unwrap_or(0);
         out.pairs = wide::pairs(&out.joints, &out.center, &out.half);
-        out
+        Ok(out)
     }
 
     /// The entity-space box for this frame. `matrices[j]`, per skin joint: the skinning
@@ -324,6 +341,18 @@ pub fn points_box(points: &[Vec3]) -> Box3 {
 mod tests {
     use super::*;
 
+    #[test]
+    fn boxes_past_16_bits_or_not_finite_are_errors() {
+        let empty = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+        let e = JointBoxes::from_boxes(JointSpace::Joint, &vec![empty; 65_537]).unwrap_err().to_string();
+        assert!(e.contains("65537 joints"), "{e}");
+        assert!(JointBoxes::from_boxes(JointSpace::Joint, &vec![empty; 65_536]).is_ok());
+        for bad in [(DVec3::NAN, DVec3::ONE), (DVec3::ZERO, DVec3::new(1.0, f64::INFINITY, 1.0))] {
+            let e = JointBoxes::from_boxes(JointSpace::Joint, &[empty, bad]).unwrap_err().to_string();
+            assert!(e.contains("joint 1"), "{e}");
+        }
+    }
+
     /// A small xorshift generator for test data.
     struct Rng(u64);
     impl Rng {
@@ -350,7 +379,7 @@ mod tests {
                     if j % 5 == 4 { (DVec3::ONE, DVec3::ZERO) } else { ((c - h).as_dvec3(), (c + h).as_dvec3()) }
                 })
                 .collect();
-            let b = JointBoxes::from_boxes(JointSpace::Joint, &boxes);
+            let b = JointBoxes::from_boxes(JointSpace::Joint, &boxes).unwrap();
             for _ in 0..8 {
                 let m: Vec<Affine3A> = (0..joints)
                     .map(|_| {
@@ -372,7 +401,7 @@ mod tests {
     #[test]
     fn boxes_hold_their_f64_extent() {
         let (min, max) = (DVec3::new(-1.0, 0.1, 3.0), DVec3::new(1.0 / 3.0, 0.2, 1e3));
-        let b = JointBoxes::from_boxes(JointSpace::Mesh, &[(min, max), (DVec3::ONE, DVec3::ZERO)]);
+        let b = JointBoxes::from_boxes(JointSpace::Mesh, &[(min, max), (DVec3::ONE, DVec3::ZERO)]).unwrap();
         assert_eq!(b.joints, [0], "the empty box is dropped");
         let (lo, hi) = ((b.center[0] - b.half[0]).as_dvec3(), (b.center[0] + b.half[0]).as_dvec3());
         assert!(lo.cmple(min).all() && hi.cmpge(max).all(), "{lo} {hi}");

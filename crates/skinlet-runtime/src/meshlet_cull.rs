@@ -403,7 +403,7 @@ impl MeshletCuller {
                 if cullable { (center - r, center + r) } else { (DVec3::INFINITY, DVec3::NEG_INFINITY) }
             })
             .collect();
-        c.instance = JointBoxes::from_boxes(JointSpace::Joint, &group_boxes);
+        c.instance = JointBoxes::from_boxes(JointSpace::Joint, &group_boxes)?;
         Ok(c)
     }
 

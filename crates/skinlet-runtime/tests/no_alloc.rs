@@ -85,7 +85,7 @@ fn character() -> (MeshletCuller, JointBoxes) {
     let extents: Vec<_> = (0..JOINTS)
         .map(|j| (Vec3::new(j as f32 - 0.5, -0.5, -0.5).as_dvec3(), Vec3::new(j as f32 + 0.5, 0.5, 0.5).as_dvec3()))
         .collect();
-    (culler, JointBoxes::from_boxes(JointSpace::Joint, &extents))
+    (culler, JointBoxes::from_boxes(JointSpace::Joint, &extents).unwrap())
 }
 
 #[test]

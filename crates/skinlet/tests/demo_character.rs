@@ -120,6 +120,90 @@ mod bake {
         assert!(from_bytes(&bytes[..pwin.end - 4]).is_err());
     }
 
+    /// Byte offset of meshlet `i`'s `BNDS` record.
+    fn bnds_record(bytes: &[u8], i: usize) -> usize {
+        section_start(bytes, b"BNDS") + 16 + 48 * i
+    }
+
+    #[test]
+    fn drivers_past_16_bits_are_refused() {
+        // 65,541 drivers (identity inverse binds), and a meshlet whose principal joint is
+        // 65,541 − 1: a u16 would read it as joint 4.
+        let mut b = baked();
+        let extra = 65_541 - b.inverse_bind.len();
+        b.inverse_bind.extend(std::iter::repeat_n(glam::Mat4::IDENTITY, extra));
+        b.joint_nodes.extend(std::iter::repeat_n(0, extra));
+        b.joint_names.extend(std::iter::repeat_n(String::new(), extra));
+        let mut bytes = to_bytes(&b);
+        let at = bnds_record(&bytes, 0) + 40;
+        bytes[at..at + 4].copy_from_slice(&65_540u32.to_le_bytes());
+        let e = from_bytes(&bytes).unwrap_err().to_string();
+        assert!(e.contains("SKIN") && e.contains("65,536"), "{e}");
+    }
+
+    #[test]
+    fn cone_axes_and_angles_are_checked() {
+        let b = baked();
+        let bytes = to_bytes(&b);
+        let coned = b.bounds.iter().position(|x| x.cone_angle < std::f32::consts::FRAC_PI_2).expect("a cone");
+        let damaged = |at: usize, value: f32, want: &str| {
+            let mut bad = bytes.clone();
+            bad[at..at + 4].copy_from_slice(&value.to_le_bytes());
+            let e = from_bytes(&bad).unwrap_err().to_string();
+            assert!(e.contains("BNDS") && e.contains(want), "{want}: {e}");
+        };
+        // The cone axis 100 times too long; a rest cone angle past π.
+        let axis = bnds_record(&bytes, coned) + 16;
+        damaged(axis, b.bounds[coned].cone_axis.x * 100.0 + 100.0, "axis");
+        damaged(bnds_record(&bytes, coned) + 36, 4.0, "rest cone angle");
+    }
+
+    #[test]
+    fn contour_patch_cones_are_checked() {
+        let asset = demo_character(&DemoParams { triangles: 2000, ..DemoParams::default() });
+        let mut b = baked();
+        let how = skinlet::contour::skinned::refinement(None, 0);
+        let sp = SkinnedParams::new(skinlet::contour::skinned::SkinnedMethod::Animated, how);
+        add_contours(&mut b, &asset, &sp, true).unwrap();
+        let bytes = to_bytes(&b);
+        let patches = &b.contours.as_ref().unwrap().patches.patches.bounds;
+        let coned = patches.iter().position(|p| p.cos_angle > 0.1).expect("a patch with a cone");
+        let record = section_start(&bytes, b"CONT") + 64 + 48 * coned;
+        let damaged = |at: usize, value: f32| {
+            let mut bad = bytes.clone();
+            bad[at..at + 4].copy_from_slice(&value.to_le_bytes());
+            let e = from_bytes(&bad).unwrap_err().to_string();
+            assert!(e.contains("CONT") && e.contains(&format!("patch {coned}")), "{e}");
+        };
+        damaged(record + 16, patches[coned].axis.x * 100.0 + 100.0);
+        // A sine that is not the cosine's.
+        damaged(record + 28, (patches[coned].sin_angle * 0.5).max(0.01));
+    }
+
+    #[test]
+    fn many_sections_are_read_and_a_repeated_tag_far_apart_is_found() {
+        // 100,000 empty sections with distinct tags, then one that repeats the first.
+        let n = 100_001;
+        let mut bytes = vec![0u8; 16 + 24 * n];
+        bytes[..8].copy_from_slice(&skinlet::bake::MAGIC);
+        bytes[8..12].copy_from_slice(&skinlet::bake::VERSION.to_le_bytes());
+        bytes[12..16].copy_from_slice(&(n as u32).to_le_bytes());
+        for k in 0..n {
+            let e = 16 + 24 * k;
+            let tag = (k % (n - 1)) as u32 + 0x4141_4141;
+            bytes[e..e + 4].copy_from_slice(&tag.to_le_bytes());
+            bytes[e + 8..e + 16].copy_from_slice(&16u64.to_le_bytes());
+        }
+        let words: Vec<u32> = bytes.chunks(4).map(|c| u32::from_le_bytes(c.try_into().unwrap())).collect();
+        let e = BakeView::new(bytemuck::cast_slice(&words)).err().expect("a repeated tag").to_string();
+        assert!(e.contains("twice") && e.contains("entries 0 and 100000"), "{e}");
+        let distinct = &bytemuck::cast_slice::<u32, u8>(&words)[..16 + 24 * (n - 1)];
+        let mut head = distinct.to_vec();
+        head[12..16].copy_from_slice(&((n - 1) as u32).to_le_bytes());
+        let words: Vec<u32> = head.chunks(4).map(|c| u32::from_le_bytes(c.try_into().unwrap())).collect();
+        assert!(BakeView::new(bytemuck::cast_slice(&words)).is_ok());
+    }
+
     #[test]
     fn round_trip_is_exact_and_bytes_are_aligned() {
         let b = baked();

@@ -40,7 +40,7 @@ pub fn joint_boxes(mesh: &SkinnedMesh, skin: &Skin, space: JointSpace, clips: &[
             boxes[j as usize] = boxes[j as usize].union(&q);
         }
     }
-    Ok(JointBoxes::from_boxes(space, &extents(&boxes)))
+    Ok(JointBoxes::from_boxes(space, &extents(&boxes))?)
 }
 
 /// Folds leaf joints into ancestors, `levels` times (a leaf: a skin joint with no skin
@@ -113,7 +113,7 @@ pub fn fold_leaves(
     if boxes.iter().any(|b| !b.is_finite() && b.min.cmple(b.max).all()) {
         return Err(Error::unsupported("joint boxes", "a folded joint's motion is unbounded (a scale through zero)"));
     }
-    Ok(JointBoxes::from_boxes(JointSpace::Joint, &extents(&boxes)))
+    Ok(JointBoxes::from_boxes(JointSpace::Joint, &extents(&boxes))?)
 }
 
 /// f64 boxes as the `(min, max)` extents [`JointBoxes::from_boxes`] takes.
