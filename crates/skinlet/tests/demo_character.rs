@@ -195,7 +195,8 @@ mod bake {
             bytes[e + 8..e + 16].copy_from_slice(&16u64.to_le_bytes());
         }
         let words: Vec<u32> = bytes.chunks(4).map(|c| u32::from_le_bytes(c.try_into().unwrap())).collect();
-        let e = BakeView::new(bytemuck::cast_slice(&words)).err().expect("a repeated tag").to_string();
+        let Err(e) = BakeView::new(bytemuck::cast_slice(&words)) else { panic!("a repeated tag was accepted") };
+        let e = e.to_string();
         assert!(e.contains("twice") && e.contains("entries 0 and 100000"), "{e}");
         let distinct = &bytemuck::cast_slice::<u32, u8>(&words)[..16 + 24 * (n - 1)];
         let mut head = distinct.to_vec();
