@@ -246,10 +246,12 @@ impl ClipWindows {
         (self.start + d * k as f32, if k + 1 == self.count { self.end } else { self.start + d * (k + 1) as f32 })
     }
 
-    /// The window holding time `t` (clamped to the clip).
+    /// The window holding time `t`, clamped to the clip (infinite times too; `first` for a NaN
+    /// time or a clip without windows).
     pub fn at(&self, t: f32) -> u32 {
         let x = (t - self.start) / (self.end - self.start) * self.count as f32;
-        if x.is_finite() { (x.max(0.0) as u32).min(self.count - 1) + self.first } else { self.first }
+        // `max` drops a NaN and the cast saturates +∞.
+        self.first.saturating_add((x.max(0.0) as u32).min(self.count.saturating_sub(1)))
     }
 }
 
@@ -548,6 +550,18 @@ fn cone_ok(axis: Vec3, sin_angle: f32, cos_angle: f32) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn windows_of_a_caller_never_panic() {
+        // No windows at all: the first (there is nothing better to say); NaN times too.
+        let none = ClipWindows { start: 0.0, end: 1.0, count: 0, first: 3 };
+        assert_eq!((none.at(0.5), none.at(f32::NAN)), (3, 3));
+        // Times past either end are the end windows' (the pose holds the end keys).
+        let w = ClipWindows { start: 0.0, end: 1.0, count: 4, first: 2 };
+        assert_eq!([-f32::INFINITY, -1.0, 0.3, 1.0, 7.0, f32::INFINITY].map(|t| w.at(t)), [2, 2, 3, 5, 5, 5]);
+        let instant = ClipWindows { start: 1.0, end: 1.0, count: 1, first: 0 };
+        assert_eq!([0.0, 1.0, 2.0].map(|t| instant.at(t)), [0, 0, 0]);
+    }
 
     #[test]
     fn rigid_vertices_need_one_whole_weight_and_no_morph() {
