@@ -231,7 +231,11 @@ impl JointBoxes {
     /// A whole-mesh sphere (center, radius) enclosing every moved joint box: each box's
     /// bounding sphere, moved with its radius scaled by the largest column norm times √3
     /// (a bound on the matrix's largest singular value), then one sphere around them all.
+    /// Fewer matrices than the skin's joints give the infinite sphere (never culled).
     pub fn sphere(&self, matrices: &[Affine3A]) -> (Vec3, f32) {
+        if matrices.len() < self.needs {
+            return (Vec3::ZERO, f32::INFINITY);
+        }
         let mut spheres = self.joints.iter().zip(&self.center).zip(&self.half).map(|((&j, &c), &h)| {
             let m = &matrices[j as usize];
             let a = &m.matrix3;
@@ -340,6 +344,14 @@ pub fn points_box(points: &[Vec3]) -> Box3 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_sphere_from_too_few_matrices_holds_everything() {
+        let b = JointBoxes::from_boxes(JointSpace::Joint, &[(DVec3::ZERO, DVec3::ONE); 3]).unwrap();
+        let (_, r) = b.sphere(&[Affine3A::IDENTITY; 2]);
+        assert_eq!(r, f32::INFINITY);
+        assert!(b.sphere(&[Affine3A::IDENTITY; 3]).1.is_finite());
+    }
 
     #[test]
     fn boxes_past_16_bits_or_not_finite_are_errors() {

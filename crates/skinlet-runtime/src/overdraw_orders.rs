@@ -57,7 +57,7 @@ impl Lookup {
         let dir = dir.normalize_or(Vec3::Z);
         let theta = dir.z.clamp(-1.0, 1.0).acos();
         let phi = dir.y.atan2(dir.x).rem_euclid(std::f32::consts::TAU);
-        let i = (theta / std::f32::consts::PI * (self.polar - 1).max(1) as f32).round() as usize;
+        let i = (theta / std::f32::consts::PI * self.polar.saturating_sub(1).max(1) as f32).round() as usize;
         let j = (phi / std::f32::consts::TAU * self.azimuth as f32).round() as usize % self.azimuth.max(1);
         let f = f.min(self.keyframes.saturating_sub(1));
         // An empty table (no keyframes) selects buffer 0.
@@ -237,6 +237,14 @@ impl Overdraw {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_lookup_without_cells_selects_buffer_0() {
+        for (polar, azimuth) in [(0, 0), (0, 4), (3, 0)] {
+            let l = Lookup { keyframes: 2, polar, azimuth, table: Vec::new() };
+            assert_eq!(l.get(1, Vec3::Y), 0);
+        }
+    }
 
     #[test]
     fn patch_rules_round_trip_through_their_stored_number() {
