@@ -720,7 +720,9 @@ impl MeshletCuller {
         flags.clear();
         flags.resize(self.len(), 0);
         let (do_frustum, do_back) = (frame.tests != Tests::Backface, frame.tests != Tests::Frustum);
-        for j in 0..frame.planes.len() {
+        // A frame of another joint count (another culler's): the joints both have are tested,
+        // the meshlets of the others kept.
+        for j in 0..frame.planes.len().min(self.joints()) {
             let (lo, hi) = (self.groups[j] as usize, self.groups[j + 1] as usize);
             if lo < hi {
                 let back = do_back && frame.sign[j] != 0.0;
@@ -839,6 +841,32 @@ mod tests {
         let (mut flags, mut visible) = (Vec::new(), Vec::new());
         c.cull(&frame, &mut flags, &mut visible);
         flags[0]
+    }
+
+    #[test]
+    fn a_frame_of_another_joint_count_never_panics_nor_culls_wrongly() {
+        // A meshlet behind the camera on joint 0 of a one-joint culler, culled with frames
+        // prepared for three joints and for none.
+        let b = MeshletBounds {
+            joint: 0,
+            center: Vec3::new(0.0, 0.0, 10.0),
+            radius: 1.0,
+            rest_radius: 1.0,
+            cone_axis: Vec3::Z,
+            cone_angle: 0.1,
+            rest_cone_angle: 0.1,
+        };
+        let one = MeshletCuller::new(&[b], &[Class::Both], 1).unwrap();
+        let three = MeshletCuller::new(&[b, b, b], &[Class::Both; 3], 3).unwrap();
+        let cam = Camera::perspective(Vec3::ZERO, -Vec3::Z, Vec3::Y, 1.0, 1.0, 0.1, 100.0).unwrap();
+        let (mut flags, mut visible) = (Vec::new(), Vec::new());
+        let mut frame = JointFrame::default();
+        three.prepare(&[Affine3A::IDENTITY; 3], &cam, Tests::Both, &mut frame);
+        one.cull(&frame, &mut flags, &mut visible);
+        assert_eq!(flags, [1], "the same joint 0: culled");
+        one.prepare(&[], &cam, Tests::Both, &mut frame);
+        one.cull(&frame, &mut flags, &mut visible);
+        assert_eq!((flags.as_slice(), visible.as_slice()), (&[0][..], &[0][..]), "nothing known: kept");
     }
 
     /// A camera of one of glam's projections (`kind`, see `camera::glam_camera`) at `eye`
