@@ -138,9 +138,9 @@ impl Edges {
     }
 }
 
+/// Whether the quad's edge is concave (false, so the quad is kept, for a vertex past `p`).
 fn concave(p: &[Vec3], q: &[u32; 4]) -> bool {
-    let [a, b, c, d] = q.map(|i| p[i as usize].as_dvec3());
-    (b - a).cross(c - a).dot(d - a) > 0.0
+    vertices(p, *q).is_some_and(|[a, b, c, d]| (b - a).cross(c - a).dot(d - a) > 0.0)
 }
 
 /// The two face normals of a quad, as every extractor computes them (f64, unnormalized):
@@ -181,10 +181,13 @@ impl Viewer {
     }
 }
 
-/// The contour test of a quad `(a, b, c, d)`: faces `(a, b, c)` and `(b, a, d)` differ in facing.
+/// The contour test of a quad `(a, b, c, d)`: faces `(a, b, c)` and `(b, a, d)` differ in facing
+/// (true when a vertex is past `p`: a pose of another mesh says nothing, so nothing is left
+/// out).
 #[inline(always)]
 pub fn quad_is_contour(p: &[Vec3], q: [u32; 4], viewer: &Viewer) -> bool {
-    let [a, b, c, d] = q.map(|i| p[i as usize].as_dvec3());
+    // A vertex past the positions (another mesh's): nothing is known, so a contour.
+    let Some([a, b, c, d]) = vertices(p, q) else { return true };
     let (n1, n2) = quad_normals(a, b, c, d);
     let v = viewer.toward(a);
     (n1.dot(v) > 0.0) != (n2.dot(v) > 0.0)
@@ -193,13 +196,22 @@ pub fn quad_is_contour(p: &[Vec3], q: [u32; 4], viewer: &Viewer) -> bool {
 /// The contour test of an irregular edge: its faces do not all face the same way (each face
 /// with its own winding, measured at the edge's first vertex, which lies on every face).
 pub fn irregular_is_contour(p: &[Vec3], e: &Irregular, viewer: &Viewer) -> bool {
-    let v = viewer.toward(p[e.edge[0] as usize].as_dvec3());
-    let facing = |f: &[u32; 3]| {
-        let [x, y, z] = f.map(|i| p[i as usize].as_dvec3());
-        (y - x).cross(z - x).dot(v) > 0.0
-    };
+    let Some([start]) = vertices(p, [e.edge[0]]) else { return true };
+    let v = viewer.toward(start);
+    // A face with a vertex past the positions faces neither way: the edge is a contour.
+    let facing = |f: &[u32; 3]| vertices(p, *f).map(|[x, y, z]| (y - x).cross(z - x).dot(v) > 0.0);
     let first = e.faces.first().map(facing);
-    e.faces.iter().any(|f| Some(facing(f)) != first)
+    e.faces.iter().any(|f| facing(f).is_none() || Some(facing(f)) != first)
+}
+
+/// The positions of vertices `ids` in f64, or `None` when one is past `p`.
+#[inline(always)]
+fn vertices<const N: usize>(p: &[Vec3], ids: [u32; N]) -> Option<[DVec3; N]> {
+    let mut out = [DVec3::ZERO; N];
+    for (o, i) in out.iter_mut().zip(ids) {
+        *o = p.get(i as usize)?.as_dvec3();
+    }
+    Some(out)
 }
 
 /// Appends the contours of irregular edges and every boundary edge (no extractor culls them);
@@ -252,6 +264,26 @@ mod tests {
             // A convex solid has no concave edge and outward normals.
             assert!(!concave(&p, q));
         }
+    }
+
+    #[test]
+    fn positions_of_another_mesh_give_every_edge_not_a_panic() {
+        // A tetrahedron with one face left open and an edge given a third face (irregular),
+        // extracted over too few positions: every edge whose vertices are missing is a contour.
+        let (p, t) = tetra();
+        let e = Edges::build(&p, &[t[0], t[1], t[2], [0, 1, 2]]).unwrap();
+        assert!(!e.quads.is_empty() && !e.irregular.is_empty() && !e.boundary.is_empty());
+        let viewer = Viewer::new(Projection::Perspective { eye: Vec3::new(3.0, 2.0, 1.0) });
+        let mut out = Vec::new();
+        let (q, i) = (e.quads.len() as u32, e.irregular.len() as u32);
+        let want: Vec<u32> = (0..q + i + e.boundary.len() as u32).collect();
+        for quad in &e.quads {
+            assert!(quad_is_contour(&p[..1], *quad, &viewer));
+        }
+        extract_uncullable(&p[..1], &e, &viewer, &mut out);
+        assert_eq!(out, want[q as usize..]);
+        assert_eq!(brute_force(&[], &e, Projection::Perspective { eye: Vec3::X }, &mut out).edges, (q + i) as usize);
+        assert_eq!(out, want);
     }
 
     #[test]
