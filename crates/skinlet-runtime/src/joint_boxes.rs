@@ -309,13 +309,17 @@ mod wide {
         for (i, b) in out.iter_mut().enumerate() {
             let (mut lo, mut hi) = (_mm256_set1_ps(f32::INFINITY), _mm256_set1_ps(f32::NEG_INFINITY));
             // SAFETY: instance i's matrices are in `palette` and every joint is below `stride`
-            // (the caller's promise); an Affine3A is 16 f32: three columns then the
-            // translation, each padded to four lanes.
+            // (the caller's promise); an Affine3A is 64 bytes: three columns then the
+            // translation, each three f32 and a lane of padding, which the masked loads leave
+            // unread (it is uninitialized under glam's `scalar-math`).
             unsafe {
                 let m = palette.as_ptr().add(i * stride).cast::<f32>();
+                let three = _mm_setr_epi32(-1, -1, -1, 0);
                 for p in pairs {
                     let (a, b) = (m.add(16 * p.joints[0] as usize), m.add(16 * p.joints[1] as usize));
-                    let column = |k: usize| _mm256_loadu2_m128(b.add(4 * k), a.add(4 * k));
+                    let column = |k: usize| {
+                        _mm256_set_m128(_mm_maskload_ps(b.add(4 * k), three), _mm_maskload_ps(a.add(4 * k), three))
+                    };
                     let (x, y, z, t) = (column(0), column(1), column(2), column(3));
                     let c = |k: usize| _mm256_load_ps(p.center[k].as_ptr());
                     let h = |k: usize| _mm256_load_ps(p.half[k].as_ptr());
