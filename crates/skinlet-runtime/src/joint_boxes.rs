@@ -335,7 +335,11 @@ mod wide {
             }
             let lo = _mm_min_ps(_mm256_castps256_ps128(lo), _mm256_extractf128_ps::<1>(lo));
             let hi = _mm_max_ps(_mm256_castps256_ps128(hi), _mm256_extractf128_ps::<1>(hi));
-            *b = Box3 { min: Vec3A::from(lo).into(), max: Vec3A::from(hi).into() };
+            // Through arrays: `Vec3A` holds no `__m128` under glam's `scalar-math`.
+            let (mut min, mut max) = ([0f32; 4], [0f32; 4]);
+            // SAFETY: each store writes four f32 into a four-f32 array.
+            unsafe { (_mm_storeu_ps(min.as_mut_ptr(), lo), _mm_storeu_ps(max.as_mut_ptr(), hi)) };
+            *b = Box3 { min: glam::Vec3::from_slice(&min[..3]), max: glam::Vec3::from_slice(&max[..3]) };
         }
     }
 }

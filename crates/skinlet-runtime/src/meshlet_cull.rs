@@ -40,7 +40,7 @@ use crate::any_pose::AnyPoseBoxes;
 use crate::camera::{Camera, Projection};
 use crate::joint_boxes::{JointBoxes, JointSpace};
 use crate::meshlet_bounds::{Class, MeshletBounds};
-use glam::{Affine3A, BVec4A, DVec3, Mat4, Vec3, Vec3A, Vec4};
+use glam::{Affine3A, DVec3, Mat4, Vec3, Vec3A, Vec4};
 
 /// Which tests run (the paper's three culling pipelines).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -472,13 +472,13 @@ impl MeshletCuller {
                 let gc = V4 { x: at(&self.lane_cx), y: at(&self.lane_cy), z: at(&self.lane_cz) };
                 let c = x * gc.x + y * gc.y + z * gc.z + t;
                 let r = at(&self.lane_radius) * smax * (1.0 + 1e-5) + 1e-5 * (c.x.abs() + c.y.abs() + c.z.abs() + ext);
-                let (mut outside, mut inside) = (BVec4A::FALSE, BVec4A::TRUE);
+                // Lane masks (bits, so that glam's `scalar-math` mask type works alike).
+                let (mut outside, mut inside) = (0u32, 0b1111u32);
                 for p in &camera.planes {
                     let d = c.x * p.x + c.y * p.y + c.z * p.z + p.w;
-                    outside |= d.cmplt(-r);
-                    inside &= d.cmpgt(r);
+                    outside |= d.cmplt(-r).bitmask();
+                    inside &= d.cmpgt(r).bitmask();
                 }
-                let (outside, inside) = (outside.bitmask(), inside.bitmask());
                 group = std::array::from_fn(|i| {
                     if outside & (1 << i) != 0 {
                         Group::Outside
