@@ -850,7 +850,8 @@ fn demo(triangles: usize, seed: u64, glb: Option<&Path>, json: bool) -> Result<(
     let (meshlets, bounds) = (&baked.meshlets, &baked.bounds);
     let precompute_s = stats.precompute.as_secs_f64();
     let (both, frustum, none) = bake::class_shares(&baked);
-    let check = skinlet::bounds::verify::verify_bounds(&asset.skeleton, skin, &all, &baked.mesh, meshlets, bounds, 200);
+    let check =
+        skinlet::bounds::verify::verify_bounds(&asset.skeleton, skin, &all, &baked.mesh, meshlets, bounds, 200)?;
     let bake_bytes = skinlet::bake::to_bytes(&baked).len();
     // A small crowd scene: 16 instances, 10 frames, every culled triangle checked.
     let crowd_params = skinlet_lab::crowd::CrowdParams { instances: 16, frames: 10, ..Default::default() };
@@ -1207,7 +1208,7 @@ fn verify(
         meshlets,
         bounds,
         samples.max(2),
-    );
+    )?;
     // A bake's pose envelope: its bounds at as many poses inside it, half on its boundary.
     let envelope = match &b.envelope {
         Some(e) => {

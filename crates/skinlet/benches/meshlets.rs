@@ -55,7 +55,7 @@ fn benches(c: &mut Criterion) {
     let demo = demo_character(&DemoParams { triangles: 1_000_000, ..DemoParams::default() });
     let prepared = skinlet::bake::prepare_character(&demo.character().unwrap()).unwrap();
     c.bench_function("meshlets/demo-1M/prepare", |b| {
-        b.iter(|| prepare(black_box(&demo.meshes[0].primitives[0].geometry)))
+        b.iter(|| prepare(black_box(&demo.meshes[0].primitives[0].geometry)).unwrap())
     });
     bench_mesh(c, "demo-1M", &prepared);
 }

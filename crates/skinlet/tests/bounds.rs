@@ -145,7 +145,7 @@ fn check_meshlet_bounds(seed: u64) -> Result<Option<bool>, String> {
         return Ok(None);
     }
     let mesh = skinlet::SkinnedMesh { positions, triangles, influences: Some(inf), ..Default::default() };
-    let prepared = prepare(&mesh);
+    let prepared = prepare(&mesh).unwrap();
     let limits = MeshletLimits { max_vertices: 8, max_triangles: 8 };
     let meshlets = build(&prepared, Builder::SkinAware, limits).map_err(|e| e.to_string())?;
     // Refined bounds, with thresholds that keep every meshlet refining: each key interval's
@@ -153,7 +153,7 @@ fn check_meshlet_bounds(seed: u64) -> Result<Option<bool>, String> {
     let how = Refinement { s_r: 1.0, alpha_t: 0.0, budget: None, max_rounds: 6 };
     let refined = refine(&skeleton, &skin, &[&clip], &prepared.mesh, &meshlets, &how).map_err(|e| e.to_string())?;
     let bounds = refined.bounds;
-    let report = verify_bounds(&skeleton, &skin, &[&clip], &prepared.mesh, &meshlets, &bounds, 60);
+    let report = verify_bounds(&skeleton, &skin, &[&clip], &prepared.mesh, &meshlets, &bounds, 60).unwrap();
     if report.violations() > 0 {
         return Err(format!("seed {seed}: {} rounds, {report:?}", refined.rounds));
     }

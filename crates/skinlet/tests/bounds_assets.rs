@@ -49,14 +49,14 @@ fn spheres_hold_on_every_asset_and_clip_and_sampling_misses() {
             let refined = refine(&asset.skeleton, skin, clips, &prepared.mesh, meshlets, &CONVERGE).unwrap();
             assert_eq!(refined.stop, Stop::Converged);
             let bounds = refined.bounds;
-            let report = verify_bounds(&asset.skeleton, skin, clips, &prepared.mesh, meshlets, &bounds, 200);
+            let report = verify_bounds(&asset.skeleton, skin, clips, &prepared.mesh, meshlets, &bounds, 200).unwrap();
             let coned = bounds.iter().filter(|b| b.cone_angle < std::f32::consts::FRAC_PI_2).count();
             eprintln!("{name} {label}: {coned}/{} meshlets with a cone, {report:?}", bounds.len());
             assert_eq!(report.violations(), 0, "{name} {label}: {report:?}");
             assert!(report.mean_radius_ratio >= 1.0 - 1e-5, "{name} {label}: a radius below what samples need");
         }
         let sampled = sampled_bounds(&asset.skeleton, skin, &all, &prepared.mesh, meshlets, 10);
-        let report = verify_bounds(&asset.skeleton, skin, &all, &prepared.mesh, meshlets, &sampled, 200);
+        let report = verify_bounds(&asset.skeleton, skin, &all, &prepared.mesh, meshlets, &sampled, 200).unwrap();
         eprintln!("{name} sampled baseline (10 samples per clip): {report:?}");
         baseline_misses += report.violations();
     }

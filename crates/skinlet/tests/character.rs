@@ -264,7 +264,8 @@ fn check_scene(asset: &Asset, seed: u64, poses: usize) {
         &baked.meshlets,
         &baked.bounds,
         200,
-    );
+    )
+    .unwrap();
     assert_eq!(report.violations(), 0, "seed {seed}: {report:?}");
     let params = CrowdParams { instances: 8, frames: 3, seed, ..CrowdParams::default() };
     let scene = posed_crowd(&asset.skeleton, &palette, &baked.mesh, &clips, &params).unwrap();
@@ -346,7 +347,8 @@ fn the_demo_poses_like_gltf_and_verifies_as_a_whole() {
             &b.meshlets,
             &b.bounds,
             300,
-        );
+        )
+        .unwrap();
         assert_eq!(r.violations(), 0, "{:?}: {r:?}", set.iter().map(|c| &c.name).collect::<Vec<_>>());
     }
     // The propeller's meshlets move: its part's vertices turn with the clip.

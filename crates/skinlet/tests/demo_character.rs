@@ -496,7 +496,7 @@ mod refine {
             tighter += (r.radius < k.radius || r.cone_angle < k.cone_angle) as usize;
         }
         assert!(tighter > keys.len() / 4, "only {tighter} of {} meshlets tightened", keys.len());
-        let report = verify_bounds(&asset.skeleton, skin, &clips, &prepared.mesh, &meshlets, &a.bounds, 100);
+        let report = verify_bounds(&asset.skeleton, skin, &clips, &prepared.mesh, &meshlets, &a.bounds, 100).unwrap();
         assert_eq!(report.violations(), 0, "{report:?}");
         assert!(report.mean_radius_ratio >= 1.0 - 1e-5);
 

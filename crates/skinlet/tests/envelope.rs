@@ -71,7 +71,7 @@ fn check_envelope(seed: u64) -> Result<usize, String> {
     }
     let morphs = if seed % 4 < 2 { random_morphs(seed, positions.len(), 0, &mut clip) } else { Default::default() };
     let mesh = skinlet::SkinnedMesh { positions, triangles, influences: Some(inf), morphs, ..Default::default() };
-    let prepared = prepare(&mesh);
+    let prepared = prepare(&mesh).unwrap();
     let meshlets = build(&prepared, Builder::SkinAware, MeshletLimits { max_vertices: 8, max_triangles: 8 })
         .map_err(|e| e.to_string())?;
     let mut r = Rng(seed ^ 0xE7E1);
@@ -160,7 +160,7 @@ fn check_any_pose(seed: u64) -> Result<usize, String> {
     let triangles = random_triangles(seed, skin.joints.len(), &mut positions, &mut inf);
     let morphs = if seed % 4 < 2 { random_morphs(seed, positions.len(), 0, &mut clip) } else { Default::default() };
     let mesh = skinlet::SkinnedMesh { positions, triangles, influences: Some(inf), morphs, ..Default::default() };
-    let prepared = prepare(&mesh);
+    let prepared = prepare(&mesh).unwrap();
     let meshlets = build(&prepared, Builder::SkinAware, MeshletLimits { max_vertices: 8, max_triangles: 8 })
         .map_err(|e| e.to_string())?;
     let ranges =

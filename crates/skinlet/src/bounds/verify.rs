@@ -58,6 +58,8 @@ pub fn sample_times(clip: &Clip, uniform: usize) -> Vec<f32> {
     t
 }
 
+/// Checks `bounds` over every clip in `clips` at [`sample_times`]`(clip, uniform)`. Errors
+/// when the inputs do not belong together (see [`check_inputs`]).
 pub fn verify_bounds(
     skeleton: &Skeleton,
     skin: &Skin,
@@ -66,10 +68,38 @@ pub fn verify_bounds(
     meshlets: &Meshlets,
     bounds: &[MeshletBounds],
     uniform: usize,
-) -> VerifyReport {
+) -> crate::Result<VerifyReport> {
+    check_inputs(skin, mesh, meshlets, bounds)?;
     let times: Vec<PoseAt> =
         clips.iter().flat_map(|c| sample_times(c, uniform).into_iter().map(move |t| PoseAt::Clip(c, t))).collect();
-    report(&times, &scan(skeleton, skin, &times, mesh, meshlets, bounds), bounds)
+    Ok(report(&times, &scan(skeleton, skin, &times, mesh, meshlets, bounds), bounds))
+}
+
+/// That the mesh, its meshlets and bounds belong to `skin`: influences and principal joints
+/// within its joints, morph targets within the mesh, meshlet vertices within the mesh, one
+/// bound per meshlet.
+pub fn check_inputs(
+    skin: &Skin,
+    mesh: &SkinnedMesh,
+    meshlets: &Meshlets,
+    bounds: &[MeshletBounds],
+) -> crate::Result<()> {
+    let joints = skin.joints.len();
+    if let Some(inf) = &mesh.influences {
+        inf.check(joints)?;
+    }
+    mesh.morphs.check(mesh.positions.len())?;
+    let bad = |what: String| Err(crate::Error::invalid("verify", what));
+    if bounds.len() != meshlets.len() {
+        return bad(format!("{} bounds for {} meshlets", bounds.len(), meshlets.len()));
+    }
+    if let Some(v) = meshlets.vertices.iter().find(|&&v| v as usize >= mesh.positions.len()) {
+        return bad(format!("a meshlet uses vertex {v} of {}", mesh.positions.len()));
+    }
+    if let Some(b) = bounds.iter().find(|b| b.joint as usize >= joints) {
+        return bad(format!("a meshlet's principal joint {} is not one of the skin's {joints}", b.joint));
+    }
+    Ok(())
 }
 
 /// [`verify_bounds`] for poses given directly: every node's local transform (skeleton order)
@@ -97,6 +127,7 @@ pub fn verify_poses(
             ),
         ));
     }
+    check_inputs(skin, mesh, meshlets, bounds)?;
     let poses: Vec<PoseAt> = poses.iter().map(|(l, w)| PoseAt::Locals(l, w)).collect();
     Ok(report(&poses, &scan(skeleton, skin, &poses, mesh, meshlets, bounds), bounds))
 }
@@ -346,17 +377,27 @@ mod tests {
         (skeleton, skin, clip, mesh)
     }
 
+    #[test]
+    fn a_mesh_of_another_skin_is_an_error_not_a_panic() {
+        // Vertex 0 on joint 3 of a one-joint skin: skinning it would index past the matrices.
+        let (skeleton, skin, clip, mut mesh) = stretched_patch();
+        mesh.influences.as_mut().unwrap().joints[0] = 3;
+        let e = verify_bounds(&skeleton, &skin, &[&clip], &mesh, &Meshlets::default(), &[], 5).unwrap_err().to_string();
+        assert!(e.contains("vertex 0 uses joint 3 of 1"), "{e}");
+    }
+
     /// Under strong non-uniform scale and shear, bounds that a world-space sphere (radius ×
     /// the largest scale) would accept but the culler's joint-space sphere does not are caught,
     /// and so is a cone that misses the bind-space normals.
     #[test]
     fn checks_in_the_culler_space_under_stretch_and_shear() {
         let (skeleton, skin, clip, mesh) = stretched_patch();
-        let prepared = prepare(&mesh);
+        let prepared = prepare(&mesh).unwrap();
         let meshlets = build(&prepared, Builder::SkinAware, MeshletLimits::NVIDIA).unwrap();
         let bounds = meshlet_bounds(&skeleton, &skin, &[&clip], &prepared.mesh, &meshlets).unwrap();
-        let check =
-            |bounds: &[MeshletBounds]| verify_bounds(&skeleton, &skin, &[&clip], &prepared.mesh, &meshlets, bounds, 20);
+        let check = |bounds: &[MeshletBounds]| {
+            verify_bounds(&skeleton, &skin, &[&clip], &prepared.mesh, &meshlets, bounds, 20).unwrap()
+        };
         let good = check(&bounds);
         assert_eq!(good.violations(), 0, "{good:?}");
         assert!(good.vertex_checks > 0 && good.normal_checks > 0 && good.singular == 0, "{good:?}");

@@ -446,7 +446,7 @@ mod tests {
 
     #[test]
     fn cuts_save_work_stay_within_budget_and_are_deterministic() {
-        let mesh = super::super::prepare(&tube(24, 120)).mesh;
+        let mesh = super::super::prepare(&tube(24, 120)).unwrap().mesh;
         let limits = MeshletLimits::NVIDIA;
         let params = Params::default();
         let ours = build(&mesh, limits, &params, None);
@@ -469,7 +469,7 @@ mod tests {
     /// the poses than cuts chosen on the rest pose alone.
     #[test]
     fn poses_steer_the_cuts_where_the_mesh_bends() {
-        let mesh = super::super::prepare(&bumpy_tube(24, 120, 0.5, 7)).mesh;
+        let mesh = super::super::prepare(&bumpy_tube(24, 120, 0.5, 7)).unwrap().mesh;
         let motion = bends(&mesh, &[-1.2, -0.6, 0.6, 1.2]);
         let (limits, params) = (MeshletLimits::NVIDIA, Params::default());
         let moving = build(&mesh, limits, &params, Some(&motion));
@@ -493,7 +493,7 @@ mod tests {
             small in proptest::bool::ANY,
             angles in proptest::collection::vec(-2.0f64..2.0, 0..6),
         ) {
-            let mesh = super::super::prepare(&bumpy_tube(segments, rings, bump, seed)).mesh;
+            let mesh = super::super::prepare(&bumpy_tube(segments, rings, bump, seed)).unwrap().mesh;
             let motion = bends(&mesh, &angles);
             let limits = if small { MeshletLimits::SMALL } else { MeshletLimits::NVIDIA };
             let params = Params::default();

@@ -359,6 +359,13 @@ mod tests {
     use glam::Vec3;
     use proptest::prelude::*;
 
+    #[test]
+    fn a_triangle_past_the_vertices_is_an_error_not_a_panic() {
+        let mesh = SkinnedMesh { positions: vec![Vec3::ZERO; 3], triangles: vec![[0, 1, 5]], ..SkinnedMesh::default() };
+        let e = prepare(&mesh).unwrap_err().to_string();
+        assert!(e.contains("vertex 5"), "{e}");
+    }
+
     /// A random skinned triangle soup: arbitrary connectivity (also non-manifold and
     /// repeated triangles), 1–4 influences per vertex over `joints` joints.
     fn random_mesh(seed: u64, vertices: usize, triangles: usize, joints: u16) -> SkinnedMesh {
@@ -406,7 +413,7 @@ mod tests {
     }
 
     fn check_all_builders(mesh: &SkinnedMesh, limits: MeshletLimits) {
-        let prepared = prepare(mesh);
+        let prepared = prepare(mesh).unwrap();
         for b in Builder::ALL {
             let m = build(&prepared, b, limits).unwrap();
             m.validate(&prepared.mesh.triangles, limits).unwrap_or_else(|e| panic!("{}: {e}", b.name()));
@@ -459,7 +466,7 @@ mod tests {
             influences: Some(inf),
             ..SkinnedMesh::default()
         };
-        let prepared = prepare(&mesh);
+        let prepared = prepare(&mesh).unwrap();
         assert_eq!(prepared.weld.output_vertices, 4);
         assert_eq!(prepared.dropped_triangles, 1);
         for b in Builder::ALL {
@@ -472,7 +479,7 @@ mod tests {
 
     #[test]
     fn bad_limits_and_corrupt_flat_buffers_are_errors() {
-        let prepared = prepare(&random_mesh(3, 100, 200, 4));
+        let prepared = prepare(&random_mesh(3, 100, 200, 4)).unwrap();
         for limits in [
             MeshletLimits { max_vertices: 300, max_triangles: 124 },
             MeshletLimits { max_vertices: 2, max_triangles: 124 },

@@ -34,10 +34,10 @@ pub struct PreparedMesh {
     pub parts: Vec<PartRange>,
 }
 
-/// Prepares a mesh as one part.
-pub fn prepare(mesh: &SkinnedMesh) -> PreparedMesh {
+/// Prepares a mesh as one part; errors name a triangle that uses a vertex past the mesh.
+pub fn prepare(mesh: &SkinnedMesh) -> Result<PreparedMesh> {
     let whole = PartRange { vertices: 0..mesh.positions.len() as u32, triangles: 0..mesh.triangles.len() as u32 };
-    prepare_parts(mesh, &[whole]).expect("one part covering the mesh is valid")
+    prepare_parts(mesh, &[whole])
 }
 
 /// Prepares a mesh whose parts are `parts`: consecutive vertex and triangle ranges that
