@@ -83,8 +83,7 @@ impl BakedBounds {
 
 /// Checks bounds records for `joints` joints: finite numbers, principal joints below
 /// `joints`, known classes, radii not negative, cone angles in [0, π], unit axes for cones
-/// below π/2. Errors name the
-/// meshlet; `location` says where the records came from.
+/// below π/2. Errors name the meshlet; `location` says where the records came from.
 pub fn check_bounds(records: &[BakedBounds], joints: usize, location: &str) -> Result<()> {
     for (i, r) in records.iter().enumerate() {
         let bad = |what: String| Err(Error::invalid(location, format!("meshlet {i}: {what}")));
