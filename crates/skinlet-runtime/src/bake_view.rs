@@ -32,9 +32,10 @@ pub const VERSION: u32 = 3;
 const ENTRY: usize = 24;
 /// Most drivers a bake can have: `VERT` numbers them in 16 bits.
 pub const MAX_DRIVERS: usize = 1 << 16;
-/// How far from 1 a stored cone axis's squared length may be (f32 normalization is off by a
-/// few ulps; the culling tests' margins cover far more).
-const UNIT: f32 = 1e-5;
+/// How far from 1 a stored unit quantity may be (a cone axis's squared length, `sin² + cos²`
+/// of a stored angle): f32 rounding is off by a few ulps; the culling tests' margins cover far
+/// more.
+pub(crate) const UNIT: f32 = 1e-5;
 
 /// One meshlet's record in `BNDS` (48 bytes, `docs/FORMAT.md`).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

@@ -541,7 +541,7 @@ impl BakedContours {
 /// cosine; where the cone is used (`cos α > 0`; at 90° or more every patch is accepted) the
 /// two agree (`sin² + cos² = 1` within f32 rounding) and the axis is a unit vector.
 fn cone_ok(axis: Vec3, sin_angle: f32, cos_angle: f32) -> bool {
-    let unit = |x: f32| (x - 1.0).abs() <= 1e-5;
+    let unit = |x: f32| (x - 1.0).abs() <= crate::bake_view::UNIT;
     (0.0..=1.0).contains(&sin_angle)
         && (-1.0..=1.0).contains(&cos_angle)
         && (cos_angle <= 0.0 || (unit(sin_angle * sin_angle + cos_angle * cos_angle) && unit(axis.length_squared())))

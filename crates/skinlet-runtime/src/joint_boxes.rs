@@ -124,18 +124,16 @@ pub struct JointBoxes {
 impl Default for JointBoxes {
     /// No boxes (joint space).
     fn default() -> JointBoxes {
-        JointBoxes {
-            space: JointSpace::Joint,
-            joints: Vec::new(),
-            center: Vec::new(),
-            half: Vec::new(),
-            pairs: Vec::new(),
-            needs: 0,
-        }
+        JointBoxes::empty(JointSpace::Joint)
     }
 }
 
 impl JointBoxes {
+    /// No boxes, in `space`.
+    fn empty(space: JointSpace) -> JointBoxes {
+        JointBoxes { space, joints: Vec::new(), center: Vec::new(), half: Vec::new(), pairs: Vec::new(), needs: 0 }
+    }
+
     /// Boxes from their f64 extents, one `(min, max)` per skin joint (a joint without
     /// vertices has an empty box, `min > max` on some axis): stored in f32, grown by
     /// [`INFLATE`] and rounded outwards. Errors on more than 65,536 joints (stored in 16 bits)
@@ -150,8 +148,7 @@ impl JointBoxes {
         if let Some(j) = boxes.iter().position(bad) {
             return Err(Error::invalid("joint boxes", format!("joint {j}: box {:?} is not finite", boxes[j])));
         }
-        let mut out =
-            JointBoxes { space, joints: Vec::new(), center: Vec::new(), half: Vec::new(), pairs: Vec::new(), needs: 0 };
+        let mut out = JointBoxes::empty(space);
         for (j, &(min, max)) in boxes.iter().enumerate() {
             if min.cmple(max).all() {
                 // Stored in f32: round outward by a relative margin far above f32 rounding.
