@@ -68,17 +68,17 @@ impl Bake {
         let mut words = vec![0u32; bytes.len().div_ceil(4)];
         bytemuck::cast_slice_mut::<u32, u8>(&mut words)[..bytes.len()].copy_from_slice(bytes);
         let view = BakeView::new(&bytemuck::cast_slice(&words)[..bytes.len()])?;
-        let nodes = view.joint_nodes()?;
-        let names = view.joint_names()?;
+        let nodes = view.joint_nodes();
+        let names = view.joint_names();
         let drivers: Vec<(u32, String)> = nodes.iter().zip(names).map(|(&n, s)| (n, s.to_string())).collect();
-        let morphs = view.morphs()?;
+        let morphs = view.morphs();
         let morph_weights: Vec<(u32, u32, f32)> =
             morphs.map_or(&[][..], |m| m.weights).iter().map(|w| (w.node, w.target, w.default)).collect();
-        let envelope = view.envelope(morph_weights.len())?;
+        let envelope = view.envelope();
         let guard = envelope.map(|e| e.guard()).transpose()?;
         let parts = PartBounds::new(&view)?;
         let parts = if settings.prune { parts.pruned() } else { parts };
-        let clips = view.info()?.clips.iter().map(|c| c.to_string()).collect();
+        let clips = view.info().clips.iter().map(|c| c.to_string()).collect();
         let node_count = (drivers.iter().map(|d| d.0))
             .chain(parts.parts().iter().map(|p| p.node))
             .chain(morph_weights.iter().map(|w| w.0))

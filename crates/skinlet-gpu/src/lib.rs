@@ -34,10 +34,10 @@
 //!     let gpu = Gpu::from_device(device.clone(), queue.clone(), adapter.get_info());
 //!     let bytes = std::fs::read("character.skinlet")?;
 //!     let view = skinlet_runtime::bake_view::BakeView::new(&bytes)?;
-//!     let mesh = GpuMesh::new(&gpu, &view.mesh_data()?)?; // once
+//!     let mesh = GpuMesh::new(&gpu, &view.mesh_data())?; // once
 //!     let skinning = ComputeSkinning::new(&gpu)?;
 //!     // Every frame: your pose's skinning matrices (one per driver) and morph weights.
-//!     let matrices = vec![glam::Affine3A::IDENTITY; view.joint_count()?];
+//!     let matrices = vec![glam::Affine3A::IDENTITY; view.joint_count()];
 //!     let morph_weights = vec![0.0; mesh.morph_weights];
 //!     skinning.skin(&gpu, &mesh, Pose { matrices: &matrices, morph_weights: &morph_weights })?;
 //!     // `mesh.out_positions` and `mesh.out_normals` now hold the skinned vertices.

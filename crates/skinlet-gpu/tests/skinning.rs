@@ -88,7 +88,7 @@ fn a_bake_file_skins_on_the_callers_device() {
     let baked = common::bake(&asset, &asset.character().unwrap());
     let bytes = skinlet::bake::to_bytes(&baked);
     let view = skinlet_runtime::bake_view::BakeView::new(&bytes).unwrap();
-    let data = view.mesh_data().unwrap();
+    let data = view.mesh_data();
     assert!(data.morphs.is_some(), "the demo's face has morph targets");
     let buffers = GpuMesh::new(&gpu, &data).unwrap();
     assert_eq!(buffers.meshlets.as_ref().unwrap().count as usize, baked.meshlets.len());

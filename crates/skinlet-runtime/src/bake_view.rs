@@ -1,18 +1,19 @@
-//! A validated, zero-copy view over the bytes of a bake file (`docs/FORMAT.md`): the header
-//! and section table are checked once, and sections come out as typed slices of the file's
-//! own bytes (every section starts 16-byte aligned in the file, so a memory-mapped file or a
+//! A validated, zero-copy view over the bytes of a bake file (`docs/FORMAT.md`), the one
+//! reader of the format: [`BakeView::new`] checks the header, the section table and every
+//! section once, each against what it depends on, and keeps typed slices of the file's own
+//! bytes (every section starts 16-byte aligned in the file, so a memory-mapped file or a
 //! `Vec<u8>` read from disk serves them directly; its records are little-endian, as the
-//! format is). What it hands out has been checked: a culler built from it never indexes out
-//! of range and never sees a non-finite number.
+//! format is). What it hands out has been checked, and its accessors cannot fail: a culler
+//! built from it never indexes out of range and never sees a non-finite number.
 //!
 //! Every section: the bake settings and clip names (`INFO`), the drivers' inverse bind
-//! matrices, nodes and node names (`SKIN`), vertices (`VERT`), triangles (`TRIS`), meshlets (`MLET`),
-//! meshlet bounds with their classes (`BNDS`), parts (`PART`), morph targets (`MRPH`), the
-//! pose envelope with its bounds and any-pose boxes (`ENVL`) as typed slices; the parts'
-//! boxes per clip window (`PWIN`), the overdraw orders (`OVDR`) and contour patches (`CONT`,
-//! with the edges it indexes, which the file does not store) read into arrays once, at load. The baker's reader
-//! (`skinlet::bake::from_bytes`) goes through this view for every section but `SKIN`'s names,
-//! `VERT`, `TRIS` and `MLET`, which it parses into its own types.
+//! matrices, nodes and node names (`SKIN`), vertices (`VERT`), triangles (`TRIS`), meshlets
+//! (`MLET`), meshlet bounds with their classes (`BNDS`), parts (`PART`), morph targets
+//! (`MRPH`), the pose envelope with its bounds, any-pose boxes and node names (`ENVL`) as
+//! typed slices; the parts' boxes per clip window (`PWIN`), the overdraw orders (`OVDR`) and
+//! contour patches (`CONT`, with the edges it indexes, which the file does not store) read
+//! into arrays. The baker's reader (`skinlet::bake::from_bytes`) builds its types from this
+//! view.
 
 use crate::any_pose::AnyPoseBoxes;
 use crate::contour_edges::Edges;
@@ -83,8 +84,8 @@ impl BakedBounds {
 }
 
 /// Checks bounds records for `joints` joints: finite numbers, principal joints below
-/// `joints`, known classes, radii not negative, cone angles in [0, π], unit axes for cones
-/// below π/2. Errors name the meshlet; `location` says where the records came from.
+/// `joints`, known classes, radii not negative, `|center| + radius` finite in f32, cone angles
+/// in [0, π], unit axes for cones below π/2. Errors name the meshlet; `location` says where the records came from.
 pub fn check_bounds(records: &[BakedBounds], joints: usize, location: &str) -> Result<()> {
     for (i, r) in records.iter().enumerate() {
         let bad = |what: String| Err(Error::invalid(location, format!("meshlet {i}: {what}")));
@@ -101,6 +102,11 @@ pub fn check_bounds(records: &[BakedBounds], joints: usize, location: &str) -> R
         }
         if r.radius < 0.0 || r.rest_radius < 0.0 || !(0.0..=std::f32::consts::PI).contains(&r.cone_angle) {
             return bad("a negative radius or a cone angle outside [0, π]".into());
+        }
+        // The culler sizes its margins by |center| + radius: in f32's range.
+        let reach = Vec3::from(r.center).length() + r.radius.max(r.rest_radius);
+        if !reach.is_finite() {
+            return bad(format!("|center| + radius {reach} is past f32's range"));
         }
         if !(0.0..=std::f32::consts::PI).contains(&r.rest_cone_angle) {
             return bad(format!("rest cone angle {} outside [0, π]", r.rest_cone_angle));
@@ -153,9 +159,9 @@ impl BakedNodeRange {
 }
 
 /// The `ENVL` section, checked: the pose envelope's node and morph weight ranges, one
-/// envelope bounds record per meshlet, the any-pose boxes; slices of the file's bytes. The
-/// nodes' names that follow are not read (a game needs none).
-#[derive(Clone, Copy, Debug)]
+/// envelope bounds record per meshlet, the any-pose boxes (slices of the file's bytes) and
+/// the ranges' nodes' names.
+#[derive(Clone, Debug)]
 pub struct EnvelopeView<'a> {
     pub nodes: &'a [BakedNodeRange],
     /// Per morph weight, its range (min, max).
@@ -166,8 +172,8 @@ pub struct EnvelopeView<'a> {
     /// Per box its joint, then its center and half extents.
     pub box_joints: &'a [u32],
     pub boxes: &'a [[f32; 6]],
-    /// Where the nodes' names start in the section.
-    pub names_at: usize,
+    /// The names of the ranges' nodes, in range order.
+    pub names: Vec<&'a str>,
 }
 
 impl EnvelopeView<'_> {
@@ -205,10 +211,25 @@ impl EnvelopeView<'_> {
     }
 }
 
-/// The checked view.
+/// The checked view: every section the format defines, read and checked once by
+/// [`BakeView::new`]; the accessors hand out what was checked and cannot fail.
 #[derive(Clone, Debug)]
 pub struct BakeView<'a> {
     sections: Vec<([u8; 4], &'a [u8])>,
+    info: InfoView<'a>,
+    inverse_bind: &'a [[f32; 16]],
+    joint_nodes: &'a [u32],
+    joint_names: Vec<&'a str>,
+    vertices: VertexView<'a>,
+    triangles: &'a [[u32; 3]],
+    meshlets: MeshletView<'a>,
+    bounds: &'a [BakedBounds],
+    morphs: Option<MorphView<'a>>,
+    parts: &'a [BakedPartRecord],
+    envelope: Option<EnvelopeView<'a>>,
+    part_windows: Option<BakedPartWindows>,
+    overdraw: Option<Orders>,
+    contours: Option<(BakedContours, Edges)>,
 }
 
 /// The little-endian `u32` at byte `at` of `b`, or `None` past its end.
@@ -217,208 +238,557 @@ fn u32_at(b: &[u8], at: usize) -> Option<u32> {
 }
 
 impl<'a> BakeView<'a> {
-    /// Checks the header (magic, version) and the section table (every section inside the
-    /// file, no tag twice). `bytes` must start at a 4-byte aligned address, as a memory map or a buffer
-    /// from the allocator does. Errors say what is wrong and where.
+    /// Checks the header (magic, version), the section table (every section inside the file,
+    /// no tag twice) and every section `docs/FORMAT.md` defines, each against the ones it
+    /// depends on. `bytes` must start at a 4-byte aligned address, as a memory map or a
+    /// buffer from the allocator does. Errors say what is wrong and where. Allocates what is
+    /// read into arrays (`PWIN`, `OVDR`, `CONT` with its edges): run it once, at load.
     pub fn new(bytes: &'a [u8]) -> Result<BakeView<'a>> {
-        let head = |message: String| Error::invalid("bake header", message);
-        if cfg!(target_endian = "big") {
-            return Err(head("bake files are little-endian; this target is big-endian".into()));
-        }
-        if !(bytes.as_ptr() as usize).is_multiple_of(4) {
-            return Err(head(
-                "the bytes must start at a 4-byte aligned address (copy them into an aligned buffer)".into(),
-            ));
-        }
-        if bytes.get(..8) != Some(&MAGIC[..]) {
-            return Err(head("not a skinlet bake file (wrong magic bytes)".into()));
-        }
-        let version = u32_at(bytes, 8).ok_or_else(|| head("truncated (no version)".into()))?;
-        if version != VERSION {
-            return Err(Error::unsupported("bake header", format!("version {version}; this skinlet reads {VERSION}")));
-        }
-        let n = u32_at(bytes, 12).ok_or_else(|| head("truncated (no section count)".into()))? as usize;
-        if n.saturating_mul(ENTRY) > bytes.len() - 16 {
-            return Err(head(format!("byte 12: {n} sections do not fit in the file")));
-        }
-        let mut sections = Vec::with_capacity(n);
-        for k in 0..n {
-            let e = &bytes[16 + k * ENTRY..16 + (k + 1) * ENTRY];
-            let tag: [u8; 4] = e[..4].try_into().expect("4 bytes");
-            let (offset, len) = (
-                u64::from_le_bytes(e[8..16].try_into().expect("8 bytes")),
-                u64::from_le_bytes(e[16..24].try_into().expect("8 bytes")),
-            );
-            let body = usize::try_from(offset)
-                .ok()
-                .zip(usize::try_from(len).ok())
-                .and_then(|(o, l)| bytes.get(o..o.checked_add(l)?))
-                .ok_or_else(|| {
-                    head(format!("byte {}: section {} lies outside the file", 16 + k * ENTRY, tag_name(&tag)))
-                })?;
-            sections.push((tag, body));
-        }
-        // No tag twice: sorted by tag (then entry), equal neighbours are a repeat.
-        let mut order: Vec<usize> = (0..n).collect();
-        order.sort_by_key(|&k| (sections[k].0, k));
-        if let Some(w) = order.windows(2).filter(|w| sections[w[0]].0 == sections[w[1]].0).min_by_key(|w| w[1]) {
-            let (first, k) = (w[0], w[1]);
-            return Err(head(format!(
-                "byte {}: section {} appears twice in the table (entries {first} and {k})",
-                16 + k * ENTRY,
-                tag_name(&sections[k].0)
-            )));
-        }
-        Ok(BakeView { sections })
+        let sections = read_table(bytes)?;
+        let find = |tag: &[u8; 4]| sections.iter().find(|(t, _)| t == tag).map(|(_, b)| *b);
+        let required = |tag: &[u8; 4]| {
+            find(tag).ok_or_else(|| Error::invalid("bake file", format!("section {} is missing", tag_name(tag))))
+        };
+        let info = read_info(required(b"INFO")?)?;
+        let (inverse_bind, joint_nodes, joint_names) = read_skin(required(b"SKIN")?)?;
+        let drivers = inverse_bind.len();
+        let vertices = read_vertices(required(b"VERT")?, drivers)?;
+        let n = vertices.positions.len();
+        let triangles = read_triangles(required(b"TRIS")?, n)?;
+        let meshlets = read_meshlets(required(b"MLET")?, n, &info)?;
+        let bounds = read_bounds(required(b"BNDS")?, meshlets.len(), drivers)?;
+        let morphs = find(b"MRPH").map(|s| read_morphs(s, n)).transpose()?;
+        let parts = read_parts(required(b"PART")?, n, triangles, &meshlets)?;
+        let weights = morphs.map_or(0, |m| m.weights.len());
+        let envelope = find(b"ENVL").map(|s| read_envelope(s, meshlets.len(), weights, drivers)).transpose()?;
+        let part_windows =
+            find(b"PWIN").map(|s| read_part_windows(s, parts.len(), info.clips.len(), drivers)).transpose()?;
+        let overdraw = find(b"OVDR").map(|s| Orders::read(s, triangles, parts, info.clips.len())).transpose()?;
+        let contours = find(b"CONT").map(|s| read_contours(s, &vertices, morphs, triangles, drivers)).transpose()?;
+        Ok(BakeView {
+            sections,
+            info,
+            inverse_bind,
+            joint_nodes,
+            joint_names,
+            vertices,
+            triangles,
+            meshlets,
+            bounds,
+            morphs,
+            parts,
+            envelope,
+            part_windows,
+            overdraw,
+            contours,
+        })
     }
 
-    /// The bytes of section `tag`, if the file has it.
+    /// The bytes of section `tag`, if the file has it (sections a later version adds, or a
+    /// section's bytes for a GPU upload as they are).
     pub fn section(&self, tag: &[u8; 4]) -> Option<&'a [u8]> {
         self.sections.iter().find(|(t, _)| t == tag).map(|(_, b)| *b)
     }
 
-    /// The bytes of a section the format requires.
-    pub fn required(&self, tag: &[u8; 4]) -> Result<&'a [u8]> {
-        self.section(tag).ok_or_else(|| Error::invalid("bake file", format!("section {} is missing", tag_name(tag))))
+    /// `INFO`: how the bake was made, and the baked clips' names.
+    pub fn info(&self) -> &InfoView<'a> {
+        &self.info
     }
 
-    /// The number of drivers (joints), from `SKIN`.
-    pub fn joint_count(&self) -> Result<usize> {
-        let s = self.required(b"SKIN")?;
-        let n = u32_at(s, 0).ok_or_else(|| Error::invalid("bake section SKIN", "byte 0: truncated"))? as usize;
-        if n > MAX_DRIVERS {
-            return Err(Error::invalid(
-                "bake section SKIN",
-                format!("byte 0: {n} drivers; the format numbers them in 16 bits (at most 65,536)"),
-            ));
-        }
-        if n.saturating_mul(68) > s.len() - 4 {
-            return Err(Error::invalid("bake section SKIN", format!("byte 0: {n} joints do not fit in the section")));
-        }
-        Ok(n)
+    /// The number of drivers (joints), from `SKIN` (at most [`MAX_DRIVERS`]).
+    pub fn joint_count(&self) -> usize {
+        self.inverse_bind.len()
     }
 
-    /// Each driver's inverse bind matrix (16 `f32`, column-major), checked finite.
-    pub fn inverse_bind(&self) -> Result<&'a [[f32; 16]]> {
-        let n = self.joint_count()?;
-        let m: &[[f32; 16]] = cast(&self.required(b"SKIN")?[4..4 + 64 * n], "SKIN")?;
-        if let Some(j) = m.iter().position(|m| m.iter().any(|x| !x.is_finite())) {
-            return Err(Error::invalid("bake section SKIN", format!("joint {j}'s inverse bind matrix is not finite")));
-        }
-        Ok(m)
+    /// Each driver's inverse bind matrix (16 `f32`, column-major), finite.
+    pub fn inverse_bind(&self) -> &'a [[f32; 16]] {
+        self.inverse_bind
     }
 
     /// Each driver's node (index into the source file's nodes).
-    pub fn joint_nodes(&self) -> Result<&'a [u32]> {
-        let n = self.joint_count()?;
-        cast(&self.required(b"SKIN")?[4 + 64 * n..4 + 68 * n], "SKIN")
+    pub fn joint_nodes(&self) -> &'a [u32] {
+        self.joint_nodes
     }
 
-    /// Each driver's node name (empty for unnamed nodes), checked: UTF-8, the section read to
-    /// its end. Allocates the list: for load-time checks that a scene is the baked one.
-    pub fn joint_names(&self) -> Result<Vec<&'a str>> {
-        let n = self.joint_count()?;
-        let mut s = Cursor::new("SKIN", self.required(b"SKIN")?);
-        s.bytes(4 + 68 * n)?;
-        let names = (0..n).map(|_| s.str()).collect::<Result<Vec<_>>>()?;
-        s.end()?;
-        Ok(names)
+    /// Each driver's node name (empty for unnamed nodes).
+    pub fn joint_names(&self) -> &[&'a str] {
+        &self.joint_names
     }
 
-    /// The meshlet count, from `MLET`'s header.
-    pub fn meshlet_count(&self) -> Result<usize> {
-        let s = self.required(b"MLET")?;
-        Ok(u32_at(s, 0).ok_or_else(|| Error::invalid("bake section MLET", "byte 0: truncated"))? as usize)
+    /// The vertices of `VERT`: finite positions and normals; per vertex, joint numbers below
+    /// the driver count and weights as `docs/FORMAT.md` says (in [0, 1], non-zero ones first,
+    /// summing to 1).
+    pub fn vertices(&self) -> VertexView<'a> {
+        self.vertices
     }
 
-    /// The meshlet bounds and classes of `BNDS`, one per meshlet, checked
-    /// ([`check_bounds`] for the file's joints).
-    pub fn meshlet_bounds(&self) -> Result<&'a [BakedBounds]> {
-        let s = self.required(b"BNDS")?;
-        let location = "bake section BNDS";
-        let n = u32_at(s, 0).ok_or_else(|| Error::invalid(location, "byte 0: truncated"))? as usize;
-        let meshlets = self.meshlet_count()?;
-        if n != meshlets {
-            return Err(Error::invalid(location, format!("byte 0: {n} bounds for {meshlets} meshlets")));
-        }
-        let end = n.checked_mul(48).and_then(|b| b.checked_add(16)).filter(|&e| e <= s.len());
-        let end = end
-            .ok_or_else(|| Error::invalid(location, format!("byte 0: {n} meshlet bounds do not fit in the section")))?;
-        if end != s.len() {
-            return Err(Error::invalid(location, format!("byte {end}: unexpected bytes after the section's data")));
-        }
-        let records: &[BakedBounds] = cast(&s[16..end], "BNDS")?;
-        check_bounds(records, self.joint_count()?, location)?;
-        Ok(records)
+    /// The triangles of `TRIS` (vertex indices below the vertex count, counter-clockwise
+    /// front faces).
+    pub fn triangles(&self) -> &'a [[u32; 3]] {
+        self.triangles
+    }
+
+    /// The meshlets of `MLET` ([`MeshletView::check`] against the vertices and `INFO`'s
+    /// limits).
+    pub fn meshlets(&self) -> MeshletView<'a> {
+        self.meshlets
+    }
+
+    /// The meshlet count.
+    pub fn meshlet_count(&self) -> usize {
+        self.meshlets.len()
+    }
+
+    /// The meshlet bounds and classes of `BNDS`, one per meshlet ([`check_bounds`] for the
+    /// file's drivers).
+    pub fn meshlet_bounds(&self) -> &'a [BakedBounds] {
+        self.bounds
     }
 
     /// The run-time culler for the clip bounds of `BNDS`.
     pub fn culler(&self) -> Result<MeshletCuller> {
-        let (bounds, classes) = bounds_and_classes(self.meshlet_bounds()?);
-        MeshletCuller::new(&bounds, &classes, self.joint_count()?)
+        let (bounds, classes) = bounds_and_classes(self.bounds);
+        MeshletCuller::new(&bounds, &classes, self.joint_count())
     }
 
-    /// The optional `ENVL` section, checked: node ranges ([`check_ranges`], any node index,
-    /// each once), morph weight ranges (as many as `weights`, the mesh's morph weights),
-    /// envelope bounds for every meshlet ([`check_bounds`]), any-pose boxes
-    /// ([`AnyPoseBoxes::check`] rules, box joints below 2¹⁶).
-    pub fn envelope(&self, weights: usize) -> Result<Option<EnvelopeView<'a>>> {
-        let Some(s) = self.section(b"ENVL") else { return Ok(None) };
-        let location = "bake section ENVL";
-        let err = |at: usize, what: String| Error::invalid(location, format!("byte {at}: {what}"));
-        let word = |at: usize| u32_at(s, at).map(|x| x as usize).ok_or_else(|| err(at, "truncated".into()));
-        let (r, w, m, b) = (word(0)?, word(4)?, word(8)?, word(12)?);
-        let meshlets = self.meshlet_count()?;
-        if m != meshlets {
-            return Err(err(8, format!("{m} envelope bounds for {meshlets} meshlets")));
+    /// The morph targets of `MRPH` ([`MorphView::check`]), if some vertex has a delta.
+    pub fn morphs(&self) -> Option<MorphView<'a>> {
+        self.morphs
+    }
+
+    /// The vertices, triangles, morph targets and meshlets: what a GPU upload reads.
+    pub fn mesh_data(&self) -> MeshData<'a> {
+        MeshData {
+            vertices: self.vertices,
+            triangles: self.triangles,
+            morphs: self.morphs,
+            meshlets: Some(self.meshlets),
         }
-        if w != weights {
-            return Err(err(4, format!("{w} morph weight ranges for {weights} morph weights")));
-        }
-        // Byte ranges, in u64 so that no count overflows.
-        let mut at = 16u64;
-        let mut take = |bytes: u64, align: u64| {
-            let start = at.next_multiple_of(align);
-            at = start + bytes;
-            (at <= s.len() as u64).then_some(start as usize..at as usize)
-        };
-        let (r64, w64, m64, b64) = (r as u64, w as u64, m as u64, b as u64);
-        let spans = [
-            take(72 * r64, 4),
-            take(8 * w64, 4),
-            take(48 * m64, 16),
-            take(4 * (m64 + 1), 4),
-            take(4 * b64, 4),
-            take(24 * b64, 4),
-        ];
-        let [Some(nodes), Some(ws), Some(bounds), Some(offsets), Some(joints), Some(boxes)] = spans else {
-            return Err(err(
-                0,
-                format!("{r} node ranges, {w} weight ranges, {m} bounds and {b} boxes do not fit in the section"),
-            ));
-        };
-        let (names_at, offsets_at, joints_at) = (boxes.end, offsets.start, joints.start);
-        let view = EnvelopeView {
-            nodes: cast(&s[nodes], "ENVL")?,
-            weights: cast(&s[ws], "ENVL")?,
-            bounds: cast(&s[bounds], "ENVL")?,
-            box_offsets: cast(&s[offsets], "ENVL")?,
-            box_joints: cast(&s[joints], "ENVL")?,
-            boxes: cast(&s[boxes], "ENVL")?,
-            names_at,
-        };
-        check_ranges(&view.ranges(), &view.weight_ranges(), None, weights).map_err(|e| err(16, e.to_string()))?;
-        let j = self.joint_count()?;
-        check_bounds(view.bounds, j, location)?;
-        if let Some(x) = view.box_joints.iter().find(|&&x| x > u16::MAX as u32) {
-            return Err(err(joints_at, format!("box joint {x}")));
-        }
-        view.any_pose().check(meshlets, j).map_err(|e| err(offsets_at, e.to_string()))?;
-        Ok(Some(view))
+    }
+
+    /// The parts of `PART`: consecutive ranges from 0 covering every vertex, triangle and
+    /// meshlet, each part's triangles and meshlets using only its own vertices (so one
+    /// material per part range holds).
+    pub fn parts(&self) -> &'a [BakedPartRecord] {
+        self.parts
+    }
+
+    /// The optional `ENVL` section: node ranges ([`check_ranges`], each node once), one morph
+    /// weight range per morph weight, envelope bounds for every meshlet ([`check_bounds`]),
+    /// any-pose boxes ([`AnyPoseBoxes::check`] rules), the nodes' names.
+    pub fn envelope(&self) -> Option<&EnvelopeView<'a>> {
+        self.envelope.as_ref()
+    }
+
+    /// The optional `PWIN` section: its part and clip counts are `PART`'s and `INFO`'s, the
+    /// clips' windows are numbered in order from 0, every anchor is a driver, every number is
+    /// finite, every box has `min ≤ max`.
+    pub fn part_windows(&self) -> Option<&BakedPartWindows> {
+        self.part_windows.as_ref()
+    }
+
+    /// The optional `OVDR` section ([`Orders::read`]): the overdraw orders' buffers and their
+    /// run-time lookup.
+    pub fn overdraw_orders(&self) -> Option<&Orders> {
+        self.overdraw.as_ref()
+    }
+
+    /// The optional `CONT` section ([`BakedContours::read`]), with the edges its quads index
+    /// (rebuilt from `VERT` and `TRIS`: [`skinned_edges`], without the concave rigid quads
+    /// when the patches are visible-only).
+    pub fn contours(&self) -> Option<(&BakedContours, &Edges)> {
+        self.contours.as_ref().map(|(c, e)| (c, e))
     }
 }
 
-/// The tag as text (lossy for non-ASCII bytes).
+/// The header and the section table: the magic, the version, every section inside the file,
+/// no tag twice.
+fn read_table(bytes: &[u8]) -> Result<Vec<([u8; 4], &[u8])>> {
+    let head = |message: String| Error::invalid("bake header", message);
+    if cfg!(target_endian = "big") {
+        return Err(head("bake files are little-endian; this target is big-endian".into()));
+    }
+    if !(bytes.as_ptr() as usize).is_multiple_of(4) {
+        return Err(head("the bytes must start at a 4-byte aligned address (copy them into an aligned buffer)".into()));
+    }
+    if bytes.get(..8) != Some(&MAGIC[..]) {
+        return Err(head("not a skinlet bake file (wrong magic bytes)".into()));
+    }
+    let version = u32_at(bytes, 8).ok_or_else(|| head("truncated (no version)".into()))?;
+    if version != VERSION {
+        return Err(Error::unsupported("bake header", format!("version {version}; this skinlet reads {VERSION}")));
+    }
+    let n = u32_at(bytes, 12).ok_or_else(|| head("truncated (no section count)".into()))? as usize;
+    if n.saturating_mul(ENTRY) > bytes.len() - 16 {
+        return Err(head(format!("byte 12: {n} sections do not fit in the file")));
+    }
+    let mut sections = Vec::with_capacity(n);
+    for k in 0..n {
+        let e = &bytes[16 + k * ENTRY..16 + (k + 1) * ENTRY];
+        let tag: [u8; 4] = e[..4].try_into().expect("4 bytes");
+        let (offset, len) = (
+            u64::from_le_bytes(e[8..16].try_into().expect("8 bytes")),
+            u64::from_le_bytes(e[16..24].try_into().expect("8 bytes")),
+        );
+        let body = usize::try_from(offset)
+            .ok()
+            .zip(usize::try_from(len).ok())
+            .and_then(|(o, l)| bytes.get(o..o.checked_add(l)?))
+            .ok_or_else(|| head(format!("byte {}: section {} lies outside the file", 16 + k * ENTRY, tag_name(&tag))))?;
+        sections.push((tag, body));
+    }
+    // No tag twice: sorted by tag (then entry), equal neighbours are a repeat.
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by_key(|&k| (sections[k].0, k));
+    if let Some(w) = order.windows(2).filter(|w| sections[w[0]].0 == sections[w[1]].0).min_by_key(|w| w[1]) {
+        let (first, k) = (w[0], w[1]);
+        return Err(head(format!(
+            "byte {}: section {} appears twice in the table (entries {first} and {k})",
+            16 + k * ENTRY,
+            tag_name(&sections[k].0)
+        )));
+    }
+    Ok(sections)
+}
+
+/// `INFO`: the whole section read, a known builder and stop reason, meshlet limits the
+/// builders accept (3 to 256 vertices, 1 to 512 triangles), names in UTF-8.
+fn read_info(b: &[u8]) -> Result<InfoView<'_>> {
+    let mut s = Cursor::new("INFO", b);
+    let builder = s.u32()?;
+    if builder > 6 {
+        return Err(s.err(format!("unknown meshlet builder {builder}")));
+    }
+    let (max_vertices, max_triangles) = (s.u32()?, s.u32()?);
+    if !(3..=256).contains(&max_vertices) || !(1..=512).contains(&max_triangles) {
+        return Err(s.err(format!(
+            "meshlet limits {max_vertices} vertices / {max_triangles} triangles (need 3 to 256 and 1 to 512)"
+        )));
+    }
+    let (s_r, alpha_t, rounds, stop) = (s.f32()?, s.f32()?, s.u32()?, s.u32()?);
+    if stop > 2 {
+        return Err(s.err(format!("unknown stop reason {stop}")));
+    }
+    let n = s.u32()? as usize;
+    if n.saturating_mul(4) > s.remaining() {
+        return Err(s.err(format!("{n} clip names do not fit in the section")));
+    }
+    let clips = (0..n).map(|_| s.str()).collect::<Result<Vec<_>>>()?;
+    s.end()?;
+    Ok(InfoView { builder, max_vertices, max_triangles, s_r, alpha_t, rounds, stop, clips })
+}
+
+/// `SKIN`: at most [`MAX_DRIVERS`] drivers, finite inverse bind matrices, nodes, UTF-8 names,
+/// the section read to its end.
+#[allow(clippy::type_complexity)]
+fn read_skin(b: &[u8]) -> Result<(&[[f32; 16]], &[u32], Vec<&str>)> {
+    let mut s = Cursor::new("SKIN", b);
+    let n = s.u32()? as usize;
+    if n > MAX_DRIVERS {
+        return Err(s.err(format!("{n} drivers; the format numbers them in 16 bits (at most 65,536)")));
+    }
+    if n.saturating_mul(68) > s.remaining() {
+        return Err(s.err(format!("{n} joints do not fit in the section")));
+    }
+    let inverse_bind: &[[f32; 16]] = cast(s.bytes(64 * n)?, "SKIN")?;
+    if let Some(j) = inverse_bind.iter().position(|m| m.iter().any(|x| !x.is_finite())) {
+        return Err(s.err(format!("joint {j}'s inverse bind matrix is not finite")));
+    }
+    let nodes: &[u32] = cast(s.bytes(4 * n)?, "SKIN")?;
+    let names = (0..n).map(|_| s.str()).collect::<Result<Vec<_>>>()?;
+    s.end()?;
+    Ok((inverse_bind, nodes, names))
+}
+
+/// `VERT`: the section's exact length, finite positions and normals, influences as
+/// [`check_influences`] says.
+fn read_vertices(s: &[u8], drivers: usize) -> Result<VertexView<'_>> {
+    let location = "bake section VERT";
+    let word = |at: usize| u32_at(s, at).ok_or_else(|| Error::invalid(location, format!("byte {at}: truncated")));
+    let (n, stride, flag) = (word(0)? as usize, word(4)? as usize, word(8)?);
+    if !matches!(stride, 0 | 4 | 8) || flag > 1 {
+        return Err(Error::invalid(location, format!("byte 4: influence stride {stride} and normals flag {flag}")));
+    }
+    let slots = n.checked_mul(stride).filter(|&k| k <= s.len() / 6);
+    let slots = slots.ok_or_else(|| Error::invalid(location, format!("byte 0: {n} vertices do not fit")))?;
+    let after_positions = n.checked_mul(12).and_then(|b| b.checked_add(12)).filter(|&e| e <= s.len());
+    let after_positions =
+        after_positions.ok_or_else(|| Error::invalid(location, format!("byte 0: {n} vertices do not fit")))?;
+    let after_normals = after_positions + 12 * n * flag as usize;
+    let joints_end = after_normals + (2 * slots).next_multiple_of(4);
+    if joints_end + 4 * slots != s.len() {
+        return Err(Error::invalid(
+            location,
+            format!("{} bytes for {n} vertices of {stride} influences (expected {})", s.len(), joints_end + 4 * slots),
+        ));
+    }
+    let positions: &[Vec3] = cast(&s[12..after_positions], "VERT")?;
+    let normals: &[Vec3] = cast(&s[after_positions..after_normals], "VERT")?;
+    let joints: &[u16] = cast(&s[after_normals..after_normals + 2 * slots], "VERT")?;
+    let weights: &[f32] = cast(&s[joints_end..], "VERT")?;
+    if let Some(v) = positions.iter().chain(normals).position(|p| !p.is_finite()) {
+        let what = if v < n { "position" } else { "normal" };
+        return Err(Error::invalid(location, format!("vertex {}'s {what} is not finite", v % n.max(1))));
+    }
+    if stride > 0 {
+        check_influences(stride, joints, weights, drivers).map_err(|e| Error::invalid(location, e.to_string()))?;
+    }
+    Ok(VertexView { positions, normals, stride, joints, weights })
+}
+
+/// Checks skin influences of `stride` (4 or 8) slots per vertex over `drivers` drivers, as
+/// `docs/FORMAT.md` says: as many weights as joint numbers, a whole number of vertices, every
+/// joint number below `drivers`, weights finite and in [0, 1], non-zero ones first, each
+/// vertex's summing to 1 (within 1e-3).
+pub fn check_influences(stride: usize, joints: &[u16], weights: &[f32], drivers: usize) -> Result<()> {
+    let bad = |what: String| Err(Error::invalid("skin influences", what));
+    if !matches!(stride, 4 | 8) || joints.len() != weights.len() || !joints.len().is_multiple_of(stride) {
+        return bad(format!("stride {stride} with {} joints and {} weights", joints.len(), weights.len()));
+    }
+    if let Some(i) = joints.iter().position(|&j| j as usize >= drivers) {
+        return bad(format!("vertex {} uses joint {} of {drivers}", i / stride, joints[i]));
+    }
+    for (v, w) in weights.chunks_exact(stride).enumerate() {
+        if let Some(x) = w.iter().find(|x| !(0.0..=1.0).contains(*x)) {
+            return bad(format!("vertex {v} has weight {x}"));
+        }
+        let used = w.iter().position(|&x| x == 0.0).unwrap_or(stride);
+        if w[used..].iter().any(|&x| x != 0.0) {
+            return bad(format!("vertex {v} has a non-zero weight after a zero one"));
+        }
+        let sum: f32 = w.iter().sum();
+        if (sum - 1.0).abs() > 1e-3 {
+            return bad(format!("vertex {v}'s weights sum to {sum}"));
+        }
+    }
+    Ok(())
+}
+
+/// `TRIS`: the section's exact length, vertex indices below `vertices`.
+fn read_triangles(s: &[u8], vertices: usize) -> Result<&[[u32; 3]]> {
+    let location = "bake section TRIS";
+    let n = u32_at(s, 0).ok_or_else(|| Error::invalid(location, "byte 0: truncated"))? as usize;
+    if n.checked_mul(12).and_then(|b| b.checked_add(4)) != Some(s.len()) {
+        return Err(Error::invalid(location, format!("{} bytes for {n} triangles", s.len())));
+    }
+    let triangles: &[[u32; 3]] = cast(&s[4..], "TRIS")?;
+    if let Some(t) = triangles.iter().position(|t| t.iter().any(|&i| i as usize >= vertices)) {
+        return Err(Error::invalid(location, format!("triangle {t} {:?} indexes past {vertices} vertices", triangles[t])));
+    }
+    Ok(triangles)
+}
+
+/// `MLET`: the layout ([`MeshletView::new`]) and every meshlet ([`MeshletView::check`]).
+fn read_meshlets<'a>(s: &'a [u8], vertices: usize, info: &InfoView) -> Result<MeshletView<'a>> {
+    let view = MeshletView::new(s).map_err(|e| Error::invalid("bake section MLET", e.to_string()))?;
+    let limits = [info.max_vertices as usize, info.max_triangles as usize];
+    view.check(vertices, limits).map_err(|e| Error::invalid("bake section MLET", e.to_string()))?;
+    Ok(view)
+}
+
+/// `BNDS`: one record per meshlet, the section's exact length, [`check_bounds`].
+fn read_bounds(s: &[u8], meshlets: usize, drivers: usize) -> Result<&[BakedBounds]> {
+    let location = "bake section BNDS";
+    let n = u32_at(s, 0).ok_or_else(|| Error::invalid(location, "byte 0: truncated"))? as usize;
+    if n != meshlets {
+        return Err(Error::invalid(location, format!("byte 0: {n} bounds for {meshlets} meshlets")));
+    }
+    let end = n.checked_mul(48).and_then(|b| b.checked_add(16)).filter(|&e| e <= s.len());
+    let end =
+        end.ok_or_else(|| Error::invalid(location, format!("byte 0: {n} meshlet bounds do not fit in the section")))?;
+    if end != s.len() {
+        return Err(Error::invalid(location, format!("byte {end}: unexpected bytes after the section's data")));
+    }
+    let records: &[BakedBounds] = cast(&s[16..end], "BNDS")?;
+    check_bounds(records, drivers, location)?;
+    Ok(records)
+}
+
+/// `MRPH`: the section's exact length, then [`MorphView::check`].
+fn read_morphs(s: &[u8], vertices: usize) -> Result<MorphView<'_>> {
+    let location = "bake section MRPH";
+    let err = |at: usize, what: String| Error::invalid(location, format!("byte {at}: {what}"));
+    let word = |at: usize| u32_at(s, at).map(|x| x as u64).ok_or_else(|| err(at, "truncated".into()));
+    let (w, d, v) = (word(0)?, word(4)?, vertices as u64);
+    let offsets_at = 8 + 12 * w;
+    let deltas_at = offsets_at + 4 * (v + 1);
+    if deltas_at + 28 * d != s.len() as u64 {
+        return Err(err(0, format!("{} bytes for {w} weights, {v} vertices and {d} deltas", s.len())));
+    }
+    let (o, e) = (offsets_at as usize, deltas_at as usize);
+    let view = MorphView {
+        weights: cast(&s[8..o], "MRPH")?,
+        offsets: cast(&s[o..e], "MRPH")?,
+        deltas: cast(&s[e..], "MRPH")?,
+    };
+    view.check(vertices).map_err(|e| Error::invalid(location, e.to_string()))?;
+    Ok(view)
+}
+
+/// `PART`: consecutive ranges from 0 covering every vertex, triangle and meshlet, each part's
+/// triangles and meshlets using only its own vertices.
+fn read_parts<'a>(
+    s: &'a [u8],
+    vertices: usize,
+    triangles: &[[u32; 3]],
+    meshlets: &MeshletView,
+) -> Result<&'a [BakedPartRecord]> {
+    let location = "bake section PART";
+    let n = u32_at(s, 0).ok_or_else(|| Error::invalid(location, "byte 0: truncated"))? as usize;
+    if n.checked_mul(40).and_then(|b| b.checked_add(4)) != Some(s.len()) {
+        return Err(Error::invalid(location, format!("{} bytes for {n} parts", s.len())));
+    }
+    let parts: &[BakedPartRecord] = cast(&s[4..], "PART")?;
+    let totals = [vertices, triangles.len(), meshlets.len()];
+    let mut ends = [0u32; 3];
+    for (i, p) in parts.iter().enumerate() {
+        let ranges = [p.vertices, p.triangles, p.meshlets];
+        let next = ranges.iter().zip(ends).zip(totals).all(|((r, e), t)| r[0] == e && r[1] >= e && r[1] as usize <= t);
+        let own = |v: &u32| (p.vertices[0]..p.vertices[1]).contains(v);
+        let ok = next
+            && triangles[p.triangles[0] as usize..p.triangles[1] as usize].iter().flatten().all(own)
+            && (p.meshlets[0] as usize..p.meshlets[1] as usize).all(|m| meshlets.vertices_of(m).iter().all(own));
+        if !ok {
+            return Err(Error::invalid(
+                location,
+                format!(
+                    "part {i}: vertices {:?}, triangles {:?}, meshlets {:?} are not the next ranges of its own data",
+                    p.vertices, p.triangles, p.meshlets
+                ),
+            ));
+        }
+        ends = ranges.map(|r| r[1]);
+    }
+    if ends.map(|e| e as usize) != totals {
+        return Err(Error::invalid(location, "the parts do not cover every vertex, triangle and meshlet"));
+    }
+    Ok(parts)
+}
+
+/// `ENVL`: node ranges, `weights` morph weight ranges, `meshlets` envelope bounds for
+/// `drivers` drivers, any-pose boxes, the nodes' names, the section read to its end.
+fn read_envelope(s: &[u8], meshlets: usize, weights: usize, drivers: usize) -> Result<EnvelopeView<'_>> {
+    let location = "bake section ENVL";
+    let err = |at: usize, what: String| Error::invalid(location, format!("byte {at}: {what}"));
+    let word = |at: usize| u32_at(s, at).map(|x| x as usize).ok_or_else(|| err(at, "truncated".into()));
+    let (r, w, m, b) = (word(0)?, word(4)?, word(8)?, word(12)?);
+    if m != meshlets {
+        return Err(err(8, format!("{m} envelope bounds for {meshlets} meshlets")));
+    }
+    if w != weights {
+        return Err(err(4, format!("{w} morph weight ranges for {weights} morph weights")));
+    }
+    // Byte ranges, in u64 so that no count overflows.
+    let mut at = 16u64;
+    let mut take = |bytes: u64, align: u64| {
+        let start = at.next_multiple_of(align);
+        at = start + bytes;
+        (at <= s.len() as u64).then_some(start as usize..at as usize)
+    };
+    let (r64, w64, m64, b64) = (r as u64, w as u64, m as u64, b as u64);
+    let spans = [
+        take(72 * r64, 4),
+        take(8 * w64, 4),
+        take(48 * m64, 16),
+        take(4 * (m64 + 1), 4),
+        take(4 * b64, 4),
+        take(24 * b64, 4),
+    ];
+    let [Some(nodes), Some(ws), Some(bounds), Some(offsets), Some(joints), Some(boxes)] = spans else {
+        return Err(err(
+            0,
+            format!("{r} node ranges, {w} weight ranges, {m} bounds and {b} boxes do not fit in the section"),
+        ));
+    };
+    let (offsets_at, joints_at) = (offsets.start, joints.start);
+    let mut names = Cursor::new("ENVL", s);
+    names.at = boxes.end;
+    let mut view = EnvelopeView {
+        nodes: cast(&s[nodes], "ENVL")?,
+        weights: cast(&s[ws], "ENVL")?,
+        bounds: cast(&s[bounds], "ENVL")?,
+        box_offsets: cast(&s[offsets], "ENVL")?,
+        box_joints: cast(&s[joints], "ENVL")?,
+        boxes: cast(&s[boxes], "ENVL")?,
+        names: Vec::new(),
+    };
+    check_ranges(&view.ranges(), &view.weight_ranges(), None, weights).map_err(|e| err(16, e.to_string()))?;
+    check_bounds(view.bounds, drivers, location)?;
+    if let Some(x) = view.box_joints.iter().find(|&&x| x > u16::MAX as u32) {
+        return Err(err(joints_at, format!("box joint {x}")));
+    }
+    view.any_pose().check(meshlets, drivers).map_err(|e| err(offsets_at, e.to_string()))?;
+    view.names = (0..r).map(|_| names.str()).collect::<Result<Vec<_>>>()?;
+    names.align(4)?;
+    names.end()?;
+    Ok(view)
+}
+
+/// `PWIN`: `parts` parts and `clips` clips, windows numbered in order from 0, anchors below
+/// `drivers`, finite numbers, `min ≤ max`.
+fn read_part_windows(b: &[u8], parts_want: usize, clips_want: usize, drivers: usize) -> Result<BakedPartWindows> {
+    let mut s = Cursor::new("PWIN", b);
+    let (parts, clips, windows) = (s.u32()? as usize, s.u32()? as usize, s.u32()? as usize);
+    s.u32()?;
+    if (parts, clips) != (parts_want, clips_want) {
+        return Err(s.err(format!("{parts} parts and {clips} clips, where PART has {parts_want} and INFO {clips_want}")));
+    }
+    let size = (parts.checked_mul(windows).and_then(|n| n.checked_mul(24)))
+        .and_then(|n| n.checked_add(16 + 16 * clips + 4 * parts));
+    if size != Some(b.len()) {
+        return Err(s.err(format!("{} bytes for {parts} parts, {clips} clips and {windows} windows", b.len())));
+    }
+    let mut list = Vec::with_capacity(clips);
+    for c in 0..clips {
+        let w = ClipWindows { start: s.f32()?, end: s.f32()?, count: s.u32()?, first: s.u32()? };
+        let first = list.last().map_or(0, |p: &ClipWindows| p.first + p.count);
+        if !(w.start <= w.end && w.count >= 1 && w.first == first) {
+            return Err(s.err(format!("clip {c}: windows {w:?} (the next window is {first})")));
+        }
+        list.push(w);
+    }
+    if list.last().map_or(0, |w| w.first + w.count) as usize != windows {
+        return Err(s.err(format!("the clips' windows do not add up to {windows}")));
+    }
+    let anchors = (0..parts)
+        .map(|p| match s.u32()? {
+            a if (a as usize) < drivers => Ok(a),
+            a => Err(s.err(format!("part {p}: anchor {a} of {drivers} drivers"))),
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let boxes = (0..parts * windows)
+        .map(|i| {
+            let (min, max) = (s.vec3()?, s.vec3()?);
+            if min.cmple(max).all() {
+                Ok([min, max])
+            } else {
+                Err(s.err(format!("part {}, window {}: box {min} to {max}", i / windows, i % windows)))
+            }
+        })
+        .collect::<Result<Vec<_>>>()?;
+    s.end()?;
+    Ok(BakedPartWindows { clips: list, anchors, boxes })
+}
+
+/// `CONT` with the edges its quads index, rebuilt from the vertices and triangles.
+fn read_contours(
+    s: &[u8],
+    vertices: &VertexView,
+    morphs: Option<MorphView>,
+    triangles: &[[u32; 3]],
+    drivers: usize,
+) -> Result<(BakedContours, Edges)> {
+    let rigid = if BakedContours::visible_only(s)? {
+        let morphed = |v: usize| morphs.is_some_and(|m| !m.of(v).is_empty());
+        Some(rigid_vertices(vertices.positions.len(), vertices.stride, vertices.joints, vertices.weights, morphed))
+    } else {
+        None
+    };
+    let edges = skinned_edges(vertices.positions, triangles, rigid.as_deref())
+        .map_err(|e| Error::invalid("bake section CONT", e.to_string()))?;
+    Ok((BakedContours::read(s, &edges, drivers)?, edges))
+}
+
 /// The prepared vertices of `VERT`, as slices of the file's bytes.
 #[derive(Clone, Copy, Debug)]
 pub struct VertexView<'a> {
@@ -447,28 +817,63 @@ pub struct MeshletView<'a> {
     pub joints: &'a [u16],
 }
 
-impl MeshletView<'_> {
-    /// Checks the meshlets of a mesh of `vertices` vertices: every meshlet's ranges inside
-    /// the arrays, its local indices below its vertex count, its vertex indices below
-    /// `vertices`. What [`Self::index_buffer`] and a GPU upload need.
-    pub fn check(&self, vertices: usize) -> Result<()> {
+impl<'a> MeshletView<'a> {
+    /// The layout of `MLET`'s bytes (4-byte aligned): the header's counts and the section's
+    /// exact length. [`Self::check`] checks the meshlets themselves.
+    pub fn new(s: &'a [u8]) -> Result<MeshletView<'a>> {
+        let word = |at: usize| u32_at(s, at).ok_or_else(|| Error::invalid("meshlets", format!("byte {at}: truncated")));
+        let [m, v, t, j] = [word(0)?, word(4)?, word(8)?, word(12)?].map(|x| x as u64);
+        let (headers_end, vertices_end) = (16 + 16 * m, 16 + 16 * m + 4 * v);
+        let triangles_end = vertices_end + t.next_multiple_of(4);
+        let end = triangles_end + (2 * j).next_multiple_of(4);
+        if end != s.len() as u64 {
+            return Err(Error::invalid("meshlets", format!("{} bytes; the header's counts need {end}", s.len())));
+        }
+        let (he, ve, te) = (headers_end as usize, vertices_end as usize, triangles_end as usize);
+        Ok(MeshletView {
+            headers: cast(&s[16..he], "MLET")?,
+            vertices: cast(&s[he..ve], "MLET")?,
+            triangles: &s[ve..ve + t as usize],
+            joints: cast(&s[te..te + 2 * j as usize], "MLET")?,
+        })
+    }
+
+    /// Checks the meshlets of a mesh of `vertices` vertices, each with at most `limits`
+    /// vertices and triangles: every meshlet's ranges inside the arrays, its triangle offset on
+    /// a triangle, at least one triangle, its local indices below its vertex count, its vertex
+    /// indices below `vertices`, bit 31 of `packed` set exactly when it has a joint set. What
+    /// [`Self::index_buffer`] and a GPU upload need.
+    pub fn check(&self, vertices: usize, limits: [usize; 2]) -> Result<()> {
         for (i, h) in self.headers.iter().enumerate() {
+            let bad = |what: String| Err(Error::invalid(format!("meshlet {i}"), what));
             let (vc, tc) = self.counts(i);
             let verts = self.vertices.get(h[0] as usize..).and_then(|r| r.get(..vc));
             let tris = self.triangles.get(h[1] as usize..).and_then(|r| r.get(..3 * tc));
-            let (Some(verts), Some(tris), Some(_)) = (verts, tris, self.joints_of(i)) else {
-                return Err(Error::invalid(format!("meshlet {i}"), "points past the meshlet arrays"));
+            let (Some(verts), Some(tris), Some(joints)) = (verts, tris, self.joints_of(i)) else {
+                return bad("points past the meshlet arrays".into());
             };
+            if !h[1].is_multiple_of(3) || (h[3] >> 31 == 1) != !joints.is_empty() {
+                return bad("its triangle offset is off a triangle, or its joint-set flag disagrees".into());
+            }
+            if tc == 0 || vc > limits[0] || tc > limits[1] {
+                return bad(format!("{vc} vertices / {tc} triangles (limits {} / {})", limits[0], limits[1]));
+            }
             if tris.iter().any(|&l| l as usize >= vc) || verts.iter().any(|&x| x as usize >= vertices) {
-                return Err(Error::invalid(format!("meshlet {i}"), "indexes past its or the mesh's vertices"));
+                return bad("indexes past its or the mesh's vertices".into());
             }
         }
         Ok(())
     }
 
+    /// Meshlet `i`'s vertex indices (empty past the arrays: see [`Self::check`]).
+    pub fn vertices_of(&self, i: usize) -> &'a [u32] {
+        let (h, (vc, _)) = (self.headers[i], self.counts(i));
+        self.vertices.get(h[0] as usize..).and_then(|r| r.get(..vc)).unwrap_or(&[])
+    }
+
     /// Meshlet `i`'s joint list (single-joint-set meshlets; empty for the others), or `None`
     /// when it points past the array.
-    pub fn joints_of(&self, i: usize) -> Option<&[u16]> {
+    pub fn joints_of(&self, i: usize) -> Option<&'a [u16]> {
         let h = self.headers[i];
         self.joints.get(h[2] as usize..).and_then(|r| r.get(..(h[3] >> 19 & 0xf) as usize))
     }
@@ -490,108 +895,18 @@ impl MeshletView<'_> {
     /// An index buffer listing the triangles meshlet by meshlet (vertex indices), and per
     /// meshlet its index count and first index in it: what a renderer binds to draw
     /// meshlets one by one (GPU culling passes write indirect draws over these ranges).
-    /// Panics unless [`Self::check`] passes (a view from [`BakeView::meshlets`] does).
+    /// A meshlet that fails [`Self::check`] (a view from [`BakeView::meshlets`] never does)
+    /// gets no triangles where its ranges leave the arrays and vertex 0 for a local index past
+    /// its vertices.
     pub fn index_buffer(&self) -> (Vec<u32>, Vec<[u32; 2]>) {
         let (mut indices, mut draws) = (Vec::with_capacity(self.triangles.len()), Vec::with_capacity(self.len()));
         for (i, h) in self.headers.iter().enumerate() {
-            let (vc, tc) = self.counts(i);
-            let local = &self.vertices[h[0] as usize..][..vc];
-            draws.push([3 * tc as u32, indices.len() as u32]);
-            indices.extend(self.triangles[h[1] as usize..][..3 * tc].iter().map(|&l| local[l as usize]));
+            let (local, tc) = (self.vertices_of(i), self.counts(i).1);
+            let tris = self.triangles.get(h[1] as usize..).and_then(|r| r.get(..3 * tc)).unwrap_or(&[]);
+            draws.push([tris.len() as u32, indices.len() as u32]);
+            indices.extend(tris.iter().map(|&l| local.get(l as usize).copied().unwrap_or(0)));
         }
         (indices, draws)
-    }
-}
-
-impl<'a> BakeView<'a> {
-    /// The vertices of `VERT`, checked: the section's exact length, finite positions and
-    /// normals, joint numbers below the file's joint count, finite weights.
-    pub fn vertices(&self) -> Result<VertexView<'a>> {
-        let (s, location) = (self.required(b"VERT")?, "bake section VERT");
-        let word = |at: usize| u32_at(s, at).ok_or_else(|| Error::invalid(location, format!("byte {at}: truncated")));
-        let (n, stride, flag) = (word(0)? as usize, word(4)? as usize, word(8)?);
-        if !matches!(stride, 0 | 4 | 8) || flag > 1 {
-            return Err(Error::invalid(location, format!("byte 4: influence stride {stride} and normals flag {flag}")));
-        }
-        let slots = n.checked_mul(stride).filter(|&k| k <= s.len() / 6);
-        let slots = slots.ok_or_else(|| Error::invalid(location, format!("byte 0: {n} vertices do not fit")))?;
-        let after_positions = n.checked_mul(12).and_then(|b| b.checked_add(12)).filter(|&e| e <= s.len());
-        let after_positions =
-            after_positions.ok_or_else(|| Error::invalid(location, format!("byte 0: {n} vertices do not fit")))?;
-        let after_normals = after_positions + 12 * n * flag as usize;
-        let joints_end = after_normals + (2 * slots).next_multiple_of(4);
-        if joints_end + 4 * slots != s.len() {
-            return Err(Error::invalid(
-                location,
-                format!(
-                    "{} bytes for {n} vertices of {stride} influences (expected {})",
-                    s.len(),
-                    joints_end + 4 * slots
-                ),
-            ));
-        }
-        let positions: &[Vec3] = cast(&s[12..after_positions], "VERT")?;
-        let normals: &[Vec3] = cast(&s[after_positions..after_normals], "VERT")?;
-        let joints: &[u16] = cast(&s[after_normals..after_normals + 2 * slots], "VERT")?;
-        let weights: &[f32] = cast(&s[joints_end..], "VERT")?;
-        if let Some(v) = positions.iter().chain(normals).position(|p| !p.is_finite()) {
-            let what = if v < n { "position" } else { "normal" };
-            return Err(Error::invalid(location, format!("vertex {}'s {what} is not finite", v % n.max(1))));
-        }
-        let drivers = self.joint_count()?;
-        if let Some(k) = joints.iter().position(|&j| j as usize >= drivers) {
-            return Err(Error::invalid(
-                location,
-                format!("vertex {}'s joint {} is not one of {drivers}", k / stride, joints[k]),
-            ));
-        }
-        if let Some(k) = weights.iter().position(|w| !w.is_finite()) {
-            return Err(Error::invalid(location, format!("vertex {}'s weight is not finite", k / stride)));
-        }
-        Ok(VertexView { positions, normals, stride, joints, weights })
-    }
-
-    /// The triangles of `TRIS` (vertex indices, counter-clockwise front faces), checked
-    /// against the vertex count.
-    pub fn triangles(&self) -> Result<&'a [[u32; 3]]> {
-        let (s, location) = (self.required(b"TRIS")?, "bake section TRIS");
-        let n = u32_at(s, 0).ok_or_else(|| Error::invalid(location, "byte 0: truncated"))? as usize;
-        if n.checked_mul(12).and_then(|b| b.checked_add(4)) != Some(s.len()) {
-            return Err(Error::invalid(location, format!("{} bytes for {n} triangles", s.len())));
-        }
-        let triangles: &[[u32; 3]] = cast(&s[4..], "TRIS")?;
-        let vertices = self.vertices()?.positions.len();
-        if let Some(t) = triangles.iter().position(|t| t.iter().any(|&i| i as usize >= vertices)) {
-            return Err(Error::invalid(
-                location,
-                format!("triangle {t} {:?} indexes past {vertices} vertices", triangles[t]),
-            ));
-        }
-        Ok(triangles)
-    }
-
-    /// The meshlets of `MLET`, checked: the section's exact length, every meshlet's ranges
-    /// inside the arrays, its local indices below its vertex count, its vertex indices below
-    /// the vertex count.
-    pub fn meshlets(&self) -> Result<MeshletView<'a>> {
-        let (s, location) = (self.required(b"MLET")?, "bake section MLET");
-        let word = |at: usize| u32_at(s, at).ok_or_else(|| Error::invalid(location, format!("byte {at}: truncated")));
-        let [m, v, t, j] = [word(0)?, word(4)?, word(8)?, word(12)?].map(|x| x as u64);
-        let (headers_end, vertices_end) = (16 + 16 * m, 16 + 16 * m + 4 * v);
-        let triangles_end = vertices_end + t.next_multiple_of(4);
-        let end = triangles_end + (2 * j).next_multiple_of(4);
-        if end != s.len() as u64 {
-            return Err(Error::invalid(location, format!("{} bytes; the header's counts need {end}", s.len())));
-        }
-        let (he, ve, te) = (headers_end as usize, vertices_end as usize, triangles_end as usize);
-        let view = MeshletView {
-            headers: cast(&s[16..he], "MLET")?,
-            vertices: cast(&s[he..ve], "MLET")?,
-            triangles: &s[ve..ve + t as usize],
-            joints: cast(&s[te..te + 2 * j as usize], "MLET")?,
-        };
-        view.check(self.vertices()?.positions.len()).map_err(|e| Error::invalid(location, e.to_string()))?;
-        Ok(view)
     }
 }
 
@@ -607,19 +922,6 @@ pub struct MeshData<'a> {
     pub morphs: Option<MorphView<'a>>,
     /// `None`: drawn without meshlets (no mesh shaders, no meshlet culling).
     pub meshlets: Option<MeshletView<'a>>,
-}
-
-impl<'a> BakeView<'a> {
-    /// The vertices, triangles, morph targets and meshlets, each checked
-    /// ([`Self::vertices`], [`Self::triangles`], [`Self::morphs`], [`Self::meshlets`]).
-    pub fn mesh_data(&self) -> Result<MeshData<'a>> {
-        Ok(MeshData {
-            vertices: self.vertices()?,
-            triangles: self.triangles()?,
-            morphs: self.morphs()?,
-            meshlets: Some(self.meshlets()?),
-        })
-    }
 }
 
 /// One morph weight of `MRPH`: target `target` of the mesh node `node` draws, and its
@@ -693,51 +995,6 @@ impl<'a> MorphView<'a> {
     }
 }
 
-impl<'a> BakeView<'a> {
-    /// The optional `MRPH` section, checked: exact length, one offset per vertex and one
-    /// more, from 0, never decreasing, ending at the delta count; every delta's weight in
-    /// range; finite deltas and defaults.
-    pub fn morphs(&self) -> Result<Option<MorphView<'a>>> {
-        let Some(s) = self.section(b"MRPH") else { return Ok(None) };
-        let location = "bake section MRPH";
-        let err = |at: usize, what: String| Error::invalid(location, format!("byte {at}: {what}"));
-        let word = |at: usize| u32_at(s, at).map(|x| x as u64).ok_or_else(|| err(at, "truncated".into()));
-        let (w, d) = (word(0)?, word(4)?);
-        let vertices = self.vertices()?.positions.len() as u64;
-        let offsets_at = 8 + 12 * w;
-        let deltas_at = offsets_at + 4 * (vertices + 1);
-        if deltas_at + 28 * d != s.len() as u64 {
-            return Err(err(0, format!("{} bytes for {w} weights, {vertices} vertices and {d} deltas", s.len())));
-        }
-        let (o, e) = (offsets_at as usize, deltas_at as usize);
-        let view = MorphView {
-            weights: cast(&s[8..o], "MRPH")?,
-            offsets: cast(&s[o..e], "MRPH")?,
-            deltas: cast(&s[e..], "MRPH")?,
-        };
-        view.check(vertices as usize).map_err(|e| Error::invalid(location, e.to_string()))?;
-        Ok(Some(view))
-    }
-
-    /// The optional `CONT` section, read and checked, with the edges its quads index (rebuilt
-    /// from `VERT` and `TRIS`: [`skinned_edges`], without the concave rigid quads when the
-    /// patches are visible-only). Allocates: run it once, at load.
-    pub fn contours(&self) -> Result<Option<(BakedContours, Edges)>> {
-        let Some(s) = self.section(b"CONT") else { return Ok(None) };
-        let vertices = self.vertices()?;
-        let rigid = if BakedContours::visible_only(s)? {
-            let morphs = self.morphs()?;
-            let morphed = |v: usize| morphs.is_some_and(|m| !m.of(v).is_empty());
-            Some(rigid_vertices(vertices.positions.len(), vertices.stride, vertices.joints, vertices.weights, morphed))
-        } else {
-            None
-        };
-        let edges = skinned_edges(vertices.positions, self.triangles()?, rigid.as_deref())
-            .map_err(|e| Error::invalid("bake section CONT", e.to_string()))?;
-        Ok(Some((BakedContours::read(s, &edges, self.joint_count()?)?, edges)))
-    }
-}
-
 /// What `INFO` says about how the bake was made: the meshlet builder (its code in
 /// `docs/FORMAT.md`), the meshlet limits, the refinement and why it stopped, and the baked
 /// clips' names (clip indices in other sections index this list).
@@ -794,122 +1051,6 @@ pub struct BakedPartRecord {
 // is one; `Copy` and `'static`.
 unsafe impl bytemuck::Zeroable for BakedPartRecord {}
 unsafe impl bytemuck::Pod for BakedPartRecord {}
-
-impl<'a> BakeView<'a> {
-    /// `INFO`, checked: the whole section read, names in UTF-8.
-    pub fn info(&self) -> Result<InfoView<'a>> {
-        let mut s = Cursor::new("INFO", self.required(b"INFO")?);
-        let (builder, max_vertices, max_triangles) = (s.u32()?, s.u32()?, s.u32()?);
-        let (s_r, alpha_t, rounds, stop) = (s.f32()?, s.f32()?, s.u32()?, s.u32()?);
-        let n = s.u32()? as usize;
-        if n.saturating_mul(4) > s.remaining() {
-            return Err(s.err(format!("{n} clip names do not fit in the section")));
-        }
-        let clips = (0..n).map(|_| s.str()).collect::<Result<Vec<_>>>()?;
-        s.end()?;
-        Ok(InfoView { builder, max_vertices, max_triangles, s_r, alpha_t, rounds, stop, clips })
-    }
-
-    /// `PART`, checked: consecutive ranges from 0 covering every vertex, triangle and meshlet,
-    /// each part's triangles and meshlets using only its own vertices (so one material per
-    /// part range holds).
-    pub fn parts(&self) -> Result<&'a [BakedPartRecord]> {
-        let (s, location) = (self.required(b"PART")?, "bake section PART");
-        let n = u32_at(s, 0).ok_or_else(|| Error::invalid(location, "byte 0: truncated"))? as usize;
-        if n.checked_mul(40).and_then(|b| b.checked_add(4)) != Some(s.len()) {
-            return Err(Error::invalid(location, format!("{} bytes for {n} parts", s.len())));
-        }
-        let parts: &[BakedPartRecord] = cast(&s[4..], "PART")?;
-        let (triangles, meshlets) = (self.triangles()?, self.meshlets()?);
-        let totals = [self.vertices()?.positions.len(), triangles.len(), meshlets.len()];
-        let mut ends = [0u32; 3];
-        for (i, p) in parts.iter().enumerate() {
-            let ranges = [p.vertices, p.triangles, p.meshlets];
-            let next =
-                ranges.iter().zip(ends).zip(totals).all(|((r, e), t)| r[0] == e && r[1] >= e && r[1] as usize <= t);
-            let own = |v: &u32| (p.vertices[0]..p.vertices[1]).contains(v);
-            let ok = next
-                && triangles[p.triangles[0] as usize..p.triangles[1] as usize].iter().flatten().all(own)
-                && (p.meshlets[0] as usize..p.meshlets[1] as usize).all(|m| {
-                    let (h, (vc, _)) = (meshlets.headers[m], meshlets.counts(m));
-                    meshlets.vertices[h[0] as usize..][..vc].iter().all(own)
-                });
-            if !ok {
-                return Err(Error::invalid(
-                    location,
-                    format!(
-                        "part {i}: vertices {:?}, triangles {:?}, meshlets {:?} are not the next ranges of its own data",
-                        p.vertices, p.triangles, p.meshlets
-                    ),
-                ));
-            }
-            ends = ranges.map(|r| r[1]);
-        }
-        if ends.map(|e| e as usize) != totals {
-            return Err(Error::invalid(location, "the parts do not cover every vertex, triangle and meshlet"));
-        }
-        Ok(parts)
-    }
-
-    /// The optional `PWIN` section, read and checked: its part and clip counts are `PART`'s
-    /// and `INFO`'s, the clips' windows are numbered in order from 0, every anchor is a
-    /// driver, every number is finite, every box has `min ≤ max`. Allocates: run it once, at load.
-    pub fn part_windows(&self) -> Result<Option<BakedPartWindows>> {
-        let Some(b) = self.section(b"PWIN") else { return Ok(None) };
-        let mut s = Cursor::new("PWIN", b);
-        let (parts, clips, windows) = (s.u32()? as usize, s.u32()? as usize, s.u32()? as usize);
-        s.u32()?;
-        let (want_parts, want_clips) = (self.parts()?.len(), self.info()?.clips.len());
-        if (parts, clips) != (want_parts, want_clips) {
-            return Err(
-                s.err(format!("{parts} parts and {clips} clips, where PART has {want_parts} and INFO {want_clips}"))
-            );
-        }
-        let size = (parts.checked_mul(windows).and_then(|n| n.checked_mul(24)))
-            .and_then(|n| n.checked_add(16 + 16 * clips + 4 * parts));
-        if size != Some(b.len()) {
-            return Err(s.err(format!("{} bytes for {parts} parts, {clips} clips and {windows} windows", b.len())));
-        }
-        let mut list = Vec::with_capacity(clips);
-        for c in 0..clips {
-            let w = ClipWindows { start: s.f32()?, end: s.f32()?, count: s.u32()?, first: s.u32()? };
-            let first = list.last().map_or(0, |p: &ClipWindows| p.first + p.count);
-            if !(w.start <= w.end && w.count >= 1 && w.first == first) {
-                return Err(s.err(format!("clip {c}: windows {w:?} (the next window is {first})")));
-            }
-            list.push(w);
-        }
-        if list.last().map_or(0, |w| w.first + w.count) as usize != windows {
-            return Err(s.err(format!("the clips' windows do not add up to {windows}")));
-        }
-        let drivers = self.joint_count()?;
-        let anchors = (0..parts)
-            .map(|p| match s.u32()? {
-                a if (a as usize) < drivers => Ok(a),
-                a => Err(s.err(format!("part {p}: anchor {a} of {drivers} drivers"))),
-            })
-            .collect::<Result<Vec<_>>>()?;
-        let boxes = (0..parts * windows)
-            .map(|i| {
-                let (min, max) = (s.vec3()?, s.vec3()?);
-                if min.cmple(max).all() {
-                    Ok([min, max])
-                } else {
-                    Err(s.err(format!("part {}, window {}: box {min} to {max}", i / windows, i % windows)))
-                }
-            })
-            .collect::<Result<Vec<_>>>()?;
-        s.end()?;
-        Ok(Some(BakedPartWindows { clips: list, anchors, boxes }))
-    }
-
-    /// The optional `OVDR` section, read and checked ([`Orders::read`]): the overdraw orders'
-    /// buffers and their run-time lookup.
-    pub fn overdraw_orders(&self) -> Result<Option<Orders>> {
-        let Some(s) = self.section(b"OVDR") else { return Ok(None) };
-        Ok(Some(Orders::read(s, self.triangles()?, self.parts()?, self.info()?.clips.len())?))
-    }
-}
 
 /// A cursor over one section's bytes that names the section and the byte in its errors (for
 /// the sections read into arrays rather than viewed in place).
@@ -977,56 +1118,115 @@ fn cast<'a, T: bytemuck::Pod>(b: &'a [u8], tag: &str) -> Result<&'a [T]> {
 mod tests {
     use super::*;
 
-    /// A header with `sections` (tag, offset, length) and `len` bytes in all, in u32 storage
-    /// (4-byte aligned).
-    fn file(sections: &[(&[u8; 4], u64, u64)], len: usize) -> Vec<u32> {
-        let mut b = vec![0u8; len.max(16 + 24 * sections.len())];
+    /// A file of `sections` (tag, body), each at the next 16-byte aligned offset, in u32
+    /// storage (4-byte aligned).
+    fn file(sections: &[(&[u8; 4], Vec<u8>)]) -> Vec<u32> {
+        let mut b = vec![0u8; 16 + 24 * sections.len()];
         b[..8].copy_from_slice(&MAGIC);
         b[8..12].copy_from_slice(&VERSION.to_le_bytes());
         b[12..16].copy_from_slice(&(sections.len() as u32).to_le_bytes());
-        for (k, (tag, offset, length)) in sections.iter().enumerate() {
+        for (k, (tag, body)) in sections.iter().enumerate() {
+            b.resize(b.len().next_multiple_of(16), 0);
             let e = 16 + 24 * k;
+            let offset = b.len() as u64;
             b[e..e + 4].copy_from_slice(*tag);
             b[e + 8..e + 16].copy_from_slice(&offset.to_le_bytes());
-            b[e + 16..e + 24].copy_from_slice(&length.to_le_bytes());
+            b[e + 16..e + 24].copy_from_slice(&(body.len() as u64).to_le_bytes());
+            b.extend_from_slice(body);
         }
         b.resize(b.len().next_multiple_of(4), 0);
         b.chunks_exact(4).map(|w| u32::from_ne_bytes(w.try_into().unwrap())).collect()
     }
 
+    fn words(w: &[u32]) -> Vec<u8> {
+        w.iter().flat_map(|x| x.to_le_bytes()).collect()
+    }
+
+    /// The sections of an empty character: no drivers, vertices, triangles, meshlets or parts.
+    fn empty() -> Vec<(&'static [u8; 4], Vec<u8>)> {
+        vec![
+            (b"INFO", words(&[2, 64, 124, 0, 0, 0, 0, 0])),
+            (b"SKIN", words(&[0])),
+            (b"VERT", words(&[0, 0, 0])),
+            (b"TRIS", words(&[0])),
+            (b"MLET", words(&[0; 4])),
+            (b"BNDS", words(&[0; 4])),
+            (b"PART", words(&[0])),
+        ]
+    }
+
     fn error(bytes: &[u8]) -> String {
-        BakeView::new(bytes).and_then(|v| v.meshlet_bounds().map(|_| ())).unwrap_err().to_string()
+        BakeView::new(bytes).unwrap_err().to_string()
     }
 
     #[test]
     fn bad_headers_and_tables_are_errors_that_say_where() {
-        let ok = file(&[(b"SKIN", 96, 4), (b"MLET", 112, 16), (b"BNDS", 128, 16)], 144);
+        let ok = file(&empty());
         let bytes: &[u8] = bytemuck::cast_slice(&ok);
         let view = BakeView::new(bytes).unwrap();
-        assert_eq!((view.joint_count().unwrap(), view.meshlet_count().unwrap()), (0, 0));
-        assert!(view.meshlet_bounds().unwrap().is_empty());
-        assert!(view.envelope(0).unwrap().is_none());
+        assert_eq!((view.joint_count(), view.meshlet_count()), (0, 0));
+        assert!(view.meshlet_bounds().is_empty() && view.envelope().is_none());
         let mut wrong = bytes.to_vec();
         wrong[0] = b'X';
-        assert!(BakeView::new(&wrong).unwrap_err().to_string().contains("magic"));
+        assert!(error(&wrong).contains("magic"));
         let mut newer = bytes.to_vec();
         newer[8] = VERSION as u8 + 1;
         assert!(matches!(BakeView::new(&newer), Err(Error::Unsupported { .. })));
-        let outside = file(&[(b"BNDS", 96, 64)], 144);
-        assert!(error(bytemuck::cast_slice(&outside)).contains("section BNDS lies outside the file"));
-        let twice = file(&[(b"SKIN", 96, 4), (b"MLET", 112, 16), (b"SKIN", 128, 16)], 144);
-        assert!(error(bytemuck::cast_slice(&twice)).contains("byte 64: section SKIN appears twice"));
-        let missing = file(&[(b"SKIN", 96, 4)], 144);
-        assert!(error(bytemuck::cast_slice(&missing)).contains("section BNDS is missing"));
-        let words = file(&[(b"SKIN", 96, 4), (b"MLET", 112, 16), (b"BNDS", 128, 16)], 148);
+        let mut outside = bytes.to_vec();
+        // The first entry's length (INFO) made longer than the file.
+        outside[32..40].copy_from_slice(&(bytes.len() as u64).to_le_bytes());
+        assert!(error(&outside).contains("byte 16: section INFO lies outside the file"));
+        let mut sections = empty();
+        sections[3].0 = b"SKIN";
+        assert!(error(bytemuck::cast_slice(&file(&sections))).contains("byte 88: section SKIN appears twice"));
+        let mut sections = empty();
+        sections.remove(5);
+        assert!(error(bytemuck::cast_slice(&file(&sections))).contains("section BNDS is missing"));
+        let mut words = ok.clone();
+        words.push(0);
         let shifted: &[u8] = &bytemuck::cast_slice::<u32, u8>(&words)[1..];
-        assert!(BakeView::new(shifted).unwrap_err().to_string().contains("aligned"));
+        assert!(error(&shifted[..bytes.len()]).contains("aligned"));
         for cut in 0..bytes.len() {
-            // Every truncation is an error or a view whose sections all lie inside.
-            if let Ok(v) = BakeView::new(&bytes[..cut]) {
-                assert!(v.meshlet_bounds().is_err() || cut >= 144);
-            }
+            // Every truncation cuts the last section (PART) or more: an error.
+            assert!(BakeView::new(&bytes[..cut]).is_err(), "cut at {cut}");
         }
+    }
+
+    #[test]
+    fn section_rules_are_checked() {
+        let check = |tag: &[u8; 4], body: Vec<u8>, want: &str| {
+            let mut sections = empty();
+            sections.iter_mut().find(|(t, _)| *t == tag).unwrap().1 = body;
+            let e = error(bytemuck::cast_slice(&file(&sections)));
+            assert!(e.contains(want), "{}: {e}", tag_name(tag));
+        };
+        check(b"INFO", words(&[7, 64, 124, 0, 0, 0, 0, 0]), "unknown meshlet builder 7");
+        check(b"INFO", words(&[2, 300, 124, 0, 0, 0, 0, 0]), "meshlet limits 300 vertices");
+        check(b"INFO", words(&[2, 64, 124, 0, 0, 0, 3, 0]), "unknown stop reason 3");
+        check(b"SKIN", words(&[70_000]), "70000 drivers");
+        // One vertex with four influences on driver 0 (of none), then weights that break
+        // the rules with a driver to spare.
+        let vert = |w: [f32; 4]| {
+            let mut b = words(&[1, 4, 0, 0, 0, 0, 0, 0]);
+            b.extend(w.iter().flat_map(|x| x.to_le_bytes()));
+            b
+        };
+        check(b"VERT", vert([1.0, 0.0, 0.0, 0.0]), "uses joint 0 of 0");
+        let mut sections = empty();
+        sections[1].1 = [&words(&[1])[..], &[0; 64], &words(&[3, 0])].concat();
+        for (w, want) in [
+            ([0.5, 0.0, 0.0, 0.0], "sum to 0.5"),
+            ([0.0, 1.0, 0.0, 0.0], "non-zero weight after a zero one"),
+            ([1.5, -0.5, 0.0, 0.0], "weight 1.5"),
+        ] {
+            sections[2].1 = vert(w);
+            let e = error(bytemuck::cast_slice(&file(&sections)));
+            assert!(e.contains("VERT") && e.contains(want), "{want}: {e}");
+        }
+        // Good weights: the vertices are fine, and the next section checked is PART's, which
+        // covers none of them.
+        sections[2].1 = vert([1.0, 0.0, 0.0, 0.0]);
+        assert!(error(bytemuck::cast_slice(&file(&sections))).contains("PART"));
     }
 
     #[test]

@@ -2,9 +2,10 @@
 //!
 //! The baker (`skinlet`) turns a glTF character into meshlets with conservative bounds that
 //! hold while it animates; this crate uses them every frame, on the CPU, with no allocation
-//! once its buffers have grown and no panic on the data it is given. It depends on glam and
-//! bytemuck only. Modules, one algorithm each:
-//! - [`bake_view`]: a checked, zero-copy view over a bake file's bytes.
+//! once its buffers have grown and no panic on the data it is given: any lengths and values
+//! give an `Err` or a conservative answer (`tests/no_panic.rs` holds one property per entry
+//! point). It depends on glam and bytemuck only. Modules, one algorithm each:
+//! - [`bake_view`]: the format's one reader, a checked, zero-copy view over a bake file's bytes.
 //! - [`camera`]: a camera's frustum planes and what backface tests need.
 //! - [`meshlet_bounds`]: per-meshlet spheres, normal cones and culling classes, as baked.
 //! - [`meshlet_cull`]: per-meshlet frustum and backface culling of skinned instances, in each

@@ -361,10 +361,13 @@ impl MeshletCuller {
             c.cy.push(b.center.y);
             c.cz.push(b.center.z);
             c.r.push(b.radius);
-            c.ax.push(b.cone_axis.x);
-            c.ay.push(b.cone_axis.y);
-            c.az.push(b.cone_axis.z);
+            // A meshlet without a cone stores a zero axis with its "no cone" sine, so no axis
+            // the file holds for it (any length past π/2) can make it look back-facing.
             let cone = b.cone_angle < std::f32::consts::FRAC_PI_2 && class == Class::Both;
+            let axis = if cone { b.cone_axis } else { Vec3::ZERO };
+            c.ax.push(axis.x);
+            c.ay.push(axis.y);
+            c.az.push(axis.z);
             c.sin.push(if cone { b.cone_angle.sin() } else { 2.0 });
             c.frustum_ok.push((class != Class::None) as u8);
             c.extent[j] = c.extent[j].max(b.center.length() + b.radius);

@@ -161,14 +161,14 @@ impl PartBounds {
     /// and morph deltas; the clip boxes from `BNDS`; the envelope boxes from `ENVL` when the
     /// bake has one). Allocates: run it once, at load. Errors on a bake the view refuses.
     pub fn new(view: &BakeView) -> Result<PartBounds> {
-        let parts = view.parts()?.to_vec();
-        let vertices = view.vertices()?;
-        let inverse_bind: Vec<Mat4> = view.inverse_bind()?.iter().map(Mat4::from_cols_array).collect();
-        let nodes = view.joint_nodes()?;
-        let morphs = view.morphs()?;
+        let parts = view.parts();
+        let vertices = view.vertices();
+        let inverse_bind: Vec<Mat4> = view.inverse_bind().iter().map(Mat4::from_cols_array).collect();
+        let nodes = view.joint_nodes();
+        let morphs = view.morphs();
         let weights = morphs.map_or(0, |m| m.weights.len());
-        let bounds = view.meshlet_bounds()?;
-        let envelope = view.envelope(weights)?;
+        let bounds = view.meshlet_bounds();
+        let envelope = view.envelope();
         let (drivers, stride) = (inverse_bind.len(), vertices.stride);
         let mut out = PartBounds {
             parts: Vec::new(),
@@ -244,13 +244,13 @@ impl PartBounds {
             }
             let any = [any_start, out.boxes.len() as u32];
             let clips = merged_spheres(bounds, part, &mut out);
-            let envelope = match &envelope {
+            let envelope = match envelope {
                 Some(e) => merged_spheres(e.bounds, part, &mut out),
                 None => [0, 0],
             };
             out.ranges.push(PartRanges { any, clips, envelope });
         }
-        if let Some(w) = view.part_windows()? {
+        if let Some(w) = view.part_windows() {
             out.anchors = w.anchors.iter().map(|&a| (a, Affine3A::from_mat4(inverse_bind[a as usize]))).collect();
             out.window_count = w.windows();
             for (i, b) in w.boxes.iter().enumerate() {
@@ -261,9 +261,9 @@ impl PartBounds {
                 let reach = abs_move(&out.anchors[i / out.window_count.max(1)].1, center.abs() + half) * (1.0 + 1e-6);
                 out.windows.push(WindowBox { center, half, reach });
             }
-            out.clip_windows = w.clips;
+            out.clip_windows = w.clips.clone();
         }
-        out.parts = parts;
+        out.parts = parts.to_vec();
         out.envelope = envelope.is_some();
         out.bind = inverse_bind.iter().map(|m| Affine3A::from_mat4(*m).inverse()).collect();
         Ok(out)

@@ -628,56 +628,8 @@ pub fn check_consumers(b: &Baked) -> Result<()> {
     Ok(())
 }
 
-/// A cursor over one section that names the section and byte in its errors.
-struct In<'a> {
-    tag: &'static str,
-    b: &'a [u8],
-    at: usize,
-}
-
-impl<'a> In<'a> {
-    fn err(&self, msg: impl std::fmt::Display) -> Error {
-        Error::invalid(format!("bake section {}", self.tag), format!("byte {}: {msg}", self.at))
-    }
-    fn bytes(&mut self, n: usize) -> Result<&'a [u8]> {
-        let end = self.at.checked_add(n).filter(|&e| e <= self.b.len());
-        let end = end.ok_or_else(|| self.err(format!("truncated (needs {n} more bytes)")))?;
-        let s = &self.b[self.at..end];
-        self.at = end;
-        Ok(s)
-    }
-    fn u32(&mut self) -> Result<u32> {
-        Ok(u32::from_le_bytes(self.bytes(4)?.try_into().expect("4 bytes")))
-    }
-    fn count(&mut self, what: &str, item_bytes: usize) -> Result<usize> {
-        let n = self.u32()? as usize;
-        if n.saturating_mul(item_bytes) > self.b.len() - self.at {
-            return Err(self.err(format!("{n} {what} do not fit in the section")));
-        }
-        Ok(n)
-    }
-    fn f32(&mut self) -> Result<f32> {
-        let x = f32::from_le_bytes(self.bytes(4)?.try_into().expect("4 bytes"));
-        if x.is_finite() { Ok(x) } else { Err(self.err(format!("non-finite number {x}"))) }
-    }
-    fn vec3(&mut self) -> Result<Vec3> {
-        Ok(Vec3::new(self.f32()?, self.f32()?, self.f32()?))
-    }
-    fn str(&mut self) -> Result<String> {
-        let n = self.count("name bytes", 1)?;
-        let b = self.bytes(n)?;
-        String::from_utf8(b.to_vec()).map_err(|_| self.err("a name is not UTF-8"))
-    }
-    fn align(&mut self, to: usize) -> Result<()> {
-        let pad = self.at.next_multiple_of(to) - self.at;
-        self.bytes(pad).map(|_| ())
-    }
-    fn end(&self) -> Result<()> {
-        if self.at == self.b.len() { Ok(()) } else { Err(self.err("unexpected bytes after the section's data")) }
-    }
-}
-
-/// Parses and checks bake file bytes.
+/// Parses and checks bake file bytes: everything [`BakeView::new`] checks, then the baker's
+/// own rules (the meshlets hold exactly the triangles).
 pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
     // The view needs 4-byte aligned bytes; a slice that is not (only a caller's sub-slice
     // can be) is read from an aligned copy.
@@ -689,121 +641,35 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
         &bytemuck::cast_slice::<u32, u8>(&copy)[..bytes.len()]
     };
     let view = BakeView::new(bytes)?;
-    let found: Vec<Option<&[u8]>> = TAGS.iter().map(|t| view.section(t)).collect();
-    let section = |i: usize| -> Result<In> {
-        let tag = std::str::from_utf8(TAGS[i]).expect("ASCII tags");
-        Ok(In { tag, b: view.required(TAGS[i])?, at: 0 })
-    };
-
-    let info = view.info()?;
+    let info = view.info();
     let location = "bake section INFO";
     let builder =
         *Builder::ALL.get(info.builder as usize).ok_or_else(|| Error::invalid(location, "unknown meshlet builder"))?;
     let limits = MeshletLimits { max_vertices: info.max_vertices as usize, max_triangles: info.max_triangles as usize };
-    limits.check().map_err(|e| Error::invalid(location, e.to_string()))?;
-    let (s_r, alpha_t, rounds) = (info.s_r, info.alpha_t, info.rounds);
-    let stop = match info.stop {
-        0 => Stop::Converged,
-        1 => Stop::Rounds,
-        2 => Stop::Budget,
-        x => return Err(Error::invalid(location, format!("unknown stop reason {x}"))),
+    let stop = [Stop::Converged, Stop::Rounds, Stop::Budget][info.stop.min(2) as usize];
+    let clips = info.clips.iter().map(|c| c.to_string()).collect();
+    let settings = BakeSettings { builder, limits, s_r: info.s_r, alpha_t: info.alpha_t, rounds: info.rounds, stop, clips };
+
+    let v = view.vertices();
+    let influences = (v.stride > 0).then(|| Influences { stride: v.stride, joints: v.joints.to_vec(), weights: v.weights.to_vec() });
+    let morphs = view.morphs().map_or_else(Morphs::default, |m| Morphs {
+        weights: m.weights.to_vec(),
+        offsets: m.offsets.to_vec(),
+        deltas: m.deltas.to_vec(),
+    });
+    let mesh = SkinnedMesh {
+        positions: v.positions.to_vec(),
+        normals: v.normals.to_vec(),
+        triangles: view.triangles().to_vec(),
+        influences,
+        morphs,
     };
-    let clips: Vec<String> = info.clips.iter().map(|c| c.to_string()).collect();
-    let settings = BakeSettings { builder, limits, s_r, alpha_t, rounds, stop, clips };
+    let meshlets = Meshlets::from_view(&view.meshlets());
+    meshlets.validate(&mesh.triangles, limits).map_err(|e| Error::invalid("bake section MLET", e.to_string()))?;
 
-    let mut s = section(1)?;
-    let joints = s.count("joints", 64)?;
-    let inverse_bind = (0..joints)
-        .map(|_| (0..16).map(|_| s.f32()).collect::<Result<Vec<_>>>().map(|c| Mat4::from_cols_slice(&c)))
-        .collect::<Result<Vec<_>>>()?;
-    let joint_nodes = (0..joints).map(|_| s.u32()).collect::<Result<Vec<_>>>()?;
-    let joint_names = (0..joints).map(|_| s.str()).collect::<Result<Vec<_>>>()?;
-    s.end()?;
-
-    let mut s = section(2)?;
-    let vertices = s.count("vertices", 12)?;
-    let stride = s.u32()? as usize;
-    if !matches!(stride, 0 | 4 | 8) {
-        return Err(s.err(format!("influence stride {stride} (expected 4 or 8)")));
-    }
-    let has_normals = s.u32()? != 0;
-    let positions = (0..vertices).map(|_| s.vec3()).collect::<Result<Vec<_>>>()?;
-    let normals = if has_normals { (0..vertices).map(|_| s.vec3()).collect::<Result<Vec<_>>>()? } else { Vec::new() };
-    let slots = vertices * stride;
-    let joint_ids: Vec<u16> = s.bytes(2 * slots)?.chunks_exact(2).map(|c| u16::from_le_bytes([c[0], c[1]])).collect();
-    s.align(4)?;
-    let weights = (0..slots).map(|_| s.f32()).collect::<Result<Vec<_>>>()?;
-    s.end()?;
-    let influences = (stride > 0).then_some(Influences { stride, joints: joint_ids, weights });
-    if let Some(inf) = &influences {
-        inf.check(joints).map_err(|e| s.err(e))?;
-    }
-
-    let mut s = section(3)?;
-    let n = s.count("triangles", 12)?;
-    let triangles = (0..n)
-        .map(|t| {
-            let tri = [s.u32()?, s.u32()?, s.u32()?];
-            match tri.iter().find(|&&i| i as usize >= vertices) {
-                Some(i) => Err(s.err(format!("triangle {t} uses vertex {i} of {vertices}"))),
-                None => Ok(tri),
-            }
-        })
-        .collect::<Result<Vec<_>>>()?;
-    s.end()?;
-    let morphs = read_morphs(&view)?;
-    let mesh = SkinnedMesh { positions, normals, triangles, influences, morphs };
-
-    let s = section(4)?;
-    let meshlets = flat::from_bytes(s.b).map_err(|e| s.err(e))?;
-    meshlets.validate(&mesh.triangles, limits).map_err(|e| s.err(e))?;
-
-    let (bounds, classes): (Vec<MeshletBounds>, Vec<Class>) = bounds_and_classes(view.meshlet_bounds()?);
-    let parts = read_parts(&view)?;
-    let overdraw = view.overdraw_orders()?;
-    let contours = view.contours()?.map(|(c, _)| c);
-    let envelope = if found[10].is_some() { Some(read_envelope(&view, section(10)?, &mesh)?) } else { None };
-    let part_windows = view.part_windows()?;
-    Ok(Baked {
-        settings,
-        joint_nodes,
-        joint_names,
-        inverse_bind,
-        parts,
-        mesh,
-        meshlets,
-        bounds,
-        classes,
-        overdraw,
-        contours,
-        envelope,
-        part_windows,
-    })
-}
-
-/// The ENVL section: node and morph weight ranges, envelope bounds and any-pose boxes as the
-/// runtime's view reads and checks them ([`BakeView::envelope`]), then the nodes' names.
-fn read_envelope(view: &BakeView, mut s: In, mesh: &SkinnedMesh) -> Result<BakedEnvelope> {
-    let e = view.envelope(mesh.morphs.weights.len())?.ok_or_else(|| s.err("missing"))?;
-    let envelope = Envelope { nodes: e.ranges(), weights: e.weight_ranges() };
-    let (bounds, classes) = bounds_and_classes(e.bounds);
-    s.at = e.names_at;
-    let names = (0..e.nodes.len()).map(|_| s.str()).collect::<Result<Vec<_>>>()?;
-    s.align(4)?;
-    s.end()?;
-    Ok(BakedEnvelope { envelope, names, bounds, classes, any_pose: e.any_pose() })
-}
-
-/// The MRPH section as the runtime's view reads and checks it ([`BakeView::morphs`]).
-fn read_morphs(view: &BakeView) -> Result<Morphs> {
-    let Some(m) = view.morphs()? else { return Ok(Morphs::default()) };
-    Ok(Morphs { weights: m.weights.to_vec(), offsets: m.offsets.to_vec(), deltas: m.deltas.to_vec() })
-}
-
-/// The PART section as the runtime's view reads and checks it ([`BakeView::parts`]).
-fn read_parts(view: &BakeView) -> Result<Vec<BakedPart>> {
+    let (bounds, classes) = bounds_and_classes(view.meshlet_bounds());
     let range = |r: [u32; 2]| r[0]..r[1];
-    Ok((view.parts()?.iter())
+    let parts = (view.parts().iter())
         .map(|p| BakedPart {
             node: p.node,
             mesh: p.mesh,
@@ -813,5 +679,30 @@ fn read_parts(view: &BakeView) -> Result<Vec<BakedPart>> {
             triangles: range(p.triangles),
             meshlets: range(p.meshlets),
         })
-        .collect())
+        .collect();
+    let envelope = view.envelope().map(|e| {
+        let (bounds, classes) = bounds_and_classes(e.bounds);
+        BakedEnvelope {
+            envelope: Envelope { nodes: e.ranges(), weights: e.weight_ranges() },
+            names: e.names.iter().map(|n| n.to_string()).collect(),
+            bounds,
+            classes,
+            any_pose: e.any_pose(),
+        }
+    });
+    Ok(Baked {
+        settings,
+        joint_nodes: view.joint_nodes().to_vec(),
+        joint_names: view.joint_names().iter().map(|n| n.to_string()).collect(),
+        inverse_bind: view.inverse_bind().iter().map(Mat4::from_cols_array).collect(),
+        parts,
+        mesh,
+        meshlets,
+        bounds,
+        classes,
+        overdraw: view.overdraw_orders().cloned(),
+        contours: view.contours().map(|(c, _)| c.clone()),
+        envelope,
+        part_windows: view.part_windows().cloned(),
+    })
 }

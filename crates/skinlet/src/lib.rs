@@ -42,7 +42,7 @@
 //!     bake(&asset, &character, &clips, Builder::SkinAware, limits, &Refinement::NONE, &mut |_| {})?;
 //! let bytes = to_bytes(&baked); // what `skinlet::bake::write` stores
 //! let view = skinlet_runtime::bake_view::BakeView::new(&bytes)?;
-//! assert_eq!(view.meshlet_count()?, baked.meshlets.len());
+//! assert_eq!(view.meshlet_count(), baked.meshlets.len());
 //! let culler = view.culler()?; // what a game culls with, frame after frame
 //! assert_eq!(culler.len(), baked.meshlets.len());
 //! # std::fs::remove_dir_all(&dir)?;

@@ -147,36 +147,7 @@ impl Influences {
     /// `joints`, weights finite and in [0, 1], non-zero ones first, each vertex's summing to 1
     /// (within 1e-3).
     pub fn check(&self, joints: usize) -> crate::Result<()> {
-        let bad = |what: String| Err(crate::Error::invalid("skin influences", what));
-        if !matches!(self.stride, 4 | 8)
-            || self.joints.len() != self.weights.len()
-            || !self.joints.len().is_multiple_of(self.stride)
-        {
-            return bad(format!(
-                "stride {} with {} joints and {} weights",
-                self.stride,
-                self.joints.len(),
-                self.weights.len()
-            ));
-        }
-        if let Some(i) = self.joints.iter().position(|&j| j as usize >= joints) {
-            return bad(format!("vertex {} uses joint {} of {joints}", i / self.stride, self.joints[i]));
-        }
-        for v in 0..self.vertex_count() {
-            let w = &self.weights[v * self.stride..(v + 1) * self.stride];
-            let used = self.count(v);
-            if let Some(x) = w.iter().find(|x| !(0.0..=1.0).contains(*x)) {
-                return bad(format!("vertex {v} has weight {x}"));
-            }
-            if w[used..].iter().any(|&x| x != 0.0) {
-                return bad(format!("vertex {v} has a non-zero weight after a zero one"));
-            }
-            let sum: f32 = w.iter().sum();
-            if (sum - 1.0).abs() > 1e-3 {
-                return bad(format!("vertex {v}'s weights sum to {sum}"));
-            }
-        }
-        Ok(())
+        Ok(skinlet_runtime::bake_view::check_influences(self.stride, &self.joints, &self.weights, joints)?)
     }
 
     /// Number of non-zero weights of vertex `v`.
@@ -281,32 +252,11 @@ impl Morphs {
     /// Checks the layout against a mesh of `vertices` vertices: offsets, weight indices and
     /// finite deltas.
     pub fn check(&self, vertices: usize) -> crate::Result<()> {
-        let bad = |what: String| Err(crate::Error::invalid("morph targets", what));
-        if self.offsets.is_empty() {
-            return if self.deltas.is_empty() { Ok(()) } else { bad("deltas without vertex offsets".into()) };
+        match self.view() {
+            Some(view) => Ok(view.check(vertices)?),
+            None if self.offsets.is_empty() || self.offsets.iter().all(|&o| o == 0) => Ok(()),
+            None => Err(crate::Error::invalid("morph targets", "vertex offsets without deltas")),
         }
-        if self.offsets.len() != vertices + 1 || self.offsets[0] != 0 {
-            return bad(format!("{} vertex offsets for {vertices} vertices", self.offsets.len()));
-        }
-        if let Some(v) = self.offsets.windows(2).position(|w| w[1] < w[0]) {
-            return bad(format!("vertex {v}: offsets decrease"));
-        }
-        if *self.offsets.last().unwrap_or(&0) as usize != self.deltas.len() {
-            return bad(format!(
-                "the offsets end at {} but there are {} deltas",
-                self.offsets.last().unwrap_or(&0),
-                self.deltas.len()
-            ));
-        }
-        if let Some(d) = self.deltas.iter().find(|d| d.weight as usize >= self.weights.len()) {
-            return bad(format!("a delta uses weight {} of {}", d.weight, self.weights.len()));
-        }
-        if self.deltas.iter().any(|d| !(d.position.is_finite() && d.normal.is_finite()))
-            || self.weights.iter().any(|w| !w.default.is_finite())
-        {
-            return bad("non-finite delta or default weight".into());
-        }
-        Ok(())
     }
 }
 

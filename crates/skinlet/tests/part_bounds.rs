@@ -178,7 +178,7 @@ fn every_vertex_lies_in_its_part_box() {
         // Poses inside the envelope (on its boundary every other one), admitted by the
         // bake's pose guard: the envelope boxes hold.
         if let Some(e) = &envelope {
-            let guard = view.envelope(morphs).unwrap().unwrap().guard().unwrap();
+            let guard = view.envelope().unwrap().guard().unwrap();
             for (k, (locals, weights)) in e.sample_poses(&asset.skeleton, 16, 7).into_iter().enumerate() {
                 if !guard.admits(&locals, &weights) {
                     continue;

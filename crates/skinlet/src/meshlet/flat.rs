@@ -19,7 +19,8 @@
 //! thesis' "optimal meshlet" flag, which selects the slim vertex format in the shader).
 
 use super::{Meshlet, Meshlets};
-use crate::{Error, Result};
+use crate::Result;
+use skinlet_runtime::bake_view::MeshletView;
 
 const HEADER: usize = 16;
 
@@ -60,9 +61,9 @@ impl Meshlets {
 
     /// The meshlets as the runtime's view of a bake's `MLET` holds them, over `headers`
     /// ([`Self::headers`]): what a GPU upload reads.
-    pub fn view<'a>(&'a self, headers: &'a [[u32; 4]]) -> skinlet_runtime::bake_view::MeshletView<'a> {
+    pub fn view<'a>(&'a self, headers: &'a [[u32; 4]]) -> MeshletView<'a> {
         let (vertices, triangles, joints) = (&self.vertices[..], &self.triangles[..], &self.joints[..]);
-        skinlet_runtime::bake_view::MeshletView { headers, vertices, triangles, joints }
+        MeshletView { headers, vertices, triangles, joints }
     }
 }
 
@@ -71,59 +72,28 @@ pub fn byte_len(m: &Meshlets) -> usize {
     HEADER + 16 * m.meshlets.len() + 4 * m.vertices.len() + pad4(m.triangles.len()) + pad4(2 * m.joints.len())
 }
 
-fn u32_at(b: &[u8], at: usize) -> Result<u32> {
-    b.get(at..at + 4)
-        .map(|s| u32::from_le_bytes([s[0], s[1], s[2], s[3]]))
-        .ok_or_else(|| Error::invalid("meshlet buffer", format!("truncated at byte {at}")))
+/// Parses the layout through the runtime's view of it ([`MeshletView::new`] and
+/// [`MeshletView::check`] against the largest limits and any vertex count).
+pub fn from_bytes(b: &[u8]) -> Result<Meshlets> {
+    let words: Vec<u32> = bytemuck::pod_collect_to_vec(&[b, &[0; 3][..(4 - b.len() % 4) % 4]].concat());
+    let view = MeshletView::new(&bytemuck::cast_slice::<u32, u8>(&words)[..b.len()])?;
+    view.check(usize::MAX, [256, 512])?;
+    Ok(Meshlets::from_view(&view))
 }
 
-pub fn from_bytes(b: &[u8]) -> Result<Meshlets> {
-    let [nm, nv, nt, nj] = [0, 4, 8, 12].map(|o| u32_at(b, o).map(|x| x as usize));
-    let (nm, nv, nt, nj) = (nm?, nv?, nt?, nj?);
-    let expected = HEADER
-        .checked_add(nm.saturating_mul(16))
-        .and_then(|x| x.checked_add(nv.saturating_mul(4)))
-        .and_then(|x| x.checked_add(pad4(nt)))
-        .and_then(|x| x.checked_add(pad4(nj.saturating_mul(2))));
-    if expected != Some(b.len()) {
-        return Err(Error::invalid(
-            "meshlet buffer",
-            format!("{} bytes do not match the counts in its header", b.len()),
-        ));
+impl Meshlets {
+    /// The meshlets of a checked view ([`MeshletView::check`]), copied.
+    pub fn from_view(v: &MeshletView) -> Meshlets {
+        let meshlets = (v.headers.iter())
+            .map(|h| Meshlet {
+                vertex_offset: h[0],
+                triangle_offset: h[1],
+                joint_offset: h[2],
+                vertex_count: (h[3] & 0x1ff) as u16,
+                triangle_count: (h[3] >> 9 & 0x3ff) as u16,
+                joint_count: (h[3] >> 19 & 0xf) as u16,
+            })
+            .collect();
+        Meshlets { meshlets, vertices: v.vertices.to_vec(), triangles: v.triangles.to_vec(), joints: v.joints.to_vec() }
     }
-    let mut m = Meshlets::default();
-    for i in 0..nm {
-        let at = HEADER + 16 * i;
-        let packed = u32_at(b, at + 12)?;
-        let h = Meshlet {
-            vertex_offset: u32_at(b, at)?,
-            triangle_offset: u32_at(b, at + 4)?,
-            joint_offset: u32_at(b, at + 8)?,
-            vertex_count: (packed & 0x1ff) as u16,
-            triangle_count: (packed >> 9 & 0x3ff) as u16,
-            joint_count: (packed >> 19 & 0xf) as u16,
-        };
-        let ends = [
-            (h.vertex_offset as usize + h.vertex_count as usize, nv),
-            (h.triangle_offset as usize + 3 * h.triangle_count as usize, nt),
-            (h.joint_offset as usize + h.joint_count as usize, nj),
-        ];
-        if ends.iter().any(|(end, n)| end > n)
-            || !h.triangle_offset.is_multiple_of(3)
-            || (packed >> 31 == 1) != h.single_joint_set()
-        {
-            return Err(Error::invalid(
-                "meshlet buffer",
-                format!("meshlet {i} has ranges outside the buffer or a triangle offset off a triangle"),
-            ));
-        }
-        m.meshlets.push(h);
-    }
-    let vbase = HEADER + 16 * nm;
-    m.vertices = (0..nv).map(|i| u32_at(b, vbase + 4 * i)).collect::<Result<_>>()?;
-    let tbase = vbase + 4 * nv;
-    m.triangles = b[tbase..tbase + nt].to_vec();
-    let jbase = tbase + pad4(nt);
-    m.joints = (0..nj).map(|i| u16::from_le_bytes([b[jbase + 2 * i], b[jbase + 2 * i + 1]])).collect();
-    Ok(m)
 }
