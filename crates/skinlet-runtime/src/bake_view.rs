@@ -434,7 +434,9 @@ fn read_table(bytes: &[u8]) -> Result<Vec<([u8; 4], &[u8])>> {
             .ok()
             .zip(usize::try_from(len).ok())
             .and_then(|(o, l)| bytes.get(o..o.checked_add(l)?))
-            .ok_or_else(|| head(format!("byte {}: section {} lies outside the file", 16 + k * ENTRY, tag_name(&tag))))?;
+            .ok_or_else(|| {
+                head(format!("byte {}: section {} lies outside the file", 16 + k * ENTRY, tag_name(&tag)))
+            })?;
         sections.push((tag, body));
     }
     // No tag twice: sorted by tag (then entry), equal neighbours are a repeat.
@@ -573,7 +575,10 @@ fn read_triangles(s: &[u8], vertices: usize) -> Result<&[[u32; 3]]> {
     }
     let triangles: &[[u32; 3]] = cast(&s[4..], "TRIS")?;
     if let Some(t) = triangles.iter().position(|t| t.iter().any(|&i| i as usize >= vertices)) {
-        return Err(Error::invalid(location, format!("triangle {t} {:?} indexes past {vertices} vertices", triangles[t])));
+        return Err(Error::invalid(
+            location,
+            format!("triangle {t} {:?} indexes past {vertices} vertices", triangles[t]),
+        ));
     }
     Ok(triangles)
 }
@@ -731,7 +736,9 @@ fn read_part_windows(b: &[u8], parts_want: usize, clips_want: usize, drivers: us
     let (parts, clips, windows) = (s.u32()? as usize, s.u32()? as usize, s.u32()? as usize);
     s.u32()?;
     if (parts, clips) != (parts_want, clips_want) {
-        return Err(s.err(format!("{parts} parts and {clips} clips, where PART has {parts_want} and INFO {clips_want}")));
+        return Err(
+            s.err(format!("{parts} parts and {clips} clips, where PART has {parts_want} and INFO {clips_want}"))
+        );
     }
     let size = (parts.checked_mul(windows).and_then(|n| n.checked_mul(24)))
         .and_then(|n| n.checked_add(16 + 16 * clips + 4 * parts));
@@ -852,7 +859,7 @@ impl<'a> MeshletView<'a> {
             let (Some(verts), Some(tris), Some(joints)) = (verts, tris, self.joints_of(i)) else {
                 return bad("points past the meshlet arrays".into());
             };
-            if !h[1].is_multiple_of(3) || (h[3] >> 31 == 1) != !joints.is_empty() {
+            if !h[1].is_multiple_of(3) || (h[3] >> 31 == 1) == joints.is_empty() {
                 return bad("its triangle offset is off a triangle, or its joint-set flag disagrees".into());
             }
             if tc == 0 || vc > limits[0] || tc > limits[1] {

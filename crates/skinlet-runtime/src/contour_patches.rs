@@ -94,14 +94,16 @@ impl PatchBounds {
         let cos_sum = self.cos_angle * cos_b - self.sin_angle * sin_b;
         let sin_sum = self.sin_angle * cos_b + self.cos_angle * sin_b;
         // Inside the sphere (or at its center) the test says nothing: accept. So does a
-        // number past f32's range (the last test is written to accept a NaN).
-        (dist2 <= r * r * (1.0 + 1e-4)) | (cos_sum <= MARGIN) | !((self.axis.dot(d) * inv).abs() > sin_sum + MARGIN)
+        // product past f32's range (a NaN).
+        let along = (self.axis.dot(d) * inv).abs();
+        (dist2 <= r * r * (1.0 + 1e-4)) | (cos_sum <= MARGIN) | (along <= sin_sum + MARGIN) | along.is_nan()
     }
 
     /// [`Self::accepts`] for an orthographic view along unit `dir`.
     #[inline(always)]
     pub fn accepts_dir(&self, dir: Vec3) -> bool {
-        (self.cos_angle <= MARGIN) | !(self.axis.dot(dir).abs() > self.sin_angle + MARGIN)
+        let along = self.axis.dot(dir).abs();
+        (self.cos_angle <= MARGIN) | (along <= self.sin_angle + MARGIN) | along.is_nan()
     }
 }
 

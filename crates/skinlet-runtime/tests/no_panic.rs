@@ -6,6 +6,7 @@
 
 use glam::{Affine3A, DMat4, DVec3, Mat4, Quat, Vec3};
 use proptest::prelude::*;
+use skinlet_runtime::Trs;
 use skinlet_runtime::any_pose::AnyPoseBoxes;
 use skinlet_runtime::bake_view::BakeView;
 use skinlet_runtime::camera::{Camera, Projection, planes};
@@ -17,7 +18,6 @@ use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller, Tests};
 use skinlet_runtime::overdraw_orders::{Lookup, Orders};
 use skinlet_runtime::part_bounds::{PartBounds, PoseBounds};
 use skinlet_runtime::pose_guard::{NodeRange, PoseGuard};
-use skinlet_runtime::Trs;
 
 /// Any f32, weighted toward the awkward ones.
 fn any_f32() -> impl Strategy<Value = f32> {

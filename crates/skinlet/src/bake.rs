@@ -648,10 +648,12 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
     let limits = MeshletLimits { max_vertices: info.max_vertices as usize, max_triangles: info.max_triangles as usize };
     let stop = [Stop::Converged, Stop::Rounds, Stop::Budget][info.stop.min(2) as usize];
     let clips = info.clips.iter().map(|c| c.to_string()).collect();
-    let settings = BakeSettings { builder, limits, s_r: info.s_r, alpha_t: info.alpha_t, rounds: info.rounds, stop, clips };
+    let settings =
+        BakeSettings { builder, limits, s_r: info.s_r, alpha_t: info.alpha_t, rounds: info.rounds, stop, clips };
 
     let v = view.vertices();
-    let influences = (v.stride > 0).then(|| Influences { stride: v.stride, joints: v.joints.to_vec(), weights: v.weights.to_vec() });
+    let influences =
+        (v.stride > 0).then(|| Influences { stride: v.stride, joints: v.joints.to_vec(), weights: v.weights.to_vec() });
     let morphs = view.morphs().map_or_else(Morphs::default, |m| Morphs {
         weights: m.weights.to_vec(),
         offsets: m.offsets.to_vec(),

@@ -6,9 +6,9 @@
 //! implementation of the formulas of `docs/FORMAT.md` and `docs/CULLING.md` applied to the same
 //! stored records: module [`doc`], with its own parser of the file, written from the documents
 //! (it shares no code with the runtime). A disagreement is allowed only where the f64 value lies
-//! within the documented margin of the decision boundary ([`margins`]), or where a runtime bug
-//! this test found and that is not fixed yet applies ([`Known`]: allowed and counted, unless
-//! `SKINLET_REFERENCE_STRICT=1`; the `#[ignore]`d tests at the end reproduce each one).
+//! within the documented margin of the decision boundary ([`margins`]). The two runtime bugs it
+//! found (a meshlet without a cone culled through a long stored axis; a far patch refused
+//! through a NaN) have a deterministic test each at the end.
 //!
 //! The bytes: the demo character baked once with an envelope and contour patches, then per case
 //! a few random overwrites of its `BNDS`, `ENVL`, `CONT` and `PART` records (whole records with
@@ -467,37 +467,11 @@ struct Decision {
     maybe: bool,
     /// Past the f32 range (then `surely` is false: only the safe answer is required).
     overflow: bool,
-    /// `maybe` only because of a runtime bug this test found ([`Known`]).
-    known: Option<Known>,
-}
-
-/// Runtime disagreements with the documents that this property found and that are not fixed
-/// yet: allowed where they apply (and counted), unless `SKINLET_REFERENCE_STRICT=1`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Known {
-    /// A meshlet without a usable cone (half-angle ≥ π/2, or class 1 or 2) whose stored axis is
-    /// longer than 1 — which FORMAT.md and `BakeView` allow — is backface-culled:
-    /// `MeshletCuller::new` marks "no cone" with `sin α = 2` but keeps the stored axis, and the
-    /// test `s·(c − e')·a ≥ |c − e'|·2 + 3r` (orthographic `s·a·d' ≥ 2`) holds for `|a| > 2`.
-    NoConeLongAxis,
-    /// A contour patch whose center lies so far from the moved eye that `a·(c − e')` overflows
-    /// f32 (a center near ±3·10³⁸) is refused: `PatchBounds::accepts_eye` computes `|c − e'|²`
-    /// = ∞, `1/|c − e'|` = 0 and `a·(c − e')·0` = ∞·0 = NaN, and a NaN compares false, so no
-    /// branch accepts. (Overflow elsewhere accepts, the safe side.)
-    PatchNan,
-}
-
-fn strict() -> bool {
-    std::env::var("SKINLET_REFERENCE_STRICT").is_ok_and(|v| v == "1")
 }
 
 impl Decision {
-    const NO: Decision = Decision { exact: false, surely: false, maybe: false, overflow: false, known: None };
-    const YES: Decision = Decision { exact: true, surely: true, maybe: true, overflow: false, known: None };
-    /// Never true by the documents, true by the runtime's bug `known` (unless strict).
-    fn known_bug(known: Known) -> Decision {
-        if strict() { Decision::NO } else { Decision { maybe: true, known: Some(known), ..Decision::NO } }
-    }
+    const NO: Decision = Decision { exact: false, surely: false, maybe: false, overflow: false };
+    const YES: Decision = Decision { exact: true, surely: true, maybe: true, overflow: false };
     /// True when `value < 0`, within `tol`.
     fn negative(value: f64, tol: f64) -> Decision {
         Decision { exact: value < 0.0, surely: value < -tol, maybe: value < tol, ..Decision::NO }
@@ -512,7 +486,6 @@ impl Decision {
             surely: self.surely || o.surely,
             maybe: self.maybe || o.maybe,
             overflow: self.overflow || o.overflow,
-            known: self.known.or(o.known),
         }
     }
     fn and(self, o: Decision) -> Decision {
@@ -521,7 +494,6 @@ impl Decision {
             surely: self.surely && o.surely,
             maybe: self.maybe && o.maybe,
             overflow: self.overflow || o.overflow,
-            known: self.known.or(o.known),
         }
     }
     /// Past the f32 range the runtime may answer `false` (keep the meshlet, accept the patch).
@@ -551,8 +523,6 @@ struct Counts {
     within_margin: AtomicUsize,
     overflow: AtomicUsize,
     windows_wider: AtomicUsize,
-    no_cone_long_axis: AtomicUsize,
-    patch_nan: AtomicUsize,
     margin_by_test: [AtomicUsize; 6],
 }
 
@@ -571,8 +541,6 @@ static COUNTS: Counts = Counts {
     within_margin: AtomicUsize::new(0),
     overflow: AtomicUsize::new(0),
     windows_wider: AtomicUsize::new(0),
-    no_cone_long_axis: AtomicUsize::new(0),
-    patch_nan: AtomicUsize::new(0),
     margin_by_test: [const { AtomicUsize::new(0) }; 6],
 };
 
@@ -1087,11 +1055,7 @@ impl Scene<'_> {
     /// are never backface-culled.
     fn backface(&self, b: &doc::Bound, extent: f64) -> Decision {
         if b.class != 0 || b.angle >= std::f64::consts::FRAC_PI_2 {
-            return if b.axis.length_squared() > 1.0 + 1e-5 {
-                Decision::known_bug(Known::NoConeLongAxis)
-            } else {
-                Decision::NO
-            };
+            return Decision::NO;
         }
         let g = &self.joints[b.joint as usize];
         let Some((value, moved)) = doc::backface(b, g, self.view) else { return Decision::NO };
@@ -1162,12 +1126,6 @@ impl Scene<'_> {
         };
         let size = p.center.abs().element_sum() + moved.abs().element_sum() + radius;
         let overflow = overflow_view || size * size > margins::F32_RANGE;
-        if let doc::View::Eye(e) = view {
-            // Known::PatchNan: `a·(c − e')` past f32's range.
-            if p.axis.abs().dot((p.center - e).abs()) >= 0.5 * f32::MAX as f64 {
-                return Decision::known_bug(Known::PatchNan);
-            }
-        }
         match doc::patch_test(p.center, radius, p.axis, sin, cos, view) {
             doc::PatchTest::Always => Decision::NO,
             doc::PatchTest::Value { value, d } => {
@@ -1230,11 +1188,9 @@ fn compare(
         }
         if r != d.exact {
             count(
-                match (d.known, d.overflow) {
-                    (Some(Known::NoConeLongAxis), _) => &COUNTS.no_cone_long_axis,
-                    (Some(Known::PatchNan), _) => &COUNTS.patch_nan,
-                    (None, true) => &COUNTS.overflow,
-                    (None, false) => {
+                match d.overflow {
+                    true => &COUNTS.overflow,
+                    false => {
                         let k = ["frustum", "backface", "both", "any-pose", "and boxes", "CONT"]
                             .iter()
                             .position(|k| what.contains(k))
@@ -1260,13 +1216,12 @@ fn check_case(original: &[u8], layout: &Layout, mutations: &[Mutation], seed: u6
     let bytes: &[u8] = bytes;
     let mutated = bytes != original;
     let Ok(view) = BakeView::new(bytes) else { return Ok(()) };
-    let drivers = view.joint_count().unwrap();
+    let drivers = view.joint_count();
     let skin = doc::skin(doc::section(bytes, b"SKIN").unwrap()).unwrap();
     prop_assert_eq!(skin.drivers, drivers);
-    let weights = view.morphs().unwrap().map_or(0, |m| m.weights.len());
 
     // What the view accepts, and the reference's reading of the same bytes.
-    let bnds = view.meshlet_bounds().ok().map(|_| doc::bnds(doc::section(bytes, b"BNDS").unwrap()).unwrap());
+    let bnds = Some(doc::bnds(doc::section(bytes, b"BNDS").unwrap()).unwrap());
     let bnds_culler = bnds.as_ref().and_then(|_| match view.culler() {
         Ok(c) => Some(c),
         Err(e) => {
@@ -1276,15 +1231,10 @@ fn check_case(original: &[u8], layout: &Layout, mutations: &[Mutation], seed: u6
             None
         }
     });
-    let envl = match view.envelope(weights) {
-        Ok(Some(ev)) => Some((doc::envl(doc::section(bytes, b"ENVL").unwrap()).unwrap(), ev.culler(drivers).ok())),
-        _ => None,
-    };
-    let cont = match view.contours() {
-        Ok(Some((c, edges))) => Some((doc::cont(doc::section(bytes, b"CONT").unwrap()).unwrap(), c, edges)),
-        _ => None,
-    };
-    let parts = view.parts().is_ok();
+    let envl = (view.envelope())
+        .map(|ev| (doc::envl(doc::section(bytes, b"ENVL").unwrap()).unwrap(), ev.culler(drivers).ok()));
+    let cont = view.contours().map(|(c, edges)| (doc::cont(doc::section(bytes, b"CONT").unwrap()).unwrap(), c, edges));
+    let parts = !view.parts().is_empty();
     let built_refused =
         (bnds.is_some() && bnds_culler.is_none()) as usize + envl.as_ref().is_some_and(|(_, c)| c.is_none()) as usize;
     count(&COUNTS.built_refused, built_refused);
@@ -1478,14 +1428,13 @@ fn the_documents_layout_reads_the_records_the_view_hands_out() {
     let bytes = &bytemuck::cast_slice::<u32, u8>(words)[..*len];
     let view = BakeView::new(bytes).unwrap();
     let bnds = doc::bnds(doc::section(bytes, b"BNDS").unwrap()).unwrap();
-    let records = view.meshlet_bounds().unwrap();
+    let records = view.meshlet_bounds();
     assert_eq!(bnds.len(), records.len());
     for (d, r) in bnds.iter().zip(records) {
         assert_eq!(d.center, Vec3::from(r.center).as_dvec3());
         assert_eq!((d.radius, d.angle, d.joint, d.class), (r.radius as f64, r.cone_angle as f64, r.joint, r.class));
     }
-    let weights = view.morphs().unwrap().map_or(0, |m| m.weights.len());
-    let ev = view.envelope(weights).unwrap().unwrap();
+    let ev = view.envelope().unwrap();
     let e = doc::envl(doc::section(bytes, b"ENVL").unwrap()).unwrap();
     assert_eq!(e.first_box, ev.box_offsets);
     assert!(
@@ -1495,7 +1444,7 @@ fn the_documents_layout_reads_the_records_the_view_hands_out() {
             .all(|(d, r)| d.center.as_vec3().to_array() == r[..3] && d.half.as_vec3().to_array() == r[3..])
     );
     assert!(e.bounds.iter().zip(ev.bounds).all(|(d, r)| d.radius == r.radius as f64 && d.joint == r.joint));
-    let (c, _) = view.contours().unwrap().unwrap();
+    let (c, _) = view.contours().unwrap();
     let cont = doc::cont(doc::section(bytes, b"CONT").unwrap()).unwrap();
     let p = &c.patches.patches;
     assert_eq!(cont.patches.len(), p.len());
@@ -1558,17 +1507,6 @@ fn every_decision_on_accepted_bytes_is_the_documents_in_f64() {
         "within margins, by test (frustum, backface, both, boxes, bounds and boxes, patches): {:?}",
         COUNTS.margin_by_test.each_ref().map(c)
     );
-    for (n, what) in [
-        (
-            c(&COUNTS.no_cone_long_axis),
-            "backface culls of meshlets without a cone whose stored axis is longer than 1 (Known::NoConeLongAxis)",
-        ),
-        (c(&COUNTS.patch_nan), "contour patches refused through a NaN past f32's range (Known::PatchNan)"),
-    ] {
-        if n > 0 {
-            eprintln!("KNOWN RUNTIME BUG (allowed; SKINLET_REFERENCE_STRICT=1 fails on it): {n} {what}");
-        }
-    }
     if let Err(e) = result {
         panic!("{e}");
     }
@@ -1593,11 +1531,10 @@ fn mutated(mutations: &[Mutation]) -> Vec<u32> {
     w
 }
 
-/// [`Known::NoConeLongAxis`], deterministic: a "frustum only" meshlet without a cone (half-angle
-/// π) whose stored axis has length 3 (FORMAT.md asks for a unit axis only below π/2, and the view
-/// accepts it) is backface-culled when it shares its joint with a meshlet that has a cone.
+/// Found by the f64 reference: a "frustum only" meshlet without a cone (half-angle π) whose
+/// stored axis has length 3 (FORMAT.md asks for a unit axis only below π/2, and the view accepts
+/// it) was backface-culled when it shared its joint with a meshlet that has a cone.
 #[test]
-#[ignore = "runtime bug found by the f64 reference (Known::NoConeLongAxis); fails until MeshletCuller ignores the axis of meshlets without a cone"]
 fn a_meshlet_without_a_cone_is_never_backface_culled() {
     let (words, len) = baked();
     let records = doc::bnds(doc::section(&bytemuck::cast_slice::<u32, u8>(words)[..*len], b"BNDS").unwrap()).unwrap();
@@ -1625,16 +1562,15 @@ fn a_meshlet_without_a_cone_is_never_backface_culled() {
     let c = records[i].center.as_vec3();
     // Identity joints; the eye 10 units from the center against the axis: `(c − e)·a = 30 ≥ 2·10 + 3r`.
     let camera = Camera::perspective(c - 10.0 * Vec3::X, c, Vec3::Y, 1.0, 1.0, 0.1, 100.0).unwrap();
-    let joints = vec![Affine3A::IDENTITY; view.joint_count().unwrap()];
+    let joints = vec![Affine3A::IDENTITY; view.joint_count()];
     let flags = run_culler(&culler, &joints, &camera, Prepare::Bounds(Tests::Backface));
     assert_eq!(flags[i] & 2, 0, "meshlet {i} (class 1, no cone) was backface-culled");
 }
 
-/// [`Known::PatchNan`], deterministic: a patch centred at (f32::MAX, f32::MAX, f32::MAX), whose
-/// cone (sin α = 0.95) the view direction meets at |a·s| = 0.9, may hold a contour edge
-/// (FORMAT.md accepts it), but the runtime refuses it through a NaN.
+/// Found by the f64 reference: a patch centred at (f32::MAX, f32::MAX, f32::MAX), whose cone
+/// (sin α = 0.95) the view direction meets at |a·s| = 0.9, may hold a contour edge (FORMAT.md
+/// accepts it), but the runtime refused it through a NaN.
 #[test]
-#[ignore = "runtime bug found by the f64 reference (Known::PatchNan); fails until PatchBounds::accepts_eye accepts on overflow"]
 fn a_far_patch_is_not_refused_through_a_nan() {
     let s = DVec3::ONE.normalize();
     let axis = 0.9 * s + (1.0f64 - 0.81).sqrt() * DVec3::new(1.0, -1.0, 0.0).normalize();
@@ -1646,15 +1582,15 @@ fn a_far_patch_is_not_refused_through_a_nan() {
     let (_, len) = baked();
     let bytes = &bytemuck::cast_slice::<u32, u8>(&w)[..*len];
     let view = BakeView::new(bytes).unwrap();
-    let (contours, edges) = view.contours().unwrap().expect("the view accepts the mutated patch");
+    let (contours, edges) = view.contours().expect("the view accepts the mutated patch");
     let cont = doc::cont(doc::section(bytes, b"CONT").unwrap()).unwrap();
     let p = cont.patches[0];
     let eye = doc::View::Eye(DVec3::ZERO);
     assert!(
         matches!(doc::patch_test(p.center, p.radius, p.axis, p.sin, p.cos, eye), doc::PatchTest::Value { value, .. } if value < -0.04)
     );
-    let globals = vec![DMat4::IDENTITY; view.joint_count().unwrap()];
+    let globals = vec![DMat4::IDENTITY; view.joint_count()];
     let mut out = Vec::new();
-    contours.patches.extract(&[], &edges, &globals, None, Projection::Perspective { eye: Vec3::ZERO }, &mut out);
+    contours.patches.extract(&[], edges, &globals, None, Projection::Perspective { eye: Vec3::ZERO }, &mut out);
     assert!(out.contains(&cont.order[p.first as usize]), "patch 0 was refused");
 }
