@@ -13,9 +13,19 @@
 // divided by their sum, as glTF allows and skinlet does (three's shaders use them as stored),
 // and rotation keys are normalized, as glTF requires them to be (some files are off by 1e-4;
 // three would turn a quaternion of length 0.9997 into a matrix that also scales).
+// Each part also carries `triangles`, the triangles three draws for it (its index count, or
+// vertex count without indices, over 3).
+//
+// Compressed files: meshopt views are decoded by three's MeshoptDecoder; Draco primitives by
+// the Draco decoder three ships (examples/jsm/libs/draco, Google's decoder compiled to
+// JavaScript), run in this process: three's DRACOLoader needs Web Workers, which node lacks,
+// so `dracoInProcess` below stands in for it with the same interface.
 import { readFileSync } from 'node:fs';
+import { createRequire } from 'node:module';
+import { fileURLToPath } from 'node:url';
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/examples/jsm/loaders/GLTFLoader.js';
+import { MeshoptDecoder } from 'three/examples/jsm/libs/meshopt_decoder.module.js';
 
 const [file, clipArg, ...timeArgs] = process.argv.slice(2);
 const times = timeArgs.map(Number);
@@ -38,8 +48,74 @@ function withoutImages(glb) {
   return out.buffer.slice(out.byteOffset, out.byteOffset + out.length);
 }
 
-const gltf = await new Promise((resolve, reject) =>
-  new GLTFLoader().parse(withoutImages(readFileSync(file)), '', resolve, reject));
+// The Draco decoder module, loaded on first use (an Emscripten script written for browsers
+// and CommonJS: evaluated with the `require` and `__dirname` it expects).
+let draco = null;
+async function dracoModule() {
+  if (!draco) {
+    const path = fileURLToPath(import.meta.resolve('three/examples/jsm/libs/draco/draco_decoder.js'));
+    const source = readFileSync(path, 'utf8');
+    const factory = new Function('require', '__dirname', `${source}\nreturn DracoDecoderModule;`);
+    draco = await factory(createRequire(path), path.slice(0, path.lastIndexOf('/')))();
+  }
+  return draco;
+}
+
+// Decodes one Draco stream into a BufferGeometry: `attributeIds` maps three's attribute name to
+// the stream's attribute id, `attributeTypes` to the typed array the glTF accessor declares.
+async function decodeDraco(bytes, attributeIds, attributeTypes) {
+  const d = await dracoModule();
+  const decoder = new d.Decoder();
+  const mesh = new d.Mesh();
+  try {
+    const status = decoder.DecodeArrayToMesh(new Int8Array(bytes), bytes.byteLength, mesh);
+    if (!status.ok() || mesh.ptr === 0) throw new Error(`Draco: ${status.error_msg()}`);
+    const geometry = new THREE.BufferGeometry();
+    const faces = mesh.num_faces();
+    const index = new Uint32Array(3 * faces);
+    const face = new d.DracoInt32Array();
+    for (let f = 0; f < faces; f++) {
+      decoder.GetFaceFromMesh(mesh, f, face);
+      for (let k = 0; k < 3; k++) index[3 * f + k] = face.GetValue(k);
+    }
+    d.destroy(face);
+    geometry.setIndex(new THREE.BufferAttribute(index, 1));
+    const readers = {
+      Float32Array: ['DracoFloat32Array', 'GetAttributeFloatForAllPoints'],
+      Int8Array: ['DracoInt8Array', 'GetAttributeInt8ForAllPoints'],
+      Uint8Array: ['DracoUInt8Array', 'GetAttributeUInt8ForAllPoints'],
+      Int16Array: ['DracoInt16Array', 'GetAttributeInt16ForAllPoints'],
+      Uint16Array: ['DracoUInt16Array', 'GetAttributeUInt16ForAllPoints'],
+      Uint32Array: ['DracoUInt32Array', 'GetAttributeUInt32ForAllPoints'],
+    };
+    for (const [name, id] of Object.entries(attributeIds)) {
+      const type = attributeTypes[name] ?? 'Float32Array';
+      const [arrayClass, getter] = readers[type];
+      const attribute = decoder.GetAttributeByUniqueId(mesh, id);
+      const values = new d[arrayClass]();
+      decoder[getter](mesh, attribute, values);
+      const out = new globalThis[type](values.size());
+      for (let i = 0; i < out.length; i++) out[i] = values.GetValue(i);
+      d.destroy(values);
+      geometry.setAttribute(name, new THREE.BufferAttribute(out, attribute.num_components()));
+    }
+    return geometry;
+  } finally {
+    d.destroy(mesh);
+    d.destroy(decoder);
+  }
+}
+
+// What GLTFLoader asks of a DRACOLoader.
+const dracoInProcess = {
+  preload() { return this; },
+  decodeDracoFile(bytes, onLoad, attributeIds, attributeTypes, _colorSpace, onError) {
+    return decodeDraco(bytes, attributeIds, attributeTypes).then(onLoad, onError);
+  },
+};
+
+const loader = new GLTFLoader().setMeshoptDecoder(MeshoptDecoder).setDRACOLoader(dracoInProcess);
+const gltf = await new Promise((resolve, reject) => loader.parse(withoutImages(readFileSync(file)), '', resolve, reject));
 const assoc = gltf.parser.associations;
 const scene = gltf.scene;
 const mixer = new THREE.AnimationMixer(scene);
@@ -109,7 +185,8 @@ for (const t of times) {
       positions[3 * i + 1] = p.y;
       positions[3 * i + 2] = p.z;
     }
-    parts.push({ node: nodeOf(o), mesh: a.meshes ?? null, primitive: a.primitives ?? null, positions });
+    const triangles = (geometry.index ? geometry.index.count : n) / 3;
+    parts.push({ node: nodeOf(o), mesh: a.meshes ?? null, primitive: a.primitives ?? null, triangles, positions });
   });
   out.push({ time: t, parts });
 }

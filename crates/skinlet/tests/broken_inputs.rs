@@ -853,6 +853,15 @@ fn sparse_accessors() {
     assert_eq!(g.positions[4], glam::Vec3::new(7., 8., 9.));
     assert_eq!(g.positions[3], glam::Vec3::ZERO);
 
+    // Neither a buffer view nor sparse values: all zeros, as glTF defines it (glTF
+    // Transform's `sparse` writes morph targets that move nothing so). The gltf crate's
+    // validation wants a buffer view here.
+    let mut m = morphed(&[0.5; 18]);
+    let t = m.accs.len() - 1;
+    m.accs[t].view = None;
+    let a = expect_ok("zeros.gltf", &m.gltf());
+    assert_eq!(a.meshes[0].primitives[0].targets[0].positions, vec![glam::Vec3::ZERO; 6]);
+
     // Index not below the count.
     let mut b = d.clone();
     let bad = b.view(&le_u16(&[6]));
@@ -1249,11 +1258,28 @@ fn broken_morph_targets() {
 #[test]
 fn required_extensions() {
     let (mut d, _) = Rig::base().build();
-    d.top = vec![
-        r#""extensionsUsed":["EXT_lights_image_based"]"#.into(),
-        r#""extensionsRequired":["EXT_lights_image_based"]"#.into(),
-    ];
-    expect_err("ext.gltf", &d.gltf(), &["extensionsRequired", "EXT_lights_image_based"]);
+    // Unknown ones could change the geometry (instances, animated pointers): refused by name.
+    for ext in ["EXT_mesh_gpu_instancing", "KHR_animation_pointer", "VENDOR_displacement"] {
+        d.top = vec![
+            format!(r#""extensionsUsed":["KHR_texture_basisu","{ext}"]"#),
+            format!(r#""extensionsRequired":["KHR_texture_basisu","{ext}"]"#),
+        ];
+        expect_err("ext.gltf", &d.gltf(), &["extensionsRequired", ext]);
+    }
+    // Textures, image formats, materials, lights: they change no geometry, required or not.
+    for ext in [
+        "KHR_texture_basisu",
+        "EXT_texture_webp",
+        "EXT_texture_avif",
+        "MSFT_texture_dds",
+        "KHR_materials_variants",
+        "KHR_materials_clearcoat",
+        "KHR_lights_punctual",
+        "EXT_lights_image_based",
+    ] {
+        d.top = vec![format!(r#""extensionsUsed":["{ext}"]"#), format!(r#""extensionsRequired":["{ext}"]"#)];
+        expect_ok(&format!("{ext}.gltf"), &d.gltf());
+    }
     d.top = vec![
         r#""extensionsUsed":["KHR_draco_mesh_compression"]"#.into(),
         r#""extensionsRequired":["KHR_draco_mesh_compression"]"#.into(),
@@ -1276,6 +1302,88 @@ fn required_extensions() {
         r#""extensionsRequired":["KHR_mesh_quantization"]"#.into(),
     ];
     expect_ok("quant.gltf", &d.gltf());
+}
+
+/// `extras` may hold any JSON value (glTF only recommends objects): on the root, nodes, meshes, primitives, accessors, skins and animations.
+#[test]
+fn extras_of_any_type() {
+    let (d, _) = Rig::base().build();
+    let kinds = [r#"{"id":1,"tags":["a"]}"#, r#"["extra",2]"#, r#""a string""#, "1.5", "true", "null"];
+    for (k, extra) in kinds.iter().enumerate() {
+        let mut b = d.clone();
+        b.top = vec![format!(r#""extras":{extra}"#)];
+        b.nodes.iter_mut().for_each(|n| *n = n.replacen('{', &format!(r#"{{"extras":{extra},"#), 1));
+        b.meshes[0] = b.meshes[0].replacen(r#""attributes":"#, &format!(r#""extras":{extra},"attributes":"#), 1);
+        b.meshes[0] = b.meshes[0].replacen('{', &format!(r#"{{"extras":{extra},"#), 1);
+        b.skins.iter_mut().for_each(|s| *s = s.replacen('{', &format!(r#"{{"extras":{extra},"#), 1));
+        b.animations.iter_mut().for_each(|a| *a = a.replacen('{', &format!(r#"{{"extras":{extra},"#), 1));
+        b.accs.iter_mut().for_each(|a| a.extra += &format!(r#","extras":{extra}"#));
+        let a = expect_ok(&format!("extras{k}.gltf"), &b.gltf());
+        assert_eq!(mesh0(&a).triangles.len(), 4);
+    }
+}
+
+/// What only says how a surface looks or where it is seen from never stops an import, even
+/// where the glTF crate's validation refuses it: textures whose image is only in an extension
+/// (`KHR_texture_basisu`, `EXT_texture_webp`, `EXT_texture_avif` write no `source`), missing
+/// or unreadable images, dangling texture, material, sampler and camera indices. Errors in
+/// the geometry are still errors, beside them too.
+#[test]
+fn appearance_never_stops_an_import() {
+    let (mut d, _) = Rig::base().build();
+    d.meshes[0] = d.meshes[0].replacen(r#""attributes":"#, r#""material":0,"attributes":"#, 1);
+    let body = d.nodes[0].clone();
+    // What gltfpack -tc writes: the KTX2 image only in the texture's extension.
+    d.top = vec![
+        r#""extensionsUsed":["KHR_texture_basisu"]"#.into(),
+        r#""extensionsRequired":["KHR_texture_basisu"]"#.into(),
+        r#""textures":[{"extensions":{"KHR_texture_basisu":{"source":0}}}]"#.into(),
+        r#""images":[{"uri":"body.ktx2","mimeType":"image/ktx2"}]"#.into(),
+        r#""materials":[{"pbrMetallicRoughness":{"baseColorTexture":{"index":0}}}]"#.into(),
+    ];
+    expect_ok("basisu.gltf", &d.gltf());
+    let look = |textures: &str, images: &str, materials: &str| {
+        vec![
+            r#""extensionsUsed":["KHR_texture_basisu","EXT_texture_webp","EXT_texture_avif","KHR_lights_punctual"]"#
+                .to_string(),
+            r#""extensionsRequired":["KHR_texture_basisu","EXT_texture_webp","EXT_texture_avif"]"#.to_string(),
+            format!(r#""textures":[{textures}]"#),
+            format!(r#""images":[{images}]"#),
+            format!(r#""materials":[{materials}]"#),
+            r#""samplers":[{"magFilter":1234,"wrapS":7}]"#.to_string(),
+            r#""cameras":[{"type":"fisheye"}]"#.to_string(),
+        ]
+    };
+    let material = r#"{"pbrMetallicRoughness":{"baseColorTexture":{"index":0}},"normalTexture":{"index":2}}"#;
+    let extension_only = [
+        r#"{"sampler":0,"extensions":{"KHR_texture_basisu":{"source":0}}}"#,
+        r#"{"extensions":{"EXT_texture_webp":{"source":1}}}"#,
+        r#"{"extensions":{"EXT_texture_avif":{"source":2}}}"#,
+    ]
+    .join(",");
+    let images = [
+        r#"{"uri":"no-such-file.ktx2","mimeType":"image/ktx2"}"#,
+        r#"{"uri":"data:image/webp;base64,bm90IGFuIGltYWdl","mimeType":"image/webp"}"#,
+        r#"{"bufferView":0,"mimeType":"image/avif"}"#,
+    ]
+    .join(",");
+    d.top = look(&extension_only, &images, material);
+    // A camera on the drawing node, a missing one on another.
+    d.nodes[0] = body.replacen('{', r#"{"camera":0,"#, 1);
+    let a = expect_ok("appearance.gltf", &d.gltf());
+    assert_eq!(mesh0(&a).triangles.len(), 4);
+    expect_ok("appearance.glb", &d.glb());
+    // Dangling indices: a texture's image, a material's texture, a primitive's material, a
+    // node's camera; an image with neither a URI nor a buffer view.
+    let mut b = d.clone();
+    b.top = look(r#"{"source":9,"sampler":4}"#, "{}", r#"{"emissiveTexture":{"index":5}}"#);
+    b.meshes[0] = b.meshes[0].replacen(r#""material":0"#, r#""material":3"#, 1);
+    b.nodes[0] = body.replacen('{', r#"{"camera":6,"#, 1);
+    expect_ok("dangling.gltf", &b.gltf());
+    // Geometry errors beside them are still reported.
+    let mut c = d.clone();
+    c.accs[0].view = Some(99);
+    expect_err("geometry.gltf", &c.gltf(), &["invalid glTF", "accessors[0].bufferView: Index out of bounds"]);
 }
 
 // ---------------------------------------------------------------------------------------

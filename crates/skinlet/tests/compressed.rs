@@ -175,6 +175,57 @@ fn draco_files_import_like_the_originals() {
     let _ = std::fs::remove_dir_all(&tmp);
 }
 
+/// The morph-target test through glTF Transform's `draco` (morph targets stay outside the
+/// Draco stream, in the order of the decoded points) and `sparse` (morph deltas and weight
+/// keys as sparse accessors, the all-zero targets as accessors without a buffer view): the
+/// weight channels read back as the original's, `sparse`'s targets too, and at 3 times of
+/// each clip the morphed mesh poses like the original within the position step (Draco: 14
+/// bits over each primitive's box), far less than the morphs move it.
+#[test]
+fn morph_targets_through_draco_and_sparse() {
+    let (Some(dir), Some(transform)) = (assets_dir(), tool("@gltf-transform/cli", "gltf-transform")) else { return };
+    let tmp = std::env::temp_dir().join(format!("skinlet-morphs-{}", std::process::id()));
+    std::fs::create_dir_all(&tmp).unwrap();
+    let src = dir.join("morph/MorphStressTest.gltf");
+    let original = skinlet::import::load(&src).unwrap();
+    for (command, tolerance) in [("draco", 2.0 * 3f32.sqrt() / 16384.0), ("sparse", 1e-6)] {
+        let out = tmp.join(format!("morph-{command}.glb"));
+        run(&transform, &[command, src.to_str().unwrap(), out.to_str().unwrap()]);
+        let bytes = std::fs::read(&out).unwrap();
+        let text =
+            String::from_utf8_lossy(&bytes[20..20 + u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize]);
+        let made = if command == "draco" { "KHR_draco_mesh_compression" } else { "\"sparse\"" };
+        assert!(text.contains(made) && text.contains("\"targets\""), "{command}: the tool did not write {made}");
+        let a = skinlet::import::load(&out).unwrap_or_else(|e| panic!("{command}: {e}"));
+        for (m0, m1) in original.meshes.iter().zip(&a.meshes) {
+            for (p0, p1) in m0.primitives.iter().zip(&m1.primitives) {
+                assert_eq!((p0.targets.len(), p1.targets.len()), (8, 8), "{command}");
+                // `sparse` keeps the vertex order, so the targets are the original's; Draco
+                // stores the vertices in another order (the morphed poses below compare them).
+                if command == "sparse" {
+                    assert!(p0.targets == p1.targets, "{command}: mesh {:?} primitive {}", m0.name, p0.index);
+                }
+            }
+        }
+        for (c0, c1) in original.clips.iter().zip(&a.clips) {
+            assert_eq!(c0.weights, c1.weights, "{command}: clip {}", c0.name);
+        }
+        same_shape(&format!("MorphStressTest ({command})"), &original, &a, None, tolerance);
+        for c in &original.clips {
+            for f in [0.13, 0.5, 0.87] {
+                same_shape(
+                    &format!("MorphStressTest ({command}, {})", c.name),
+                    &original,
+                    &a,
+                    Some(c.start + f * c.duration()),
+                    tolerance,
+                );
+            }
+        }
+    }
+    let _ = std::fs::remove_dir_all(&tmp);
+}
+
 #[test]
 fn corrupt_compressed_data_is_an_error_not_a_panic() {
     let Some(dir) = assets_dir() else { return };

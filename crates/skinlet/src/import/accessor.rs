@@ -190,7 +190,8 @@ fn read_f64(acc: &gltf::Accessor, buffers: &Buffers, loc: &str) -> Result<Vec<f6
             read_raw(bytes, acc.offset(), stride, count, n, ty, acc.normalized(), &mut out);
         }
         None => {
-            // All zeros (sparse values come next): only the budget bounds the count.
+            // No buffer view: zeros, as glTF defines it (sparse values, if any, come next);
+            // only the budget bounds the count.
             buffers.spend(count, n, loc)?;
             out.resize(count * n, 0.0);
         }

@@ -3,9 +3,13 @@
 //! compressed primitive names the accessors of its attributes and indices; their values come
 //! from the decoded Draco mesh instead of a buffer view, and the accessor reader hands them
 //! out like any other accessor's (glTF's rules on types, counts and normalization apply as
-//! usual). Sizes are bounded before decoding (the decoded attributes at most 4096× the
-//! compressed bytes, or 64 MiB), and a failed decode is an error naming the mesh and
-//! primitive; panics in the third-party decoder are contained.
+//! usual). Morph targets stay outside the stream, in plain accessors read as usual, one
+//! element per decoded point in the stream's order (the encoder must keep the two in step:
+//! glTF Transform encodes a primitive with morph targets sequentially, without merging
+//! points; three.js reads them the same way); a target whose count differs from the
+//! decoded points is an error. Sizes are bounded before decoding (the decoded attributes at
+//! most 4096× the compressed bytes, or 64 MiB), and a failed decode is an error naming the
+//! mesh and primitive; panics in the third-party decoder are contained.
 
 use crate::{Error, Result};
 use draco_core::{DecodeLimits, DecoderBuffer, FaceIndex, Mesh, MeshDecoder};
@@ -22,9 +26,6 @@ pub(crate) fn decode_primitives(doc: &gltf::Document, buffers: &[Vec<u8>]) -> Re
         for p in mesh.primitives() {
             let Some(ext) = p.extensions().and_then(|e| e.get(EXTENSION)) else { continue };
             let loc = format!("mesh {} primitive {} ({EXTENSION})", mesh.index(), p.index());
-            if p.morph_targets().next().is_some() {
-                return Err(Error::unsupported(&loc, "morph targets on a Draco-compressed primitive"));
-            }
             if p.mode() != gltf::mesh::Mode::Triangles {
                 return Err(Error::unsupported(&loc, format!("a compressed primitive of mode {:?}", p.mode())));
             }

@@ -18,9 +18,35 @@ use gltf::mesh::Mode;
 use std::collections::HashSet;
 use std::path::Path;
 
-/// Extensions that do not change geometry, skins or animation: safe to ignore when required.
-const HARMLESS_EXTENSIONS: &[&str] =
-    &["KHR_texture_transform", "KHR_materials_", "KHR_mesh_quantization", "KHR_texture_basisu"];
+/// Extensions that do not change geometry, skins or animation: safe to ignore when required
+/// (names, or prefixes ending in `_`). Textures and their image formats, materials (variants
+/// included), lights and metadata; quantization only widens the accessor types, which the
+/// accessor reader handles. Any other required extension is refused by name: skinlet cannot
+/// know that it leaves the geometry alone.
+const HARMLESS_EXTENSIONS: &[&str] = &[
+    "KHR_texture_transform",
+    "KHR_texture_basisu",
+    "EXT_texture_webp",
+    "EXT_texture_avif",
+    "MSFT_texture_dds",
+    "KHR_materials_",
+    "KHR_lights_punctual",
+    "EXT_lights_image_based",
+    "KHR_xmp_json_ld",
+    "KHR_mesh_quantization",
+];
+
+/// True for a validation error's JSON path inside what only says how a surface looks
+/// (textures, images, samplers, materials) or where it is seen from (cameras), or in a
+/// reference to them: skinlet never reads these, so an error there (a texture whose image
+/// is only in an extension, as `KHR_texture_basisu` writes it; a dangling material index)
+/// cannot change what it bakes.
+fn appearance_only(path: &str) -> bool {
+    let top = ["textures[", "images[", "samplers[", "materials[", "cameras["];
+    top.iter().any(|t| path.starts_with(t))
+        || (path.starts_with("meshes[") && path.ends_with(".material"))
+        || (path.starts_with("nodes[") && path.ends_with(".camera"))
+}
 
 /// Parses a .glb or .gltf file held in memory. `base_dir` resolves external buffer URIs.
 pub fn load_gltf_slice(bytes: &[u8], base_dir: Option<&Path>) -> Result<Asset> {
@@ -50,7 +76,8 @@ pub fn load_gltf_slice(bytes: &[u8], base_dir: Option<&Path>) -> Result<Asset> {
 /// parser panics on a header length below 12 and says little about truncation), POSITION
 /// accessor indices (its validator indexes with them unchecked), animation channel targets
 /// (not validated at all, and unwrapped by its accessors) and required extensions (it
-/// rejects the harmless ones skinlet accepts).
+/// rejects the harmless ones skinlet accepts). Its errors about textures, images, samplers,
+/// materials and cameras are dropped ([`appearance_only`]).
 fn parse(bytes: &[u8]) -> Result<gltf::Gltf> {
     use gltf::json::validation::{Checked, Validate};
     if bytes.is_empty() {
@@ -84,17 +111,22 @@ fn parse(bytes: &[u8]) -> Result<gltf::Gltf> {
     }
     let mut errors = Vec::new();
     std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        root.validate(root, gltf::json::Path::new, &mut |path, e| errors.push(format!("{}: {e}", path())))
+        root.validate(root, gltf::json::Path::new, &mut |path, e| {
+            let path = path().to_string();
+            // Already decided above: the required extensions left are harmless. The gltf
+            // crate wants a bufferView on every accessor that is not sparse, but glTF says
+            // an accessor without one is zeros (glTF Transform's `sparse` writes all-zero
+            // morph targets so), and a Draco-compressed primitive's accessors have none:
+            // their values come from the decoded stream.
+            let zeros = e == gltf::json::validation::Error::Missing
+                && path.starts_with("accessors[")
+                && path.ends_with("].bufferView");
+            if !appearance_only(&path) && !zeros && !path.starts_with("extensionsRequired") {
+                errors.push(format!("{path}: {e}"));
+            }
+        })
     }))
     .map_err(contained)?;
-    // Already decided above: the required extensions left are harmless. The gltf crate wants
-    // a bufferView on every accessor that is not sparse, but a Draco-compressed primitive's
-    // accessors have none: their values come from the decoded stream.
-    let draco: Vec<String> = (root.meshes.iter().flat_map(|m| &m.primitives))
-        .filter(|p| p.extensions.as_ref().is_some_and(|e| e.others.contains_key(super::draco::EXTENSION)))
-        .flat_map(|p| p.attributes.values().chain(&p.indices).map(|a| format!("accessors[{}].bufferView:", a.value())))
-        .collect();
-    errors.retain(|e| !e.starts_with("extensionsRequired") && !draco.iter().any(|d| e.starts_with(d.as_str())));
     if !errors.is_empty() {
         let more = if errors.len() > 8 { format!("; and {} more", errors.len() - 8) } else { String::new() };
         errors.truncate(8);
