@@ -264,7 +264,9 @@ impl<'a> BakeView<'a> {
         let part_windows =
             find(b"PWIN").map(|s| read_part_windows(s, parts.len(), info.clips.len(), drivers)).transpose()?;
         let overdraw = find(b"OVDR").map(|s| Orders::read(s, triangles, parts, info.clips.len())).transpose()?;
-        let contours = find(b"CONT").map(|s| read_contours(s, &vertices, morphs, triangles, drivers)).transpose()?;
+        let contours = (find(b"CONT"))
+            .map(|s| read_contours(s, &vertices, morphs, triangles, drivers, info.clips.len()))
+            .transpose()?;
         Ok(BakeView {
             sections,
             info,
@@ -351,7 +353,7 @@ impl<'a> BakeView<'a> {
         MeshletCuller::new(&bounds, &classes, self.joint_count())
     }
 
-    /// The morph targets of `MRPH` ([`MorphView::check`]), if some vertex has a delta.
+    /// The morph targets of `MRPH` ([`MorphView::check`]), if the file has the section.
     pub fn morphs(&self) -> Option<MorphView<'a>> {
         self.morphs
     }
@@ -748,8 +750,10 @@ fn read_part_windows(b: &[u8], parts_want: usize, clips_want: usize, drivers: us
     let mut list = Vec::with_capacity(clips);
     for c in 0..clips {
         let w = ClipWindows { start: s.f32()?, end: s.f32()?, count: s.u32()?, first: s.u32()? };
+        // Every earlier clip's windows end within `windows` (checked below), so this adds.
         let first = list.last().map_or(0, |p: &ClipWindows| p.first + p.count);
-        if !(w.start <= w.end && w.count >= 1 && w.first == first) {
+        let end = w.first.checked_add(w.count).filter(|&e| e as usize <= windows);
+        if !(w.start <= w.end && w.count >= 1 && w.first == first && end.is_some()) {
             return Err(s.err(format!("clip {c}: windows {w:?} (the next window is {first})")));
         }
         list.push(w);
@@ -777,13 +781,15 @@ fn read_part_windows(b: &[u8], parts_want: usize, clips_want: usize, drivers: us
     Ok(BakedPartWindows { clips: list, anchors, boxes })
 }
 
-/// `CONT` with the edges its quads index, rebuilt from the vertices and triangles.
+/// `CONT` with the edges its quads index, rebuilt from the vertices and triangles; one set of
+/// windows per baked clip.
 fn read_contours(
     s: &[u8],
     vertices: &VertexView,
     morphs: Option<MorphView>,
     triangles: &[[u32; 3]],
     drivers: usize,
+    clips: usize,
 ) -> Result<(BakedContours, Edges)> {
     let rigid = if BakedContours::visible_only(s)? {
         let morphed = |v: usize| morphs.is_some_and(|m| !m.of(v).is_empty());
@@ -793,7 +799,12 @@ fn read_contours(
     };
     let edges = skinned_edges(vertices.positions, triangles, rigid.as_deref())
         .map_err(|e| Error::invalid("bake section CONT", e.to_string()))?;
-    Ok((BakedContours::read(s, &edges, drivers)?, edges))
+    let contours = BakedContours::read(s, &edges, drivers)?;
+    if contours.patches.clips.len() != clips {
+        let n = contours.patches.clips.len();
+        return Err(Error::invalid("bake section CONT", format!("{n} clips, where INFO has {clips}")));
+    }
+    Ok((contours, edges))
 }
 
 /// The prepared vertices of `VERT`, as slices of the file's bytes.
@@ -1035,7 +1046,7 @@ pub struct BakedPartWindows {
 impl BakedPartWindows {
     /// Windows of all clips.
     pub fn windows(&self) -> usize {
-        self.clips.last().map_or(0, |c| (c.first + c.count) as usize)
+        self.clips.last().map_or(0, |c| c.first.saturating_add(c.count) as usize)
     }
 }
 

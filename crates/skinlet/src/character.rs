@@ -258,7 +258,9 @@ pub fn character(asset: &Asset, scene: Option<usize>) -> Result<Character> {
         morphs.offsets.resize(vertices as usize + 1, morphs.deltas.len() as u32);
         mesh.morphs = morphs;
     } else {
-        mesh.morphs = Morphs { weights: morphs.weights, ..Morphs::default() };
+        // Targets that move no vertex (all-zero deltas, as glTF Transform's `sparse` writes
+        // them) leave no weights either: nothing they set changes the character.
+        mesh.morphs = Morphs::default();
     }
     let name = match asset.skins.len() {
         1 => asset.skins[0].name.clone(),

@@ -254,8 +254,19 @@ impl Morphs {
     pub fn check(&self, vertices: usize) -> crate::Result<()> {
         match self.view() {
             Some(view) => Ok(view.check(vertices)?),
-            None if self.offsets.is_empty() || self.offsets.iter().all(|&o| o == 0) => Ok(()),
-            None => Err(crate::Error::invalid("morph targets", "vertex offsets without deltas")),
+            // No deltas: no offsets, or one zero per vertex and one more.
+            None if !(self.offsets.is_empty()
+                || self.offsets.len() == vertices + 1 && self.offsets.iter().all(|&o| o == 0)) =>
+            {
+                Err(crate::Error::invalid(
+                    "morph targets",
+                    format!("{} vertex offsets without deltas", self.offsets.len()),
+                ))
+            }
+            None if self.weights.iter().any(|w| !w.default.is_finite()) => {
+                Err(crate::Error::invalid("morph targets", "a morph weight's default is not finite"))
+            }
+            None => Ok(()),
         }
     }
 }

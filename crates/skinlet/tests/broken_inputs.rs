@@ -861,6 +861,19 @@ fn sparse_accessors() {
     m.accs[t].view = None;
     let a = expect_ok("zeros.gltf", &m.gltf());
     assert_eq!(a.meshes[0].primitives[0].targets[0].positions, vec![glam::Vec3::ZERO; 6]);
+    // A target that moves nothing leaves the character no morph weights, so a bake with an
+    // envelope (one range per weight) reads back.
+    let c = a.character().unwrap();
+    assert!(c.mesh.morphs.weights.is_empty() && c.mesh.morphs.is_empty());
+    let clips: Vec<_> = a.clips.iter().collect();
+    let (builder, limits, how) =
+        (skinlet::meshlet::Builder::SkinAware, Default::default(), skinlet::bounds::refine::Refinement::NONE);
+    let mut baked = skinlet::bake::bake(&a, &c, &clips, builder, limits, &how, &mut |_| {}).unwrap().0;
+    let envelope =
+        skinlet::bounds::envelope::Envelope::from_clips(&a.skeleton, &baked.palette(), &baked.mesh, &clips, 0.1)
+            .unwrap();
+    skinlet::bake::add_envelope(&mut baked, &a, envelope).unwrap();
+    assert_eq!(skinlet::bake::from_bytes(&skinlet::bake::to_bytes(&baked)).unwrap(), baked);
 
     // Index not below the count.
     let mut b = d.clone();

@@ -118,6 +118,18 @@ mod bake {
         damaged(pwin.len() - 4, f32::NAN.to_le_bytes(), "non-finite");
         damaged(pwin.len() - 4, (-1e30f32).to_le_bytes(), "box");
         assert!(from_bytes(&bytes[..pwin.end - 4]).is_err());
+        // Window counts whose sum wraps around u32 to the right total (clip 0: 2³² − 1
+        // windows; clip 1 from there, ending where clip 2 starts): refused, not a panic and
+        // not windows of one part read as another's.
+        assert!(clips >= 2, "the demo has several clips");
+        let next = if clips > 2 { w.clips[2].first } else { w.windows() as u32 };
+        let mut bad = bytes.clone();
+        let mut put = |at: usize, x: u32| bad[pwin.start + at..pwin.start + at + 4].copy_from_slice(&x.to_le_bytes());
+        put(16 + 8, u32::MAX);
+        put(16 + 16 + 12, u32::MAX);
+        put(16 + 16 + 8, next.wrapping_add(1));
+        let e = from_bytes(&bad).unwrap_err().to_string();
+        assert!(e.contains("PWIN") && e.contains("clip 0: windows"), "{e}");
     }
 
     /// Byte offset of meshlet `i`'s `BNDS` record.

@@ -38,7 +38,7 @@
 //! randomness, ties broken by index).
 
 use super::stats::principal_joint;
-use super::{MeshletLimits, Meshlets, PartRange, greedy, skin_aware};
+use super::{Builder, MeshletLimits, Meshlets, PartRange, greedy, skin_aware};
 use crate::Result;
 use crate::bounds::cone::{min_cos, reference_axis};
 use crate::clip::Clip;
@@ -50,8 +50,9 @@ use std::collections::BinaryHeap;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Params {
     pub skin_aware: skin_aware::Params,
-    /// At most this many times meshoptimizer's meshlet count on the same mesh, or the
-    /// skin-aware builder's count where that is more.
+    /// The cuts stop at this many times meshoptimizer's meshlet count on the same mesh, or
+    /// the skin-aware builder's count where that is more (a part that keeps another
+    /// builder's meshlets may exceed it).
     pub budget: f32,
 }
 
@@ -187,7 +188,7 @@ pub fn build_parts(
         let part = mesh.slice(p.vertices.clone(), p.triangles.clone());
         let local = Shape { mesh: &part, motion, offset: p.vertices.start as usize };
         let mut best = (total_work(shape, &own), own, 0);
-        for other in other_builders(&part, limits, params) {
+        for other in other_builders(&part, limits) {
             let work = total_work(local, &other);
             if work < best.0 {
                 best = (work, other, p.vertices.start);
@@ -198,19 +199,11 @@ pub fn build_parts(
     out
 }
 
-/// The other builders' meshlets of one part (its own vertex numbering): scan,
-/// common-influences, meshopt, skin-aware, meshopt-flex and meshopt-spatial, as
+/// The other builders' meshlets of one part (its own vertex numbering), as
 /// [`super::build`] makes them.
-fn other_builders(part: &SkinnedMesh, limits: MeshletLimits, params: &Params) -> [Meshlets; 6] {
-    let (tris, positions) = (&part.triangles, &part.positions);
-    [
-        super::scan::build(tris, positions.len(), limits),
-        super::common_influences::build(part, limits),
-        greedy::build(tris, positions, limits, greedy::CONE_WEIGHT),
-        skin_aware::build(part, limits, &params.skin_aware),
-        greedy::build_with(tris, positions, limits, greedy::FLEX),
-        greedy::build_with(tris, positions, limits, greedy::SPATIAL),
-    ]
+fn other_builders(part: &SkinnedMesh, limits: MeshletLimits) -> impl Iterator<Item = Meshlets> + '_ {
+    (Builder::ALL.into_iter().filter(|&b| b != Builder::ConeSplit))
+        .map(move |b| super::build_one(part, b, limits, None))
 }
 
 /// The unit face normal of a triangle (none when degenerate).
@@ -538,7 +531,7 @@ mod tests {
             let ours = build(&mesh, limits, &params, Some(&motion));
             ours.validate(&mesh.triangles, limits).unwrap();
             proptest::prop_assert_eq!(&ours, &build(&mesh, limits, &params, Some(&motion)));
-            let others = other_builders(&mesh, limits, &params);
+            let others: Vec<Meshlets> = other_builders(&mesh, limits).collect();
             let (reference, base) = (&others[2], &others[3]);
             let within = ours.len() as f32 <= params.budget * reference.len() as f32 || ours.len() == base.len();
             proptest::prop_assert!(within || others.contains(&ours));

@@ -236,16 +236,7 @@ pub fn build_moving(
 ) -> Result<Meshlets> {
     limits.check()?;
     let mesh = &prepared.mesh;
-    let one = |mesh: &crate::model::SkinnedMesh| match builder {
-        Builder::Scan => scan::build(&mesh.triangles, mesh.positions.len(), limits),
-        Builder::CommonInfluences => common_influences::build(mesh, limits),
-        Builder::Meshopt => greedy::build(&mesh.triangles, &mesh.positions, limits, greedy::CONE_WEIGHT),
-        Builder::SkinAware => skin_aware::build(mesh, limits, &skin_aware::Params::default()),
-        // One part; several go through `build_parts` below (one budget over all of them).
-        Builder::ConeSplit => cone_split::build(mesh, limits, &cone_split::Params::default(), motion),
-        Builder::MeshoptFlex => greedy::build_with(&mesh.triangles, &mesh.positions, limits, greedy::FLEX),
-        Builder::MeshoptSpatial => greedy::build_with(&mesh.triangles, &mesh.positions, limits, greedy::SPATIAL),
-    };
+    let one = |mesh: &crate::model::SkinnedMesh| build_one(mesh, builder, limits, motion);
     let mut meshlets = if prepared.parts.len() <= 1 {
         one(mesh)
     } else if builder == Builder::ConeSplit {
@@ -261,6 +252,25 @@ pub fn build_moving(
         annotate_joint_sets(&mut meshlets, inf);
     }
     Ok(meshlets)
+}
+
+/// The meshlets of a mesh that is one part, by `builder` (defaults for its parameters).
+pub(crate) fn build_one(
+    mesh: &crate::model::SkinnedMesh,
+    builder: Builder,
+    limits: MeshletLimits,
+    motion: Option<&cone_split::Motion>,
+) -> Meshlets {
+    match builder {
+        Builder::Scan => scan::build(&mesh.triangles, mesh.positions.len(), limits),
+        Builder::CommonInfluences => common_influences::build(mesh, limits),
+        Builder::Meshopt => greedy::build(&mesh.triangles, &mesh.positions, limits, greedy::CONE_WEIGHT),
+        Builder::SkinAware => skin_aware::build(mesh, limits, &skin_aware::Params::default()),
+        // One part; several go through `build_parts` (one budget over all of them).
+        Builder::ConeSplit => cone_split::build(mesh, limits, &cone_split::Params::default(), motion),
+        Builder::MeshoptFlex => greedy::build_with(&mesh.triangles, &mesh.positions, limits, greedy::FLEX),
+        Builder::MeshoptSpatial => greedy::build_with(&mesh.triangles, &mesh.positions, limits, greedy::SPATIAL),
+    }
 }
 
 /// The poses [`build_moving`] reads for `builder` over `clips` (about 48 in all, 2 to 8 per
