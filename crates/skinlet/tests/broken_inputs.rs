@@ -8,6 +8,7 @@
 //! those tests print a note and pass when the folder is missing.
 
 mod common;
+use common::SplitMix as Rng;
 use common::assets_dir;
 
 use base64::Engine as _;
@@ -404,20 +405,8 @@ fn asset(rel: &str) -> Option<Vec<u8>> {
     }
 }
 
-/// SplitMix64: small, seeded, reproducible.
-struct Rng(u64);
-
+/// Random bytes.
 impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n as u64) as usize
-    }
     fn bytes(&mut self, n: usize) -> Vec<u8> {
         (0..n).map(|_| self.next() as u8).collect()
     }

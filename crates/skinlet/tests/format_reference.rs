@@ -19,6 +19,9 @@
 //! reverse-Z). The test prints the cases run, how many mutated bakes the view accepted, the
 //! decisions compared and the disagreements allowed, by reason; `PROPTEST_CASES` runs more.
 
+mod common;
+
+use common::SplitMix as Rng;
 use glam::{Affine3A, DMat3, DMat4, DQuat, DVec3, Mat4, Vec3};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, TestCaseError, TestRunner};
@@ -192,9 +195,7 @@ mod doc {
         Some(Envl { bounds, first_box, boxes })
     }
 
-    /// Where `CONT`'s patch records start. FORMAT.md said "`u32` ×6 …, `f64` ×4, 16 zero bytes",
-    /// which puts them at 24 + 32 + 16 = 72; the baker writes and the runtime reads them at 64
-    /// (8 zero bytes), so the document was corrected to "8 zero bytes".
+    /// Where `CONT`'s patch records start: `u32` ×6, `f64` ×4, 8 zero bytes.
     pub const PATCHES_AT: usize = 24 + 32 + 8;
     pub const PATCH: usize = 48;
 
@@ -893,26 +894,8 @@ impl Layout {
     }
 }
 
-/// A small deterministic generator for the world of a case (joint matrices, cameras, times).
-struct Rng(u64);
-
+/// Directions and rotations for the world of a case.
 impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    fn unit(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.unit()
-    }
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n as u64) as usize
-    }
     fn dir(&mut self) -> DVec3 {
         loop {
             let v = DVec3::new(self.range(-1.0, 1.0), self.range(-1.0, 1.0), self.range(-1.0, 1.0));
