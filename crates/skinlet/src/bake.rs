@@ -616,7 +616,7 @@ pub fn check_consumers(b: &Baked) -> Result<()> {
     // The per-part boxes an engine culls entities with, as a game reads them, for every kind
     // of pose (every clip at its start and past its end).
     let bytes = to_bytes(b);
-    let words: Vec<u32> = bytemuck::pod_collect_to_vec(&[&bytes[..], &[0; 3][..(4 - bytes.len() % 4) % 4]].concat());
+    let words = aligned_words(&bytes);
     let parts = PartBounds::new(&BakeView::new(&bytemuck::cast_slice::<u32, u8>(&words)[..bytes.len()])?)?;
     let clips = (0..b.settings.clips.len() as u32)
         .flat_map(|clip| [0.0, f32::MAX].map(|time| PoseBounds::ClipAt { clip, time }));
@@ -628,6 +628,12 @@ pub fn check_consumers(b: &Baked) -> Result<()> {
     Ok(())
 }
 
+/// `bytes` in 4-byte aligned storage, zero-padded to whole words: what the runtime's views
+/// read.
+pub(crate) fn aligned_words(bytes: &[u8]) -> Vec<u32> {
+    bytemuck::pod_collect_to_vec(&[bytes, &[0; 3][..(4 - bytes.len() % 4) % 4]].concat())
+}
+
 /// Parses and checks bake file bytes: everything [`BakeView::new`] checks, then the baker's
 /// own rules (the meshlets hold exactly the triangles).
 pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
@@ -637,7 +643,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
     let bytes = if (bytes.as_ptr() as usize).is_multiple_of(4) {
         bytes
     } else {
-        copy = bytemuck::pod_collect_to_vec(&[bytes, &[0; 3][..(4 - bytes.len() % 4) % 4]].concat());
+        copy = aligned_words(bytes);
         &bytemuck::cast_slice::<u32, u8>(&copy)[..bytes.len()]
     };
     let view = BakeView::new(bytes)?;

@@ -75,7 +75,7 @@ pub fn byte_len(m: &Meshlets) -> usize {
 /// Parses the layout through the runtime's view of it ([`MeshletView::new`] and
 /// [`MeshletView::check`] against the largest limits and any vertex count).
 pub fn from_bytes(b: &[u8]) -> Result<Meshlets> {
-    let words: Vec<u32> = bytemuck::pod_collect_to_vec(&[b, &[0; 3][..(4 - b.len() % 4) % 4]].concat());
+    let words = crate::bake::aligned_words(b);
     let view = MeshletView::new(&bytemuck::cast_slice::<u32, u8>(&words)[..b.len()])?;
     view.check(usize::MAX, [256, 512])?;
     Ok(Meshlets::from_view(&view))
