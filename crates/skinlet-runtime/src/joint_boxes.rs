@@ -82,6 +82,8 @@ pub struct Box3 {
 
 impl Box3 {
     pub const EMPTY: Box3 = Box3 { min: Vec3::INFINITY, max: Vec3::NEG_INFINITY };
+    /// The infinite box, which no frustum misses: what a box that cannot be bounded gives.
+    pub const ALL: Box3 = Box3 { min: Vec3::NEG_INFINITY, max: Vec3::INFINITY };
 
     pub fn contains(&self, p: Vec3) -> bool {
         p.cmpge(self.min).all() && p.cmple(self.max).all()
@@ -173,7 +175,7 @@ impl JointBoxes {
         let mut out = [Box3::EMPTY];
         match self.update_all(matrices, matrices.len(), &mut out) {
             Ok(()) => out[0],
-            Err(_) => Box3 { min: Vec3::NEG_INFINITY, max: Vec3::INFINITY },
+            Err(_) => Box3::ALL,
         }
     }
 

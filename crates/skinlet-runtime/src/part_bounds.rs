@@ -113,9 +113,6 @@ pub struct PartBounds {
     window_count: usize,
 }
 
-/// The box no frustum misses: what nothing known gives.
-const ALL: Box3 = Box3 { min: Vec3::NEG_INFINITY, max: Vec3::INFINITY };
-
 /// The relative margin that covers the f32 rounding of moving a box (a few ulps, ~1e-7).
 const MOVE_MARGIN: f32 = 1e-5;
 
@@ -375,9 +372,9 @@ impl PartBounds {
         morph_weights: &[f32],
         pose: PoseBounds,
     ) -> Box3 {
-        let Some(r) = self.ranges.get(part) else { return ALL };
+        let Some(r) = self.ranges.get(part) else { return Box3::ALL };
         if joint_globals.len() < self.drivers || morph_weights.len() < self.weights {
-            return ALL;
+            return Box3::ALL;
         }
         if let PoseBounds::ClipAt { clip, time } = pose
             && let Some(w) = self.window(clip, time)
@@ -396,7 +393,7 @@ impl PartBounds {
         let (Some(&(anchor, inverse_bind)), Some(b)) =
             (self.anchors.get(part), self.windows.get(part * self.window_count + w))
         else {
-            return ALL;
+            return Box3::ALL;
         };
         let g = joint_globals[anchor as usize];
         let m = *to_target * g * inverse_bind;
@@ -407,7 +404,7 @@ impl PartBounds {
             + a.z_axis.abs() * b.half.z
             + abs_move(to_target, abs_move(&g, b.reach)) * MOVE_MARGIN;
         let (lo, hi) = (center - half, center + half);
-        if lo.is_finite() && hi.is_finite() { Box3 { min: lo.into(), max: hi.into() } } else { ALL }
+        if lo.is_finite() && hi.is_finite() { Box3 { min: lo.into(), max: hi.into() } } else { Box3::ALL }
     }
 
     /// The boxes `range`, moved and morphed, and their union.
@@ -441,7 +438,7 @@ impl PartBounds {
         if magnitude.is_finite() && lo.is_finite() && hi.is_finite() {
             Box3 { min: lo.into(), max: hi.into() }
         } else {
-            ALL
+            Box3::ALL
         }
     }
 }
