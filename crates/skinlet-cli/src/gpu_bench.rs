@@ -1,6 +1,15 @@
-//! `skinlet gpu-bench`: the paper's crowd scene (fig. 10) drawn on the GPU by each skinning
-//! pipeline (vertex, compute, mesh shader, mesh shader with common-influences slim meshlets)
-//! and each culling pipeline (none, frustum, backface, both), timed with GPU timestamps.
+//! `skinlet gpu-bench`: a crowd (the paper's scene, fig. 10, or a dense street-level one)
+//! drawn on the GPU by each skinning pipeline (vertex, compute, mesh shader, mesh shader with
+//! common-influences slim meshlets) and each culling pipeline (none, frustum, backface, both),
+//! timed with GPU timestamps.
+//!
+//! Vertex skinning is drawn GPU-driven (`skinlet_lab::gpu_crowd` on
+//! `skinlet_gpu::crowd_culling`): culling prepared and run on the GPU, the survivors drawn
+//! with one call (pulled; `VS-indexed`: one indexed multi-draw with a GPU count). Mesh-shader
+//! skinning is culled in task shaders from per-instance culling prepared on the CPU. Per row:
+//! meshlets drawn, draw calls issued per frame, and whether the image equals the unculled one
+//! (up to depth ties between meshlets, where draw order picks the color); per frame the
+//! meshlets with a visible fragment in the unculled ID buffer, the limit no culling beats.
 //!
 //! After one untimed warm-up round over every configuration, each repeat measures every
 //! configuration once, forwards on even repeats and backwards on odd ones (A B C … C B A), so
@@ -16,10 +25,12 @@ use glam::{Affine3A, Vec3};
 use serde_json::json;
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::global_transforms;
+use skinlet_gpu::crowd_culling::CullMode;
 use skinlet_gpu::mesh::{GpuMesh, Pose};
-use skinlet_lab::crowd::{Animation, CrowdParams, instance_pose, posed_crowd};
+use skinlet_lab::crowd::{Animation, CrowdParams, Layout, instance_pose, posed_crowd};
+use skinlet_lab::gpu_crowd::{CrowdFrame, CrowdView, GpuCrowd};
 use skinlet_lab::headless::{self, GpuOptions};
-use skinlet_lab::render::{CrowdDraw, Culling, PosedInstance, Renderer, Skinning};
+use skinlet_lab::render::{CrowdDraw, Culling, Image, PosedInstance, Renderer, Skinning};
 use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller, Tests};
 
 #[derive(clap::Args)]
@@ -27,8 +38,13 @@ pub struct Args {
     /// The glTF file a bake was made from (required with a bake file).
     #[arg(long)]
     gltf: Option<String>,
-    #[arg(long, default_value_t = 64)]
-    instances: usize,
+    /// The crowd: `paper` (the conservative-bounds paper's, seen from above) or `dense`
+    /// (rows of characters seen from street level: mostly hidden behind nearer ones).
+    #[arg(long, default_value = "paper", value_parser = ["paper", "dense"])]
+    crowd: String,
+    /// Instances (default: 64 for the paper's crowd, 1,024 for the dense one).
+    #[arg(long)]
+    instances: Option<usize>,
     /// Timed frames per configuration and repeat.
     #[arg(long, default_value_t = 3)]
     frames: usize,
@@ -71,7 +87,8 @@ struct InstancePose {
     boxes: bool,
 }
 
-/// One configuration: a skinning pipeline (with its mesh, culler and bake) and a culling.
+/// One configuration: a skinning pipeline (with its mesh, culler and bake) and a culling,
+/// drawn by skinlet's renderer (task culling) or by the GPU-driven crowd (`view`).
 struct Config<'a> {
     pipeline: &'static str,
     skinning: Skinning,
@@ -81,6 +98,17 @@ struct Config<'a> {
     culling: &'static str,
     tests: Option<Tests>,
     path: Option<Culling>,
+    view: Option<CrowdView>,
+}
+
+/// One drawn frame of a configuration.
+struct Frame {
+    image: Image,
+    gpu_ms: Option<f64>,
+    triangles: u64,
+    meshlets: u64,
+    draw_calls: u32,
+    wall_ms: f64,
 }
 
 /// A median with the range it came from.
@@ -119,11 +147,17 @@ struct Row {
     culled_pct: Option<f64>,
     /// Triangles drawn per frame.
     triangles: u64,
+    /// Meshlets drawn per frame (mean over timed frames).
+    meshlets_drawn: f64,
+    /// API draw calls per frame.
+    draws_issued: u32,
+    /// The warm-up frame's image equals the unculled one (up to depth ties).
+    image_equal: bool,
 }
 
 pub fn command(file: &str, a: &Args) -> Result<()> {
     anyhow::ensure!(
-        a.instances >= 1 && a.frames >= 1 && a.repeats >= 1,
+        a.instances != Some(0) && a.frames >= 1 && a.repeats >= 1,
         "--instances, --frames and --repeats must be at least 1"
     );
     anyhow::ensure!((64..=8192).contains(&a.width), "--width must be between 64 and 8192");
@@ -148,7 +182,9 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     }
     let palette = baked.palette();
     let skin = &palette;
-    let params = CrowdParams { instances: a.instances, frames: a.frames + 1, animation, ..CrowdParams::default() };
+    let layout = if a.crowd == "dense" { Layout::Dense } else { Layout::Paper };
+    let instances = a.instances.unwrap_or(if layout == Layout::Dense { 1024 } else { 64 });
+    let params = CrowdParams { instances, frames: a.frames + 1, animation, layout, ..CrowdParams::default() };
     let scene = posed_crowd(&asset.skeleton, skin, &baked.mesh, &clips, &params)?;
     let gpu = headless::gpu(GpuOptions { software: a.software, ..GpuOptions::default() })?;
     let height = (a.width * 9 / 16).max(1);
@@ -199,6 +235,37 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         }
         frames.push(instances);
     }
+    // The GPU-driven crowd's frames: palettes, culling modes (the pose guard's answer) and
+    // morph weights, instance after instance.
+    let morphs = baked.mesh.morphs.weights.len().max(1);
+    let flat: Vec<(Vec<glam::Mat4>, Vec<CullMode>, Vec<f32>)> = (frames.iter())
+        .map(|instances| {
+            let palette = instances.iter().flat_map(|i| i.skinning.iter().map(|&m| glam::Mat4::from(m))).collect();
+            let modes = (instances.iter())
+                .map(|i| match (i.admitted, i.boxes) {
+                    (true, true) => CullMode::BoundsAndBoxes,
+                    (true, false) => CullMode::Bounds,
+                    (false, true) => CullMode::BoxesOnly,
+                    (false, false) => CullMode::Keep,
+                })
+                .collect();
+            let mut weights = Vec::with_capacity(morphs * instances.len());
+            for i in instances {
+                weights.extend((0..morphs).map(|k| i.weights.get(k).copied().unwrap_or(0.0)));
+            }
+            (palette, modes, weights)
+        })
+        .collect();
+    let gpu_crowd = GpuCrowd::new(&gpu, &baked, &culler, instances as u32, a.width, height)?;
+    let keep_all = vec![CullMode::Keep; instances];
+    // Frame `f` of the GPU-driven crowd; `keep`: every instance drawn whole.
+    let crowd_frame = |f: usize, tests: Tests, keep: bool| CrowdFrame {
+        palette: &flat[f].0,
+        modes: if keep { &keep_all } else { &flat[f].1 },
+        weights: &flat[f].2,
+        camera: &scene.camera,
+        tests,
+    };
     let timed = (frames[1..].iter().flatten()).count().max(1);
     let fallback_pct = 100.0 * (frames[1..].iter().flatten()).filter(|i| !i.admitted).count() as f64 / timed as f64;
     let mut pipelines =
@@ -221,14 +288,27 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             // Culling runs in task shaders (MS, MS-CI: one pipeline reading per-meshlet class
             // flags, or three by class) or a compute pass writing indirect draws (VS, CS).
             let task = matches!(skinning, Skinning::Mesh | Skinning::MeshSlim);
-            let path = match (task, culling) {
-                (_, "none") => None,
-                (true, "both-by-class") => Some(Culling::TaskByClass),
-                (true, _) => Some(Culling::Task),
-                (false, "both-by-class") => continue,
-                (false, _) => Some(Culling::ComputeIndirect),
+            let (path, view) = match (task, skinning, culling) {
+                (true, _, "none") => (None, None),
+                (true, _, "both-by-class") => (Some(Culling::TaskByClass), None),
+                (true, ..) => (Some(Culling::Task), None),
+                (false, _, "both-by-class") => continue,
+                (false, Skinning::Vertex, "none") => (None, Some(CrowdView::Unculled)),
+                (false, Skinning::Vertex, _) => (None, Some(CrowdView::Pulled)),
+                // Compute skinning skins every vertex whatever is culled: drawn unculled only.
+                (false, _, "none") => (None, None),
+                (false, ..) => continue,
             };
-            configs.push(Config { pipeline, skinning, mesh, culler, baked, culling, tests, path });
+            configs.push(Config { pipeline, skinning, mesh, culler, baked, culling, tests, path, view });
+        }
+    }
+    if gpu.has_indirect_count() {
+        for (culling, tests, view) in
+            [("none", None, CrowdView::Unculled), ("both", Some(Tests::Both), CrowdView::Indexed)]
+        {
+            let (path, skinning, mesh, culler, baked) = (None, Skinning::Vertex, &mesh, &culler, &baked);
+            let pipeline = "VS-indexed";
+            configs.push(Config { pipeline, skinning, mesh, culler, baked, culling, tests, path, view: Some(view) });
         }
     }
     // The CPU side of culling, per culler and tests, timed apart: every instance's per-joint
@@ -238,7 +318,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let mut prepare_ms = Vec::new();
     let mut culled = Vec::new();
     for c in &configs {
-        let Some(tests) = c.tests else {
+        let (Some(tests), None) = (c.tests, c.view) else {
             prepared.push(Vec::new());
             prepare_ms.push(None);
             culled.push(None);
@@ -281,13 +361,40 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 n.meshlets - n.visible
             })
             .sum();
-        culled.push(Some(100.0 * count as f64 / (a.frames * a.instances * c.baked.meshlets.len()) as f64));
+        culled.push(Some(100.0 * count as f64 / (a.frames * instances * c.baked.meshlets.len()) as f64));
         prepare_ms.push(crate::bench::median(times));
         prepared.push(by_frame);
     }
     let light = Vec3::new(0.4, 0.8, 0.6);
-    let draw = |k: usize, f: usize| {
+    let all_meshlets = (instances * baked.meshlets.len()) as u64;
+    // Triangles per meshlet (the GPU-driven crowd's survivors are counted by meshlet).
+    let meshlet_triangles: Vec<u64> = baked.meshlets.meshlets.iter().map(|m| m.triangle_count as u64).collect();
+    // Per configuration the CPU culler's meshlets kept per frame (renderer rows).
+    let kept: Vec<Option<u64>> = (0..configs.len())
+        .map(|k| {
+            culled[k].map(|pct| {
+                ((1.0 - pct / 100.0) * configs[k].baked.meshlets.len() as f64 * instances as f64).round() as u64
+            })
+        })
+        .collect();
+    // One frame of configuration `k`: image, GPU ms, triangles and meshlets drawn, draw calls,
+    // wall ms.
+    let draw = |k: usize, f: usize| -> Result<Frame> {
         let c = &configs[k];
+        if let Some(view) = c.view {
+            let started = std::time::Instant::now();
+            let d = gpu_crowd.draw(&gpu, &crowd_frame(f, c.tests.unwrap_or(Tests::Both), false), view, light)?;
+            let wall_ms = started.elapsed().as_secs_f64() * 1e3;
+            let (meshlets, triangles) = match d.header {
+                Some(_) => {
+                    let survivors = gpu_crowd.survivors(&gpu)?;
+                    (survivors.len() as u64, survivors.iter().map(|&[_, m]| meshlet_triangles[m as usize]).sum())
+                }
+                None => (all_meshlets, total_triangles * instances as u64),
+            };
+            let image = d.image.context("the crowd draws an image")?;
+            return Ok(Frame { image, gpu_ms: d.gpu_ms, triangles, meshlets, draw_calls: d.draw_calls, wall_ms });
+        }
         let list: Vec<PosedInstance> = (frames[f].iter().enumerate())
             .map(|(i, p)| PosedInstance {
                 pose: Pose { matrices: &p.skinning, morph_weights: &p.weights },
@@ -300,32 +407,84 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         };
         let started = std::time::Instant::now();
         let drawn = renderer.render_crowd(&gpu, c.mesh, &list, scene.camera.view_proj, light, how)?;
-        anyhow::Ok((drawn, started.elapsed().as_secs_f64() * 1e3))
+        let wall_ms = started.elapsed().as_secs_f64() * 1e3;
+        // Draw calls: one per instance, or per instance one per non-empty class pipeline.
+        let per_instance = match c.path {
+            Some(Culling::TaskByClass) => {
+                let class =
+                    |s: &skinlet_runtime::meshlet_cull::CullSlot| if !s.frustum_ok { 2 } else { (s.sin > 1.0) as u8 };
+                c.culler.slots().iter().map(class).collect::<std::collections::BTreeSet<u8>>().len() as u32
+            }
+            _ => 1,
+        };
+        Ok(Frame {
+            image: drawn.image,
+            gpu_ms: drawn.gpu_ms,
+            triangles: drawn.triangles.map_or(total_triangles * instances as u64, u64::from),
+            meshlets: kept[k].unwrap_or((instances * c.baked.meshlets.len()) as u64),
+            draw_calls: per_instance * instances as u32,
+            wall_ms,
+        })
     };
-    // Warm-up: frame 0 of every configuration, untimed. Culling is conservative: every
-    // configuration draws the same picture, so the first one's is written.
+    // The references of frame 0: the unculled image of each front end (the GPU-driven crowd's;
+    // its indexed multi-draw with every instance kept, which lavapipe rasterizes a few pixels
+    // apart from one instanced draw; each renderer pipeline's own), and where meshlets tie in
+    // depth (draw order picks the color there).
+    let oracle0 = gpu_crowd.draw(&gpu, &crowd_frame(0, Tests::Both, false), CrowdView::Ids, light)?;
+    let ties = oracle0.ties.context("the ID view finds ties")?;
+    let same =
+        |a: &Image, b: &Image| a.rgba.chunks(4).zip(b.rgba.chunks(4)).zip(&ties).all(|((x, y), &tie)| x == y || tie);
+    // Warm-up: frame 0 of every configuration, untimed, checked against its reference. Culling
+    // is conservative: every configuration draws the same picture, so the first one's is written.
     let mut picture = None;
+    let mut image_equal = vec![false; configs.len()];
     for k in 0..configs.len() {
-        let (drawn, _) = draw(k, 0)?;
-        picture.get_or_insert(drawn.image);
+        let c = &configs[k];
+        let frame = draw(k, 0)?;
+        let reference = match (c.view, c.path) {
+            (Some(CrowdView::Indexed), _) => {
+                gpu_crowd.draw(&gpu, &crowd_frame(0, Tests::Both, true), CrowdView::Indexed, light)?.image
+            }
+            (Some(_), _) => {
+                gpu_crowd.draw(&gpu, &crowd_frame(0, Tests::Both, false), CrowdView::Unculled, light)?.image
+            }
+            (None, None) => Some(frame.image.clone()),
+            (None, Some(_)) => {
+                let plain = configs.iter().position(|b| b.pipeline == c.pipeline && b.culling == "none");
+                plain.map(|p| draw(p, 0)).transpose()?.map(|f| f.image)
+            }
+        };
+        image_equal[k] = reference.is_some_and(|r| same(&r, &frame.image));
+        picture.get_or_insert(frame.image);
     }
+    // The limit: meshlets with a visible fragment, per timed frame.
+    let mut oracle = Vec::new();
+    for f in 1..=a.frames {
+        let d = gpu_crowd.draw(&gpu, &crowd_frame(f, Tests::Both, false), CrowdView::Ids, light)?;
+        let ids = d.ids.context("the ID view reads ids")?;
+        oracle.push(ids.iter().filter(|&&id| id != 0).collect::<std::collections::HashSet<_>>().len() as f64);
+    }
+    let visible_oracle = oracle.iter().sum::<f64>() / oracle.len() as f64;
     // Per configuration and repeat: median GPU and wall time over the timed frames.
     let (mut gpu_ms, mut wall_ms) = (vec![Vec::new(); configs.len()], vec![Vec::new(); configs.len()]);
-    let mut triangles = vec![None; configs.len()];
+    let (mut triangles, mut meshlets, mut draw_calls) =
+        (vec![0u64; configs.len()], vec![0u64; configs.len()], vec![0u32; configs.len()]);
     for repeat in 0..a.repeats {
         let order: Vec<usize> =
             if repeat % 2 == 0 { (0..configs.len()).collect() } else { (0..configs.len()).rev().collect() };
         for k in order {
-            let (mut g, mut w, mut t) = (Vec::new(), Vec::new(), 0u64);
+            let (mut g, mut w, mut t, mut m) = (Vec::new(), Vec::new(), 0u64, 0u64);
             for f in 1..=a.frames {
-                let (drawn, ms) = draw(k, f)?;
-                w.push(ms);
-                g.extend(drawn.gpu_ms);
-                t += drawn.triangles.map_or(total_triangles * a.instances as u64, u64::from);
+                let frame = draw(k, f)?;
+                w.push(frame.wall_ms);
+                g.extend(frame.gpu_ms);
+                t += frame.triangles;
+                m += frame.meshlets;
+                draw_calls[k] = frame.draw_calls;
             }
             gpu_ms[k].extend(crate::bench::median(g));
             wall_ms[k].extend(crate::bench::median(w));
-            triangles[k] = Some(t / a.frames as u64);
+            (triangles[k], meshlets[k]) = (t / a.frames as u64, m / a.frames as u64);
         }
     }
     let rows: Vec<Row> = (0..configs.len())
@@ -338,6 +497,8 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 }
                 _ => Vec::new(),
             };
+            let crowd_culled = (c.view.is_some() && c.tests.is_some())
+                .then(|| 100.0 * (1.0 - meshlets[k] as f64 / all_meshlets.max(1) as f64));
             Row {
                 pipeline: c.pipeline,
                 culling: c.culling,
@@ -345,8 +506,11 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 wall_ms: Spread::of(&wall_ms[k]),
                 vs_none_pct: Spread::of(&ratios),
                 prepare_ms: prepare_ms[k],
-                culled_pct: culled[k],
-                triangles: triangles[k].unwrap_or(0),
+                culled_pct: culled[k].or(crowd_culled),
+                triangles: triangles[k],
+                meshlets_drawn: meshlets[k] as f64,
+                draws_issued: draw_calls[k],
+                image_equal: image_equal[k],
             }
         })
         .collect();
@@ -360,12 +524,15 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             .map(|r| {
                 json!({"pipeline": r.pipeline, "culling": r.culling, "gpu_ms": Spread::json(r.gpu_ms),
                     "wall_ms": Spread::json(r.wall_ms), "vs_none_pct": Spread::json(r.vs_none_pct),
-                    "cpu_prepare_ms": r.prepare_ms, "culled_pct": r.culled_pct, "triangles_per_frame": r.triangles})
+                    "cpu_prepare_ms": r.prepare_ms, "culled_pct": r.culled_pct, "triangles_per_frame": r.triangles,
+                    "meshlets_drawn": r.meshlets_drawn, "draws_issued": r.draws_issued,
+                    "image_equal_to_unculled": r.image_equal})
             })
             .collect();
         let out = json!({"file": file, "adapter": gpu.info.name, "timestamps": gpu.has_timestamps(),
+            "crowd": a.crowd, "meshlets_visible_oracle": visible_oracle, "meshlets_per_frame": all_meshlets,
             "animation": a.animation, "guard_fallback_pct": fallback_pct,
-            "instances": a.instances, "frames": a.frames, "repeats": a.repeats, "width": a.width, "height": height,
+            "instances": instances, "frames": a.frames, "repeats": a.repeats, "width": a.width, "height": height,
             "meshlets": baked.meshlets.len(), "triangles_per_instance": total_triangles,
             "ci_meshlets": m.count, "ci_slim_meshlets": m.slim, "rows": rows});
         println!("{}", serde_json::to_string_pretty(&out)?);
@@ -374,7 +541,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     println!(
         "{file}: crowd of {} instances ({} skin-aware meshlets, {} common-influences meshlets of which {} slim, \
          {total_triangles} triangles each), {}x{height}, on {}; {} repeats of {} frames, alternating order",
-        a.instances,
+        instances,
         baked.meshlets.len(),
         m.count,
         m.slim,

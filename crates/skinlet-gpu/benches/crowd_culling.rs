@@ -60,7 +60,9 @@ fn bench_asset(c: &mut Criterion, gpu: &Gpu, label: &str, asset: &skinlet::Asset
     let pipelines = CullPipelines::new(device).unwrap();
     let gpu_character = GpuCharacter::new(device, &culler, &baked.inverse_bind, &draws).unwrap();
     let n = INSTANCES as u32;
-    let culling = CrowdCulling::new(device, &pipelines, &gpu_character, &palette, &instance_buffer, n).unwrap();
+    let survivors = n * gpu_character.meshlets();
+    let culling =
+        CrowdCulling::new(device, &pipelines, &gpu_character, &palette, &instance_buffer, n, survivors).unwrap();
     let wait = || device.poll(wgpu::PollType::Wait { submission_index: None, timeout: None }).unwrap();
 
     let mut group = c.benchmark_group(format!("crowd_culling/{label}/{INSTANCES}"));

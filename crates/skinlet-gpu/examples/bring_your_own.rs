@@ -1,14 +1,15 @@
 //! skinlet's GPU culling inside someone else's renderer: this program opens its own wgpu device,
 //! builds its own skinning pipeline, uploads a baked character, records skinlet's culling passes
-//! into its own encoder each frame, draws the survivors from skinlet's indirect commands with its
-//! own pipeline, and compares the image with its own unculled draw of the crowd. Nothing is read
-//! back on the drawing path (images and counts are read only to report).
+//! into its own encoder each frame, draws the survivors with one call of its own pipeline
+//! (pulled by its vertex shader; and as indexed draws where the device counts them), and
+//! compares each image with its own unculled draw of the crowd. Nothing is read back on the
+//! drawing path (images and counts are read only to report).
 //!
 //! `cargo run --release -p skinlet-gpu --example bring_your_own -- --json` prints one line,
 //! `{"equal_to_unculled": true, "culled_pct": ..., ...}`; exit status 1 when an image differs.
 
 use glam::Mat4;
-use skinlet_gpu::crowd_culling::{CrowdCulling, CullInstance, CullMode, CullPipelines, GpuCharacter};
+use skinlet_gpu::crowd_culling::{CrowdCulling, CullInstance, CullMode, CullPipelines, GpuCharacter, SURVIVORS_WGSL};
 use skinlet_lab::crowd::{CrowdParams, crowd};
 use skinlet_runtime::meshlet_cull::{MeshletCuller, Tests};
 use wgpu::util::DeviceExt;
@@ -29,8 +30,19 @@ struct Instance { model: mat4x4<f32>, mode: u32, p0: u32, p1: u32, p2: u32 }
 @group(0) @binding(5) var<storage, read> morph_offsets: array<u32>;
 @group(0) @binding(6) var<storage, read> morph_deltas: array<vec4<f32>>;
 @group(0) @binding(7) var<storage, read> morph_weights: array<f32>;
+@group(0) @binding(8) var<storage, read> indices: array<u32>;
+@group(0) @binding(9) var<storage, read> survivor_draws: array<u32>;
 struct Out { @builtin(position) clip: vec4<f32>, @location(0) world: vec3<f32> }
+// The survivors pulled: skinlet's one draw has an instance per survivor.
+@vertex fn vs_pulled(@builtin(vertex_index) corner: u32, @builtin(instance_index) survivor: u32) -> Out {
+    let c = survivor_corner(survivor, corner);
+    if !c.live { return Out(vec4<f32>(2.0, 2.0, 2.0, 1.0), vec3<f32>(0.0)); }
+    return skinned(indices[c.index], c.instance);
+}
 @vertex fn vs(@builtin(vertex_index) v: u32, @builtin(instance_index) i: u32) -> Out {
+    return skinned(v, i);
+}
+fn skinned(v: u32, i: u32) -> Out {
     var p = vec3<f32>(positions[3u * v], positions[3u * v + 1u], positions[3u * v + 2u]);
     for (var d = morph_offsets[v]; d < morph_offsets[v + 1u]; d++) {
         p += morph_deltas[d].xyz * morph_weights[i * view.weights + bitcast<u32>(morph_deltas[d].w)];
@@ -49,6 +61,14 @@ struct Out { @builtin(position) clip: vec4<f32>, @location(0) world: vec3<f32> }
 
 type Result<T> = std::result::Result<T, Box<dyn std::error::Error>>;
 
+/// How a frame's crowd is drawn.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Draw {
+    Unculled,
+    Pulled,
+    Indexed,
+}
+
 fn main() {
     let (equal, line) = run().unwrap_or_else(|e| {
         eprintln!("bring_your_own: {e}");
@@ -60,11 +80,16 @@ fn main() {
 }
 
 fn run() -> Result<(bool, String)> {
-    // The caller's device, with the one feature skinlet's draws need.
+    // The caller's device, with the feature skinlet's culling needs, indirect draw counts
+    // where the adapter has them, and the 9 storage buffers our pulling vertex shader reads.
     let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle());
     let adapter = pollster::block_on(instance.request_adapter(&Default::default()))?;
-    let desc =
-        wgpu::DeviceDescriptor { required_features: wgpu::Features::INDIRECT_FIRST_INSTANCE, ..Default::default() };
+    let counted = adapter.features() & wgpu::Features::MULTI_DRAW_INDIRECT_COUNT;
+    let desc = wgpu::DeviceDescriptor {
+        required_features: wgpu::Features::INDIRECT_FIRST_INSTANCE | counted,
+        required_limits: wgpu::Limits { max_storage_buffers_per_shader_stage: 9, ..Default::default() },
+        ..Default::default()
+    };
     let (device, queue) = pollster::block_on(adapter.request_device(&desc))?;
 
     // A baked character: the demo, baked to bytes and read back as a game reads its file.
@@ -109,48 +134,69 @@ fn run() -> Result<(bool, String)> {
     let culler = MeshletCuller::new(&baked.bounds, &baked.classes, joints)?;
     let pipelines = CullPipelines::new(&device)?;
     let character = GpuCharacter::new(&device, &culler, &baked.inverse_bind, &draws)?;
-    let culling = CrowdCulling::new(&device, &pipelines, &character, &palette, &instances, n)?;
+    // A survivor list with room for every meshlet of every instance: it never overflows.
+    let culling =
+        CrowdCulling::new(&device, &pipelines, &character, &palette, &instances, n, n * character.meshlets())?;
 
-    // Our own pipeline: back faces culled by the rasterizer, depth tested.
-    let source = wgpu::ShaderSource::Wgsl(SHADER.into());
+    // Our own pipelines, vertex shaders fed by index (unculled, and skinlet's indexed draws)
+    // and pulling skinlet's survivors: back faces culled by the rasterizer, depth tested.
+    let source = wgpu::ShaderSource::Wgsl([SURVIVORS_WGSL, SHADER].concat().into());
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: None, source });
     let options = wgpu::PipelineCompilationOptions::default;
     let targets = [Some(FORMAT.into())];
-    let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-        label: Some("our skinning"),
-        layout: None,
-        vertex: wgpu::VertexState {
-            module: &module,
-            entry_point: Some("vs"),
-            compilation_options: options(),
-            buffers: &[],
-        },
-        primitive: wgpu::PrimitiveState { cull_mode: Some(wgpu::Face::Back), ..Default::default() },
-        depth_stencil: Some(wgpu::DepthStencilState {
-            format: wgpu::TextureFormat::Depth32Float,
-            depth_write_enabled: Some(true),
-            depth_compare: Some(wgpu::CompareFunction::Less),
-            stencil: Default::default(),
-            bias: Default::default(),
-        }),
-        multisample: Default::default(),
-        fragment: Some(wgpu::FragmentState {
-            module: &module,
-            entry_point: Some("fs"),
-            compilation_options: options(),
-            targets: &targets,
-        }),
-        multiview_mask: None,
-        cache: None,
-    });
+    let pipeline = |vs: &str| {
+        device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some(vs),
+            layout: None,
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some(vs),
+                compilation_options: options(),
+                buffers: &[],
+            },
+            primitive: wgpu::PrimitiveState { cull_mode: Some(wgpu::Face::Back), ..Default::default() },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: wgpu::TextureFormat::Depth32Float,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs"),
+                compilation_options: options(),
+                targets: &targets,
+            }),
+            multiview_mask: None,
+            cache: None,
+        })
+    };
+    let (indexed, pulled) = (pipeline("vs"), pipeline("vs_pulled"));
     let (positions, influences) = (buffer(bytemuck::cast_slice(&positions)), buffer(bytemuck::cast_slice(&influences)));
     let (offsets, deltas) = (buffer(bytemuck::cast_slice(&offsets)), buffer(bytemuck::cast_slice(&deltas)));
-    let resources = [&view, &palette, &instances, &positions, &influences, &offsets, &deltas, &weights];
-    let entries: Vec<_> = (resources.iter().enumerate())
-        .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() })
-        .collect();
-    let layout = &pipeline.get_bind_group_layout(0);
-    let group = device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout, entries: &entries });
+    let storage_indices = buffer(bytemuck::cast_slice(&indices));
+    let resources = [
+        &view,
+        &palette,
+        &instances,
+        &positions,
+        &influences,
+        &offsets,
+        &deltas,
+        &weights,
+        &storage_indices,
+        culling.commands(),
+    ];
+    let group = |pipeline: &wgpu::RenderPipeline, bindings: usize| {
+        let entries: Vec<_> = (resources[..bindings].iter().enumerate())
+            .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() })
+            .collect();
+        let layout = &pipeline.get_bind_group_layout(0);
+        device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout, entries: &entries })
+    };
+    let (indexed_group, pulled_group) = (group(&indexed, 8), group(&pulled, 10));
     let tex = |format| {
         device.create_texture(&wgpu::TextureDescriptor {
             label: None,
@@ -163,7 +209,13 @@ fn run() -> Result<(bool, String)> {
             view_formats: &[],
         })
     };
-    let (depth, culled_image, whole_image) = (tex(wgpu::TextureFormat::Depth32Float), tex(FORMAT), tex(FORMAT));
+    let depth = tex(wgpu::TextureFormat::Depth32Float);
+    // The images: unculled, survivors pulled, survivors as indexed draws (where counted).
+    let draws: Vec<Draw> = [Draw::Unculled, Draw::Pulled, Draw::Indexed]
+        .into_iter()
+        .filter(|&d| d != Draw::Indexed || !counted.is_empty())
+        .collect();
+    let images: Vec<wgpu::Texture> = draws.iter().map(|_| tex(FORMAT)).collect();
 
     let (mut poser, mut matrices, mut morph) = (skinlet::pose::Poser::default(), Vec::new(), Vec::new());
     let (mut differing, mut covered, mut drawn) = (0usize, 0usize, 0u64);
@@ -184,10 +236,10 @@ fn run() -> Result<(bool, String)> {
         queue.write_buffer(&instances, 0, bytemuck::cast_slice(&inst));
         queue.write_buffer(&weights, 0, bytemuck::cast_slice(&w));
 
-        // skinlet's passes, then ours: the survivors from skinlet's commands, then everything.
+        // skinlet's passes, then ours: everything, then the survivors each way.
         let mut encoder = device.create_command_encoder(&Default::default());
         culling.encode(&queue, &mut encoder, &scene.camera, Tests::Both, n, None)?;
-        for (image, culled) in [(&culled_image, true), (&whole_image, false)] {
+        for (image, &draw) in images.iter().zip(&draws) {
             let (image, depth) = (image.create_view(&Default::default()), depth.create_view(&Default::default()));
             let store = wgpu::StoreOp::Store;
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -207,38 +259,49 @@ fn run() -> Result<(bool, String)> {
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
-            pass.set_pipeline(&pipeline);
-            pass.set_bind_group(0, &group, &[]);
+            let (pipeline, group) =
+                if draw == Draw::Pulled { (&pulled, &pulled_group) } else { (&indexed, &indexed_group) };
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, group, &[]);
             pass.set_index_buffer(index_buffer.slice(..), wgpu::IndexFormat::Uint32);
-            match culled {
-                true => pass.multi_draw_indexed_indirect(culling.commands(), 0, culling.draw_count(n)),
-                false => pass.draw_indexed(0..indices.len() as u32, 0, 0..n),
+            match draw {
+                Draw::Unculled => pass.draw_indexed(0..indices.len() as u32, 0, 0..n),
+                Draw::Pulled => culling.draw_pulled(&mut pass),
+                Draw::Indexed => culling.draw_indexed(&mut pass)?,
             }
         }
-        // Reporting only: both images and skinlet's counts, copied out and waited for.
+        // Reporting only: the images and skinlet's counts, copied out and waited for.
         let (usage, image_size) = (wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST, 4 * 320 * 180);
-        let out = [image_size, image_size, 12 * n as u64].map(|size| {
-            device.create_buffer(&wgpu::BufferDescriptor { label: None, size, usage, mapped_at_creation: false })
-        });
-        for (image, buffer) in [&culled_image, &whole_image].into_iter().zip(&out) {
+        let sizes = std::iter::repeat_n(image_size, images.len()).chain([12 * n as u64]);
+        let out: Vec<wgpu::Buffer> = sizes
+            .map(|size| {
+                device.create_buffer(&wgpu::BufferDescriptor { label: None, size, usage, mapped_at_creation: false })
+            })
+            .collect();
+        for (image, buffer) in images.iter().zip(&out) {
             let layout = wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(4 * 320), rows_per_image: None };
             encoder.copy_texture_to_buffer(image.as_image_copy(), wgpu::TexelCopyBufferInfo { buffer, layout }, EXTENT);
         }
-        encoder.copy_buffer_to_buffer(culling.counts(), 0, &out[2], 0, 12 * n as u64);
+        encoder.copy_buffer_to_buffer(culling.counts(), 0, &out[images.len()], 0, 12 * n as u64);
         queue.submit([encoder.finish()]);
         out.iter().for_each(|b| b.slice(..).map_async(wgpu::MapMode::Read, |_| {}));
         device.poll(wgpu::PollType::Wait { submission_index: None, timeout: None })?;
         let bytes = out.iter().map(|b| Ok(b.slice(..).get_mapped_range().to_vec())).collect::<Result<Vec<_>>>()?;
-        differing += bytes[0].chunks(4).zip(bytes[1].chunks(4)).filter(|(x, y)| x != y).count();
-        covered += bytes[1].chunks(4).filter(|p| p[..3] != [0, 0, 0]).count();
-        drawn += bytemuck::pod_collect_to_vec::<u8, u32>(&bytes[2]).chunks(3).map(|c| c[0] as u64).sum::<u64>();
+        for culled in &bytes[1..images.len()] {
+            differing += bytes[0].chunks(4).zip(culled.chunks(4)).filter(|(x, y)| x != y).count();
+        }
+        covered += bytes[0].chunks(4).filter(|p| p[..3] != [0, 0, 0]).count();
+        let counts = bytemuck::pod_collect_to_vec::<u8, u32>(&bytes[images.len()]);
+        drawn += counts.chunks(3).map(|c| c[0] as u64).sum::<u64>();
     }
     let culled_pct =
         100.0 * (1.0 - drawn as f64 / (params.frames as u64 * n as u64 * character.meshlets() as u64) as f64);
     let equal = differing == 0 && covered > 0;
     let (frames, meshlets, adapter) = (params.frames, character.meshlets(), adapter.get_info().name);
+    let ways: Vec<String> = draws[1..].iter().map(|d| format!("{:?}", format!("{d:?}").to_lowercase())).collect();
+    let ways = ways.join(", ");
     let line = format!(
-        "{{\"equal_to_unculled\": {equal}, \"culled_pct\": {culled_pct:.2}, \"differing_pixels\": {differing}, \
+        "{{\"equal_to_unculled\": {equal}, \"culled_draws\": [{ways}], \"culled_pct\": {culled_pct:.2}, \"differing_pixels\": {differing}, \
          \"covered_pixels\": {covered}, \"instances\": {n}, \"frames\": {frames}, \"meshlets\": {meshlets}, \"adapter\": {adapter:?}}}"
     );
     Ok((equal, line))

@@ -35,6 +35,12 @@ impl Gpu {
         self.features.contains(wgpu::Features::SUBGROUP)
     }
 
+    /// Whether indirect draws may take their count from a buffer
+    /// (`multi_draw_indexed_indirect_count`: `CrowdCulling::draw_indexed`).
+    pub fn has_indirect_count(&self) -> bool {
+        self.features.contains(wgpu::Features::MULTI_DRAW_INDIRECT_COUNT)
+    }
+
     /// Whether mesh (and task) shaders are enabled.
     pub fn has_mesh_shaders(&self) -> bool {
         self.features.contains(wgpu::Features::EXPERIMENTAL_MESH_SHADER)

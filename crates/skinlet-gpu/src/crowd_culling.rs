@@ -20,17 +20,28 @@
 //!    `model × S_j × bind_j` and its record (joint-space planes, eye, margins), as
 //!    [`MeshletCuller::prepare`] does on the CPU;
 //! 2. `cull.wgsl::cull_draws`, one invocation per (instance, meshlet): the test of
-//!    [`CULL_WGSL`], writing one `DrawIndexedIndirectArgs` per (instance, meshlet) into
-//!    [`CrowdCulling::commands`] (instance-major, meshlets in bake order; a culled meshlet has
-//!    instance count 0) and counts (visible, frustum, backface) per instance into
-//!    [`CrowdCulling::counts`].
+//!    [`CULL_WGSL`]; each surviving (instance, meshlet) takes the next place in one list of
+//!    `DrawIndexedIndirectArgs` ([`CrowdCulling::commands`], one atomic counter, claimed a
+//!    workgroup at a time), and per instance the counts (visible, frustum, backface) go to
+//!    [`CrowdCulling::counts`];
+//! 3. `cull.wgsl::finish_draws`, one invocation: the list's header
+//!    ([`CrowdCulling::survivors`]) becomes the arguments of one draw, its count clamped to
+//!    the list's capacity (a survivor past it is counted, not written, and not drawn: see
+//!    [`SurvivorHeader`]), so a frame never draws an entry it did not write.
 //!
-//! The caller draws `multi_draw_indexed_indirect(commands(), 0, draw_count(n))` with its own
-//! pipeline and index buffer; nothing is read back. The visible set is conservative: a meshlet
-//! culled here is culled by the same test in exact arithmetic on the same matrices (the GPU's
-//! margins cover its f32 rounding, `prepare.wgsl`); `tests/crowd_culling.rs` checks every
-//! culled meshlet of the crowd scene in f64, and the `bring_your_own` example compares the
-//! image with an unculled draw.
+//! The caller draws the survivors with one call, whatever the crowd's size:
+//! - [`CrowdCulling::draw_pulled`]: one `draw_indirect`, one instance per survivor, its
+//!   vertex shader pulling the survivor's triangles from the caller's index buffer (read as
+//!   storage) with [`SURVIVORS_WGSL`]; any device;
+//! - [`CrowdCulling::draw_indexed`]: `multi_draw_indexed_indirect_count` over the list with
+//!   the caller's index buffer and an unchanged vertex shader (`first_instance` is the
+//!   instance); needs [`wgpu::Features::MULTI_DRAW_INDIRECT_COUNT`].
+//!
+//! Nothing is read back. The visible set is conservative: a meshlet culled here is culled by
+//! the same test in exact arithmetic on the same matrices (the GPU's margins cover its f32
+//! rounding, `prepare.wgsl`); `tests/crowd_culling.rs` checks every culled meshlet of the
+//! crowd scene in f64, and the `bring_your_own` example compares both draws' images with an
+//! unculled draw.
 
 use crate::cull::{dispatch, flags, pack_boxes, pack_slots};
 use crate::{GpuError, Result};
@@ -46,6 +57,39 @@ use skinlet_runtime::meshlet_cull::{MeshletCuller, Tests};
 /// and `var<storage, read> any_pose_boxes: array<u32>` ([`GpuCharacter::any_pose_boxes`]),
 /// and reads its slots from `var<storage, read> slots: array<Slot>` ([`GpuCharacter::slots`]).
 pub const CULL_WGSL: &str = include_str!("shaders/cull_common.wgsl");
+
+/// WGSL for a vertex shader drawn by [`CrowdCulling::draw_pulled`]:
+/// `survivor_corner(instance_index, vertex_index)` gives the survivor's instance, the place in
+/// the caller's index buffer of this corner, and whether the corner is one of the meshlet's
+/// (the draw has the largest meshlet's corners; a shader returns a position outside the clip
+/// volume, e.g. `vec4(2.0, 2.0, 2.0, 1.0)`, for the others: their triangles are whole, so
+/// they are clipped away). The including shader declares `var<storage, read> survivor_draws:
+/// array<u32>` ([`CrowdCulling::commands`]) in any group.
+pub const SURVIVORS_WGSL: &str = include_str!("shaders/survivors.wgsl");
+
+/// The survivors' header ([`CrowdCulling::survivors`], 32 bytes): the arguments of the pulled
+/// draw, then how many survivors the culling found this frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
+#[repr(C)]
+pub struct SurvivorHeader {
+    /// The largest meshlet's index count.
+    pub vertex_count: u32,
+    /// Survivors drawn: found, at most the list's capacity (also the count of the indexed
+    /// draws, at [`SurvivorHeader::COUNT_OFFSET`]).
+    pub instance_count: u32,
+    pub first_vertex: u32,
+    pub first_instance: u32,
+    /// Survivors found; more than `instance_count` when the list overflowed (those past the
+    /// capacity were not drawn: raise the capacity).
+    pub found: u32,
+    pub pad: [u32; 3],
+}
+
+impl SurvivorHeader {
+    /// Where the survivors drawn are, in bytes: the count buffer offset of
+    /// `multi_draw_indexed_indirect_count`.
+    pub const COUNT_OFFSET: u64 = 4;
+}
 
 /// How an instance is culled this frame (the pose guard's answer, when the bounds are the
 /// envelope's; see `skinlet_runtime::pose_guard`).
@@ -80,18 +124,21 @@ impl CullInstance {
     }
 }
 
-/// The two compute pipelines (prepare, cull to draws) of one device.
+/// The compute pipelines (prepare, cull to draws, finish) of one device.
 pub struct CullPipelines {
     prepare: wgpu::ComputePipeline,
     prepare_layout: wgpu::BindGroupLayout,
     cull: wgpu::ComputePipeline,
     cull_layout: wgpu::BindGroupLayout,
+    finish: wgpu::ComputePipeline,
 }
 
 /// A character's culling data on the GPU (uploaded once).
 pub struct GpuCharacter {
     meshlets: u32,
     joints: u32,
+    /// The largest meshlet's index count.
+    corners: u32,
     has_boxes: bool,
     slots: wgpu::Buffer,
     boxes: wgpu::Buffer,
@@ -102,18 +149,25 @@ pub struct GpuCharacter {
 /// One crowd's per-frame buffers and bind groups over the caller's palette and instances.
 pub struct CrowdCulling {
     capacity: u32,
+    /// Places in the survivor list.
+    survivor_capacity: u32,
     meshlets: u32,
     joints: u32,
+    corners: u32,
     has_boxes: bool,
+    /// The device has `MULTI_DRAW_INDIRECT_COUNT`.
+    count_draws: bool,
     /// `CullParams` at 0, `CullCamera` at [`CAMERA_OFFSET`].
     uniforms: wgpu::Buffer,
     records: wgpu::Buffer,
     counts: wgpu::Buffer,
     commands: wgpu::Buffer,
+    survivors: wgpu::Buffer,
     prepare: wgpu::BindGroup,
     cull: wgpu::BindGroup,
     prepare_pipeline: wgpu::ComputePipeline,
     cull_pipeline: wgpu::ComputePipeline,
+    finish_pipeline: wgpu::ComputePipeline,
 }
 
 /// Where `CullCamera` starts in the uniform buffer (the uniform offset alignment WebGPU
@@ -191,10 +245,11 @@ impl CullPipelines {
                     layout_entry(5, write),
                 ],
             );
+            let source = [CULL_WGSL, include_str!("shaders/cull.wgsl")].concat();
             let (cull, cull_layout) = pipeline(
                 device,
                 "skinlet cull",
-                [CULL_WGSL, include_str!("shaders/cull.wgsl")].concat(),
+                source.clone(),
                 "cull_draws",
                 &[
                     layout_entry(0, Uniform),
@@ -204,9 +259,17 @@ impl CullPipelines {
                     layout_entry(5, read),
                     layout_entry(6, write),
                     layout_entry(7, read),
+                    layout_entry(8, write),
                 ],
             );
-            CullPipelines { prepare, prepare_layout, cull, cull_layout }
+            let finish = crate::context::compute_pipeline_with(
+                device,
+                "skinlet survivors",
+                source,
+                "finish_draws",
+                &cull_layout,
+            );
+            CullPipelines { prepare, prepare_layout, cull, cull_layout, finish }
         })
     }
 }
@@ -214,8 +277,9 @@ impl CullPipelines {
 impl GpuCharacter {
     /// Uploads `culler`'s meshlets and any-pose boxes, `inverse_bind` (one per joint, the
     /// skin's inverse bind matrices) and `draws` (per meshlet, in the culler's meshlet order:
-    /// its index count and first index in the caller's index buffer). Errors when the counts
-    /// disagree or an inverse bind matrix is not finite or not invertible.
+    /// its index count, whole triangles, and first index in the caller's index buffer). Errors
+    /// when the counts disagree, an index count is not a multiple of 3, or an inverse bind
+    /// matrix is not finite or not invertible.
     pub fn new(
         device: &wgpu::Device,
         culler: &MeshletCuller,
@@ -229,6 +293,9 @@ impl GpuCharacter {
         }
         if inverse_bind.len() != joints {
             return Err(invalid(location, format!("{} inverse bind matrices for {joints} joints", inverse_bind.len())));
+        }
+        if let Some(i) = draws.iter().position(|d| d[0] % 3 != 0) {
+            return Err(invalid(location, format!("meshlet {i}'s {} indices are not whole triangles", draws[i][0])));
         }
         let mut statics: Vec<f32> = Vec::with_capacity(20 * joints);
         for (j, (m, &extent)) in inverse_bind.iter().zip(culler.joint_extents()).enumerate() {
@@ -246,6 +313,7 @@ impl GpuCharacter {
         crate::context::checked(device, location, || GpuCharacter {
             meshlets: meshlets as u32,
             joints: joints as u32,
+            corners: draws.iter().map(|d| d[0]).max().unwrap_or(0),
             has_boxes: !culler.any_pose_boxes().1.is_empty(),
             slots: crate::context::buffer(device, "skinlet cull slots", &pack_slots(&culler.slots()), storage),
             boxes: crate::context::buffer(device, "skinlet any-pose boxes", &pack_boxes(culler), storage),
@@ -277,8 +345,11 @@ impl GpuCharacter {
 impl CrowdCulling {
     /// Buffers and bind groups for up to `capacity` instances of `character` over the
     /// caller's `palette` (at least `capacity × joints` matrices) and `instances` (at least
-    /// `capacity` [`CullInstance`]s), both with `STORAGE` usage. Errors when a buffer is too
-    /// small or lacks the usage, or the draw commands exceed the device's storage binding limit.
+    /// `capacity` [`CullInstance`]s), both with `STORAGE` usage, and a list of
+    /// `survivor_capacity` survivors (`capacity × meshlets` never overflows; a frame's
+    /// survivors past it are not drawn, [`SurvivorHeader::found`] says how many there were).
+    /// Errors when a buffer is too small or lacks the usage, or the list or the joint records
+    /// exceed the device's storage binding limit.
     pub fn new(
         device: &wgpu::Device,
         pipelines: &CullPipelines,
@@ -286,6 +357,7 @@ impl CrowdCulling {
         palette: &wgpu::Buffer,
         instances: &wgpu::Buffer,
         capacity: u32,
+        survivor_capacity: u32,
     ) -> Result<CrowdCulling> {
         let location = "GPU crowd culling";
         let cap = capacity as u64;
@@ -305,12 +377,13 @@ impl CrowdCulling {
         need(palette, "palette", cap * joints * 64)?;
         need(instances, "instances", cap * std::mem::size_of::<CullInstance>() as u64)?;
         let limit = device.limits().max_storage_buffer_binding_size;
-        let (records_size, commands_size) = (cap * joints * RECORD_BYTES, cap * meshlets * COMMAND_BYTES);
+        let (records_size, commands_size) = (cap * joints * RECORD_BYTES, survivor_capacity as u64 * COMMAND_BYTES);
         if records_size.max(commands_size).max(cap * 12) > limit || cap * meshlets.max(joints) > u32::MAX as u64 / 2 {
             return Err(invalid(
                 location,
                 format!(
-                    "{capacity} instances of {meshlets} meshlets and {joints} joints exceed the device's {limit}-byte storage bindings"
+                    "{capacity} instances of {meshlets} meshlets and {joints} joints, {survivor_capacity} survivors, \
+                     exceed the device's {limit}-byte storage bindings"
                 ),
             ));
         }
@@ -330,6 +403,11 @@ impl CrowdCulling {
             let records = make("skinlet joint records", records_size, U::STORAGE);
             let counts = make("skinlet cull counts", cap * 12, U::STORAGE | U::COPY_SRC | U::COPY_DST);
             let commands = make("skinlet draw commands", commands_size, U::STORAGE | U::INDIRECT | U::COPY_SRC);
+            let survivors = make(
+                "skinlet survivors",
+                std::mem::size_of::<SurvivorHeader>() as u64,
+                U::STORAGE | U::INDIRECT | U::COPY_SRC | U::COPY_DST,
+            );
             let params = wgpu::BindingResource::Buffer(wgpu::BufferBinding {
                 buffer: &uniforms,
                 offset: 0,
@@ -363,28 +441,35 @@ impl CrowdCulling {
                     bind(5, whole(&character.draws)),
                     bind(6, whole(&commands)),
                     bind(7, whole(&character.boxes)),
+                    bind(8, whole(&survivors)),
                 ],
             });
             CrowdCulling {
                 capacity,
+                survivor_capacity,
                 meshlets: character.meshlets,
                 joints: character.joints,
+                corners: character.corners,
                 has_boxes: character.has_boxes,
+                count_draws: device.features().contains(wgpu::Features::MULTI_DRAW_INDIRECT_COUNT),
                 uniforms,
                 records,
                 counts,
                 commands,
+                survivors,
                 prepare,
                 cull,
                 prepare_pipeline: pipelines.prepare.clone(),
                 cull_pipeline: pipelines.cull.clone(),
+                finish_pipeline: pipelines.finish.clone(),
             }
         })
     }
 
     /// Writes this frame's camera and instance count (`queue.write_buffer`, 384 bytes) and
-    /// records the passes for the first `instances` instances into `encoder` (the counts are
-    /// cleared first); `timestamps`, if given, are written at the pass's start and end. The
+    /// records the passes for the first `instances` instances into `encoder` (the counts and
+    /// the survivors' header are cleared first); `timestamps`, if given, are written at the
+    /// pass's start and end. The
     /// caller's palette and instances must hold this frame's values when the commands run.
     /// Allocates nothing itself. Errors when `instances` exceeds the capacity.
     pub fn encode(
@@ -408,7 +493,16 @@ impl CrowdCulling {
         };
         let planes = &camera.planes;
         let uniforms = Uniforms {
-            params: [self.meshlets, self.joints, instances, flags(tests, orthographic), 0, 0, 0, 0],
+            params: [
+                self.meshlets,
+                self.joints,
+                instances,
+                flags(tests, orthographic),
+                0,
+                self.survivor_capacity,
+                self.corners,
+                0,
+            ],
             pad: [0; (CAMERA_OFFSET - 32) / 4],
             planes: planes.map(|p| p.to_array()),
             view: view.to_array(),
@@ -419,6 +513,7 @@ impl CrowdCulling {
         };
         queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&uniforms));
         encoder.clear_buffer(&self.counts, 0, None);
+        encoder.clear_buffer(&self.survivors, 0, None);
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("skinlet crowd culling"),
             timestamp_writes: timestamps,
@@ -429,20 +524,48 @@ impl CrowdCulling {
         pass.set_pipeline(&self.cull_pipeline);
         pass.set_bind_group(0, &self.cull, &[]);
         dispatch(&mut pass, instances * self.meshlets);
+        pass.set_pipeline(&self.finish_pipeline);
+        pass.dispatch_workgroups(1, 1, 1);
         Ok(())
     }
 
-    /// The indirect draws of the first `instances` instances: `multi_draw_indexed_indirect(
-    /// commands(), 0, draw_count(instances))`.
-    pub fn draw_count(&self, instances: u32) -> u32 {
-        instances.min(self.capacity) * self.meshlets
+    /// Draws this frame's survivors with one `draw_indirect` of the survivors' header: the
+    /// pipeline's vertex shader pulls its vertices with [`SURVIVORS_WGSL`].
+    pub fn draw_pulled(&self, pass: &mut wgpu::RenderPass<'_>) {
+        pass.draw_indirect(&self.survivors, 0);
     }
 
-    /// Per (instance, meshlet) a `DrawIndexedIndirectArgs` (index count, instance count 0 or
-    /// 1, first index, base vertex 0, first instance = the instance's index); `INDIRECT`,
-    /// `STORAGE` and `COPY_SRC` usage.
+    /// Draws this frame's survivors with `multi_draw_indexed_indirect_count` (the pipeline's
+    /// index buffer set, `first_instance` the instance). Errors when the device lacks
+    /// [`wgpu::Features::MULTI_DRAW_INDIRECT_COUNT`].
+    pub fn draw_indexed(&self, pass: &mut wgpu::RenderPass<'_>) -> Result<()> {
+        if !self.count_draws {
+            return Err(invalid(
+                "GPU crowd culling",
+                "indexed draws of the survivors need MULTI_DRAW_INDIRECT_COUNT (or draw them pulled)".into(),
+            ));
+        }
+        let count = SurvivorHeader::COUNT_OFFSET;
+        pass.multi_draw_indexed_indirect_count(&self.commands, 0, &self.survivors, count, self.survivor_capacity);
+        Ok(())
+    }
+
+    /// The survivors: per survivor a `DrawIndexedIndirectArgs` (index count, instance count
+    /// 1, first index, base vertex 0, first instance = the instance's index), as many as the
+    /// header's `instance_count`, in no particular order; `INDIRECT`, `STORAGE` and
+    /// `COPY_SRC` usage.
     pub fn commands(&self) -> &wgpu::Buffer {
         &self.commands
+    }
+
+    /// The survivors' header, a [`SurvivorHeader`] (`INDIRECT`, `STORAGE`, `COPY_SRC`).
+    pub fn survivors(&self) -> &wgpu::Buffer {
+        &self.survivors
+    }
+
+    /// Places in the survivor list.
+    pub fn survivor_capacity(&self) -> u32 {
+        self.survivor_capacity
     }
 
     /// Per instance three `u32`: meshlets visible, culled by the frustum, culled as back-facing
@@ -554,7 +677,9 @@ mod tests {
             device.create_buffer(&wgpu::BufferDescriptor { label: None, size, usage, mapped_at_creation: false })
         };
         let (palette, instances) = (storage(64 * joints as u64 * capacity as u64), storage(80 * capacity as u64));
-        let crowd = CrowdCulling::new(device, &pipelines, &character, &palette, &instances, capacity).unwrap();
+        let survivors = capacity * character.meshlets();
+        let crowd =
+            CrowdCulling::new(device, &pipelines, &character, &palette, &instances, capacity, survivors).unwrap();
         let camera = Camera::perspective(Vec3::new(0.0, 1.0, 6.0), Vec3::ZERO, Vec3::Y, 1.0, 1.5, 0.1, 100.0).unwrap();
         let encode = |n: u32| {
             let (crowd, camera, queue) = (&crowd, &camera, &gpu.queue);
@@ -568,6 +693,7 @@ mod tests {
             move |encoder: &mut wgpu::CommandEncoder| {
                 queue.write_buffer(&crowd.uniforms, 0, &[0; std::mem::size_of::<Uniforms>()]);
                 encoder.clear_buffer(&crowd.counts, 0, None);
+                encoder.clear_buffer(&crowd.survivors, 0, None);
                 let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                     label: Some("skinlet crowd culling"),
                     timestamp_writes: None,
@@ -578,6 +704,8 @@ mod tests {
                 pass.set_pipeline(&crowd.cull_pipeline);
                 pass.set_bind_group(0, &crowd.cull, &[]);
                 dispatch(&mut pass, n * crowd.meshlets);
+                pass.set_pipeline(&crowd.finish_pipeline);
+                pass.dispatch_workgroups(1, 1, 1);
             }
         };
         for _ in 0..3 {

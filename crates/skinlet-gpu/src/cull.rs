@@ -20,9 +20,6 @@ const RECORD: usize = 40;
 pub struct ComputeCulling {
     pipeline: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
-    /// `cull_draws`: indexed indirect draws instead of compacted ids.
-    draws_pipeline: wgpu::ComputePipeline,
-    draws_layout: wgpu::BindGroupLayout,
 }
 
 /// What the culling passes read: parameters, slots, joint records, any-pose boxes (see
@@ -104,59 +101,22 @@ impl ComputeCulling {
             let stage = wgpu::ShaderStages::COMPUTE;
             let read = wgpu::BufferBindingType::Storage { read_only: true };
             let write = wgpu::BufferBindingType::Storage { read_only: false };
-            let source = || [include_str!("shaders/cull_common.wgsl"), include_str!("shaders/cull.wgsl")].concat();
-            let head = [
-                buffer_entry(0, stage, wgpu::BufferBindingType::Uniform),
-                buffer_entry(1, stage, read),
-                buffer_entry(2, stage, read),
-                buffer_entry(3, stage, write),
-            ];
-            let boxes = buffer_entry(7, stage, read);
+            let source = [include_str!("shaders/cull_common.wgsl"), include_str!("shaders/cull.wgsl")].concat();
             let (pipeline, layout) = gpu.compute_pipeline(
                 "culling",
-                source(),
+                source,
                 "cull",
-                &[&head[..], &[buffer_entry(4, stage, write), boxes]].concat(),
+                &[
+                    buffer_entry(0, stage, wgpu::BufferBindingType::Uniform),
+                    buffer_entry(1, stage, read),
+                    buffer_entry(2, stage, read),
+                    buffer_entry(3, stage, write),
+                    buffer_entry(4, stage, write),
+                    buffer_entry(7, stage, read),
+                ],
             );
-            let (draws_pipeline, draws_layout) = gpu.compute_pipeline(
-                "culling to draws",
-                source(),
-                "cull_draws",
-                &[&head[..], &[buffer_entry(5, stage, read), buffer_entry(6, stage, write), boxes]].concat(),
-            );
-            ComputeCulling { pipeline, layout, draws_pipeline, draws_layout }
+            ComputeCulling { pipeline, layout }
         })
-    }
-
-    /// Records a pass writing, for one instance culled by `input`, an indexed indirect draw
-    /// per meshlet of `meshlets` into `commands` (culled ones with no instance) and the
-    /// counts (visible, frustum, backface) into `counts`.
-    pub fn encode_draws(
-        &self,
-        gpu: &Gpu,
-        encoder: &mut wgpu::CommandEncoder,
-        input: &[wgpu::Buffer; 4],
-        meshlets: &crate::mesh::GpuMeshlets,
-        counts: &wgpu::Buffer,
-        commands: &wgpu::Buffer,
-    ) {
-        let bind = gpu.bind_group(
-            "culling to draws",
-            &self.draws_layout,
-            &[
-                entry(0, &input[0]),
-                entry(1, &input[1]),
-                entry(2, &input[2]),
-                entry(3, counts),
-                entry(5, &meshlets.draws),
-                entry(6, commands),
-                entry(7, &input[3]),
-            ],
-        );
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
-        pass.set_pipeline(&self.draws_pipeline);
-        pass.set_bind_group(0, &bind, &[]);
-        dispatch(&mut pass, meshlets.count);
     }
 
     /// Culls every meshlet of `culler` for each instance's prepared `frames` (all with the

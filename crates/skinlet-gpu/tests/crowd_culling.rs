@@ -11,7 +11,7 @@ use glam::{Affine3A, DMat4, DVec3, DVec4, Mat4, Vec3, Vec4};
 use skinlet::clip::Clip;
 use skinlet::pose::Poser;
 use skinlet_gpu::Gpu;
-use skinlet_gpu::crowd_culling::{CrowdCulling, CullInstance, CullMode, CullPipelines, GpuCharacter};
+use skinlet_gpu::crowd_culling::{CrowdCulling, CullInstance, CullMode, CullPipelines, GpuCharacter, SurvivorHeader};
 use skinlet_lab::crowd::{CrowdParams, crowd};
 use skinlet_runtime::camera::{Camera, Projection};
 use skinlet_runtime::meshlet_cull::{CullSlot, JointFrame, MeshletCuller, Tests, joints_from_skinning};
@@ -79,10 +79,31 @@ fn culled_exactly(
 }
 
 /// One frame of crowd culling on the GPU: per instance, whether each meshlet (by index) is
-/// drawn, and the counts; checks that the commands draw each meshlet's own index range.
+/// drawn, the counts and the survivors' header; checks that the survivor list holds each
+/// drawn (instance, meshlet) once with the meshlet's own index range, and that the counts
+/// agree with it.
 struct Culled {
     drawn: Vec<Vec<bool>>,
     counts: Vec<[u32; 3]>,
+    header: SurvivorHeader,
+}
+
+/// The survivors a frame draws: per instance, per meshlet, whether it is in the first
+/// `instance_count` entries of the list (each entry checked against its meshlet's draw, none
+/// twice).
+fn survivors_drawn(draws: &[[u32; 2]], instances: usize, commands: &[u32], header: &SurvivorHeader) -> Vec<Vec<bool>> {
+    let by_first: std::collections::HashMap<u32, usize> = draws.iter().enumerate().map(|(id, d)| (d[1], id)).collect();
+    assert_eq!(by_first.len(), draws.len(), "meshlets share a first index");
+    assert_eq!(header.vertex_count, draws.iter().map(|d| d[0]).max().unwrap());
+    let mut drawn = vec![vec![false; draws.len()]; instances];
+    for c in commands.chunks_exact(5).take(header.instance_count as usize) {
+        let id = by_first[&c[2]];
+        assert_eq!([c[0], c[1], c[3]], [draws[id][0], 1, 0], "survivor of meshlet {id}");
+        let i = c[4] as usize;
+        assert!(i < instances && !drawn[i][id], "instance {i} meshlet {id}: out of range or listed twice");
+        drawn[i][id] = true;
+    }
+    drawn
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -95,6 +116,7 @@ fn cull_on_gpu(
     instances: &[CullInstance],
     camera: &Camera,
     tests: Tests,
+    survivor_capacity: Option<u32>,
 ) -> Culled {
     let device = &gpu.device;
     let storage = wgpu::BufferUsages::STORAGE;
@@ -104,31 +126,27 @@ fn cull_on_gpu(
     let floats: Vec<f32> = palette.iter().flat_map(|m| m.to_cols_array()).collect();
     let palette_buffer = init("palette", bytemuck::cast_slice(&floats));
     let instance_buffer = init("instances", bytemuck::cast_slice(instances));
-    let n = instances.len() as u32;
-    let crowd = CrowdCulling::new(device, pipelines, character, &palette_buffer, &instance_buffer, n).unwrap();
+    let (n, m) = (instances.len() as u32, draws.len());
+    let capacity = survivor_capacity.unwrap_or(n * m as u32);
+    let crowd =
+        CrowdCulling::new(device, pipelines, character, &palette_buffer, &instance_buffer, n, capacity).unwrap();
     let mut encoder = device.create_command_encoder(&Default::default());
     crowd.encode(&gpu.queue, &mut encoder, camera, tests, n, None).unwrap();
     gpu.queue.submit([encoder.finish()]);
-    let commands: Vec<u32> = read_buffer(gpu, crowd.commands(), 20 * crowd.draw_count(n) as u64);
+    let header: SurvivorHeader = bytemuck::pod_read_unaligned(&read_buffer::<u8>(gpu, crowd.survivors(), 32));
+    let commands: Vec<u32> = read_buffer(gpu, crowd.commands(), 20 * capacity as u64);
     let counts: Vec<u32> = read_buffer(gpu, crowd.counts(), 12 * n as u64);
-    let m = draws.len();
-    let mut drawn = vec![vec![false; m]; n as usize];
-    for (i, row) in drawn.iter_mut().enumerate() {
-        for (id, d) in row.iter_mut().enumerate() {
-            let c = &commands[5 * (i * m + id)..5 * (i * m + id) + 5];
-            assert_eq!(
-                [c[0], c[2], c[3], c[4]],
-                [draws[id][0], draws[id][1], 0, i as u32],
-                "instance {i} meshlet {id}"
-            );
-            assert!(c[1] <= 1);
-            *d = c[1] == 1;
-        }
+    assert_eq!(header.instance_count, header.found.min(capacity), "{header:?}");
+    assert_eq!(header.found, counts.chunks_exact(3).map(|c| c[0]).sum::<u32>(), "found and the visible counts");
+    let drawn = survivors_drawn(draws, n as usize, &commands, &header);
+    for (i, row) in drawn.iter().enumerate() {
         let visible = row.iter().filter(|&&d| d).count() as u32;
-        assert_eq!(visible, counts[3 * i], "instance {i}: the visible count and the commands disagree");
+        if header.found <= capacity {
+            assert_eq!(visible, counts[3 * i], "instance {i}: the visible count and the survivors disagree");
+        }
         assert_eq!(counts[3 * i] + counts[3 * i + 1] + counts[3 * i + 2], m as u32);
     }
-    Culled { drawn, counts: counts.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect() }
+    Culled { drawn, counts: counts.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(), header }
 }
 
 /// Per meshlet `(index count, first index)` in meshlet order.
@@ -195,8 +213,17 @@ fn gpu_prepared_crowd_culling_is_exact_and_culls_what_the_cpu_culls() {
                         culler.cull(&frame, &mut flags, &mut visible);
                         cpu_drawn.push(visible.len());
                     }
-                    let out =
-                        cull_on_gpu(&gpu, &pipelines, &gpu_character, &draws, &palette, &instances, camera, tests);
+                    let out = cull_on_gpu(
+                        &gpu,
+                        &pipelines,
+                        &gpu_character,
+                        &draws,
+                        &palette,
+                        &instances,
+                        camera,
+                        tests,
+                        None,
+                    );
                     for (i, drawn) in out.drawn.iter().enumerate() {
                         let mode = MODES[(i + f) % 4];
                         for s in &slots {
@@ -303,7 +330,7 @@ fn random_joint_matrices_cull_only_what_exact_arithmetic_culls() {
             instances.push(CullInstance::new(model, MODES[i % 3]));
             worlds.push(world);
         }
-        let out = cull_on_gpu(&gpu, &pipelines, &gpu_character, &draws, &palette, &instances, &camera, tests);
+        let out = cull_on_gpu(&gpu, &pipelines, &gpu_character, &draws, &palette, &instances, &camera, tests, None);
         for (i, drawn) in out.drawn.iter().enumerate() {
             for s in &slots {
                 if !drawn[s.id as usize] {
@@ -348,14 +375,83 @@ fn crowd_culling_refuses_bad_buffers_and_counts() {
     let palette = buffer(4 * joints * 64, storage);
     let instances = buffer(4 * 80, storage);
     let crowd_err = |p: &wgpu::Buffer, i: &wgpu::Buffer, n| {
-        CrowdCulling::new(device, &pipelines, &character, p, i, n).err().map(|e| e.to_string()).unwrap_or_default()
+        let survivors = n * character.meshlets();
+        let crowd = CrowdCulling::new(device, &pipelines, &character, p, i, n, survivors);
+        crowd.err().map(|e| e.to_string()).unwrap_or_default()
     };
     assert!(crowd_err(&palette, &instances, 5).contains("palette buffer holds"));
     assert!(crowd_err(&palette, &buffer(80, storage), 4).contains("instances buffer holds"));
     assert!(crowd_err(&buffer(4 * joints * 64, wgpu::BufferUsages::UNIFORM), &instances, 4).contains("STORAGE"));
-    let crowd = CrowdCulling::new(device, &pipelines, &character, &palette, &instances, 4).unwrap();
+    let huge = u32::MAX / 32;
+    let e = CrowdCulling::new(device, &pipelines, &character, &palette, &instances, 4, huge).err().unwrap();
+    assert!(e.to_string().contains("storage bindings"), "{e}");
+    let mut odd = draws.clone();
+    odd[1][0] -= 1;
+    assert!(err(GpuCharacter::new(device, &culler, &skin.inverse_bind, &odd)).contains("whole triangles"));
+    let crowd = CrowdCulling::new(device, &pipelines, &character, &palette, &instances, 4, 64).unwrap();
     let camera = Camera::perspective(Vec3::Z * 3.0, Vec3::NEG_Z, Vec3::Y, 1.0, 1.0, 0.1, 10.0).unwrap();
     let mut encoder = device.create_command_encoder(&Default::default());
     let e = crowd.encode(&gpu.queue, &mut encoder, &camera, Tests::Both, 5, None).unwrap_err();
     assert!(e.to_string().contains("capacity 4"), "{e}");
+}
+
+#[test]
+fn an_overflowing_survivor_list_draws_what_it_wrote_and_a_later_frame_nothing_stale() {
+    let Some(gpu) = gpu() else { return };
+    let device = &gpu.device;
+    let pipelines = CullPipelines::new(device).unwrap();
+    let asset = skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams::default());
+    let character = asset.character().unwrap();
+    let clips: Vec<&Clip> = asset.clips.iter().collect();
+    let baked = bake(&asset, &character);
+    let skin = &character.palette;
+    let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len()).unwrap();
+    let draws = meshlet_draws(&baked);
+    let gpu_character = GpuCharacter::new(device, &culler, &skin.inverse_bind, &draws).unwrap();
+    let params = CrowdParams { instances: 16, frames: 1, ..CrowdParams::default() };
+    let scene = crowd(&baked.mesh.positions, clips.len(), &params).unwrap();
+    let (mut palette, mut instances, mut skinning) = (Vec::new(), Vec::new(), Vec::new());
+    for p in &scene.placements {
+        let clip = clips.get(p.clip).copied();
+        Poser::default().skinning_matrices(&asset.skeleton, skin, clip, p.time(clip, 0, params.fps), &mut skinning);
+        palette.extend(skinning.iter().map(|&m| Mat4::from(m)));
+        instances.push(CullInstance::new(p.model.as_mat4(), CullMode::Bounds));
+    }
+    let cull = |capacity| {
+        let (palette, instances) = (&palette, &instances);
+        cull_on_gpu(&gpu, &pipelines, &gpu_character, &draws, palette, instances, &scene.camera, Tests::Both, capacity)
+    };
+    let whole = cull(None);
+    let found = whole.header.found;
+    assert!(found > 8 && whole.header.instance_count == found);
+    for capacity in [0, 1, found / 2, found - 1, found] {
+        let part = cull(Some(capacity));
+        assert_eq!((part.header.found, part.header.instance_count), (found, capacity));
+        // What was written is a part of the frame's survivors (each once: survivors_drawn).
+        for (i, row) in part.drawn.iter().enumerate() {
+            for (id, &d) in row.iter().enumerate() {
+                assert!(!d || whole.drawn[i][id], "capacity {capacity}: instance {i} meshlet {id} drawn but culled");
+            }
+        }
+    }
+    // One crowd, two frames: a full one, then a camera facing away; the second frame's draw
+    // has no survivors (the first frame's entries are still in the list, and not drawn).
+    let storage = wgpu::BufferUsages::STORAGE;
+    let init = |contents: &[u8]| {
+        device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: None, contents, usage: storage })
+    };
+    let floats: Vec<f32> = palette.iter().flat_map(|m| m.to_cols_array()).collect();
+    let (palette, instances) = (init(bytemuck::cast_slice(&floats)), init(bytemuck::cast_slice(&instances)));
+    let n = scene.placements.len() as u32;
+    let crowd = CrowdCulling::new(device, &pipelines, &gpu_character, &palette, &instances, n, found).unwrap();
+    let Projection::Perspective { eye } = scene.camera.projection else { unreachable!() };
+    let target = scene.camera.planes[0].truncate(); // any direction; below: the opposite of the crowd's
+    let away = Camera::perspective(eye, eye + (eye - target).normalize(), Vec3::Y, 0.5, 1.5, 0.1, 0.2).unwrap();
+    for (camera, expect) in [(&scene.camera, found), (&away, 0)] {
+        let mut encoder = device.create_command_encoder(&Default::default());
+        crowd.encode(&gpu.queue, &mut encoder, camera, Tests::Both, n, None).unwrap();
+        gpu.queue.submit([encoder.finish()]);
+        let header: SurvivorHeader = bytemuck::pod_read_unaligned(&read_buffer::<u8>(&gpu, crowd.survivors(), 32));
+        assert_eq!((header.found, header.instance_count), (expect, expect));
+    }
 }

@@ -30,12 +30,34 @@ pub struct CrowdParams {
     pub seed: u64,
     pub orthographic: bool,
     pub animation: Animation,
+    pub layout: Layout,
 }
 
 impl Default for CrowdParams {
     fn default() -> Self {
-        CrowdParams { instances: 64, frames: 30, fps: 30.0, seed: 1, orthographic: false, animation: Animation::Clips }
+        CrowdParams {
+            instances: 64,
+            frames: 30,
+            fps: 30.0,
+            seed: 1,
+            orthographic: false,
+            animation: Animation::Clips,
+            layout: Layout::Paper,
+        }
     }
+}
+
+/// Where the instances stand.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Layout {
+    /// The conservative-bounds paper's crowd (fig. 10): a grid filling the view from above
+    /// the crowd, a quarter of the instances on the view's sides.
+    #[default]
+    Paper,
+    /// A dense crowd seen from street level: rows of instances a body apart, stretching away
+    /// from a camera at chest height that looks along them (most instances hidden behind
+    /// nearer ones: the scene occlusion culling is for).
+    Dense,
 }
 
 /// How the instances are posed: what games do besides playing one clip.
@@ -174,6 +196,9 @@ pub fn crowd(positions: &[Vec3], clips: usize, params: &CrowdParams) -> Result<C
         }
     };
     let mut rng = Rng(params.seed ^ 0x5EED_C0DE);
+    if params.layout == Layout::Dense {
+        return Ok(Crowd { camera, placements: dense(params, clips, center, size, &mut rng) });
+    }
     let on_planes = params.instances / 4;
     let grid = params.instances - on_planes;
     let cols = ((grid as f64 * 1.5).sqrt().ceil() as usize).max(1);
@@ -205,6 +230,27 @@ pub fn crowd(positions: &[Vec3], clips: usize, params: &CrowdParams) -> Result<C
         placements.push(Placement { model, clip, offset: rng.next() as f32 });
     }
     Ok(Crowd { camera, placements })
+}
+
+/// [`Layout::Dense`]: a square grid centered on the view axis, 0.8 `size` apart across and
+/// 1.5 `size` deep (`size`: half the posed character's diagonal), jittered, the first row 3
+/// `size` ahead; the characters' centers 0.35 `size` below the camera (about chest height).
+fn dense(params: &CrowdParams, clips: usize, center: DVec3, size: f64, rng: &mut Rng) -> Vec<Placement> {
+    let cols = (params.instances as f64).sqrt().ceil().max(1.0) as usize;
+    (0..params.instances)
+        .map(|i| {
+            let (r, c) = (i / cols, i % cols);
+            let jitter = |rng: &mut Rng| (rng.next() - 0.5) * 0.3 * size;
+            let x = (c as f64 - (cols as f64 - 1.0) / 2.0) * 0.8 * size + jitter(rng);
+            let z = 3.0 * size + 1.5 * size * r as f64 + jitter(rng);
+            let pos = DVec3::new(x, -0.35 * size, -z);
+            let yaw = rng.next() * std::f64::consts::TAU;
+            let model =
+                DMat4::from_rotation_translation(DQuat::from_rotation_y(yaw), pos) * DMat4::from_translation(-center);
+            let clip = if clips == 0 { 0 } else { (rng.next() * clips as f64) as usize % clips };
+            Placement { model, clip, offset: rng.next() as f32 }
+        })
+        .collect()
 }
 
 /// The whole-mesh bounds compared: per-joint boxes in joint space, in mesh space (Bevy's

@@ -16,7 +16,8 @@ pub struct GpuOptions {
 }
 
 /// The first Vulkan adapter, with mesh shaders, timestamp queries, subgroup operations,
-/// 64-bit floats in shaders and indirect first instance enabled where the adapter has them.
+/// 64-bit floats in shaders, indirect first instance and indirect draw counts enabled where the
+/// adapter has them.
 pub fn gpu(options: GpuOptions) -> Result<Gpu> {
     let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
         backends: wgpu::Backends::VULKAN,
@@ -27,8 +28,10 @@ pub fn gpu(options: GpuOptions) -> Result<Gpu> {
         ..Default::default()
     }))
     .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
-    let mut wanted =
-        wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::SHADER_F64 | wgpu::Features::INDIRECT_FIRST_INSTANCE;
+    let mut wanted = wgpu::Features::TIMESTAMP_QUERY
+        | wgpu::Features::SHADER_F64
+        | wgpu::Features::INDIRECT_FIRST_INSTANCE
+        | wgpu::Features::MULTI_DRAW_INDIRECT_COUNT;
     if !options.no_subgroups {
         wanted |= wgpu::Features::SUBGROUP;
     }

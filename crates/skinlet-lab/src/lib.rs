@@ -6,6 +6,9 @@
 //!   pass and indirect draws), crowds timed by timestamp queries, colored, contour and
 //!   overdraw views, every image read back. `skinlet render` and `skinlet gpu-bench` draw
 //!   with it; tests/render.rs checks that every pipeline draws the same pixels.
+//! - [`gpu_crowd`]: a GPU-driven crowd renderer on `skinlet_gpu::crowd_culling` (culling,
+//!   survivors drawn with one call, the unculled image and the ID-buffer oracle of visible
+//!   meshlets); `skinlet gpu-bench --crowd` draws with it.
 //! - [`contour_eval`]: the contour paper's evaluation protocol (42 directions × 6 distances,
 //!   frames of clips) over every extractor, and the calibration of `t_P / t_e`.
 //! - [`snch`], [`meshlet_patches`]: the contour baselines (Johnson & Cohen 2001's hierarchy;
@@ -27,6 +30,7 @@ pub mod bevy_baseline;
 pub mod contour_eval;
 pub mod crowd;
 pub mod demo;
+pub mod gpu_crowd;
 pub mod headless;
 pub mod meshlet_patches;
 pub mod render;

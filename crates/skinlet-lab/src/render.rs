@@ -8,7 +8,7 @@
 
 use glam::{Mat4, Vec3};
 use skinlet_gpu::contours::{ContourExtraction, ContourView, DRAW_ARGS_OFFSET, Extracted, GpuContours};
-use skinlet_gpu::cull::{ComputeCulling, CullInput};
+use skinlet_gpu::cull::CullInput;
 use skinlet_gpu::mesh::{GpuMesh, Pose, entry};
 use skinlet_gpu::skinning::{COMMON_WGSL, ComputeSkinning, buffer_entry, mesh_bindings, mesh_entries};
 use skinlet_gpu::{Gpu, GpuError, Result};
@@ -46,8 +46,6 @@ pub struct Renderer {
     pub width: u32,
     pub height: u32,
     compute: ComputeSkinning,
-    /// Compute-pass culling to indirect draws (the culled path without mesh shaders).
-    culling: ComputeCulling,
     mesh_layout: wgpu::BindGroupLayout,
     skinned_layout: wgpu::BindGroupLayout,
     camera_layout: wgpu::BindGroupLayout,
@@ -117,9 +115,6 @@ pub enum Culling {
     /// In task shaders, three pipelines by culling class (paper section 6): compiled with
     /// both tests, the frustum test only, and none, each over its class's meshlets.
     TaskByClass,
-    /// In a compute pass writing one indirect draw per meshlet, drawn by one multi-draw
-    /// (devices without mesh shaders).
-    ComputeIndirect,
 }
 
 /// How a crowd is drawn.
@@ -157,7 +152,6 @@ impl Renderer {
             return Err(GpuError::Invalid { location: "renderer", message: format!("image size {width}×{height}") });
         }
         let compute = ComputeSkinning::new(gpu)?;
-        let culling = ComputeCulling::new(gpu)?;
         gpu.checked("render pipelines", || {
             let device = &gpu.device;
             let vertex = wgpu::ShaderStages::VERTEX;
@@ -371,7 +365,6 @@ impl Renderer {
                 width,
                 height,
                 compute,
-                culling,
                 mesh_layout,
                 skinned_layout,
                 camera_layout,
@@ -409,9 +402,7 @@ impl Renderer {
     /// - with mesh shaders, a task shader culls and launches mesh-shader skinning of the
     ///   survivors only; with `triangles` (the camera's projection) the mesh shader also culls
     ///   back-facing and edge-on triangles (thesis 5.1.3);
-    /// - without, a compute pass writes one indexed indirect draw per meshlet (culled ones
-    ///   with no instance), drawn by vertex-shader skinning in one multi-draw (`triangles` is
-    ///   not used).
+    /// - without, an error: [`crate::gpu_crowd`] draws culled crowds on any device.
     ///
     /// Also returns how many triangles were drawn (after per-triangle culling where it runs).
     #[allow(clippy::too_many_arguments)]
@@ -427,11 +418,14 @@ impl Renderer {
         triangles: Option<Projection>,
     ) -> Result<(Image, u32)> {
         let one = [PosedInstance { pose: pose.into(), frame: Some(frame) }];
-        let (culling, skinning) = match self.mesh_path {
-            Some(_) => (Culling::Task, Skinning::Mesh),
-            None => (Culling::ComputeIndirect, Skinning::Vertex),
-        };
-        let d = self.draw(gpu, mesh, &one, view_proj, light, Draw::Culled(culler, triangles, culling, skinning))?;
+        let d = self.draw(
+            gpu,
+            mesh,
+            &one,
+            view_proj,
+            light,
+            Draw::Culled(culler, triangles, Culling::Task, Skinning::Mesh),
+        )?;
         Ok((d.image, d.triangles.unwrap_or(0)))
     }
 
@@ -532,12 +526,8 @@ impl Renderer {
         let mesh_draw = match (draw, &self.mesh_path, &mesh.meshlets) {
             (Draw::Plain(Skinning::Vertex | Skinning::Compute) | Draw::Contours(..) | Draw::Overdraw, _, _) => None,
             (Draw::Culled(..), _, None) => return Err(invalid("culled drawing needs a mesh uploaded with meshlets")),
-            (Draw::Culled(_, _, Culling::ComputeIndirect, Skinning::Vertex | Skinning::Compute), _, Some(_)) => None,
-            (Draw::Culled(_, _, Culling::ComputeIndirect, _), ..)
-            | (Draw::Culled(.., Skinning::Vertex | Skinning::Compute), ..) => {
-                return Err(invalid(
-                    "task culling goes with mesh-shader skinning, compute culling with vertex or compute skinning",
-                ));
+            (Draw::Culled(.., Skinning::Vertex | Skinning::Compute), ..) => {
+                return Err(invalid("task culling goes with mesh-shader skinning (gpu_crowd culls vertex skinning)"));
             }
             (_, None, _) => return Err(invalid("the device has no mesh shaders")),
             (_, _, None) => return Err(invalid("mesh-shader skinning needs a mesh uploaded with meshlets")),
@@ -562,7 +552,7 @@ impl Renderer {
         let (width, height) = (self.width, self.height);
         let row = (4 * width).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
         let timestamps = gpu.has_timestamps();
-        let (readback, counter, commands, times) = gpu.checked("render", || -> Result<_> {
+        let (readback, counter, times) = gpu.checked("render", || -> Result<_> {
             let device = &gpu.device;
             let storage = wgpu::BufferUsages::STORAGE;
             let mut camera = view_proj.to_cols_array().to_vec();
@@ -675,24 +665,19 @@ impl Renderer {
                                 tasks.push((&culled_pipelines[k], group3, count.div_ceil(32)));
                             }
                         }
-                        per_instance.push(InstanceDraw { group0, tasks, commands: None });
+                        per_instance.push(InstanceDraw { group0, tasks });
                     }
                     pipeline
                 }
-                None if matches!(
-                    draw,
-                    Draw::Plain(Skinning::Vertex) | Draw::Culled(.., Skinning::Vertex) | Draw::Overdraw
-                ) =>
-                {
-                    for (i, m) in instances.iter().zip(&matrices) {
-                        let commands = self.indirect_draws(gpu, &mut encoder, mesh, draw, i.frame);
+                None if matches!(draw, Draw::Plain(Skinning::Vertex) | Draw::Overdraw) => {
+                    for m in &matrices {
                         let group0 = gpu.bind_group("mesh", &self.mesh_layout, &mesh_bindings(mesh, m));
-                        per_instance.push(InstanceDraw { group0, tasks: Vec::new(), commands });
+                        per_instance.push(InstanceDraw { group0, tasks: Vec::new() });
                     }
                     if matches!(draw, Draw::Overdraw) { &self.overdraw_pipeline } else { &self.vertex_pipeline }
                 }
                 None => {
-                    for (k, (i, m)) in instances.iter().zip(&matrices).enumerate() {
+                    for (k, m) in matrices.iter().enumerate() {
                         // The first instance skins into the mesh's buffers, the others into their own.
                         let out = (k > 0).then(|| {
                             let bytes = |n: u32| vec![0f32; 3 * n as usize];
@@ -708,9 +693,8 @@ impl Renderer {
                             None => [&mesh.out_positions, &mesh.out_normals],
                         };
                         self.compute.encode_into(gpu, &mut encoder, mesh, m, positions, normals);
-                        let commands = self.indirect_draws(gpu, &mut encoder, mesh, draw, i.frame);
                         let group0 = gpu.bind_group("skinned", &self.skinned_layout, &[entry(0, positions)]);
-                        per_instance.push(InstanceDraw { group0, tasks: Vec::new(), commands });
+                        per_instance.push(InstanceDraw { group0, tasks: Vec::new() });
                     }
                     if let Draw::Contours(extraction, contours, view) = draw {
                         extraction.encode(gpu, &mut encoder, contours, &mesh.out_positions, view)?;
@@ -762,25 +746,21 @@ impl Renderer {
                 for (i, group) in shared.iter().enumerate() {
                     pass.set_bind_group(2 + i as u32, group, &[]);
                 }
-                for InstanceDraw { group0, tasks, commands } in &per_instance {
+                for InstanceDraw { group0, tasks } in &per_instance {
                     pass.set_bind_group(0, group0, &[]);
                     for (pipeline, group3, workgroups) in tasks {
                         pass.set_pipeline(pipeline);
                         pass.set_bind_group(3, group3, &[]);
                         pass.draw_mesh_tasks(*workgroups, 1, 1);
                     }
-                    match (mesh_draw, &commands) {
-                        (Some(_), _) if matches!(draw, Draw::Culled(..)) => {}
-                        (Some(_), _) => {
+                    match mesh_draw {
+                        Some(_) if matches!(draw, Draw::Culled(..)) => {}
+                        Some(_) => {
                             // Meshlet id = y × 1024 + x (mesh_skin.wgsl).
                             let n = meshlet_count as u32;
                             pass.draw_mesh_tasks(n.min(1024), n.div_ceil(1024), 1);
                         }
-                        (None, Some(commands)) => {
-                            pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
-                            pass.multi_draw_indexed_indirect(commands, 0, meshlet_count as u32);
-                        }
-                        (None, None) => {
+                        None => {
                             pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
                             pass.draw_indexed(0..mesh.index_count, 0, 0..1);
                         }
@@ -827,20 +807,14 @@ impl Renderer {
                 times
             });
             gpu.queue.submit([encoder.finish()]);
-            let commands: Vec<wgpu::Buffer> = per_instance.into_iter().filter_map(|d| d.commands).collect();
-            Ok((readback, counter, commands, times))
+            Ok((readback, counter, times))
         })??;
         let bytes = gpu.read(&readback, (row * height) as u64)?;
         let rgba = bytes.chunks_exact(row as usize).flat_map(|r| &r[..4 * width as usize]).copied().collect();
-        let mut triangles = match counter {
+        let triangles = match counter {
             Some(counter) => Some(bytemuck::pod_collect_to_vec::<u8, u32>(&gpu.read(&counter, 4)?)[0]),
             None => None,
         };
-        // Triangles of the indirect draws that have an instance.
-        for c in &commands {
-            let words = bytemuck::pod_collect_to_vec::<u8, u32>(&gpu.read(c, 20 * meshlet_count as u64)?);
-            *triangles.get_or_insert(0) += words.chunks_exact(5).map(|c| c[0] / 3 * c[1]).sum::<u32>();
-        }
         let gpu_ms = match times {
             Some(times) => {
                 let t = bytemuck::pod_collect_to_vec::<u8, u64>(&gpu.read(&times, 16)?);
@@ -852,41 +826,11 @@ impl Renderer {
     }
 }
 
-impl Renderer {
-    /// For compute-culled draws: records the pass writing one instance's indirect draws (one
-    /// per meshlet, culled ones with no instance) and returns the commands.
-    fn indirect_draws(
-        &self,
-        gpu: &Gpu,
-        encoder: &mut wgpu::CommandEncoder,
-        mesh: &GpuMesh,
-        draw: Draw,
-        frame: Option<&JointFrame>,
-    ) -> Option<wgpu::Buffer> {
-        let (Draw::Culled(culler, _, Culling::ComputeIndirect, _), Some(frame), Some(meshlets)) =
-            (draw, frame, &mesh.meshlets)
-        else {
-            return None;
-        };
-        let storage = wgpu::BufferUsages::STORAGE;
-        let counts = gpu.buffer("cull counts", &[0u32; 3], storage);
-        let commands = gpu.buffer(
-            "meshlet draws",
-            &vec![0u32; 5 * meshlets.count as usize],
-            storage | wgpu::BufferUsages::INDIRECT | wgpu::BufferUsages::COPY_SRC,
-        );
-        let input = CullInput::new(culler, std::slice::from_ref(frame)).buffers(gpu);
-        self.culling.encode_draws(gpu, encoder, &input, meshlets, &counts, &commands);
-        Some(commands)
-    }
-}
-
-/// One instance's part of a draw: its bind group 0, its task-shader draws (pipeline, group 3,
-/// task workgroups) and its indirect draw commands.
+/// One instance's part of a draw: its bind group 0 and its task-shader draws (pipeline,
+/// group 3, task workgroups).
 struct InstanceDraw<'p> {
     group0: wgpu::BindGroup,
     tasks: Vec<(&'p wgpu::RenderPipeline, wgpu::BindGroup, u32)>,
-    commands: Option<wgpu::Buffer>,
 }
 
 /// `TriangleCull` in task_cull.wgsl: the eye or view direction, and the mode.

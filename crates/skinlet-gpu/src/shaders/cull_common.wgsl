@@ -10,9 +10,11 @@ struct CullParams {
     flags: u32,
     // Task shaders: the first slot of the range they test.
     first: u32,
-    pad0: u32,
-    pad1: u32,
-    pad2: u32,
+    // Crowd culling: how many survivors the compacted list holds, and the corners (indices)
+    // of the largest meshlet (the vertex count of the pulled draw).
+    capacity: u32,
+    corners: u32,
+    pad: u32,
 }
 
 // The tests a pipeline is compiled with (bits as in `flags`): 3 for all, or per culling

@@ -18,9 +18,9 @@ struct PrepareParams {
     // bit 0: frustum test, bit 1: backface test, bit 2: orthographic camera.
     flags: u32,
     first: u32,
-    pad0: u32,
-    pad1: u32,
-    pad2: u32,
+    capacity: u32,
+    corners: u32,
+    pad: u32,
 }
 
 struct CullCamera {

@@ -1,0 +1,159 @@
+//! The GPU-driven crowd (`skinlet_lab::gpu_crowd` on `skinlet_gpu::crowd_culling`): the
+//! survivors, drawn with one call (pulled, or as indexed draws with a GPU count), give the
+//! unculled image pixel for pixel, and every (instance, meshlet) with a visible fragment in
+//! the unculled ID buffer is among them, on every shared asset and the demo, for clips and
+//! for game poses under the pose guard.
+
+#[path = "../../skinlet-gpu/tests/common/mod.rs"]
+mod common;
+use common::{assets, bake, gpu};
+use glam::{Mat4, Vec3};
+use skinlet::pose::Poser;
+use skinlet_gpu::Gpu;
+use skinlet_gpu::crowd_culling::CullMode;
+use skinlet_lab::crowd::{Animation, CrowdParams, crowd, instance_pose};
+use skinlet_lab::gpu_crowd::{CrowdFrame, CrowdView, GpuCrowd};
+use skinlet_runtime::meshlet_cull::{MeshletCuller, Tests};
+use std::collections::HashSet;
+
+const LIGHT: Vec3 = Vec3::new(0.4, 0.8, 0.6);
+
+/// Draws `frame` every way; checks the images, the draw calls and that the survivors hold
+/// every visible meshlet. Returns (survivors, visible meshlets of the oracle, meshlets).
+fn check_frame(gpu: &Gpu, crowd: &GpuCrowd, frame: &CrowdFrame, what: &str) -> [usize; 3] {
+    let unculled = crowd.draw(gpu, frame, CrowdView::Unculled, LIGHT).unwrap();
+    // Lavapipe rasterizes a few pixels of multi-draws differently from one instanced draw:
+    // the indexed survivors are compared with every meshlet drawn the same way.
+    let keep = vec![CullMode::Keep; frame.modes.len()];
+    let indexed_unculled = CrowdFrame { modes: &keep, ..*frame };
+    let oracle = crowd.draw(gpu, frame, CrowdView::Ids, LIGHT).unwrap();
+    let ties = oracle.ties.unwrap();
+    let visible: HashSet<u32> = oracle.ids.unwrap().into_iter().filter(|&id| id != 0).map(|id| id - 1).collect();
+    assert!(!visible.is_empty(), "{what}: nothing visible");
+    let mut views = vec![CrowdView::Pulled];
+    if gpu.has_indirect_count() {
+        views.push(CrowdView::Indexed);
+    } else if std::env::var("SKINLET_REQUIRE_GPU").is_ok_and(|v| v == "1") {
+        panic!("the adapter lacks MULTI_DRAW_INDIRECT_COUNT: the indexed survivors' draw is not tested");
+    }
+    let mut survivors = 0;
+    for view in views {
+        let reference = match view {
+            CrowdView::Indexed => crowd.draw(gpu, &indexed_unculled, view, LIGHT).unwrap(),
+            _ => unculled.clone(),
+        };
+        let drawn = crowd.draw(gpu, frame, view, LIGHT).unwrap();
+        let header = drawn.header.unwrap();
+        assert_eq!(drawn.draw_calls, 1);
+        assert_eq!(header.found, header.instance_count, "{what} {view:?}: the list overflowed");
+        let (a, b) = (&reference.image.as_ref().unwrap().rgba, &drawn.image.as_ref().unwrap().rgba);
+        // Where two meshlets' nearest fragments tie in depth, draw order picks the color (and
+        // the survivors' order is not the unculled draw's); elsewhere every pixel is equal.
+        let differing: Vec<usize> = (0..ties.len()).filter(|&p| a[4 * p..4 * p + 4] != b[4 * p..4 * p + 4]).collect();
+        let untied = differing.iter().filter(|&&p| !ties[p]).count();
+        assert_eq!(untied, 0, "{what} {view:?}: {untied} pixels without a depth tie differ from the unculled image");
+        let list: HashSet<u32> = crowd.survivors(gpu).unwrap().iter().map(|&[i, m]| i * crowd.meshlets() + m).collect();
+        assert_eq!(list.len(), header.instance_count as usize, "{what}: survivors listed twice");
+        if let Some(missing) = visible.difference(&list).next() {
+            panic!(
+                "{what} {view:?}: meshlet {} of instance {} is visible and was culled",
+                missing % crowd.meshlets(),
+                missing / crowd.meshlets()
+            );
+        }
+        survivors = list.len();
+    }
+    [survivors, visible.len(), frame.modes.len() * crowd.meshlets() as usize]
+}
+
+#[test]
+fn survivors_draw_the_unculled_image_and_hold_every_visible_meshlet() {
+    let Some(gpu) = gpu() else { return };
+    let mut all = assets();
+    let demo =
+        skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams { triangles: 4000, ..Default::default() });
+    all.push(("demo".into(), demo));
+    let mut totals = [0usize; 3];
+    for (name, asset) in all {
+        let character = asset.character().unwrap();
+        let baked = bake(&asset, &character);
+        let skin = baked.palette();
+        let clips: Vec<&skinlet::clip::Clip> = asset.clips.iter().collect();
+        let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len()).unwrap();
+        let params = CrowdParams { instances: 24, frames: 2, ..Default::default() };
+        let scene = crowd(&baked.mesh.positions, clips.len(), &params).unwrap();
+        let crowd = GpuCrowd::new(&gpu, &baked, &culler, 24, 320, 180).unwrap();
+        let morphs = baked.mesh.morphs.weights.len().max(1);
+        let mut poser = Poser::default();
+        for f in 0..params.frames {
+            let (mut palette, mut weights, mut w) = (Vec::new(), Vec::new(), Vec::new());
+            for pl in &scene.placements {
+                let clip = clips.get(pl.clip).copied();
+                let t = pl.time(clip, f, params.fps);
+                let globals = poser.globals(&asset.skeleton, clip, t);
+                let (mut joints, mut skinning) = (Vec::new(), Vec::new());
+                pl.world_matrices(&skin, globals, &mut joints, &mut skinning);
+                palette.extend(skinning.iter().map(|&m| Mat4::from(m)));
+                baked.mesh.morphs.weights_at(clip, t, &mut w);
+                w.resize(morphs, 0.0);
+                weights.extend(&w);
+            }
+            let modes = vec![CullMode::Bounds; scene.placements.len()];
+            for tests in [Tests::Both, Tests::Frustum] {
+                let frame =
+                    CrowdFrame { palette: &palette, modes: &modes, weights: &weights, camera: &scene.camera, tests };
+                let counts = check_frame(&gpu, &crowd, &frame, &format!("{name} frame {f} {tests:?}"));
+                totals.iter_mut().zip(counts).for_each(|(t, c)| *t += c);
+            }
+        }
+    }
+    let [drawn, visible, meshlets] = totals;
+    eprintln!("{meshlets} (instance, meshlet) pairs: {drawn} drawn, {visible} with a visible fragment");
+    assert!(drawn < meshlets, "nothing was culled: the comparison would be vacuous");
+}
+
+#[test]
+fn game_poses_under_the_pose_guard_draw_every_visible_meshlet() {
+    // IK poses (some joints beyond their range of motion): per instance the pose guard picks
+    // the envelope bounds with the any-pose boxes, or the boxes alone; one instance is drawn
+    // whole (as when its morph weights leave their ranges).
+    let Some(gpu) = gpu() else { return };
+    let demo =
+        skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams { triangles: 4000, ..Default::default() });
+    let mut baked = bake(&demo, &demo.character().unwrap());
+    let clips: Vec<&skinlet::clip::Clip> = demo.clips.iter().collect();
+    let skin = baked.palette();
+    let envelope =
+        skinlet::bounds::envelope::Envelope::from_clips(&demo.skeleton, &skin, &baked.mesh, &clips, 0.2).unwrap();
+    skinlet::bake::add_envelope(&mut baked, &demo, envelope).unwrap();
+    let e = baked.envelope.as_ref().unwrap();
+    let guard = e.envelope.guard().unwrap();
+    let culler =
+        MeshletCuller::new(&e.bounds, &e.classes, skin.joints.len()).unwrap().with_any_pose(&e.any_pose).unwrap();
+    let params = CrowdParams { instances: 16, animation: Animation::Ik, seed: 3, ..Default::default() };
+    let scene = crowd(&baked.mesh.positions, clips.len(), &params).unwrap();
+    let crowd = GpuCrowd::new(&gpu, &baked, &culler, 16, 320, 180).unwrap();
+    let morphs = baked.mesh.morphs.weights.len().max(1);
+    let (mut palette, mut weights, mut modes) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut locals, mut w, mut globals) = (Vec::new(), Vec::new(), Vec::new());
+    for (i, pl) in scene.placements.iter().enumerate() {
+        instance_pose(&demo.skeleton, &clips, &baked, &params, i, pl, 0, &mut locals, &mut w);
+        skinlet::pose::global_transforms(&demo.skeleton, &locals, &mut globals);
+        let (mut joints, mut skinning) = (Vec::new(), Vec::new());
+        pl.world_matrices(&skin, &globals, &mut joints, &mut skinning);
+        palette.extend(skinning.iter().map(|&m| Mat4::from(m)));
+        modes.push(match (i, guard.admits(&locals, &w)) {
+            (5, _) => CullMode::Keep,
+            (_, true) => CullMode::BoundsAndBoxes,
+            (_, false) => CullMode::BoxesOnly,
+        });
+        w.resize(morphs, 0.0);
+        weights.extend(&w);
+    }
+    let refused = modes.iter().filter(|&&m| m == CullMode::BoxesOnly).count();
+    assert!(refused > 0 && refused < 15, "the guard refused {refused} of 16 instances");
+    let frame =
+        CrowdFrame { palette: &palette, modes: &modes, weights: &weights, camera: &scene.camera, tests: Tests::Both };
+    let [drawn, _, meshlets] = check_frame(&gpu, &crowd, &frame, "IK poses");
+    assert!(drawn < meshlets, "nothing was culled");
+}
