@@ -281,6 +281,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         ("backface", Some(Tests::Backface)),
         ("both", Some(Tests::Both)),
         ("both-by-class", Some(Tests::Both)),
+        ("both+occlusion", Some(Tests::Both)),
     ];
     let mut configs = Vec::new();
     for &(pipeline, skinning, mesh, culler, baked) in &pipelines {
@@ -291,6 +292,8 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             let (path, view) = match (task, skinning, culling) {
                 (true, _, "none") => (None, None),
                 (true, _, "both-by-class") => (Some(Culling::TaskByClass), None),
+                (_, _, "both+occlusion") if skinning != Skinning::Vertex => continue,
+                (_, _, "both+occlusion") => (None, Some(CrowdView::Occluded)),
                 (true, ..) => (Some(Culling::Task), None),
                 (false, _, "both-by-class") => continue,
                 (false, Skinning::Vertex, "none") => (None, Some(CrowdView::Unculled)),
@@ -385,12 +388,12 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             let started = std::time::Instant::now();
             let d = gpu_crowd.draw(&gpu, &crowd_frame(f, c.tests.unwrap_or(Tests::Both), false), view, light)?;
             let wall_ms = started.elapsed().as_secs_f64() * 1e3;
-            let (meshlets, triangles) = match d.header {
-                Some(_) => {
+            let (meshlets, triangles) = match d.headers.is_empty() {
+                false => {
                     let survivors = gpu_crowd.survivors(&gpu)?;
                     (survivors.len() as u64, survivors.iter().map(|&[_, m]| meshlet_triangles[m as usize]).sum())
                 }
-                None => (all_meshlets, total_triangles * instances as u64),
+                true => (all_meshlets, total_triangles * instances as u64),
             };
             let image = d.image.context("the crowd draws an image")?;
             return Ok(Frame { image, gpu_ms: d.gpu_ms, triangles, meshlets, draw_calls: d.draw_calls, wall_ms });

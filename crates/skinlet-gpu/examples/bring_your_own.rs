@@ -9,7 +9,9 @@
 //! `{"equal_to_unculled": true, "culled_pct": ..., ...}`; exit status 1 when an image differs.
 
 use glam::Mat4;
-use skinlet_gpu::crowd_culling::{CrowdCulling, CullInstance, CullMode, CullPipelines, GpuCharacter, SURVIVORS_WGSL};
+use skinlet_gpu::crowd_culling::{
+    CrowdCulling, CullInstance, CullMode, CullPipelines, GpuCharacter, List, SURVIVORS_WGSL,
+};
 use skinlet_lab::crowd::{CrowdParams, crowd};
 use skinlet_runtime::meshlet_cull::{MeshletCuller, Tests};
 use wgpu::util::DeviceExt;
@@ -266,13 +268,13 @@ fn run() -> Result<(bool, String)> {
             pass.set_index_buffer(index_buffer.slice(..), wgpu::IndexFormat::Uint32);
             match draw {
                 Draw::Unculled => pass.draw_indexed(0..indices.len() as u32, 0, 0..n),
-                Draw::Pulled => culling.draw_pulled(&mut pass),
-                Draw::Indexed => culling.draw_indexed(&mut pass)?,
+                Draw::Pulled => culling.draw_pulled(&mut pass, List::First),
+                Draw::Indexed => culling.draw_indexed(&mut pass, List::First)?,
             }
         }
         // Reporting only: the images and skinlet's counts, copied out and waited for.
         let (usage, image_size) = (wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST, 4 * 320 * 180);
-        let sizes = std::iter::repeat_n(image_size, images.len()).chain([12 * n as u64]);
+        let sizes = std::iter::repeat_n(image_size, images.len()).chain([16 * n as u64]);
         let out: Vec<wgpu::Buffer> = sizes
             .map(|size| {
                 device.create_buffer(&wgpu::BufferDescriptor { label: None, size, usage, mapped_at_creation: false })
@@ -282,7 +284,7 @@ fn run() -> Result<(bool, String)> {
             let layout = wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(4 * 320), rows_per_image: None };
             encoder.copy_texture_to_buffer(image.as_image_copy(), wgpu::TexelCopyBufferInfo { buffer, layout }, EXTENT);
         }
-        encoder.copy_buffer_to_buffer(culling.counts(), 0, &out[images.len()], 0, 12 * n as u64);
+        encoder.copy_buffer_to_buffer(culling.counts(), 0, &out[images.len()], 0, 16 * n as u64);
         queue.submit([encoder.finish()]);
         out.iter().for_each(|b| b.slice(..).map_async(wgpu::MapMode::Read, |_| {}));
         device.poll(wgpu::PollType::Wait { submission_index: None, timeout: None })?;
@@ -292,7 +294,7 @@ fn run() -> Result<(bool, String)> {
         }
         covered += bytes[0].chunks(4).filter(|p| p[..3] != [0, 0, 0]).count();
         let counts = bytemuck::pod_collect_to_vec::<u8, u32>(&bytes[images.len()]);
-        drawn += counts.chunks(3).map(|c| c[0] as u64).sum::<u64>();
+        drawn += counts.chunks(4).map(|c| c[0] as u64).sum::<u64>();
     }
     let culled_pct =
         100.0 * (1.0 - drawn as f64 / (params.frames as u64 * n as u64 * character.meshlets() as u64) as f64);

@@ -86,9 +86,11 @@ pub struct SurvivorHeader {
 }
 
 impl SurvivorHeader {
-    /// Where the survivors drawn are, in bytes: the count buffer offset of
+    /// Where the survivors drawn are in a header, in bytes: the count buffer offset of
     /// `multi_draw_indexed_indirect_count`.
     pub const COUNT_OFFSET: u64 = 4;
+    /// Bytes per header: the second list's header starts here.
+    pub const SIZE: u64 = 32;
 }
 
 /// How an instance is culled this frame (the pose guard's answer, when the bounds are the
@@ -124,13 +126,15 @@ impl CullInstance {
     }
 }
 
-/// The compute pipelines (prepare, cull to draws, finish) of one device.
+/// The compute pipelines (prepare, cull to draws, finish, depth pyramid) of one device.
 pub struct CullPipelines {
     prepare: wgpu::ComputePipeline,
     prepare_layout: wgpu::BindGroupLayout,
     cull: wgpu::ComputePipeline,
     cull_layout: wgpu::BindGroupLayout,
     finish: wgpu::ComputePipeline,
+    pyramid: wgpu::ComputePipeline,
+    pyramid_layout: wgpu::BindGroupLayout,
 }
 
 /// A character's culling data on the GPU (uploaded once).
@@ -146,10 +150,30 @@ pub struct GpuCharacter {
     statics: wgpu::Buffer,
 }
 
+/// The depth buffer two-phase occlusion culling reads ([`CrowdCulling::with_occlusion`]): the
+/// caller's depth texture (`Depth32Float` or another depth format readable as
+/// `texture_depth_2d`, with `TEXTURE_BINDING` usage), its size, and whether its depth range
+/// is reversed (near 1, far 0: Bevy's infinite reverse-Z).
+#[derive(Clone, Copy, Debug)]
+pub struct OcclusionDepth<'a> {
+    pub view: &'a wgpu::TextureView,
+    pub width: u32,
+    pub height: u32,
+    pub reversed: bool,
+}
+
+/// Which survivor list a draw reads: the only one (one-phase culling) or occlusion culling's
+/// first (last frame's visible), and occlusion culling's second (the newly visible).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum List {
+    First,
+    Second,
+}
+
 /// One crowd's per-frame buffers and bind groups over the caller's palette and instances.
 pub struct CrowdCulling {
     capacity: u32,
-    /// Places in the survivor list.
+    /// Places in each survivor list.
     survivor_capacity: u32,
     meshlets: u32,
     joints: u32,
@@ -157,7 +181,12 @@ pub struct CrowdCulling {
     has_boxes: bool,
     /// The device has `MULTI_DRAW_INDIRECT_COUNT`.
     count_draws: bool,
-    /// `CullParams` at 0, `CullCamera` at [`CAMERA_OFFSET`].
+    /// With occlusion culling: the depth size and range, and the pyramid's levels.
+    occlusion: Option<(u32, u32, bool, u32)>,
+    /// The instances of the frame being recorded (the second phase's dispatch size).
+    frame_instances: std::sync::atomic::AtomicU32,
+    /// `CullParams` (phases 0 and 1) at 0, `CullCamera` at [`CAMERA_OFFSET`], `CullParams`
+    /// (phase 2) at [`SECOND_OFFSET`], `Occlusion` at [`OCCLUSION_OFFSET`].
     uniforms: wgpu::Buffer,
     records: wgpu::Buffer,
     counts: wgpu::Buffer,
@@ -165,19 +194,28 @@ pub struct CrowdCulling {
     survivors: wgpu::Buffer,
     prepare: wgpu::BindGroup,
     cull: wgpu::BindGroup,
+    /// Per pyramid level (a dynamic offset each) the pyramid pass's bind group.
+    pyramid: Option<wgpu::BindGroup>,
     prepare_pipeline: wgpu::ComputePipeline,
     cull_pipeline: wgpu::ComputePipeline,
     finish_pipeline: wgpu::ComputePipeline,
+    pyramid_pipeline: wgpu::ComputePipeline,
 }
 
-/// Where `CullCamera` starts in the uniform buffer (the uniform offset alignment WebGPU
-/// guarantees).
+/// Where `CullCamera`, the second phase's `CullParams` and `Occlusion` start in the uniform
+/// buffer (multiples of the uniform offset alignment WebGPU guarantees).
 const CAMERA_OFFSET: usize = 256;
-/// Bytes per (instance, joint) record (`RECORD` floats) and per draw command.
-const RECORD_BYTES: u64 = 40 * 4;
+const SECOND_OFFSET: usize = 512;
+const OCCLUSION_OFFSET: usize = 768;
+/// Bytes per (instance, joint) record (`RECORD` floats and 16 for occlusion) and per draw
+/// command; per instance counts.
+const RECORD_BYTES: u64 = (40 + 16) * 4;
 const COMMAND_BYTES: u64 = 20;
+const COUNT_BYTES: u64 = 16;
+/// Bytes per pyramid level's uniform (a dynamic offset).
+const LEVEL_STRIDE: u64 = 256;
 
-/// The uniform buffer's contents: `CullParams`, padding, `CullCamera` (prepare.wgsl).
+/// The uniform buffer's contents (prepare.wgsl, crowd_cull.wgsl).
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(C)]
 struct Uniforms {
@@ -189,6 +227,12 @@ struct Uniforms {
     omega: f32,
     has_boxes: u32,
     pad2: u32,
+    pad3: [u32; (SECOND_OFFSET - CAMERA_OFFSET - 128) / 4],
+    second: [u32; 8],
+    pad4: [u32; (OCCLUSION_OFFSET - SECOND_OFFSET - 32) / 4],
+    view_proj: [f32; 16],
+    /// width, height, pyramid base, reversed, levels, 0, 0, 0
+    occlusion: [u32; 8],
 }
 
 fn invalid(location: &'static str, message: String) -> GpuError {
@@ -203,8 +247,30 @@ fn whole(buffer: &wgpu::Buffer) -> wgpu::BindingResource<'_> {
     buffer.as_entire_binding()
 }
 
+fn part(buffer: &wgpu::Buffer, offset: usize, size: usize) -> wgpu::BindingResource<'_> {
+    wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+        buffer,
+        offset: offset as u64,
+        size: std::num::NonZeroU64::new(size as u64),
+    })
+}
+
 fn layout_entry(binding: u32, ty: wgpu::BufferBindingType) -> wgpu::BindGroupLayoutEntry {
     crate::skinning::buffer_entry(binding, wgpu::ShaderStages::COMPUTE, ty)
+}
+
+/// A uniform binding with a dynamic offset.
+fn dynamic_uniform(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: true,
+            min_binding_size: None,
+        },
+        count: None,
+    }
 }
 
 fn pipeline(
@@ -216,6 +282,19 @@ fn pipeline(
 ) -> (wgpu::ComputePipeline, wgpu::BindGroupLayout) {
     let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries });
     (crate::context::compute_pipeline_with(device, label, source, entry, &layout), layout)
+}
+
+/// The pyramid's levels (level 0 the depth buffer's size, each next one half, rounded up, down
+/// to 1 × 1) and its size in texels.
+fn pyramid_levels(width: u32, height: u32) -> (u32, u64) {
+    let (mut w, mut h, mut levels, mut texels) = (width as u64, height as u64, 1, 0);
+    loop {
+        texels += w * h;
+        if w == 1 && h == 1 {
+            return (levels, texels);
+        }
+        (w, h, levels) = (w.div_ceil(2), h.div_ceil(2), levels + 1);
+    }
 }
 
 impl CullPipelines {
@@ -245,14 +324,14 @@ impl CullPipelines {
                     layout_entry(5, write),
                 ],
             );
-            let source = [CULL_WGSL, include_str!("shaders/cull.wgsl")].concat();
+            let source = [CULL_WGSL, include_str!("shaders/crowd_cull.wgsl")].concat();
             let (cull, cull_layout) = pipeline(
                 device,
                 "skinlet cull",
                 source.clone(),
                 "cull_draws",
                 &[
-                    layout_entry(0, Uniform),
+                    dynamic_uniform(0),
                     layout_entry(1, read),
                     layout_entry(2, read),
                     layout_entry(3, write),
@@ -260,6 +339,8 @@ impl CullPipelines {
                     layout_entry(6, write),
                     layout_entry(7, read),
                     layout_entry(8, write),
+                    layout_entry(9, Uniform),
+                    layout_entry(10, write),
                 ],
             );
             let finish = crate::context::compute_pipeline_with(
@@ -269,7 +350,24 @@ impl CullPipelines {
                 "finish_draws",
                 &cull_layout,
             );
-            CullPipelines { prepare, prepare_layout, cull, cull_layout, finish }
+            let depth = wgpu::BindGroupLayoutEntry {
+                binding: 1,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Depth,
+                    view_dimension: wgpu::TextureViewDimension::D2,
+                    multisampled: false,
+                },
+                count: None,
+            };
+            let (pyramid, pyramid_layout) = pipeline(
+                device,
+                "skinlet depth pyramid",
+                include_str!("shaders/pyramid.wgsl").into(),
+                "reduce",
+                &[dynamic_uniform(0), depth, layout_entry(2, write)],
+            );
+            CullPipelines { prepare, prepare_layout, cull, cull_layout, finish, pyramid, pyramid_layout }
         })
     }
 }
@@ -359,6 +457,42 @@ impl CrowdCulling {
         capacity: u32,
         survivor_capacity: u32,
     ) -> Result<CrowdCulling> {
+        Self::build(device, pipelines, character, palette, instances, capacity, survivor_capacity, None)
+    }
+
+    /// [`CrowdCulling::new`] with two-phase occlusion culling against `depth`, the depth
+    /// buffer the caller draws the crowd into: [`CrowdCulling::encode_first`] and
+    /// [`CrowdCulling::encode_second`] (two survivor lists of `survivor_capacity` each, one
+    /// visibility bit per instance and meshlet, a depth pyramid of `depth`'s size). Errors
+    /// also when `depth` is empty.
+    #[allow(clippy::too_many_arguments)]
+    pub fn with_occlusion(
+        device: &wgpu::Device,
+        pipelines: &CullPipelines,
+        character: &GpuCharacter,
+        palette: &wgpu::Buffer,
+        instances: &wgpu::Buffer,
+        capacity: u32,
+        survivor_capacity: u32,
+        depth: OcclusionDepth,
+    ) -> Result<CrowdCulling> {
+        if depth.width == 0 || depth.height == 0 {
+            return Err(invalid("GPU occlusion culling", format!("a {}×{} depth buffer", depth.width, depth.height)));
+        }
+        Self::build(device, pipelines, character, palette, instances, capacity, survivor_capacity, Some(depth))
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn build(
+        device: &wgpu::Device,
+        pipelines: &CullPipelines,
+        character: &GpuCharacter,
+        palette: &wgpu::Buffer,
+        instances: &wgpu::Buffer,
+        capacity: u32,
+        survivor_capacity: u32,
+        depth: Option<OcclusionDepth>,
+    ) -> Result<CrowdCulling> {
         let location = "GPU crowd culling";
         let cap = capacity as u64;
         let (joints, meshlets) = (character.joints as u64, character.meshlets as u64);
@@ -377,13 +511,20 @@ impl CrowdCulling {
         need(palette, "palette", cap * joints * 64)?;
         need(instances, "instances", cap * std::mem::size_of::<CullInstance>() as u64)?;
         let limit = device.limits().max_storage_buffer_binding_size;
-        let (records_size, commands_size) = (cap * joints * RECORD_BYTES, survivor_capacity as u64 * COMMAND_BYTES);
-        if records_size.max(commands_size).max(cap * 12) > limit || cap * meshlets.max(joints) > u32::MAX as u64 / 2 {
+        let lists = if depth.is_some() { 2 } else { 1 };
+        let (levels, texels) = depth.map_or((0, 0), |d| pyramid_levels(d.width, d.height));
+        let state_size = (cap * meshlets + texels) * 4;
+        let records_size = cap * joints * RECORD_BYTES;
+        let commands_size = lists * survivor_capacity as u64 * COMMAND_BYTES;
+        if records_size.max(commands_size).max(state_size).max(cap * COUNT_BYTES) > limit
+            || cap * meshlets.max(joints) > u32::MAX as u64 / 2
+            || (cap * meshlets + texels) > u32::MAX as u64 / 2
+        {
             return Err(invalid(
                 location,
                 format!(
                     "{capacity} instances of {meshlets} meshlets and {joints} joints, {survivor_capacity} survivors, \
-                     exceed the device's {limit}-byte storage bindings"
+                     a {texels}-texel depth pyramid exceed the device's {limit}-byte storage bindings"
                 ),
             ));
         }
@@ -401,29 +542,21 @@ impl CrowdCulling {
             let uniforms =
                 make("skinlet cull uniforms", std::mem::size_of::<Uniforms>() as u64, U::UNIFORM | U::COPY_DST);
             let records = make("skinlet joint records", records_size, U::STORAGE);
-            let counts = make("skinlet cull counts", cap * 12, U::STORAGE | U::COPY_SRC | U::COPY_DST);
+            let counts = make("skinlet cull counts", cap * COUNT_BYTES, U::STORAGE | U::COPY_SRC | U::COPY_DST);
             let commands = make("skinlet draw commands", commands_size, U::STORAGE | U::INDIRECT | U::COPY_SRC);
             let survivors = make(
                 "skinlet survivors",
-                std::mem::size_of::<SurvivorHeader>() as u64,
+                2 * std::mem::size_of::<SurvivorHeader>() as u64,
                 U::STORAGE | U::INDIRECT | U::COPY_SRC | U::COPY_DST,
             );
-            let params = wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                buffer: &uniforms,
-                offset: 0,
-                size: std::num::NonZeroU64::new(32),
-            });
-            let camera = wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                buffer: &uniforms,
-                offset: CAMERA_OFFSET as u64,
-                size: std::num::NonZeroU64::new((std::mem::size_of::<Uniforms>() - CAMERA_OFFSET) as u64),
-            });
+            let state = make("skinlet occlusion state", state_size, U::STORAGE | U::COPY_DST);
+            let params_size = 32;
             let prepare = device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("skinlet prepare"),
                 layout: &pipelines.prepare_layout,
                 entries: &[
-                    bind(0, params.clone()),
-                    bind(1, camera),
+                    bind(0, part(&uniforms, 0, params_size)),
+                    bind(1, part(&uniforms, CAMERA_OFFSET, 128)),
                     bind(2, whole(palette)),
                     bind(3, whole(instances)),
                     bind(4, whole(&character.statics)),
@@ -434,7 +567,7 @@ impl CrowdCulling {
                 label: Some("skinlet cull"),
                 layout: &pipelines.cull_layout,
                 entries: &[
-                    bind(0, params),
+                    bind(0, part(&uniforms, 0, params_size)),
                     bind(1, whole(&character.slots)),
                     bind(2, whole(&records)),
                     bind(3, whole(&counts)),
@@ -442,7 +575,29 @@ impl CrowdCulling {
                     bind(6, whole(&commands)),
                     bind(7, whole(&character.boxes)),
                     bind(8, whole(&survivors)),
+                    bind(9, part(&uniforms, OCCLUSION_OFFSET, 96)),
+                    bind(10, whole(&state)),
                 ],
+            });
+            let pyramid = depth.map(|d| {
+                // Per level: width, height, pyramid base, reversed, level.
+                let words: Vec<u32> = (0..levels)
+                    .flat_map(|level| {
+                        let mut w = [0u32; LEVEL_STRIDE as usize / 4];
+                        w[..5].copy_from_slice(&[d.width, d.height, (cap * meshlets) as u32, d.reversed as u32, level]);
+                        w
+                    })
+                    .collect();
+                let level_uniforms = crate::context::buffer(device, "skinlet pyramid levels", &words, U::UNIFORM);
+                device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("skinlet depth pyramid"),
+                    layout: &pipelines.pyramid_layout,
+                    entries: &[
+                        bind(0, part(&level_uniforms, 0, 32)),
+                        bind(1, wgpu::BindingResource::TextureView(d.view)),
+                        bind(2, whole(&state)),
+                    ],
+                })
             });
             CrowdCulling {
                 capacity,
@@ -452,6 +607,8 @@ impl CrowdCulling {
                 corners: character.corners,
                 has_boxes: character.has_boxes,
                 count_draws: device.features().contains(wgpu::Features::MULTI_DRAW_INDIRECT_COUNT),
+                occlusion: depth.map(|d| (d.width, d.height, d.reversed, levels)),
+                frame_instances: std::sync::atomic::AtomicU32::new(0),
                 uniforms,
                 records,
                 counts,
@@ -459,19 +616,22 @@ impl CrowdCulling {
                 survivors,
                 prepare,
                 cull,
+                pyramid,
                 prepare_pipeline: pipelines.prepare.clone(),
                 cull_pipeline: pipelines.cull.clone(),
                 finish_pipeline: pipelines.finish.clone(),
+                pyramid_pipeline: pipelines.pyramid.clone(),
             }
         })
     }
 
-    /// Writes this frame's camera and instance count (`queue.write_buffer`, 384 bytes) and
-    /// records the passes for the first `instances` instances into `encoder` (the counts and
-    /// the survivors' header are cleared first); `timestamps`, if given, are written at the
-    /// pass's start and end. The
-    /// caller's palette and instances must hold this frame's values when the commands run.
-    /// Allocates nothing itself. Errors when `instances` exceeds the capacity.
+    /// One-phase culling (frustum, backface, any-pose boxes; no occlusion): writes this
+    /// frame's camera and instance count (`queue.write_buffer`, under 1 KB) and records the
+    /// passes for the first `instances` instances into `encoder` (the counts and the survivors'
+    /// headers are cleared first): the survivors go to [`List::First`]. `timestamps`, if given,
+    /// are written at the pass's start and end. The caller's palette and instances must hold
+    /// this frame's values when the commands run. Allocates nothing itself. Errors when
+    /// `instances` exceeds the capacity.
     pub fn encode(
         &self,
         queue: &wgpu::Queue,
@@ -480,6 +640,77 @@ impl CrowdCulling {
         tests: Tests,
         instances: u32,
         timestamps: Option<wgpu::ComputePassTimestampWrites<'_>>,
+    ) -> Result<()> {
+        self.encode_phase(queue, encoder, camera, tests, instances, timestamps, 0)
+    }
+
+    /// Occlusion culling's first phase: as [`CrowdCulling::encode`], the survivors that were
+    /// visible last frame (by the second phase's bits) to [`List::First`]. The caller draws
+    /// them into the depth buffer given at construction, then records
+    /// [`CrowdCulling::encode_second`]. Errors also without occlusion culling.
+    pub fn encode_first(
+        &self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        camera: &Camera,
+        tests: Tests,
+        instances: u32,
+        timestamps: Option<wgpu::ComputePassTimestampWrites<'_>>,
+    ) -> Result<()> {
+        if self.occlusion.is_none() {
+            return Err(invalid("GPU occlusion culling", "the crowd was made without occlusion culling".into()));
+        }
+        self.encode_phase(queue, encoder, camera, tests, instances, timestamps, 1)
+    }
+
+    /// Occlusion culling's second phase, after the first list was drawn into the depth
+    /// buffer: the depth pyramid, then every meshlet of the frame `encode_first` culled tested
+    /// again with its bounding sphere (its any-pose boxes, for an instance culled by the boxes
+    /// alone) against the pyramid; the newly visible to [`List::Second`], and every meshlet's
+    /// visibility bit set for the next frame. Allocates nothing. Errors without occlusion
+    /// culling.
+    pub fn encode_second(&self, encoder: &mut wgpu::CommandEncoder) -> Result<()> {
+        let (Some((width, height, _, levels)), Some(pyramid)) = (self.occlusion, &self.pyramid) else {
+            return Err(invalid("GPU occlusion culling", "the crowd was made without occlusion culling".into()));
+        };
+        // Each level in its own pass: the next one reads what this one wrote.
+        for level in 0..levels {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("skinlet depth pyramid"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&self.pyramid_pipeline);
+            pass.set_bind_group(0, pyramid, &[level * LEVEL_STRIDE as u32]);
+            let (w, h) = (width.div_ceil(1 << level).max(1), height.div_ceil(1 << level).max(1));
+            pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
+        }
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("skinlet occlusion culling"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&self.cull_pipeline);
+        pass.set_bind_group(0, &self.cull, &[SECOND_OFFSET as u32]);
+        dispatch(&mut pass, self.frame_instances() * self.meshlets);
+        pass.set_pipeline(&self.finish_pipeline);
+        pass.dispatch_workgroups(1, 1, 1);
+        Ok(())
+    }
+
+    /// The instance count the last `encode*` wrote.
+    fn frame_instances(&self) -> u32 {
+        self.frame_instances.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn encode_phase(
+        &self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        camera: &Camera,
+        tests: Tests,
+        instances: u32,
+        timestamps: Option<wgpu::ComputePassTimestampWrites<'_>>,
+        phase: u32,
     ) -> Result<()> {
         if instances > self.capacity {
             return Err(invalid(
@@ -492,17 +723,13 @@ impl CrowdCulling {
             Projection::Orthographic { dir } => (dir.extend(0.0), true),
         };
         let planes = &camera.planes;
+        let params = |phase| {
+            let f = flags(tests, orthographic);
+            [self.meshlets, self.joints, instances, f, 0, self.survivor_capacity, self.corners, phase]
+        };
+        let (width, height, reversed, levels) = self.occlusion.unwrap_or_default();
         let uniforms = Uniforms {
-            params: [
-                self.meshlets,
-                self.joints,
-                instances,
-                flags(tests, orthographic),
-                0,
-                self.survivor_capacity,
-                self.corners,
-                0,
-            ],
+            params: params(phase),
             pad: [0; (CAMERA_OFFSET - 32) / 4],
             planes: planes.map(|p| p.to_array()),
             view: view.to_array(),
@@ -510,8 +737,14 @@ impl CrowdCulling {
             omega: planes.iter().map(|p| p.w.abs()).fold(0.0, f32::max),
             has_boxes: self.has_boxes as u32,
             pad2: 0,
+            pad3: [0; (SECOND_OFFSET - CAMERA_OFFSET - 128) / 4],
+            second: params(2),
+            pad4: [0; (OCCLUSION_OFFSET - SECOND_OFFSET - 32) / 4],
+            view_proj: camera.view_proj.to_cols_array(),
+            occlusion: [width, height, self.capacity * self.meshlets, reversed as u32, levels, 0, 0, 0],
         };
         queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&uniforms));
+        self.frame_instances.store(instances, std::sync::atomic::Ordering::Relaxed);
         encoder.clear_buffer(&self.counts, 0, None);
         encoder.clear_buffer(&self.survivors, 0, None);
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -522,54 +755,66 @@ impl CrowdCulling {
         pass.set_bind_group(0, &self.prepare, &[]);
         dispatch(&mut pass, instances * self.joints);
         pass.set_pipeline(&self.cull_pipeline);
-        pass.set_bind_group(0, &self.cull, &[]);
+        pass.set_bind_group(0, &self.cull, &[0]);
         dispatch(&mut pass, instances * self.meshlets);
         pass.set_pipeline(&self.finish_pipeline);
         pass.dispatch_workgroups(1, 1, 1);
         Ok(())
     }
 
-    /// Draws this frame's survivors with one `draw_indirect` of the survivors' header: the
-    /// pipeline's vertex shader pulls its vertices with [`SURVIVORS_WGSL`].
-    pub fn draw_pulled(&self, pass: &mut wgpu::RenderPass<'_>) {
-        pass.draw_indirect(&self.survivors, 0);
+    /// Where `list`'s header starts in [`CrowdCulling::survivors`], and its first entry in
+    /// [`CrowdCulling::commands`].
+    fn list_offsets(&self, list: List) -> (u64, u64) {
+        match list {
+            List::First => (0, 0),
+            List::Second => (SurvivorHeader::SIZE, self.survivor_capacity as u64 * COMMAND_BYTES),
+        }
     }
 
-    /// Draws this frame's survivors with `multi_draw_indexed_indirect_count` (the pipeline's
+    /// Draws `list`'s survivors with one `draw_indirect` of its header: the pipeline's vertex
+    /// shader pulls its vertices with [`SURVIVORS_WGSL`] (the second list's instances start
+    /// past the first's places, so the same shader and bindings draw both).
+    pub fn draw_pulled(&self, pass: &mut wgpu::RenderPass<'_>, list: List) {
+        pass.draw_indirect(&self.survivors, self.list_offsets(list).0);
+    }
+
+    /// Draws `list`'s survivors with `multi_draw_indexed_indirect_count` (the pipeline's
     /// index buffer set, `first_instance` the instance). Errors when the device lacks
     /// [`wgpu::Features::MULTI_DRAW_INDIRECT_COUNT`].
-    pub fn draw_indexed(&self, pass: &mut wgpu::RenderPass<'_>) -> Result<()> {
+    pub fn draw_indexed(&self, pass: &mut wgpu::RenderPass<'_>, list: List) -> Result<()> {
         if !self.count_draws {
             return Err(invalid(
                 "GPU crowd culling",
                 "indexed draws of the survivors need MULTI_DRAW_INDIRECT_COUNT (or draw them pulled)".into(),
             ));
         }
-        let count = SurvivorHeader::COUNT_OFFSET;
-        pass.multi_draw_indexed_indirect_count(&self.commands, 0, &self.survivors, count, self.survivor_capacity);
+        let (header, first) = self.list_offsets(list);
+        let count = header + SurvivorHeader::COUNT_OFFSET;
+        pass.multi_draw_indexed_indirect_count(&self.commands, first, &self.survivors, count, self.survivor_capacity);
         Ok(())
     }
 
     /// The survivors: per survivor a `DrawIndexedIndirectArgs` (index count, instance count
     /// 1, first index, base vertex 0, first instance = the instance's index), as many as the
-    /// header's `instance_count`, in no particular order; `INDIRECT`, `STORAGE` and
-    /// `COPY_SRC` usage.
+    /// list's header's `instance_count`, in no particular order; the second list (occlusion
+    /// culling) from place `survivor_capacity`. `INDIRECT`, `STORAGE` and `COPY_SRC` usage.
     pub fn commands(&self) -> &wgpu::Buffer {
         &self.commands
     }
 
-    /// The survivors' header, a [`SurvivorHeader`] (`INDIRECT`, `STORAGE`, `COPY_SRC`).
+    /// The lists' headers, two [`SurvivorHeader`]s (`INDIRECT`, `STORAGE`, `COPY_SRC`).
     pub fn survivors(&self) -> &wgpu::Buffer {
         &self.survivors
     }
 
-    /// Places in the survivor list.
+    /// Places in each survivor list.
     pub fn survivor_capacity(&self) -> u32 {
         self.survivor_capacity
     }
 
-    /// Per instance three `u32`: meshlets visible, culled by the frustum, culled as back-facing
-    /// only (`COPY_SRC`: an optional readback).
+    /// Per instance four `u32`: meshlets visible, culled by the frustum, culled as
+    /// back-facing only, occluded (after the second phase; 0 without occlusion culling)
+    /// (`COPY_SRC`: an optional readback).
     pub fn counts(&self) -> &wgpu::Buffer {
         &self.counts
     }
@@ -702,7 +947,7 @@ mod tests {
                 pass.set_bind_group(0, &crowd.prepare, &[]);
                 dispatch(&mut pass, n * crowd.joints);
                 pass.set_pipeline(&crowd.cull_pipeline);
-                pass.set_bind_group(0, &crowd.cull, &[]);
+                pass.set_bind_group(0, &crowd.cull, &[0]);
                 dispatch(&mut pass, n * crowd.meshlets);
                 pass.set_pipeline(&crowd.finish_pipeline);
                 pass.dispatch_workgroups(1, 1, 1);

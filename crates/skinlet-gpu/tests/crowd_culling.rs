@@ -135,18 +135,19 @@ fn cull_on_gpu(
     gpu.queue.submit([encoder.finish()]);
     let header: SurvivorHeader = bytemuck::pod_read_unaligned(&read_buffer::<u8>(gpu, crowd.survivors(), 32));
     let commands: Vec<u32> = read_buffer(gpu, crowd.commands(), 20 * capacity as u64);
-    let counts: Vec<u32> = read_buffer(gpu, crowd.counts(), 12 * n as u64);
+    let counts: Vec<u32> = read_buffer(gpu, crowd.counts(), 16 * n as u64);
     assert_eq!(header.instance_count, header.found.min(capacity), "{header:?}");
-    assert_eq!(header.found, counts.chunks_exact(3).map(|c| c[0]).sum::<u32>(), "found and the visible counts");
+    assert_eq!(header.found, counts.chunks_exact(4).map(|c| c[0]).sum::<u32>(), "found and the visible counts");
     let drawn = survivors_drawn(draws, n as usize, &commands, &header);
     for (i, row) in drawn.iter().enumerate() {
         let visible = row.iter().filter(|&&d| d).count() as u32;
         if header.found <= capacity {
-            assert_eq!(visible, counts[3 * i], "instance {i}: the visible count and the survivors disagree");
+            assert_eq!(visible, counts[4 * i], "instance {i}: the visible count and the survivors disagree");
         }
-        assert_eq!(counts[3 * i] + counts[3 * i + 1] + counts[3 * i + 2], m as u32);
+        assert_eq!(counts[4 * i] + counts[4 * i + 1] + counts[4 * i + 2], m as u32);
+        assert_eq!(counts[4 * i + 3], 0, "occluded without occlusion culling");
     }
-    Culled { drawn, counts: counts.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(), header }
+    Culled { drawn, counts: counts.chunks_exact(4).map(|c| [c[0], c[1], c[2]]).collect(), header }
 }
 
 /// Per meshlet `(index count, first index)` in meshlet order.

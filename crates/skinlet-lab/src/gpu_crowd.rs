@@ -13,7 +13,8 @@
 use crate::render::Image;
 use glam::{Mat4, Vec3};
 use skinlet_gpu::crowd_culling::{
-    CrowdCulling, CullInstance, CullMode, CullPipelines, GpuCharacter, SURVIVORS_WGSL, SurvivorHeader,
+    CrowdCulling, CullInstance, CullMode, CullPipelines, GpuCharacter, List, OcclusionDepth, SURVIVORS_WGSL,
+    SurvivorHeader,
 };
 use skinlet_gpu::{Gpu, GpuError, Result};
 use skinlet_runtime::camera::Camera;
@@ -28,6 +29,9 @@ pub enum CrowdView {
     Pulled,
     /// The survivors as indexed draws: one `multi_draw_indexed_indirect_count`.
     Indexed,
+    /// Two-phase occlusion culling, the survivors pulled: last frame's visible, then the
+    /// newly visible against the depth pyramid of the first (two `draw_indirect`).
+    Occluded,
     /// The unculled crowd's (instance, meshlet) ids.
     Ids,
 }
@@ -53,8 +57,8 @@ pub struct CrowdDrawn {
     /// Per pixel, whether the nearest fragments of two meshlets tie in depth there (the
     /// meshlet drawn first and the one drawn last differ): where draw order picks the color.
     pub ties: Option<Vec<bool>>,
-    /// The survivors' header (culled views).
-    pub header: Option<SurvivorHeader>,
+    /// The survivor lists' headers (culled views: one, two with occlusion culling).
+    pub headers: Vec<SurvivorHeader>,
     /// API draw calls the frame recorded (the ID view draws twice).
     pub draw_calls: u32,
     /// GPU time from the culling pass's start (or the render pass's) to the render pass's
@@ -85,7 +89,7 @@ pub struct GpuCrowd {
     draws: [(wgpu::RenderPipeline, wgpu::BindGroup); 4],
     color: wgpu::Texture,
     ids: wgpu::Texture,
-    depth: wgpu::Texture,
+    depth_view: wgpu::TextureView,
 }
 
 const COLOR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
@@ -126,7 +130,24 @@ impl GpuCrowd {
         let weights = gpu.buffer("crowd morph weights", &zeros(4 * morphs as u64 * cap), storage);
         let view = gpu.buffer("crowd view", &[0u32; 24], wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST);
         let survivors = capacity.saturating_mul(character.meshlets());
-        let culling = CrowdCulling::new(device, &pipelines, &character, &palette, &instances, capacity, survivors)?;
+        let texture = |format, usage| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("crowd target"),
+                size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+        };
+        let depth = texture(DEPTH, wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING);
+        let depth_view = depth.create_view(&Default::default());
+        let occlusion = OcclusionDepth { view: &depth_view, width, height, reversed: false };
+        let culling = CrowdCulling::with_occlusion(
+            device, &pipelines, &character, &palette, &instances, capacity, survivors, occlusion,
+        )?;
         let commands = culling.commands().clone();
         let positions: Vec<f32> = mesh.positions.iter().flat_map(|p| p.to_array()).collect();
         let influences: Vec<[u32; 2]> =
@@ -152,18 +173,6 @@ impl GpuCrowd {
             &gpu.buffer("crowd triangle meshlets", &triangle_meshlets, read),
         ];
         let index_buffer = buffers[7].clone();
-        let texture = |format, usage| {
-            device.create_texture(&wgpu::TextureDescriptor {
-                label: Some("crowd target"),
-                size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
-                view_formats: &[],
-            })
-        };
         let target = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
         let source = [SURVIVORS_WGSL, include_str!("shaders/crowd.wgsl")].concat();
         gpu.checked("GPU crowd", || {
@@ -233,7 +242,7 @@ impl GpuCrowd {
                 ],
                 color: texture(COLOR, target),
                 ids: texture(IDS, target),
-                depth: texture(DEPTH, wgpu::TextureUsages::RENDER_ATTACHMENT),
+                depth_view,
                 culling,
             }
         })
@@ -257,7 +266,6 @@ impl GpuCrowd {
                 self.capacity
             )));
         }
-        let culled = matches!(view, CrowdView::Pulled | CrowdView::Indexed);
         let queue = &gpu.queue;
         queue.write_buffer(&self.palette, 0, bytemuck::cast_slice(frame.palette));
         let instances: Vec<CullInstance> = frame.modes.iter().map(|&m| CullInstance::new(Mat4::IDENTITY, m)).collect();
@@ -268,64 +276,75 @@ impl GpuCrowd {
         uniforms.extend([self.joints, self.stride, self.morphs, self.meshlets]);
         queue.write_buffer(&self.view, 0, bytemuck::cast_slice(&uniforms));
         let device = &gpu.device;
-        let timestamps = gpu.has_timestamps();
         let (row, height) = ((4 * self.width).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT), self.height);
-        let (readbacks, times, draw_calls) = gpu.checked("GPU crowd frame", || -> Result<_> {
+        let bytes = (row * height) as u64;
+        // The render passes: (pipeline, what it draws, whether it clears); the ID view draws
+        // twice (nearer fragments win, then nearer or equal ones: pixels whose ids differ are
+        // depth ties between meshlets), occlusion culling's phases draw into one image.
+        let passes: &[(usize, Option<List>, bool)] = match view {
+            CrowdView::Unculled => &[(0, None, true)],
+            CrowdView::Indexed => &[(0, Some(List::First), true)],
+            CrowdView::Pulled => &[(1, Some(List::First), true)],
+            CrowdView::Occluded => &[(1, Some(List::First), true), (1, Some(List::Second), false)],
+            CrowdView::Ids => &[(2, None, true), (3, None, true)],
+        };
+        let (readbacks, times) = gpu.checked("GPU crowd frame", || -> Result<_> {
             let mut encoder = device.create_command_encoder(&Default::default());
-            let queries = timestamps.then(|| {
+            let queries = gpu.has_timestamps().then(|| {
                 device.create_query_set(&wgpu::QuerySetDescriptor {
                     label: Some("crowd frame"),
                     ty: wgpu::QueryType::Timestamp,
                     count: 2,
                 })
             });
-            let start = |set| wgpu::ComputePassTimestampWrites {
+            let start = queries.as_ref().map(|set| wgpu::ComputePassTimestampWrites {
                 query_set: set,
                 beginning_of_pass_write_index: Some(0),
                 end_of_pass_write_index: None,
-            };
-            if culled {
-                self.culling.encode(queue, &mut encoder, frame.camera, frame.tests, n, queries.as_ref().map(start))?;
-            } else if let Some(set) = &queries {
-                encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("crowd frame start"),
-                    timestamp_writes: Some(start(set)),
-                });
+            });
+            match view {
+                CrowdView::Pulled | CrowdView::Indexed => {
+                    self.culling.encode(queue, &mut encoder, frame.camera, frame.tests, n, start)?
+                }
+                CrowdView::Occluded => {
+                    self.culling.encode_first(queue, &mut encoder, frame.camera, frame.tests, n, start)?
+                }
+                _ => {
+                    encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                        label: Some("crowd frame start"),
+                        timestamp_writes: start,
+                    });
+                }
             }
-            // The ID view draws twice: nearer fragments win, then nearer or equal ones (the
-            // pixels whose ids differ are depth ties between meshlets).
-            let passes: &[usize] = match view {
-                CrowdView::Unculled | CrowdView::Indexed => &[0],
-                CrowdView::Pulled => &[1],
-                CrowdView::Ids => &[2, 3],
-            };
             let target = if view == CrowdView::Ids { &self.ids } else { &self.color };
-            let (target_view, depth_view) =
-                (target.create_view(&Default::default()), self.depth.create_view(&Default::default()));
-            let bytes = (row * height) as u64;
+            let target_view = target.create_view(&Default::default());
             let mut readbacks = Vec::new();
-            for (k, &p) in passes.iter().enumerate() {
+            for (k, &(p, list, clear)) in passes.iter().enumerate() {
+                if list == Some(List::Second) {
+                    self.culling.encode_second(&mut encoder)?;
+                }
                 let last = k + 1 == passes.len();
+                let (color, depth) = match clear {
+                    true => (
+                        wgpu::LoadOp::Clear(match view {
+                            CrowdView::Ids => wgpu::Color::TRANSPARENT,
+                            _ => wgpu::Color { r: 0.08, g: 0.09, b: 0.11, a: 1.0 },
+                        }),
+                        wgpu::LoadOp::Clear(1.0),
+                    ),
+                    false => (wgpu::LoadOp::Load, wgpu::LoadOp::Load),
+                };
                 let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                     label: Some("crowd"),
                     color_attachments: &[Some(wgpu::RenderPassColorAttachment {
                         view: &target_view,
                         depth_slice: None,
                         resolve_target: None,
-                        ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(match view {
-                                CrowdView::Ids => wgpu::Color::TRANSPARENT,
-                                _ => wgpu::Color { r: 0.08, g: 0.09, b: 0.11, a: 1.0 },
-                            }),
-                            store: wgpu::StoreOp::Store,
-                        },
+                        ops: wgpu::Operations { load: color, store: wgpu::StoreOp::Store },
                     })],
                     depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                        view: &depth_view,
-                        depth_ops: Some(wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(1.0),
-                            store: wgpu::StoreOp::Store,
-                        }),
+                        view: &self.depth_view,
+                        depth_ops: Some(wgpu::Operations { load: depth, store: wgpu::StoreOp::Store }),
                         stencil_ops: None,
                     }),
                     timestamp_writes: queries.as_ref().filter(|_| last).map(|set| wgpu::RenderPassTimestampWrites {
@@ -339,34 +358,31 @@ impl GpuCrowd {
                 let (pipeline, group) = &self.draws[p];
                 pass.set_pipeline(pipeline);
                 pass.set_bind_group(0, group, &[]);
-                match view {
-                    CrowdView::Unculled => {
-                        pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
-                        pass.draw_indexed(0..self.index_count, 0, 0..n);
-                    }
-                    CrowdView::Indexed => {
-                        pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
-                        self.culling.draw_indexed(&mut pass)?;
-                    }
-                    CrowdView::Pulled => self.culling.draw_pulled(&mut pass),
-                    CrowdView::Ids => pass.draw(0..self.index_count, 0..n),
+                pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
+                match (view, list) {
+                    (CrowdView::Ids, _) => pass.draw(0..self.index_count, 0..n),
+                    (CrowdView::Indexed, Some(list)) => self.culling.draw_indexed(&mut pass, list)?,
+                    (_, Some(list)) => self.culling.draw_pulled(&mut pass, list),
+                    (_, None) => pass.draw_indexed(0..self.index_count, 0, 0..n),
                 }
                 drop(pass);
-                let usage = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
-                let readback = gpu.buffer("crowd image", &vec![0u8; bytes as usize], usage);
-                encoder.copy_texture_to_buffer(
-                    target.as_image_copy(),
-                    wgpu::TexelCopyBufferInfo {
-                        buffer: &readback,
-                        layout: wgpu::TexelCopyBufferLayout {
-                            offset: 0,
-                            bytes_per_row: Some(row),
-                            rows_per_image: None,
+                if view == CrowdView::Ids || last {
+                    let usage = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+                    let readback = gpu.buffer("crowd image", &vec![0u8; bytes as usize], usage);
+                    encoder.copy_texture_to_buffer(
+                        target.as_image_copy(),
+                        wgpu::TexelCopyBufferInfo {
+                            buffer: &readback,
+                            layout: wgpu::TexelCopyBufferLayout {
+                                offset: 0,
+                                bytes_per_row: Some(row),
+                                rows_per_image: None,
+                            },
                         },
-                    },
-                    target.size(),
-                );
-                readbacks.push(readback);
+                        target.size(),
+                    );
+                    readbacks.push(readback);
+                }
             }
             let times = queries.map(|set| {
                 let usage = wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC;
@@ -375,11 +391,11 @@ impl GpuCrowd {
                 times
             });
             queue.submit([encoder.finish()]);
-            Ok((readbacks, times, passes.len() as u32))
+            Ok((readbacks, times))
         })??;
         let mut images = Vec::new();
         for readback in &readbacks {
-            let bytes = gpu.read(readback, (row * height) as u64)?;
+            let bytes = gpu.read(readback, bytes)?;
             let rows = bytes.chunks_exact(row as usize).map(|r| r[..4 * self.width as usize].to_vec());
             images.push(rows.flatten().collect::<Vec<u8>>());
         }
@@ -392,9 +408,14 @@ impl GpuCrowd {
         } else {
             image = Some(Image { width: self.width, height, rgba: images.swap_remove(0) });
         }
-        let header = match culled {
-            true => Some(bytemuck::pod_read_unaligned(&gpu.read(self.culling.survivors(), 32)?)),
-            false => None,
+        let lists = passes.iter().filter(|p| p.1.is_some()).count();
+        let headers = match lists {
+            0 => Vec::new(),
+            _ => {
+                let words = gpu.read(self.culling.survivors(), 2 * SurvivorHeader::SIZE)?;
+                let all: Vec<SurvivorHeader> = bytemuck::pod_collect_to_vec(&words);
+                all[..lists].to_vec()
+            }
         };
         let gpu_ms = match times {
             Some(times) => {
@@ -403,15 +424,22 @@ impl GpuCrowd {
             }
             None => None,
         };
-        Ok(CrowdDrawn { image, ids, ties, header, draw_calls, gpu_ms })
+        Ok(CrowdDrawn { image, ids, ties, headers, draw_calls: passes.len() as u32, gpu_ms })
     }
 
-    /// The survivors of the last culled frame as (instance, meshlet) pairs, in list order.
+    /// The survivors of the last culled frame as (instance, meshlet) pairs: the first list's,
+    /// then (occlusion culling) the second's.
     pub fn survivors(&self, gpu: &Gpu) -> Result<Vec<[u32; 2]>> {
-        let header: SurvivorHeader = bytemuck::pod_read_unaligned(&gpu.read(self.culling.survivors(), 32)?);
-        let count = header.instance_count as u64;
-        let words = bytemuck::pod_collect_to_vec::<u8, u32>(&gpu.read(self.culling.commands(), (20 * count).max(4))?);
+        let words = gpu.read(self.culling.survivors(), 2 * SurvivorHeader::SIZE)?;
+        let headers: Vec<SurvivorHeader> = bytemuck::pod_collect_to_vec(&words);
+        let places = self.culling.survivor_capacity() as u64;
+        let all = bytemuck::pod_collect_to_vec::<u8, u32>(&gpu.read(self.culling.commands(), 40 * places)?);
         let meshlet = |first: u32| self.firsts.binary_search(&first).unwrap_or(usize::MAX) as u32;
-        Ok(words.chunks_exact(5).map(|c| [c[4], meshlet(c[2])]).collect())
+        let mut out = Vec::new();
+        for (k, h) in headers.iter().enumerate() {
+            let list = &all[5 * (k as u64 * places) as usize..];
+            out.extend(list.chunks_exact(5).take(h.instance_count as usize).map(|c| [c[4], meshlet(c[2])]));
+        }
+        Ok(out)
     }
 }

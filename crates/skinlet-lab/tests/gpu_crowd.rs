@@ -2,7 +2,8 @@
 //! survivors, drawn with one call (pulled, or as indexed draws with a GPU count), give the
 //! unculled image pixel for pixel, and every (instance, meshlet) with a visible fragment in
 //! the unculled ID buffer is among them, on every shared asset and the demo, for clips and
-//! for game poses under the pose guard.
+//! for game poses under the pose guard; with two-phase occlusion culling too, also when the
+//! camera cuts or moves through a wall of characters and when the crowd teleports.
 
 #[path = "../../skinlet-gpu/tests/common/mod.rs"]
 mod common;
@@ -11,16 +12,18 @@ use glam::{Mat4, Vec3};
 use skinlet::pose::Poser;
 use skinlet_gpu::Gpu;
 use skinlet_gpu::crowd_culling::CullMode;
-use skinlet_lab::crowd::{Animation, CrowdParams, crowd, instance_pose};
+use skinlet_lab::crowd::{Animation, CrowdParams, Layout, crowd, instance_pose};
 use skinlet_lab::gpu_crowd::{CrowdFrame, CrowdView, GpuCrowd};
+use skinlet_runtime::camera::Camera;
 use skinlet_runtime::meshlet_cull::{MeshletCuller, Tests};
 use std::collections::HashSet;
 
 const LIGHT: Vec3 = Vec3::new(0.4, 0.8, 0.6);
 
 /// Draws `frame` every way; checks the images, the draw calls and that the survivors hold
-/// every visible meshlet. Returns (survivors, visible meshlets of the oracle, meshlets).
-fn check_frame(gpu: &Gpu, crowd: &GpuCrowd, frame: &CrowdFrame, what: &str) -> [usize; 3] {
+/// every visible meshlet. Returns the meshlets drawn after frustum and backface culling, after
+/// occlusion culling too, with a visible fragment (the oracle), and in all.
+fn check_frame(gpu: &Gpu, crowd: &GpuCrowd, frame: &CrowdFrame, what: &str) -> [usize; 4] {
     let unculled = crowd.draw(gpu, frame, CrowdView::Unculled, LIGHT).unwrap();
     // Lavapipe rasterizes a few pixels of multi-draws differently from one instanced draw:
     // the indexed survivors are compared with every meshlet drawn the same way.
@@ -30,22 +33,26 @@ fn check_frame(gpu: &Gpu, crowd: &GpuCrowd, frame: &CrowdFrame, what: &str) -> [
     let ties = oracle.ties.unwrap();
     let visible: HashSet<u32> = oracle.ids.unwrap().into_iter().filter(|&id| id != 0).map(|id| id - 1).collect();
     assert!(!visible.is_empty(), "{what}: nothing visible");
-    let mut views = vec![CrowdView::Pulled];
+    // Occlusion culling twice: with the bits the crowd's last frame left, then with this
+    // frame's.
+    let mut views = vec![CrowdView::Pulled, CrowdView::Occluded, CrowdView::Occluded];
     if gpu.has_indirect_count() {
         views.push(CrowdView::Indexed);
     } else if std::env::var("SKINLET_REQUIRE_GPU").is_ok_and(|v| v == "1") {
         panic!("the adapter lacks MULTI_DRAW_INDIRECT_COUNT: the indexed survivors' draw is not tested");
     }
-    let mut survivors = 0;
+    let (mut survivors, mut occluded) = (0, 0);
     for view in views {
         let reference = match view {
             CrowdView::Indexed => crowd.draw(gpu, &indexed_unculled, view, LIGHT).unwrap(),
             _ => unculled.clone(),
         };
         let drawn = crowd.draw(gpu, frame, view, LIGHT).unwrap();
-        let header = drawn.header.unwrap();
-        assert_eq!(drawn.draw_calls, 1);
-        assert_eq!(header.found, header.instance_count, "{what} {view:?}: the list overflowed");
+        for h in &drawn.headers {
+            assert_eq!(h.found, h.instance_count, "{what} {view:?}: the list overflowed");
+        }
+        let listed: u32 = drawn.headers.iter().map(|h| h.instance_count).sum();
+        assert_eq!(drawn.draw_calls as usize, drawn.headers.len());
         let (a, b) = (&reference.image.as_ref().unwrap().rgba, &drawn.image.as_ref().unwrap().rgba);
         // Where two meshlets' nearest fragments tie in depth, draw order picks the color (and
         // the survivors' order is not the unculled draw's); elsewhere every pixel is equal.
@@ -53,7 +60,7 @@ fn check_frame(gpu: &Gpu, crowd: &GpuCrowd, frame: &CrowdFrame, what: &str) -> [
         let untied = differing.iter().filter(|&&p| !ties[p]).count();
         assert_eq!(untied, 0, "{what} {view:?}: {untied} pixels without a depth tie differ from the unculled image");
         let list: HashSet<u32> = crowd.survivors(gpu).unwrap().iter().map(|&[i, m]| i * crowd.meshlets() + m).collect();
-        assert_eq!(list.len(), header.instance_count as usize, "{what}: survivors listed twice");
+        assert_eq!(list.len(), listed as usize, "{what} {view:?}: survivors listed twice");
         if let Some(missing) = visible.difference(&list).next() {
             panic!(
                 "{what} {view:?}: meshlet {} of instance {} is visible and was culled",
@@ -61,9 +68,14 @@ fn check_frame(gpu: &Gpu, crowd: &GpuCrowd, frame: &CrowdFrame, what: &str) -> [
                 missing / crowd.meshlets()
             );
         }
-        survivors = list.len();
+        if view == CrowdView::Pulled {
+            survivors = list.len();
+        }
+        if view == CrowdView::Occluded {
+            occluded = list.len();
+        }
     }
-    [survivors, visible.len(), frame.modes.len() * crowd.meshlets() as usize]
+    [survivors, occluded, visible.len(), frame.modes.len() * crowd.meshlets() as usize]
 }
 
 #[test]
@@ -73,7 +85,7 @@ fn survivors_draw_the_unculled_image_and_hold_every_visible_meshlet() {
     let demo =
         skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams { triangles: 4000, ..Default::default() });
     all.push(("demo".into(), demo));
-    let mut totals = [0usize; 3];
+    let mut totals = [0usize; 4];
     for (name, asset) in all {
         let character = asset.character().unwrap();
         let baked = bake(&asset, &character);
@@ -107,8 +119,11 @@ fn survivors_draw_the_unculled_image_and_hold_every_visible_meshlet() {
             }
         }
     }
-    let [drawn, visible, meshlets] = totals;
-    eprintln!("{meshlets} (instance, meshlet) pairs: {drawn} drawn, {visible} with a visible fragment");
+    let [drawn, occluded, visible, meshlets] = totals;
+    eprintln!(
+        "{meshlets} (instance, meshlet) pairs: {drawn} drawn, {occluded} with occlusion culling, {visible} with a \
+         visible fragment"
+    );
     assert!(drawn < meshlets, "nothing was culled: the comparison would be vacuous");
 }
 
@@ -154,6 +169,85 @@ fn game_poses_under_the_pose_guard_draw_every_visible_meshlet() {
     assert!(refused > 0 && refused < 15, "the guard refused {refused} of 16 instances");
     let frame =
         CrowdFrame { palette: &palette, modes: &modes, weights: &weights, camera: &scene.camera, tests: Tests::Both };
-    let [drawn, _, meshlets] = check_frame(&gpu, &crowd, &frame, "IK poses");
+    let [drawn, _, _, meshlets] = check_frame(&gpu, &crowd, &frame, "IK poses");
     assert!(drawn < meshlets, "nothing was culled");
+}
+
+#[test]
+fn occlusion_culling_misses_nothing_when_the_camera_cuts_or_the_crowd_teleports() {
+    // A dense crowd seen from street level: the first rows hide most of the rest. The camera
+    // walks up to the first row, through it (what it hid is visible at once), cuts back and to
+    // the side; then the crowd's instances swap places. Every frame: the image equals the
+    // unculled one and every visible meshlet is drawn (check_frame), whatever the visibility
+    // bits of the frame before.
+    let Some(gpu) = gpu() else { return };
+    let demo =
+        skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams { triangles: 4000, ..Default::default() });
+    let baked = bake(&demo, &demo.character().unwrap());
+    let skin = baked.palette();
+    let clips: Vec<&skinlet::clip::Clip> = demo.clips.iter().collect();
+    let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len()).unwrap();
+    let params = CrowdParams { instances: 64, layout: Layout::Dense, ..Default::default() };
+    let scene = crowd(&baked.mesh.positions, clips.len(), &params).unwrap();
+    let crowd = GpuCrowd::new(&gpu, &baked, &culler, 64, 320, 180).unwrap();
+    let (lo, hi) =
+        (baked.mesh.positions.iter()).fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), p| (l.min(*p), h.max(*p)));
+    let size = ((hi - lo).length() / 2.0).max(1e-6);
+    let morphs = baked.mesh.morphs.weights.len().max(1);
+    let modes = vec![CullMode::Bounds; scene.placements.len()];
+    let mut poser = Poser::default();
+    // Palettes and weights of the crowd at frame `f`, instance i standing where placement
+    // order[i] stands.
+    let mut pose = |f: usize, order: &[usize]| {
+        let (mut palette, mut weights, mut w) = (Vec::new(), Vec::new(), Vec::new());
+        for &k in order {
+            let pl = &scene.placements[k];
+            let clip = clips.get(pl.clip).copied();
+            let t = pl.time(clip, f, params.fps);
+            let globals = poser.globals(&demo.skeleton, clip, t);
+            let (mut joints, mut skinning) = (Vec::new(), Vec::new());
+            pl.world_matrices(&skin, globals, &mut joints, &mut skinning);
+            palette.extend(skinning.iter().map(|&m| Mat4::from(m)));
+            baked.mesh.morphs.weights_at(clip, t, &mut w);
+            w.resize(morphs, 0.0);
+            weights.extend(&w);
+        }
+        (palette, weights)
+    };
+    let in_place: Vec<usize> = (0..scene.placements.len()).collect();
+    let camera = |eye: Vec3, forward: Vec3| {
+        let (fov, aspect) = (50f32.to_radians(), 16.0 / 9.0);
+        Camera::perspective(eye, eye + forward, Vec3::Y, fov, aspect, 0.05 * size, 80.0 * size).unwrap()
+    };
+    let z = |depth: f32| Vec3::new(0.0, 0.0, -depth * size);
+    let walk = [
+        camera(z(0.0), Vec3::NEG_Z),
+        camera(z(1.5), Vec3::NEG_Z),
+        camera(z(2.8), Vec3::NEG_Z),
+        camera(z(3.3), Vec3::NEG_Z), // inside the first row
+        camera(z(4.0), Vec3::NEG_Z), // past it: what it hid, visible at once
+        camera(z(0.0), Vec3::NEG_Z), // a cut back
+        camera(Vec3::new(30.0 * size, 0.0, -20.0 * size), Vec3::NEG_X), // a cut to the side
+    ];
+    let (mut culled_by_occlusion, mut checked) = (0, 0);
+    for (f, cam) in walk.iter().enumerate() {
+        let (palette, weights) = pose(f, &in_place);
+        let frame = CrowdFrame { palette: &palette, modes: &modes, weights: &weights, camera: cam, tests: Tests::Both };
+        let [drawn, occluded, ..] = check_frame(&gpu, &crowd, &frame, &format!("walk frame {f}"));
+        culled_by_occlusion += drawn - occluded;
+        checked += 1;
+    }
+    // The crowd teleports: every instance moves to another's place (the bits describe where it
+    // stood), twice.
+    for (k, shift) in [7, 31].into_iter().enumerate() {
+        let order: Vec<usize> = (0..scene.placements.len()).map(|i| (i + shift) % scene.placements.len()).collect();
+        let (palette, weights) = pose(10 + k, &order);
+        let frame =
+            CrowdFrame { palette: &palette, modes: &modes, weights: &weights, camera: &walk[0], tests: Tests::Both };
+        let [drawn, occluded, ..] = check_frame(&gpu, &crowd, &frame, &format!("teleport {k}"));
+        culled_by_occlusion += drawn - occluded;
+        checked += 1;
+    }
+    eprintln!("{checked} frames: occlusion culled {culled_by_occlusion} meshlets the frustum and backface tests kept");
+    assert!(culled_by_occlusion > 0, "occlusion culled nothing: the test would be vacuous");
 }

@@ -14,7 +14,9 @@ struct CullParams {
     // of the largest meshlet (the vertex count of the pulled draw).
     capacity: u32,
     corners: u32,
-    pad: u32,
+    // Crowd culling: 0 one phase; occlusion culling's first phase (last frame's visible) 1,
+    // second phase (the rest, against the depth pyramid) 2.
+    phase: u32,
 }
 
 // The tests a pipeline is compiled with (bits as in `flags`): 3 for all, or per culling

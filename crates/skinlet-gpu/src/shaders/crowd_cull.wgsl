@@ -1,0 +1,243 @@
+// Per-meshlet culling of a crowd prepared on the GPU (prepare.wgsl), in a compute pass after
+// cull_common.wgsl: one invocation per (instance, meshlet); survivors take places in one list
+// of indexed indirect draws a workgroup at a time (one global atomic per workgroup), and
+// `finish_draws` turns the list's header into the arguments of one draw.
+//
+// Phases (cull_params.phase): 0, frustum and backface; with occlusion, 1: the survivors that
+// were visible last frame (list A), 2: every survivor tested against the depth pyramid of what
+// phase 1 drew (list B: those visible now and not drawn in phase 1; each one's visibility bit
+// set to whether it is visible now). Phase 2 tests every meshlet against depth this frame's
+// geometry wrote, so a meshlet with a visible fragment is drawn in phase 1 or 2 whatever
+// last frame's bits say (a camera cut or a teleport costs work, never a missing meshlet).
+
+@group(0) @binding(0) var<uniform> cull_params: CullParams;
+@group(0) @binding(1) var<storage, read> slots: array<Slot>;
+// The joint records (RECORD floats per instance and joint), then per instance and joint 16
+// floats: the joint's world matrix as three rows (x, y, z, t), a bound on its spectral norm,
+// the occlusion mode (0 none, 1 the bounds' spheres, 2 the any-pose boxes), 2 unused.
+@group(0) @binding(2) var<storage, read> joint_records: array<f32>;
+// Per instance: visible, culled by the frustum, culled as back-facing only, occluded.
+@group(0) @binding(3) var<storage, read_write> counts: array<atomic<u32>>;
+// Per meshlet: its index count and first index in the mesh's index buffer.
+@group(0) @binding(5) var<storage, read> meshlet_draws: array<vec2<u32>>;
+// Per survivor, DrawIndexedIndirectArgs: index count, instance count 1, first index, base
+// vertex 0, first instance = the instance. List A from 0, list B from `capacity`.
+@group(0) @binding(6) var<storage, read_write> commands: array<u32>;
+// The culler's any-pose boxes (cull_common.wgsl).
+@group(0) @binding(7) var<storage, read> any_pose_boxes: array<u32>;
+// The lists' headers, 8 words each (A at 0, B at 8): DrawIndirectArgs of the pulled draw
+// (vertex count = the largest meshlet's corners, instance count = survivors drawn, first
+// vertex 0, first instance = where the list starts), then the survivors found.
+@group(0) @binding(8) var<storage, read_write> survivors: array<atomic<u32>>;
+
+struct Occlusion {
+    view_proj: mat4x4<f32>,
+    width: u32,
+    height: u32,
+    // Where the pyramid starts in `state` (pyramid.wgsl).
+    pyramid_base: u32,
+    // 1: reversed depth (near 1, far 0).
+    reverse: u32,
+    levels: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
+}
+
+@group(0) @binding(9) var<uniform> occlusion: Occlusion;
+// Per (instance, meshlet) its visibility bit (a word) last frame, then the depth pyramid.
+@group(0) @binding(10) var<storage, read_write> state: array<u32>;
+
+// This workgroup's survivors, and where they start in the list.
+var<workgroup> group_survivors: atomic<u32>;
+var<workgroup> group_base: u32;
+
+// Invocation index = y × 65535 × 64 + x (a 2D grid past 65535 groups).
+fn invocation(gid: vec3<u32>) -> u32 {
+    return gid.y * 65535u * 64u + gid.x;
+}
+
+// Where (instance, joint)'s world matrix starts.
+fn world_of(instance: u32, joint: u32) -> u32 {
+    return cull_params.instances * cull_params.joints * RECORD + (instance * cull_params.joints + joint) * 16u;
+}
+
+fn row(b: u32, r: u32) -> vec4<f32> {
+    let k = b + 4u * r;
+    return vec4<f32>(joint_records[k], joint_records[k + 1u], joint_records[k + 2u], joint_records[k + 3u]);
+}
+
+// A world-space box, lo to hi.
+struct Box {
+    lo: vec3<f32>,
+    hi: vec3<f32>,
+}
+
+// A world box around the joint-space box `c ± h` grown by a sphere of radius `r`, moved by
+// the world matrix at `b` (|G| h + r σ(G) around G c), widened for f32 rounding.
+fn moved_box(b: u32, c: vec3<f32>, h: vec3<f32>, r: f32) -> Box {
+    let r0 = row(b, 0u);
+    let r1 = row(b, 1u);
+    let r2 = row(b, 2u);
+    let center = vec3<f32>(dot(r0.xyz, c) + r0.w, dot(r1.xyz, c) + r1.w, dot(r2.xyz, c) + r2.w);
+    let half = vec3<f32>(dot(abs(r0.xyz), h), dot(abs(r1.xyz), h), dot(abs(r2.xyz), h)) + r * joint_records[b + 12u];
+    let mag = vec3<f32>(dot(abs(r0.xyz), abs(c)) + abs(r0.w), dot(abs(r1.xyz), abs(c)) + abs(r1.w),
+        dot(abs(r2.xyz), abs(c)) + abs(r2.w));
+    let grow = half * (1.0 + 1e-5) + 1e-5 * mag;
+    return Box(center - grow, center + grow);
+}
+
+// Whether every point of the world box is behind the depth pyramid: the box's 8 corners
+// projected (a corner at or behind the eye's plane: not occluded), the screen rectangle around
+// them widened by a pixel, its nearest depth against the farthest depth over the rectangle at
+// the pyramid level where it spans at most 2 × 2 texels.
+fn box_occluded(bx: Box) -> bool {
+    var lo = vec3<f32>(1e30);
+    var hi = vec3<f32>(-1e30);
+    for (var k = 0u; k < 8u; k++) {
+        let p = vec3<f32>(select(bx.lo.x, bx.hi.x, (k & 1u) != 0u), select(bx.lo.y, bx.hi.y, (k & 2u) != 0u),
+            select(bx.lo.z, bx.hi.z, (k & 4u) != 0u));
+        let clip = occlusion.view_proj * vec4<f32>(p, 1.0);
+        if !(clip.w > 1e-6 * (abs(clip.x) + abs(clip.y) + abs(clip.z)) + 1e-30) {
+            return false;
+        }
+        let ndc = clip.xyz / clip.w;
+        lo = min(lo, ndc);
+        hi = max(hi, ndc);
+    }
+    let size = vec2<f32>(f32(occlusion.width), f32(occlusion.height));
+    // NDC y up, pixel rows down.
+    let px0 = (lo.x * 0.5 + 0.5) * size.x - 1.0;
+    let px1 = (hi.x * 0.5 + 0.5) * size.x + 1.0;
+    let py0 = (0.5 - hi.y * 0.5) * size.y - 1.0;
+    let py1 = (0.5 - lo.y * 0.5) * size.y + 1.0;
+    if !(px1 >= 0.0 && py1 >= 0.0 && px0 < size.x && py0 < size.y) {
+        return false; // off screen: the frustum test's business
+    }
+    let x0 = u32(max(px0, 0.0));
+    let y0 = u32(max(py0, 0.0));
+    let x1 = u32(min(px1, size.x - 1.0));
+    let y1 = u32(min(py1, size.y - 1.0));
+    // The level where the rectangle spans at most 2 × 2 texels, and where it starts.
+    var level = 0u;
+    var w = occlusion.width;
+    var h = occlusion.height;
+    var offset = occlusion.pyramid_base;
+    while level + 1u < occlusion.levels && ((x1 >> level) - (x0 >> level) > 1u || (y1 >> level) - (y0 >> level) > 1u) {
+        offset += w * h;
+        w = (w + 1u) / 2u;
+        h = (h + 1u) / 2u;
+        level += 1u;
+    }
+    let reverse = occlusion.reverse != 0u;
+    var far = select(0.0, 1.0, reverse);
+    for (var y = y0 >> level; y <= min(y1 >> level, h - 1u); y++) {
+        for (var x = x0 >> level; x <= min(x1 >> level, w - 1u); x++) {
+            let d = bitcast<f32>(state[offset + y * w + x]);
+            far = select(max(far, d), min(far, d), reverse);
+        }
+    }
+    // Nearest depth of the box: lo.z (hi.z reversed), a few ulps nearer for rounding.
+    if reverse {
+        return hi.z * (1.0 + 4e-7) + 1e-7 < far;
+    }
+    return lo.z * (1.0 - 4e-7) - 1e-7 > far;
+}
+
+// Whether meshlet `s` of `instance` is hidden behind the pyramid: its bounding sphere (the
+// bounds' modes) or the union of its any-pose boxes (boxes alone), moved by their joints.
+fn occluded(s: Slot, instance: u32) -> bool {
+    let b = world_of(instance, s.joint);
+    let mode = joint_records[b + 13u];
+    if mode == 1.0 {
+        return box_occluded(moved_box(b, s.center, vec3<f32>(0.0), s.radius));
+    }
+    if mode != 2.0 {
+        return false;
+    }
+    let lo = any_pose_boxes[s.id];
+    let hi = any_pose_boxes[s.id + 1u];
+    if lo >= hi {
+        return false;
+    }
+    var all = Box(vec3<f32>(1e30), vec3<f32>(-1e30));
+    for (var k = lo; k < hi; k += 8u) {
+        let joint = any_pose_boxes[k];
+        if joint >= cull_params.joints {
+            return false;
+        }
+        let jb = world_of(instance, joint);
+        if joint_records[jb + 13u] != 2.0 {
+            return false;
+        }
+        let c = vec3<f32>(bitcast<f32>(any_pose_boxes[k + 1u]), bitcast<f32>(any_pose_boxes[k + 2u]),
+            bitcast<f32>(any_pose_boxes[k + 3u]));
+        let h = vec3<f32>(bitcast<f32>(any_pose_boxes[k + 4u]), bitcast<f32>(any_pose_boxes[k + 5u]),
+            bitcast<f32>(any_pose_boxes[k + 6u]));
+        let one = moved_box(jb, c, h, 0.0);
+        all = Box(min(all.lo, one.lo), max(all.hi, one.hi));
+    }
+    return box_occluded(all);
+}
+
+// One (instance, slot) per invocation: the tests of this phase, the instance's counts
+// (phases 0 and 2), the visibility bits (phase 2), and the survivor's place in its list.
+@compute @workgroup_size(64)
+fn cull_draws(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
+    let index = invocation(gid);
+    let phase = cull_params.phase;
+    var instance = 0u;
+    var id = 0u;
+    var place = 0xffffffffu;
+    if index < cull_params.slots * cull_params.instances {
+        instance = index / cull_params.slots;
+        let s = slots[index % cull_params.slots];
+        id = s.id;
+        let flag = meshlet_flag(s, instance);
+        var category = select(select(2u, 1u, (flag & 1u) != 0u), 0u, flag == 0u);
+        let bit = instance * cull_params.slots + id;
+        var survives = category == 0u;
+        if phase == 1u {
+            survives = survives && state[bit] != 0u;
+        } else if phase == 2u {
+            if survives && occluded(s, instance) {
+                category = 3u;
+                survives = false;
+            }
+            survives = survives && state[bit] == 0u;
+            state[bit] = select(0u, 1u, category == 0u);
+        }
+        if phase != 1u {
+            atomicAdd(&counts[4u * instance + category], 1u);
+        }
+        if survives {
+            place = atomicAdd(&group_survivors, 1u);
+        }
+    }
+    let header = select(0u, 8u, phase == 2u);
+    workgroupBarrier();
+    if lane == 0u {
+        group_base = atomicAdd(&survivors[header + 4u], atomicLoad(&group_survivors));
+    }
+    let base = workgroupUniformLoad(&group_base);
+    if place != 0xffffffffu && base + place < cull_params.capacity {
+        let draw = meshlet_draws[id];
+        let c = 5u * (select(0u, cull_params.capacity, phase == 2u) + base + place);
+        commands[c] = draw.x;
+        commands[c + 1u] = 1u;
+        commands[c + 2u] = draw.y;
+        commands[c + 3u] = 0u;
+        commands[c + 4u] = instance;
+    }
+}
+
+// After `cull_draws`: this phase's pulled draw arguments, the count (also that of the indexed
+// draws) clamped to the list's capacity, so a frame draws only entries it wrote.
+@compute @workgroup_size(1)
+fn finish_draws() {
+    let header = select(0u, 8u, cull_params.phase == 2u);
+    atomicStore(&survivors[header], cull_params.corners);
+    atomicStore(&survivors[header + 1u], min(atomicLoad(&survivors[header + 4u]), cull_params.capacity));
+    atomicStore(&survivors[header + 2u], 0u);
+    atomicStore(&survivors[header + 3u], select(0u, cull_params.capacity, cull_params.phase == 2u));
+}
