@@ -50,10 +50,13 @@ fn settled_image(app: &mut App) -> Vec<u8> {
     for _ in 0..400 {
         app.update();
         let got = frames.0.lock().unwrap();
+        // Settled: three equal frames, and drawn (not the target's untouched contents, one
+        // color: while Bevy still compiles the pipelines, frames are blank).
         if let [.., a, b, c] = &got[..]
             && got.len() >= 6
             && a == b
             && b == c
+            && c.chunks(4).any(|p| p != &c[..4])
         {
             return c.clone();
         }

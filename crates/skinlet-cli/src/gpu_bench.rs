@@ -45,6 +45,15 @@ pub struct Args {
     /// Instances (default: 64 for the paper's crowd, 1,024 for the dense one).
     #[arg(long)]
     instances: Option<usize>,
+    /// The meshlet builder a glTF file is baked with (default skin-aware; a bake keeps its
+    /// own). MS-CI always draws common-influences meshlets.
+    #[arg(long, value_parser = crate::builder_names(false))]
+    builder: Option<String>,
+    /// The skinning pipelines measured, comma-separated: VS (vertex skinning, GPU-driven),
+    /// VS-indexed (its survivors as indexed draws), CS, MS, MS-CI (mesh shaders).
+    #[arg(long, default_value = "VS,VS-indexed,CS,MS,MS-CI", value_delimiter = ',',
+          value_parser = ["VS", "VS-indexed", "CS", "MS", "MS-CI"])]
+    pipelines: Vec<String>,
     /// Timed frames per configuration and repeat.
     #[arg(long, default_value_t = 3)]
     frames: usize,
@@ -107,6 +116,8 @@ struct Frame {
     gpu_ms: Option<f64>,
     triangles: u64,
     meshlets: u64,
+    /// Vertex references of the meshlets drawn (GPU-driven rows).
+    vertex_refs: Option<u64>,
     draw_calls: u32,
     wall_ms: f64,
 }
@@ -149,6 +160,8 @@ struct Row {
     triangles: u64,
     /// Meshlets drawn per frame (mean over timed frames).
     meshlets_drawn: f64,
+    /// Their vertex references per frame (GPU-driven rows).
+    vertex_refs: Option<u64>,
     /// API draw calls per frame.
     draws_issued: u32,
     /// The warm-up frame's image equals the unculled one (up to depth ties).
@@ -168,7 +181,8 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         "ik" => Animation::Ik,
         _ => Animation::Clips,
     };
-    let (asset, character, mut baked) = crate::crowd::load(file, a.gltf.as_deref(), None, a.refine, a.json)?;
+    let builder = a.builder.as_deref().map(|b| Builder::from_name(b).context("unknown meshlet builder")).transpose()?;
+    let (asset, character, mut baked) = crate::crowd::load(file, a.gltf.as_deref(), builder, a.refine, a.json)?;
     let clips = crate::bake::clips_of(&baked, &asset, a.gltf.as_deref().unwrap_or(file))?;
     let envelope_spec = format!("clips:{}", a.additive_deg);
     if animation != Animation::Clips && baked.envelope.is_none() {
@@ -199,23 +213,30 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         _ => MeshletCuller::new(&b.bounds, &b.classes, skin.joints.len()),
     };
     let culler = culler_of(&baked)?;
+    let want = |p: &str| a.pipelines.iter().any(|q| q == p);
     // MS-CI draws common-influences meshlets: baked too, over the same clips, for their bounds.
-    let how = a.refine.refinement()?;
-    let (mut ci, _) = skinlet::bake::bake(
-        &asset,
-        &character,
-        &clips,
-        Builder::CommonInfluences,
-        MeshletLimits::NVIDIA,
-        &how,
-        &mut |_| {},
-    )?;
-    if animation != Animation::Clips {
-        let env = crate::bake::envelope_of(&envelope_spec, &asset, &ci)?;
-        skinlet::bake::add_envelope(&mut ci, &asset, env)?;
-    }
-    let ci_mesh = GpuMesh::new(&gpu, &ci.mesh.mesh_data(Some(ci.meshlets.view(&ci.meshlets.headers()))))?;
-    let ci_culler = culler_of(&ci)?;
+    let ci = match want("MS-CI") && gpu.has_mesh_shaders() {
+        true => {
+            let how = a.refine.refinement()?;
+            let (mut ci, _) = skinlet::bake::bake(
+                &asset,
+                &character,
+                &clips,
+                Builder::CommonInfluences,
+                MeshletLimits::NVIDIA,
+                &how,
+                &mut |_| {},
+            )?;
+            if animation != Animation::Clips {
+                let env = crate::bake::envelope_of(&envelope_spec, &asset, &ci)?;
+                skinlet::bake::add_envelope(&mut ci, &asset, env)?;
+            }
+            let ci_mesh = GpuMesh::new(&gpu, &ci.mesh.mesh_data(Some(ci.meshlets.view(&ci.meshlets.headers()))))?;
+            let ci_culler = culler_of(&ci)?;
+            Some((ci, ci_mesh, ci_culler))
+        }
+        false => None,
+    };
     // Per frame and instance: world-space skinning matrices, joint matrices, morph weights,
     // the pose guard's answer (clips: always).
     let guard =
@@ -272,8 +293,11 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         vec![("VS", Skinning::Vertex, &mesh, &culler, &baked), ("CS", Skinning::Compute, &mesh, &culler, &baked)];
     if gpu.has_mesh_shaders() {
         pipelines.push(("MS", Skinning::Mesh, &mesh, &culler, &baked));
-        pipelines.push(("MS-CI", Skinning::MeshSlim, &ci_mesh, &ci_culler, &ci));
     }
+    if let Some((ci, ci_mesh, ci_culler)) = &ci {
+        pipelines.push(("MS-CI", Skinning::MeshSlim, ci_mesh, ci_culler, ci));
+    }
+    pipelines.retain(|p| want(p.0));
     let total_triangles = baked.mesh.triangles.len() as u64;
     let cullings = [
         ("none", None),
@@ -305,7 +329,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             configs.push(Config { pipeline, skinning, mesh, culler, baked, culling, tests, path, view });
         }
     }
-    if gpu.has_indirect_count() {
+    if gpu.has_indirect_count() && want("VS-indexed") {
         for (culling, tests, view) in
             [("none", None, CrowdView::Unculled), ("both", Some(Tests::Both), CrowdView::Indexed)]
         {
@@ -372,6 +396,8 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let all_meshlets = (instances * baked.meshlets.len()) as u64;
     // Triangles per meshlet (the GPU-driven crowd's survivors are counted by meshlet).
     let meshlet_triangles: Vec<u64> = baked.meshlets.meshlets.iter().map(|m| m.triangle_count as u64).collect();
+    let meshlet_vertices: Vec<u64> = baked.meshlets.meshlets.iter().map(|m| m.vertex_count as u64).collect();
+    let all_vertex_refs = instances as u64 * meshlet_vertices.iter().sum::<u64>();
     // Per configuration the CPU culler's meshlets kept per frame (renderer rows).
     let kept: Vec<Option<u64>> = (0..configs.len())
         .map(|k| {
@@ -388,15 +414,24 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             let started = std::time::Instant::now();
             let d = gpu_crowd.draw(&gpu, &crowd_frame(f, c.tests.unwrap_or(Tests::Both), false), view, light)?;
             let wall_ms = started.elapsed().as_secs_f64() * 1e3;
-            let (meshlets, triangles) = match d.headers.is_empty() {
+            let (meshlets, triangles, vertex_refs) = match d.headers.is_empty() {
                 false => {
                     let survivors = gpu_crowd.survivors(&gpu)?;
-                    (survivors.len() as u64, survivors.iter().map(|&[_, m]| meshlet_triangles[m as usize]).sum())
+                    let sum = |per: &[u64]| survivors.iter().map(|&[_, m]| per[m as usize]).sum();
+                    (survivors.len() as u64, sum(&meshlet_triangles), Some(sum(&meshlet_vertices)))
                 }
-                true => (all_meshlets, total_triangles * instances as u64),
+                true => (all_meshlets, total_triangles * instances as u64, Some(all_vertex_refs)),
             };
             let image = d.image.context("the crowd draws an image")?;
-            return Ok(Frame { image, gpu_ms: d.gpu_ms, triangles, meshlets, draw_calls: d.draw_calls, wall_ms });
+            return Ok(Frame {
+                image,
+                gpu_ms: d.gpu_ms,
+                triangles,
+                meshlets,
+                vertex_refs,
+                draw_calls: d.draw_calls,
+                wall_ms,
+            });
         }
         let list: Vec<PosedInstance> = (frames[f].iter().enumerate())
             .map(|(i, p)| PosedInstance {
@@ -425,6 +460,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             gpu_ms: drawn.gpu_ms,
             triangles: drawn.triangles.map_or(total_triangles * instances as u64, u64::from),
             meshlets: kept[k].unwrap_or((instances * c.baked.meshlets.len()) as u64),
+            vertex_refs: None,
             draw_calls: per_instance * instances as u32,
             wall_ms,
         })
@@ -443,6 +479,13 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let mut image_equal = vec![false; configs.len()];
     for k in 0..configs.len() {
         let c = &configs[k];
+        // Occlusion culling starts with no history: its first frame draws every survivor of
+        // the frustum and backface tests in its second phase and marks them all visible, so
+        // its second frame draws them all in its first phase. From the third frame on its
+        // lists follow the scene (as in an application's steady state): frame 0 twice first.
+        if c.view == Some(CrowdView::Occluded) {
+            draw(k, 0)?;
+        }
         let frame = draw(k, 0)?;
         let reference = match (c.view, c.path) {
             (Some(CrowdView::Indexed), _) => {
@@ -472,22 +515,25 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let (mut gpu_ms, mut wall_ms) = (vec![Vec::new(); configs.len()], vec![Vec::new(); configs.len()]);
     let (mut triangles, mut meshlets, mut draw_calls) =
         (vec![0u64; configs.len()], vec![0u64; configs.len()], vec![0u32; configs.len()]);
+    let mut vertex_refs = vec![None; configs.len()];
     for repeat in 0..a.repeats {
         let order: Vec<usize> =
             if repeat % 2 == 0 { (0..configs.len()).collect() } else { (0..configs.len()).rev().collect() };
         for k in order {
-            let (mut g, mut w, mut t, mut m) = (Vec::new(), Vec::new(), 0u64, 0u64);
+            let (mut g, mut w, mut t, mut m, mut v) = (Vec::new(), Vec::new(), 0u64, 0u64, None);
             for f in 1..=a.frames {
                 let frame = draw(k, f)?;
                 w.push(frame.wall_ms);
                 g.extend(frame.gpu_ms);
                 t += frame.triangles;
                 m += frame.meshlets;
+                v = frame.vertex_refs.map(|x| x + v.unwrap_or(0));
                 draw_calls[k] = frame.draw_calls;
             }
             gpu_ms[k].extend(crate::bench::median(g));
             wall_ms[k].extend(crate::bench::median(w));
             (triangles[k], meshlets[k]) = (t / a.frames as u64, m / a.frames as u64);
+            vertex_refs[k] = v.map(|v| v / a.frames as u64);
         }
     }
     let rows: Vec<Row> = (0..configs.len())
@@ -512,6 +558,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 culled_pct: culled[k].or(crowd_culled),
                 triangles: triangles[k],
                 meshlets_drawn: meshlets[k] as f64,
+                vertex_refs: vertex_refs[k],
                 draws_issued: draw_calls[k],
                 image_equal: image_equal[k],
             }
@@ -520,7 +567,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     if let (Some(out), Some(image)) = (&a.out, &picture) {
         crate::write_png(out, image.width, image.height, png::ColorType::Rgba, &image.rgba)?;
     }
-    let m = ci_mesh.meshlets.as_ref().context("uploaded with meshlets")?;
+    let ci_counts = ci.as_ref().and_then(|c| c.1.meshlets.as_ref()).map(|m| (m.count, m.slim));
     if a.json {
         let rows: Vec<_> = rows
             .iter()
@@ -528,7 +575,8 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 json!({"pipeline": r.pipeline, "culling": r.culling, "gpu_ms": Spread::json(r.gpu_ms),
                     "wall_ms": Spread::json(r.wall_ms), "vs_none_pct": Spread::json(r.vs_none_pct),
                     "cpu_prepare_ms": r.prepare_ms, "culled_pct": r.culled_pct, "triangles_per_frame": r.triangles,
-                    "meshlets_drawn": r.meshlets_drawn, "draws_issued": r.draws_issued,
+                    "meshlets_drawn": r.meshlets_drawn, "vertex_refs_per_frame": r.vertex_refs,
+                    "draws_issued": r.draws_issued,
                     "image_equal_to_unculled": r.image_equal})
             })
             .collect();
@@ -537,22 +585,25 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             "animation": a.animation, "guard_fallback_pct": fallback_pct,
             "instances": instances, "frames": a.frames, "repeats": a.repeats, "width": a.width, "height": height,
             "meshlets": baked.meshlets.len(), "triangles_per_instance": total_triangles,
-            "ci_meshlets": m.count, "ci_slim_meshlets": m.slim, "rows": rows});
+            "builder": baked.settings.builder.name(), "ci_meshlets": ci_counts.map(|c| c.0),
+            "ci_slim_meshlets": ci_counts.map(|c| c.1), "rows": rows});
         println!("{}", serde_json::to_string_pretty(&out)?);
         return Ok(());
     }
+    let ci_text =
+        ci_counts.map_or(String::new(), |(n, slim)| format!(", {n} common-influences meshlets of which {slim} slim"));
     println!(
-        "{file}: crowd of {} instances ({} skin-aware meshlets, {} common-influences meshlets of which {} slim, \
-         {total_triangles} triangles each), {}x{height}, on {}; {} repeats of {} frames, alternating order",
-        instances,
+        "{file}: {} crowd of {instances} instances ({} {} meshlets{ci_text}, {total_triangles} triangles each), \
+         {}x{height}, on {}; {} repeats of {} frames, alternating order",
+        a.crowd,
         baked.meshlets.len(),
-        m.count,
-        m.slim,
+        baked.settings.builder.name(),
         a.width,
         gpu.info.name,
         a.repeats,
         a.frames
     );
+    println!("  meshlets per frame: {all_meshlets}, with a visible fragment (unculled ID buffer): {visible_oracle:.0}");
     if animation != Animation::Clips {
         println!(
             "  {} animation: envelope bounds where the pose guard admits the pose; {fallback_pct:.1}% of instance-frames \
@@ -561,14 +612,17 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         );
     }
     println!(
-        "  {:<9} {:<13} {:>22}  {:>15}  {:>14}  {:>15}  {:>15}  GPU vs none [range]",
+        "  {:<10} {:<14} {:>22}  {:>13}  {:>14}  {:>15}  {:>14}  {:>15}  {:>5}  {:>5}  GPU vs none [range]",
         "pipeline",
         "culling",
         "GPU ms/frame [range]",
         "wall ms/frame",
         "CPU prepare ms",
         "meshlets culled",
-        "triangles drawn"
+        "meshlets drawn",
+        "triangles drawn",
+        "draws",
+        "image"
     );
     let range = |s: Option<Spread>, digits: usize| {
         s.map_or("-".into(), |s| format!("{:.digits$} [{:.digits$}, {:.digits$}]", s.median, s.min, s.max))
@@ -578,12 +632,15 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         let prepare = r.prepare_ms.map_or("-".into(), |t| format!("{t:.3}"));
         let vs = r.vs_none_pct.map_or(String::new(), |s| format!("{:+.0}% [{:+.0}, {:+.0}]", s.median, s.min, s.max));
         println!(
-            "  {:<9} {:<13} {:>22}  {:>15}  {prepare:>14}  {culled:>15}  {:>15}  {vs}",
+            "  {:<10} {:<14} {:>22}  {:>13}  {prepare:>14}  {culled:>15}  {:>14}  {:>15}  {:>5}  {:>5}  {vs}",
             r.pipeline,
             r.culling,
             range(r.gpu_ms, 3),
             r.wall_ms.map_or("-".into(), |s| format!("{:.2}", s.median)),
-            r.triangles
+            r.meshlets_drawn,
+            r.triangles,
+            r.draws_issued,
+            if r.image_equal { "equal" } else { "DIFF" }
         );
     }
     if rows.iter().all(|r| r.gpu_ms.is_none()) {

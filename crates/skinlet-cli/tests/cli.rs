@@ -599,14 +599,16 @@ fn render_writes_a_png_of_the_posed_character() {
             assert_eq!(parts, s["meshlets"].as_u64().unwrap(), "{j}");
         }
     }
-    // gpu-bench: every pipeline and culling row, GPU-timed where timestamps exist.
+    // gpu-bench: every pipeline and culling row, GPU-timed where timestamps exist; the
+    // GPU-driven rows issue one draw call (two with occlusion culling), every row's image is
+    // the unculled one, and no row draws fewer meshlets than have a visible fragment.
     let gpu_bench = |repeats: &str, extra: &[&str]| {
-        let mut args = vec!["gpu-bench", "@demo:2000", "--instances", "6", "--frames", "1", "--repeats", repeats];
+        let mut args = vec!["gpu-bench", "@demo:2000", "--frames", "1", "--repeats", repeats];
         args.extend(["--width", "160", "--budget", "0", "--rounds", "0", "--json"]);
         args.extend(extra);
         skinlet(&args)
     };
-    let (code, stdout, err) = gpu_bench("2", &[]);
+    let (code, stdout, err) = gpu_bench("2", &["--instances", "6"]);
     assert_eq!(code, 0, "{err}");
     let j: serde_json::Value = serde_json::from_str(&stdout).unwrap();
     let rows = j["rows"].as_array().unwrap();
@@ -618,11 +620,38 @@ fn render_writes_a_png_of_the_posed_character() {
         assert_eq!(r["gpu_ms"].is_object(), j["timestamps"] == true, "{r}");
         let culled = r["culled_pct"].as_f64();
         assert_eq!(culled.is_some(), r["culling"] != "none", "{r}");
-        assert_eq!(r["cpu_prepare_ms"].is_number(), r["culling"] != "none", "{r}");
+        let task = r["pipeline"].as_str().unwrap().starts_with("MS");
+        assert_eq!(r["cpu_prepare_ms"].is_number(), r["culling"] != "none" && task, "{r}");
         assert_eq!(r["vs_none_pct"].is_object(), r["culling"] != "none" && j["timestamps"] == true, "{r}");
+        assert_eq!(r["image_equal_to_unculled"], true, "{r}");
+        let drawn = r["meshlets_drawn"].as_f64().unwrap();
+        assert!(drawn >= j["meshlets_visible_oracle"].as_f64().unwrap(), "{r}");
+        assert!(drawn <= j["meshlets_per_frame"].as_f64().unwrap(), "{r}");
+        if r["pipeline"].as_str().unwrap().starts_with("VS") {
+            let calls = if r["culling"] == "both+occlusion" { 2 } else { 1 };
+            assert_eq!(r["draws_issued"], calls, "{r}");
+        }
     }
+    let row = |j: &serde_json::Value, culling: &str| {
+        let rows = j["rows"].as_array().unwrap();
+        rows.iter().find(|r| r["pipeline"] == "VS" && r["culling"] == culling).unwrap().clone()
+    };
+    assert!(row(&j, "both+occlusion")["meshlets_drawn"].as_f64() <= row(&j, "both")["meshlets_drawn"].as_f64());
+    // The dense crowd, VS only: draw calls do not grow with the instances, occlusion culls.
+    let dense = |n: &str| {
+        let (code, stdout, err) = gpu_bench("1", &["--crowd", "dense", "--pipelines", "VS", "--instances", n]);
+        assert_eq!(code, 0, "{err}");
+        serde_json::from_str::<serde_json::Value>(&stdout).unwrap()
+    };
+    let (small, large) = (dense("6"), dense("48"));
+    assert_eq!(large["rows"].as_array().unwrap().len(), 5, "{large}");
+    for culling in ["none", "both", "both+occlusion"] {
+        assert_eq!(row(&small, culling)["draws_issued"], row(&large, culling)["draws_issued"]);
+    }
+    let (both, occluded) = (row(&large, "both"), row(&large, "both+occlusion"));
+    assert!(occluded["meshlets_drawn"].as_f64() < both["meshlets_drawn"].as_f64(), "{large}");
     // Game poses on the GPU: the same rows, some instance-frames refused by the guard.
-    let (code, stdout, err) = gpu_bench("1", &["--animation", "ik"]);
+    let (code, stdout, err) = gpu_bench("1", &["--instances", "6", "--animation", "ik"]);
     assert_eq!(code, 0, "{err}");
     let k: serde_json::Value = serde_json::from_str(&stdout).unwrap();
     assert_eq!(k["rows"].as_array().unwrap().len(), rows.len(), "{k}");

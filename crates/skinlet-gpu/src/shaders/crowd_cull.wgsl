@@ -123,7 +123,7 @@ fn box_occluded(bx: Box) -> bool {
     var w = occlusion.width;
     var h = occlusion.height;
     var offset = occlusion.pyramid_base;
-    while level + 1u < occlusion.levels && ((x1 >> level) - (x0 >> level) > 1u || (y1 >> level) - (y0 >> level) > 1u) {
+    while level + 1u < occlusion.levels && ((x1 >> level) - (x0 >> level) > 3u || (y1 >> level) - (y0 >> level) > 3u) {
         offset += w * h;
         w = (w + 1u) / 2u;
         h = (h + 1u) / 2u;
