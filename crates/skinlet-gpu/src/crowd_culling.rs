@@ -19,12 +19,12 @@
 //! 1. `prepare.wgsl`, one invocation per (instance, joint): the joint's world matrix
 //!    `model × S_j × bind_j` and its record (joint-space planes, eye, margins), as
 //!    [`MeshletCuller::prepare`] does on the CPU;
-//! 2. `cull.wgsl::cull_draws`, one invocation per (instance, meshlet): the test of
+//! 2. `crowd_cull.wgsl::cull_draws`, one invocation per (instance, meshlet): the test of
 //!    [`CULL_WGSL`]; each surviving (instance, meshlet) takes the next place in one list of
 //!    `DrawIndexedIndirectArgs` ([`CrowdCulling::commands`], one atomic counter, claimed a
-//!    workgroup at a time), and per instance the counts (visible, frustum, backface) go to
-//!    [`CrowdCulling::counts`];
-//! 3. `cull.wgsl::finish_draws`, one invocation: the list's header
+//!    workgroup at a time), and per instance the counts (visible, frustum, backface,
+//!    occluded) go to [`CrowdCulling::counts`];
+//! 3. `crowd_cull.wgsl::finish_draws`, one invocation: the list's header
 //!    ([`CrowdCulling::survivors`]) becomes the arguments of one draw, its count clamped to
 //!    the list's capacity (a survivor past it is counted, not written, and not drawn: see
 //!    [`SurvivorHeader`]), so a frame never draws an entry it did not write.
@@ -36,6 +36,15 @@
 //! - [`CrowdCulling::draw_indexed`]: `multi_draw_indexed_indirect_count` over the list with
 //!   the caller's index buffer and an unchanged vertex shader (`first_instance` is the
 //!   instance); needs [`wgpu::Features::MULTI_DRAW_INDIRECT_COUNT`].
+//!
+//! With occlusion culling ([`CrowdCulling::with_occlusion`]), a frame is two phases around the
+//! caller's draws: [`CrowdCulling::encode_first`] lists the survivors that were visible last
+//! frame ([`List::First`]), the caller draws them into its depth buffer,
+//! [`CrowdCulling::encode_second`] builds the depth pyramid of that depth (`pyramid.wgsl`) and
+//! lists the survivors whose bounds are not behind it and were not drawn yet
+//! ([`List::Second`]), setting every meshlet's visibility bit for the next frame; the caller
+//! draws those too. A meshlet with a visible fragment is drawn in one of the two phases
+//! whatever the bits say (camera cuts, teleports).
 //!
 //! Nothing is read back. The visible set is conservative: a meshlet culled here is culled by
 //! the same test in exact arithmetic on the same matrices (the GPU's margins cover its f32

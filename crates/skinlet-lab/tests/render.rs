@@ -95,24 +95,21 @@ fn culled_drawing_gives_the_unculled_image() {
     // The paper's section 6 pipeline: a task shader culls meshlets with the baked bounds and
     // launches mesh workgroups for the survivors only (compacted by subgroup operations, and
     // on a device opened without subgroups by atomics alone), which may also cull triangles one
-    // by one (thesis 5.1.3); and, forced on a device opened without mesh shaders, the fallback: a
-    // compute pass writes one indirect draw per meshlet (culled ones empty), drawn by
-    // vertex-shader skinning. Culling is conservative and back faces are culled by the
+    // by one (thesis 5.1.3). (Without mesh shaders this renderer does not cull: the GPU-driven
+    // crowd does, tests/gpu_crowd.rs.) Culling is conservative and back faces are culled by the
     // rasterizer anyway, so each image must equal the unculled one of the same device; views
     // close enough to cut the character make the frustum test work too. The triangles drawn
     // are those of the CPU's visible meshlets, and with per-triangle culling the CPU's kept ones.
     let Some(gpu) = gpu() else { return };
-    let fallback = headless::gpu(GpuOptions { no_mesh_shaders: true, ..GpuOptions::default() }).unwrap();
-    assert!(!fallback.has_mesh_shaders());
-    let mut devices = vec![(&fallback, Renderer::new(&fallback, 160, 160).unwrap())];
+    if !gpu.has_mesh_shaders() {
+        return eprintln!("{} has no mesh shaders: no task culling to draw", gpu.info.name);
+    }
     let no_subgroups = headless::gpu(GpuOptions { no_subgroups: true, ..GpuOptions::default() }).unwrap();
     assert!(!no_subgroups.has_subgroups());
-    if gpu.has_mesh_shaders() {
-        devices.push((&gpu, Renderer::new(&gpu, 160, 160).unwrap()));
-        devices.push((&no_subgroups, Renderer::new(&no_subgroups, 160, 160).unwrap()));
-    } else {
-        eprintln!("{} has no mesh shaders: the fallback only", gpu.info.name);
-    }
+    let devices = [
+        (&gpu, Renderer::new(&gpu, 160, 160).unwrap()),
+        (&no_subgroups, Renderer::new(&no_subgroups, 160, 160).unwrap()),
+    ];
     let mut culled_total = 0;
     for (name, asset) in assets() {
         let character = asset.character().unwrap();
@@ -130,7 +127,6 @@ fn culled_drawing_gives_the_unculled_image() {
         let mut joints = Vec::new();
         skinlet::pose::joint_globals(skin, poser.globals(&asset.skeleton, clip, t), &mut joints);
         for (device, renderer) in &devices {
-            let mesh_shaders = device.has_mesh_shaders();
             let gpu_mesh =
                 GpuMesh::new(device, &baked.mesh.mesh_data(Some(baked.meshlets.view(&baked.meshlets.headers()))))
                     .unwrap();
@@ -142,40 +138,34 @@ fn culled_drawing_gives_the_unculled_image() {
                 let counts = culler.cull(&frame, &mut Vec::new(), &mut visible);
                 culled_total += counts.meshlets - counts.visible;
                 let light = Vec3::new(0.4, 0.8, 0.6);
-                let unculled = if mesh_shaders { Skinning::Mesh } else { Skinning::Vertex };
-                let all = renderer.render(device, &gpu_mesh, pose, camera.view_proj, light, unculled).unwrap();
+                let all = renderer.render(device, &gpu_mesh, pose, camera.view_proj, light, Skinning::Mesh).unwrap();
                 // The CPU's per-triangle culling of the visible meshlets, on the same skinned positions.
                 let kept =
                     skinlet::cull::triangle::cull_triangles(&baked.meshlets, &visible, posed, camera.projection, None);
                 let in_visible: u32 =
                     visible.iter().map(|&m| baked.meshlets.meshlets[m as usize].triangle_count as u32).sum();
-                let per_triangle = if mesh_shaders { kept.kept as u32 } else { in_visible };
-                for (triangles, expected) in [(None, in_visible), (Some(camera.projection), per_triangle)] {
+                for (triangles, expected) in [(None, in_visible), (Some(camera.projection), kept.kept as u32)] {
                     let (culled, drawn) = renderer
                         .render_culled(device, &gpu_mesh, pose, camera.view_proj, light, &culler, &frame, triangles)
                         .unwrap();
                     let differing = all.rgba.chunks(4).zip(culled.rgba.chunks(4)).filter(|(a, b)| a != b).count();
                     let subgroups = device.has_subgroups();
-                    let what = format!(
-                        "{name} zoom {zoom} mesh shaders {mesh_shaders} subgroups {subgroups} triangles {triangles:?}"
-                    );
+                    let what = format!("{name} zoom {zoom} subgroups {subgroups} triangles {triangles:?}");
                     assert_eq!(differing, 0, "{what}: {differing} pixels differ ({counts:?})");
                     assert_eq!(drawn, expected, "{what}: triangles drawn");
                 }
-                if mesh_shaders {
-                    // The paper's three task pipelines, one per culling class.
-                    let one = [PosedInstance { pose, frame: Some(&frame) }];
-                    let how = CrowdDraw::Culled {
-                        culler: &culler,
-                        culling: Culling::TaskByClass,
-                        skinning: Skinning::Mesh,
-                        triangles: None,
-                    };
-                    let d = renderer.render_crowd(device, &gpu_mesh, &one, camera.view_proj, light, how).unwrap();
-                    let differing = differing_pixels(&all, &d.image);
-                    assert_eq!(differing, 0, "{name} zoom {zoom} by class: {differing} pixels differ");
-                    assert_eq!(d.triangles, Some(in_visible), "{name} zoom {zoom} by class: triangles drawn");
-                }
+                // The paper's three task pipelines, one per culling class.
+                let one = [PosedInstance { pose, frame: Some(&frame) }];
+                let how = CrowdDraw::Culled {
+                    culler: &culler,
+                    culling: Culling::TaskByClass,
+                    skinning: Skinning::Mesh,
+                    triangles: None,
+                };
+                let d = renderer.render_crowd(device, &gpu_mesh, &one, camera.view_proj, light, how).unwrap();
+                let differing = differing_pixels(&all, &d.image);
+                assert_eq!(differing, 0, "{name} zoom {zoom} by class: {differing} pixels differ");
+                assert_eq!(d.triangles, Some(in_visible), "{name} zoom {zoom} by class: triangles drawn");
             }
         }
     }

@@ -90,7 +90,7 @@ fn moved_box(b: u32, c: vec3<f32>, h: vec3<f32>, r: f32) -> Box {
 // Whether every point of the world box is behind the depth pyramid: the box's 8 corners
 // projected (a corner at or behind the eye's plane: not occluded), the screen rectangle around
 // them widened by a pixel, its nearest depth against the farthest depth over the rectangle at
-// the pyramid level where it spans at most 2 × 2 texels.
+// the pyramid level where it spans at most 4 × 4 texels.
 fn box_occluded(bx: Box) -> bool {
     var lo = vec3<f32>(1e30);
     var hi = vec3<f32>(-1e30);
@@ -118,7 +118,7 @@ fn box_occluded(bx: Box) -> bool {
     let y0 = u32(max(py0, 0.0));
     let x1 = u32(min(px1, size.x - 1.0));
     let y1 = u32(min(py1, size.y - 1.0));
-    // The level where the rectangle spans at most 2 × 2 texels, and where it starts.
+    // The level where the rectangle spans at most 4 × 4 texels, and where it starts.
     var level = 0u;
     var w = occlusion.width;
     var h = occlusion.height;
