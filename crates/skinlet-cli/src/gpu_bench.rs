@@ -465,9 +465,10 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             wall_ms,
         })
     };
-    // The references of frame 0: the unculled image of each front end (the GPU-driven crowd's;
-    // its indexed multi-draw with every instance kept, which lavapipe rasterizes a few pixels
-    // apart from one instanced draw; each renderer pipeline's own), and where meshlets tie in
+    // The references of frame 0: every meshlet drawn the same way (the GPU-driven crowd's
+    // survivors with every instance kept, pulled or indexed: lavapipe rasterizes a pixel here
+    // and there differently between one instanced draw, a pulled draw and a multi-draw of the
+    // same triangles; each renderer pipeline's own unculled draw), and where meshlets tie in
     // depth (draw order picks the color there).
     let oracle0 = gpu_crowd.draw(&gpu, &crowd_frame(0, Tests::Both, false), CrowdView::Ids, light)?;
     let ties = oracle0.ties.context("the ID view finds ties")?;
@@ -488,11 +489,10 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         }
         let frame = draw(k, 0)?;
         let reference = match (c.view, c.path) {
-            (Some(CrowdView::Indexed), _) => {
-                gpu_crowd.draw(&gpu, &crowd_frame(0, Tests::Both, true), CrowdView::Indexed, light)?.image
-            }
-            (Some(_), _) => {
-                gpu_crowd.draw(&gpu, &crowd_frame(0, Tests::Both, false), CrowdView::Unculled, light)?.image
+            (Some(CrowdView::Unculled), _) => Some(frame.image.clone()),
+            (Some(view), _) => {
+                let same_way = if view == CrowdView::Indexed { view } else { CrowdView::Pulled };
+                gpu_crowd.draw(&gpu, &crowd_frame(0, Tests::Both, true), same_way, light)?.image
             }
             (None, None) => Some(frame.image.clone()),
             (None, Some(_)) => {
