@@ -3,12 +3,14 @@
 //! and morph weights, records skinlet's culling pass and draws the survivors with one call.
 //!
 //! Views of the same frame ([`CrowdView`]): every meshlet of every instance (`draw_indexed`
-//! over all instances, the reference image); the survivors pulled by the vertex shader (one
-//! `draw_indirect`); the survivors as indexed draws (`multi_draw_indexed_indirect_count`,
-//! where the device has it); and the ID buffer of the unculled crowd, whose set of
-//! (instance, meshlet) pairs with a visible fragment is what no culling can beat (the oracle).
-//! All run the same vertex skinning and faceted shading, so a culled image equals the
-//! unculled one exactly when culling kept every meshlet with a visible fragment.
+//! over all instances); the survivors pulled by the vertex shader (one `draw_indirect`); the
+//! survivors as indexed draws (`multi_draw_indexed_indirect_count`, where the device has it);
+//! two-phase occlusion culling, pulled (the visibility bits kept across frames); and the ID
+//! buffer of the unculled crowd, whose set of (instance, meshlet) pairs with a visible
+//! fragment is what no culling can beat (the oracle). All run the same vertex skinning and
+//! faceted shading, so a culled image equals every meshlet drawn the same way exactly when
+//! culling kept every meshlet with a visible fragment (but where two meshlets tie in depth:
+//! draw order picks the color there, and the ID view finds those pixels).
 
 use crate::render::Image;
 use glam::{Mat4, Vec3};
