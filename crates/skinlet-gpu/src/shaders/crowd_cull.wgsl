@@ -14,7 +14,8 @@
 @group(0) @binding(1) var<storage, read> slots: array<Slot>;
 // The joint records (RECORD floats per instance and joint), then per instance and joint 16
 // floats: the joint's world matrix as three rows (x, y, z, t), a bound on its spectral norm,
-// the occlusion mode (0 none, 1 the bounds' spheres, 2 the any-pose boxes), 2 unused.
+// the occlusion mode (0 none, 1 the bounds' spheres, 2 the any-pose boxes), the rounding
+// bounds of forming it (prepare.wgsl).
 @group(0) @binding(2) var<storage, read> joint_records: array<f32>;
 // Per instance: visible, culled by the frustum, culled as back-facing only, occluded.
 @group(0) @binding(3) var<storage, read_write> counts: array<atomic<u32>>;
@@ -74,7 +75,8 @@ struct Box {
 }
 
 // A world box around the joint-space box `c ± h` grown by a sphere of radius `r`, moved by
-// the world matrix at `b` (|G| h + r σ(G) around G c), widened for f32 rounding.
+// the world matrix at `b` (|G| h + r σ(G) around G c), widened for f32 rounding: of this
+// product, and of G's, formed from |model|·|S|·|bind| (whose bounds prepare.wgsl stores).
 fn moved_box(b: u32, c: vec3<f32>, h: vec3<f32>, r: f32) -> Box {
     let r0 = row(b, 0u);
     let r1 = row(b, 1u);
@@ -83,7 +85,9 @@ fn moved_box(b: u32, c: vec3<f32>, h: vec3<f32>, r: f32) -> Box {
     let half = vec3<f32>(dot(abs(r0.xyz), h), dot(abs(r1.xyz), h), dot(abs(r2.xyz), h)) + r * joint_records[b + 12u];
     let mag = vec3<f32>(dot(abs(r0.xyz), abs(c)) + abs(r0.w), dot(abs(r1.xyz), abs(c)) + abs(r1.w),
         dot(abs(r2.xyz), abs(c)) + abs(r2.w));
-    let grow = half * (1.0 + 1e-5) + 1e-5 * mag;
+    let formed = joint_records[b + 14u] * (max(max(abs(c.x), abs(c.y)), abs(c.z)) + max(max(h.x, h.y), h.z) + r)
+        + joint_records[b + 15u];
+    let grow = half * (1.0 + 1e-5) + 1e-5 * (mag + formed);
     return Box(center - grow, center + grow);
 }
 

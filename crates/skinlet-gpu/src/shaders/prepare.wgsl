@@ -81,8 +81,10 @@ fn sum(v: vec3<f32>) -> f32 {
 
 // After the records, per instance and joint 16 floats for occlusion culling
 // (crowd_cull.wgsl): the world matrix's three rows, a bound on its spectral norm, the mode
-// (0 not occluded, 1 by the spheres, 2 by the any-pose boxes).
-fn write_world(index: u32, g: mat4x4<f32>, mode: f32) {
+// (0 not occluded, 1 by the spheres, 2 by the any-pose boxes), and for the rounding of the
+// product G was formed by, the largest row sum of |model|·|S|·|bind|'s linear part and its
+// largest translation entry.
+fn write_world(index: u32, g: mat4x4<f32>, m: mat4x4<f32>, mode: f32) {
     let b = params.instances * params.joints * RECORD + index * 16u;
     for (var r = 0u; r < 3u; r++) {
         records[b + 4u * r] = g[0][r];
@@ -100,8 +102,9 @@ fn write_world(index: u32, g: mat4x4<f32>, mode: f32) {
     let bound = max(max(dot(x, x) + xy + xz, xy + dot(y, y) + yz), xz + yz + dot(z, z));
     records[b + 12u] = sqrt(bound) * (1.0 + 1e-5);
     records[b + 13u] = mode;
-    records[b + 14u] = 0.0;
-    records[b + 15u] = 0.0;
+    let rows = m[0].xyz + m[1].xyz + m[2].xyz;
+    records[b + 14u] = max(max(rows.x, rows.y), rows.z);
+    records[b + 15u] = max(max(m[3].x, m[3].y), m[3].z);
 }
 
 // A record that culls nothing: planes no point is outside of, every group inside, no
@@ -134,7 +137,7 @@ fn prepare(@builtin(global_invocation_id) gid: vec3<u32>) {
     let m = abs_matrix(instance.model) * abs_matrix(s) * abs_matrix(joint.bind);
     if instance.mode > 2u || !(finite(g[0]) && finite(g[1]) && finite(g[2]) && finite(g[3]) && finite(m[3])) {
         keep(base);
-        write_world(index, mat4x4<f32>(), 0.0);
+        write_world(index, mat4x4<f32>(), mat4x4<f32>(), 0.0);
         return;
     }
     let x = g[0].xyz;
@@ -147,7 +150,7 @@ fn prepare(@builtin(global_invocation_id) gid: vec3<u32>) {
     let at = m[3].xyz;
     let bounds = instance.mode <= 1u;
     let boxes = instance.mode >= 1u && camera.has_boxes != 0u;
-    write_world(index, g, select(select(0.0, 2.0, boxes), 1.0, bounds));
+    write_world(index, g, m, select(select(0.0, 2.0, boxes), 1.0, bounds));
     let ext = joint.extent;
     // Frustum: n_j = Aᵀn, w_j = n·t + w, |n_j|, and the margin over the planes.
     let t_len = length(at);
