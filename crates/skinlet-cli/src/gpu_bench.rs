@@ -343,12 +343,15 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     // GPU passes read; the CPU culler also counts what they cull.
     let mut prepared: Vec<Vec<Vec<JointFrame>>> = Vec::new();
     let mut prepare_ms = Vec::new();
-    let mut culled = Vec::new();
+    // Per configuration (renderer rows) the percentage of meshlets culled and the meshlets
+    // kept per frame.
+    let (mut culled, mut kept) = (Vec::new(), Vec::new());
     for c in &configs {
         let (Some(tests), None) = (c.tests, c.view) else {
             prepared.push(Vec::new());
             prepare_ms.push(None);
             culled.push(None);
+            kept.push(None);
             continue;
         };
         let mut times = Vec::new();
@@ -388,7 +391,9 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 n.meshlets - n.visible
             })
             .sum();
-        culled.push(Some(100.0 * count as f64 / (a.frames * instances * c.baked.meshlets.len()) as f64));
+        let tested = a.frames * instances * c.baked.meshlets.len();
+        culled.push(Some(100.0 * count as f64 / tested as f64));
+        kept.push(Some(((tested - count) / a.frames) as u64));
         prepare_ms.push(crate::bench::median(times));
         prepared.push(by_frame);
     }
@@ -398,14 +403,6 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let meshlet_triangles: Vec<u64> = baked.meshlets.meshlets.iter().map(|m| m.triangle_count as u64).collect();
     let meshlet_vertices: Vec<u64> = baked.meshlets.meshlets.iter().map(|m| m.vertex_count as u64).collect();
     let all_vertex_refs = instances as u64 * meshlet_vertices.iter().sum::<u64>();
-    // Per configuration the CPU culler's meshlets kept per frame (renderer rows).
-    let kept: Vec<Option<u64>> = (0..configs.len())
-        .map(|k| {
-            culled[k].map(|pct| {
-                ((1.0 - pct / 100.0) * configs[k].baked.meshlets.len() as f64 * instances as f64).round() as u64
-            })
-        })
-        .collect();
     // One frame of configuration `k`: image, GPU ms, triangles and meshlets drawn, draw calls,
     // wall ms.
     let draw = |k: usize, f: usize| -> Result<Frame> {

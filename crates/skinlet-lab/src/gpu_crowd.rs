@@ -12,7 +12,7 @@
 //! culling kept every meshlet with a visible fragment (but where two meshlets tie in depth:
 //! draw order picks the color there, and the ID view finds those pixels).
 
-use crate::render::Image;
+use crate::render::{COLOR, DEPTH, Image, target_texture};
 use glam::{Mat4, Vec3};
 use skinlet_gpu::crowd_culling::{
     CrowdCulling, CullInstance, CullMode, CullPipelines, GpuCharacter, List, OcclusionDepth, SURVIVORS_WGSL,
@@ -94,9 +94,7 @@ pub struct GpuCrowd {
     depth_view: wgpu::TextureView,
 }
 
-const COLOR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 const IDS: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
-const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
 fn invalid(message: String) -> GpuError {
     GpuError::Invalid { location: "GPU crowd", message }
@@ -132,18 +130,7 @@ impl GpuCrowd {
         let weights = gpu.buffer("crowd morph weights", &zeros(4 * morphs as u64 * cap), storage);
         let view = gpu.buffer("crowd view", &[0u32; 24], wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST);
         let survivors = capacity.saturating_mul(character.meshlets());
-        let texture = |format, usage| {
-            device.create_texture(&wgpu::TextureDescriptor {
-                label: Some("crowd target"),
-                size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
-                view_formats: &[],
-            })
-        };
+        let texture = |format, usage| target_texture(device, width, height, format, usage);
         let depth = texture(DEPTH, wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING);
         let depth_view = depth.create_view(&Default::default());
         let occlusion = OcclusionDepth { view: &depth_view, width, height, reversed: false };

@@ -143,8 +143,28 @@ pub struct Drawn {
     pub gpu_ms: Option<f64>,
 }
 
-const COLOR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
-const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+pub(crate) const COLOR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+pub(crate) const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+/// A `width` × `height` 2D render target of one mip level and one sample.
+pub(crate) fn target_texture(
+    device: &wgpu::Device,
+    width: u32,
+    height: u32,
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: None,
+        size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage,
+        view_formats: &[],
+    })
+}
 
 impl Renderer {
     pub fn new(gpu: &Gpu, width: u32, height: u32) -> Result<Renderer> {
@@ -559,18 +579,7 @@ impl Renderer {
             camera.extend(light.normalize_or_zero().extend(0.0).to_array());
             let camera = gpu.buffer("camera", &camera, wgpu::BufferUsages::UNIFORM);
             let camera = gpu.bind_group("camera", &self.camera_layout, &[entry(0, &camera)]);
-            let texture = |format, usage| {
-                device.create_texture(&wgpu::TextureDescriptor {
-                    label: None,
-                    size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: wgpu::TextureDimension::D2,
-                    format,
-                    usage,
-                    view_formats: &[],
-                })
-            };
+            let texture = |format, usage| target_texture(device, width, height, format, usage);
             let color = texture(COLOR, wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC);
             let depth = texture(DEPTH, wgpu::TextureUsages::RENDER_ATTACHMENT);
             let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });

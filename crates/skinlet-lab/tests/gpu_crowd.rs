@@ -78,6 +78,35 @@ fn check_frame(gpu: &Gpu, crowd: &GpuCrowd, frame: &CrowdFrame, what: &str) -> [
     [survivors, occluded, visible.len(), frame.modes.len() * crowd.meshlets() as usize]
 }
 
+/// The palettes and morph weights of `scene` at frame `f`, each instance playing its clip,
+/// instance i standing where placement `order[i]` stands.
+fn clip_pose(
+    asset: &skinlet::Asset,
+    baked: &skinlet::bake::Baked,
+    scene: &skinlet_lab::crowd::Crowd,
+    fps: f32,
+    f: usize,
+    order: &[usize],
+) -> (Vec<Mat4>, Vec<f32>) {
+    let (skin, clips) = (baked.palette(), &asset.clips);
+    let morphs = baked.mesh.morphs.weights.len().max(1);
+    let mut poser = Poser::default();
+    let (mut palette, mut weights, mut w) = (Vec::new(), Vec::new(), Vec::new());
+    for &k in order {
+        let pl = &scene.placements[k];
+        let clip = clips.get(pl.clip);
+        let t = pl.time(clip, f, fps);
+        let globals = poser.globals(&asset.skeleton, clip, t);
+        let (mut joints, mut skinning) = (Vec::new(), Vec::new());
+        pl.world_matrices(&skin, globals, &mut joints, &mut skinning);
+        palette.extend(skinning.iter().map(|&m| Mat4::from(m)));
+        baked.mesh.morphs.weights_at(clip, t, &mut w);
+        w.resize(morphs, 0.0);
+        weights.extend(&w);
+    }
+    (palette, weights)
+}
+
 #[test]
 fn survivors_draw_the_unculled_image_and_hold_every_visible_meshlet() {
     let Some(gpu) = gpu() else { return };
@@ -95,21 +124,9 @@ fn survivors_draw_the_unculled_image_and_hold_every_visible_meshlet() {
         let params = CrowdParams { instances: 24, frames: 2, ..Default::default() };
         let scene = crowd(&baked.mesh.positions, clips.len(), &params).unwrap();
         let crowd = GpuCrowd::new(&gpu, &baked, &culler, 24, 320, 180).unwrap();
-        let morphs = baked.mesh.morphs.weights.len().max(1);
-        let mut poser = Poser::default();
+        let in_place: Vec<usize> = (0..scene.placements.len()).collect();
         for f in 0..params.frames {
-            let (mut palette, mut weights, mut w) = (Vec::new(), Vec::new(), Vec::new());
-            for pl in &scene.placements {
-                let clip = clips.get(pl.clip).copied();
-                let t = pl.time(clip, f, params.fps);
-                let globals = poser.globals(&asset.skeleton, clip, t);
-                let (mut joints, mut skinning) = (Vec::new(), Vec::new());
-                pl.world_matrices(&skin, globals, &mut joints, &mut skinning);
-                palette.extend(skinning.iter().map(|&m| Mat4::from(m)));
-                baked.mesh.morphs.weights_at(clip, t, &mut w);
-                w.resize(morphs, 0.0);
-                weights.extend(&w);
-            }
+            let (palette, weights) = clip_pose(&asset, &baked, &scene, params.fps, f, &in_place);
             let modes = vec![CullMode::Bounds; scene.placements.len()];
             for tests in [Tests::Both, Tests::Frustum] {
                 let frame =
@@ -193,27 +210,8 @@ fn occlusion_culling_misses_nothing_when_the_camera_cuts_or_the_crowd_teleports(
     let (lo, hi) =
         (baked.mesh.positions.iter()).fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), p| (l.min(*p), h.max(*p)));
     let size = ((hi - lo).length() / 2.0).max(1e-6);
-    let morphs = baked.mesh.morphs.weights.len().max(1);
     let modes = vec![CullMode::Bounds; scene.placements.len()];
-    let mut poser = Poser::default();
-    // Palettes and weights of the crowd at frame `f`, instance i standing where placement
-    // order[i] stands.
-    let mut pose = |f: usize, order: &[usize]| {
-        let (mut palette, mut weights, mut w) = (Vec::new(), Vec::new(), Vec::new());
-        for &k in order {
-            let pl = &scene.placements[k];
-            let clip = clips.get(pl.clip).copied();
-            let t = pl.time(clip, f, params.fps);
-            let globals = poser.globals(&demo.skeleton, clip, t);
-            let (mut joints, mut skinning) = (Vec::new(), Vec::new());
-            pl.world_matrices(&skin, globals, &mut joints, &mut skinning);
-            palette.extend(skinning.iter().map(|&m| Mat4::from(m)));
-            baked.mesh.morphs.weights_at(clip, t, &mut w);
-            w.resize(morphs, 0.0);
-            weights.extend(&w);
-        }
-        (palette, weights)
-    };
+    let pose = |f: usize, order: &[usize]| clip_pose(&demo, &baked, &scene, params.fps, f, order);
     let in_place: Vec<usize> = (0..scene.placements.len()).collect();
     let camera = |eye: Vec3, forward: Vec3| {
         let (fov, aspect) = (50f32.to_radians(), 16.0 / 9.0);
