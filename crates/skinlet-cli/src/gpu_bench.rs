@@ -25,11 +25,13 @@ use glam::{Affine3A, Vec3};
 use serde_json::json;
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::global_transforms;
+use skinlet::skinning::skin_mesh;
 use skinlet_gpu::crowd_culling::CullMode;
 use skinlet_gpu::mesh::{GpuMesh, Pose};
 use skinlet_lab::crowd::{Animation, CrowdParams, Layout, instance_pose, posed_crowd};
 use skinlet_lab::gpu_crowd::{CrowdFrame, CrowdView, GpuCrowd};
 use skinlet_lab::headless::{self, GpuOptions};
+use skinlet_lab::occlusion_limits::{DepthPyramid, Rect, bounds};
 use skinlet_lab::render::{CrowdDraw, Culling, Image, PosedInstance, Renderer, Skinning};
 use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller, Tests};
 
@@ -92,7 +94,7 @@ struct InstancePose {
     weights: Vec<f32>,
     /// The pose guard admits the pose (clips: always).
     admitted: bool,
-    /// The any-pose boxes hold (morph weights inside the envelope's ranges; never for clips).
+    /// The any-pose boxes hold (morph weights inside the envelope's ranges; clips: always).
     boxes: bool,
 }
 
@@ -204,13 +206,22 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let height = (a.width * 9 / 16).max(1);
     let renderer = Renderer::new(&gpu, a.width, height)?;
     let mesh = GpuMesh::new(&gpu, &baked.mesh.mesh_data(Some(baked.meshlets.view(&baked.meshlets.headers()))))?;
-    // The bounds the culling uses: the clip bounds for clips, else the envelope's and the
-    // any-pose boxes.
-    let culler_of = |b: &skinlet::bake::Baked| match (&b.envelope, animation) {
-        (Some(e), a) if a != Animation::Clips => {
-            MeshletCuller::new(&e.bounds, &e.classes, skin.joints.len())?.with_any_pose(&e.any_pose)
-        }
-        _ => MeshletCuller::new(&b.bounds, &b.classes, skin.joints.len()),
+    // The bounds the culling uses, with the any-pose boxes: the clip bounds and boxes over the
+    // clips' morph weight ranges for clips, else the envelope's.
+    let clip_ranges = match animation {
+        Animation::Clips => crate::bake::envelope_of("clips", &asset, &baked)?.weight_ranges(),
+        _ => Vec::new(),
+    };
+    let culler_of = |b: &skinlet::bake::Baked| -> Result<MeshletCuller> {
+        Ok(match (&b.envelope, animation) {
+            (Some(e), a) if a != Animation::Clips => {
+                MeshletCuller::new(&e.bounds, &e.classes, skin.joints.len())?.with_any_pose(&e.any_pose)?
+            }
+            _ => {
+                let boxes = skinlet::cull::any_pose::build(skin, &b.mesh, &b.meshlets, &clip_ranges)?;
+                MeshletCuller::new(&b.bounds, &b.classes, skin.joints.len())?.with_any_pose(&boxes)?
+            }
+        })
     };
     let culler = culler_of(&baked)?;
     let want = |p: &str| a.pipelines.iter().any(|q| q == p);
@@ -251,7 +262,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             let (mut joints, mut skinning) = (Vec::new(), Vec::new());
             pl.world_matrices(skin, &globals, &mut joints, &mut skinning);
             let admitted = guard.as_ref().is_none_or(|g| g.admits(&locals, &weights));
-            let boxes = guard.as_ref().is_some_and(|g| g.admits_weights(&weights));
+            let boxes = guard.as_ref().is_none_or(|g| g.admits_weights(&weights));
             instances.push(InstancePose { skinning, joints, weights: weights.clone(), admitted, boxes });
         }
         frames.push(instances);
@@ -500,14 +511,38 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         image_equal[k] = reference.is_some_and(|r| same(&r, &frame.image));
         picture.get_or_insert(frame.image);
     }
-    // The limit: meshlets with a visible fragment, per timed frame.
-    let mut oracle = Vec::new();
-    for f in 1..=a.frames {
+    // The limit: meshlets with a visible fragment, per timed frame. And what a box test
+    // against the frame's unculled depth could keep of the frustum and backface survivors, with
+    // boxes of this pose (the CPU skinning the reference's): at full resolution, and on the
+    // pyramid as the occlusion pass reads it.
+    let (mut oracle, mut box_exact, mut box_pyramid) = (Vec::new(), Vec::new(), Vec::new());
+    let mut positions = vec![Vec3::ZERO; baked.mesh.positions.len()];
+    for (f, poses) in frames.iter().enumerate().skip(1) {
+        gpu_crowd.draw(&gpu, &crowd_frame(f, Tests::Both, false), CrowdView::Pulled, light)?;
+        let survivors = gpu_crowd.survivors(&gpu)?;
         let d = gpu_crowd.draw(&gpu, &crowd_frame(f, Tests::Both, false), CrowdView::Ids, light)?;
         let ids = d.ids.context("the ID view reads ids")?;
         oracle.push(ids.iter().filter(|&&id| id != 0).collect::<std::collections::HashSet<_>>().len() as f64);
+        let depth = DepthPyramid::new(a.width, height, gpu_crowd.depth(&gpu)?);
+        let (mut exact, mut pyramid, mut skinned) = (0.0, 0.0, usize::MAX);
+        for &[i, m] in &survivors {
+            let pose = &poses[i as usize];
+            if skinned != i as usize {
+                skin_mesh(&baked.mesh, &pose.weights, &pose.skinning, &mut positions, &mut [])?;
+                skinned = i as usize;
+            }
+            let ml = &baked.meshlets.meshlets[m as usize];
+            let start = ml.vertex_offset as usize;
+            let (lo, hi) = bounds(&positions, &baked.meshlets.vertices[start..start + ml.vertex_count as usize]);
+            let view_proj = &scene.camera.view_proj;
+            exact += f64::from(!depth.hidden(view_proj, lo, hi, Rect::Exact) as u8);
+            pyramid += f64::from(!depth.hidden(view_proj, lo, hi, Rect::Pyramid) as u8);
+        }
+        box_exact.push(exact);
+        box_pyramid.push(pyramid);
     }
-    let visible_oracle = oracle.iter().sum::<f64>() / oracle.len() as f64;
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let visible_oracle = mean(&oracle);
     // Per configuration and repeat: median GPU and wall time over the timed frames.
     let (mut gpu_ms, mut wall_ms) = (vec![Vec::new(); configs.len()], vec![Vec::new(); configs.len()]);
     let (mut triangles, mut meshlets, mut draw_calls) =
@@ -578,7 +613,8 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             })
             .collect();
         let out = json!({"file": file, "adapter": gpu.info.name, "timestamps": gpu.has_timestamps(),
-            "crowd": a.crowd, "meshlets_visible_oracle": visible_oracle, "meshlets_per_frame": all_meshlets,
+            "crowd": a.crowd, "meshlets_visible_oracle": visible_oracle,
+            "meshlets_unhidden_pose_box": mean(&box_exact), "meshlets_unhidden_pose_box_pyramid": mean(&box_pyramid), "meshlets_per_frame": all_meshlets,
             "animation": a.animation, "guard_fallback_pct": fallback_pct,
             "instances": instances, "frames": a.frames, "repeats": a.repeats, "width": a.width, "height": height,
             "meshlets": baked.meshlets.len(), "triangles_per_instance": total_triangles,
@@ -601,6 +637,12 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         a.frames
     );
     println!("  meshlets per frame: {all_meshlets}, with a visible fragment (unculled ID buffer): {visible_oracle:.0}");
+    println!(
+        "  frustum and backface survivors whose box of this pose is not behind the unculled depth: {:.0} at full \
+         resolution, {:.0} on the depth pyramid",
+        mean(&box_exact),
+        mean(&box_pyramid)
+    );
     if animation != Animation::Clips {
         println!(
             "  {} animation: envelope bounds where the pose guard admits the pose; {fallback_pct:.1}% of instance-frames \

@@ -91,6 +91,7 @@ pub struct GpuCrowd {
     draws: [(wgpu::RenderPipeline, wgpu::BindGroup); 4],
     color: wgpu::Texture,
     ids: wgpu::Texture,
+    depth: wgpu::Texture,
     depth_view: wgpu::TextureView,
 }
 
@@ -131,7 +132,12 @@ impl GpuCrowd {
         let view = gpu.buffer("crowd view", &[0u32; 24], wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST);
         let survivors = capacity.saturating_mul(character.meshlets());
         let texture = |format, usage| target_texture(device, width, height, format, usage);
-        let depth = texture(DEPTH, wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING);
+        let depth = texture(
+            DEPTH,
+            wgpu::TextureUsages::RENDER_ATTACHMENT
+                | wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_SRC,
+        );
         let depth_view = depth.create_view(&Default::default());
         let occlusion = OcclusionDepth { view: &depth_view, width, height, reversed: false };
         let culling = CrowdCulling::with_occlusion(
@@ -231,6 +237,7 @@ impl GpuCrowd {
                 ],
                 color: texture(COLOR, target),
                 ids: texture(IDS, target),
+                depth,
                 depth_view,
                 culling,
             }
@@ -414,6 +421,31 @@ impl GpuCrowd {
             None => None,
         };
         Ok(CrowdDrawn { image, ids, ties, headers, draw_calls: passes.len() as u32, gpu_ms })
+    }
+
+    /// The depth buffer the last frame left (forward: near 0, far 1), rows top to bottom.
+    pub fn depth(&self, gpu: &Gpu) -> Result<Vec<f32>> {
+        let row = (4 * self.width).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        let bytes = (row * self.height) as u64;
+        let usage = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+        let readback = gpu.buffer("crowd depth", &vec![0u8; bytes as usize], usage);
+        gpu.checked("GPU crowd depth", || {
+            let mut encoder = gpu.device.create_command_encoder(&Default::default());
+            encoder.copy_texture_to_buffer(
+                wgpu::TexelCopyTextureInfo { aspect: wgpu::TextureAspect::DepthOnly, ..self.depth.as_image_copy() },
+                wgpu::TexelCopyBufferInfo {
+                    buffer: &readback,
+                    layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(row), rows_per_image: None },
+                },
+                self.depth.size(),
+            );
+            gpu.queue.submit([encoder.finish()]);
+        })?;
+        let bytes = gpu.read(&readback, bytes)?;
+        let rows = bytes
+            .chunks_exact(row as usize)
+            .map(|r| bytemuck::pod_collect_to_vec::<u8, f32>(&r[..4 * self.width as usize]));
+        Ok(rows.flatten().collect())
     }
 
     /// The survivors of the last culled frame as (instance, meshlet) pairs: the first list's,

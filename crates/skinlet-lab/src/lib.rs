@@ -9,6 +9,8 @@
 //! - [`gpu_crowd`]: a GPU-driven crowd renderer on `skinlet_gpu::crowd_culling` (culling,
 //!   survivors drawn with one call, the unculled image and the ID-buffer oracle of visible
 //!   meshlets); `skinlet gpu-bench --crowd` draws with it.
+//! - [`occlusion_limits`]: what a box test against a frame's depth can cull at best (full
+//!   resolution, or as `crowd_culling`'s pyramid), on boxes of the frame's own pose.
 //! - [`contour_eval`]: the contour paper's evaluation protocol (42 directions × 6 distances,
 //!   frames of clips) over every extractor, and the calibration of `t_P / t_e`.
 //! - [`snch`], [`meshlet_patches`]: the contour baselines (Johnson & Cohen 2001's hierarchy;
@@ -33,6 +35,7 @@ pub mod demo;
 pub mod gpu_crowd;
 pub mod headless;
 pub mod meshlet_patches;
+pub mod occlusion_limits;
 pub mod render;
 pub mod scans;
 pub mod snch;

@@ -14,7 +14,7 @@
 @group(0) @binding(1) var<storage, read> slots: array<Slot>;
 // The joint records (RECORD floats per instance and joint), then per instance and joint 16
 // floats: the joint's world matrix as three rows (x, y, z, t), a bound on its spectral norm,
-// the occlusion mode (0 none, 1 the bounds' spheres, 2 the any-pose boxes), the rounding
+// the occlusion mode (0 none, 1 the bounds' spheres, 2 the any-pose boxes, 3 both), the rounding
 // bounds of forming it (prepare.wgsl).
 @group(0) @binding(2) var<storage, read> joint_records: array<f32>;
 // Per instance: visible, culled by the frustum, culled as back-facing only, occluded.
@@ -92,9 +92,12 @@ fn moved_box(b: u32, c: vec3<f32>, h: vec3<f32>, r: f32) -> Box {
 }
 
 // Whether every point of the world box is behind the depth pyramid: the box's 8 corners
-// projected (a corner at or behind the eye's plane: not occluded), the screen rectangle around
-// them widened by a pixel, its nearest depth against the farthest depth over the rectangle at
-// the pyramid level where it spans at most 4 × 4 texels.
+// projected (a corner at or behind the eye's plane: not occluded), the pixels whose centers
+// lie in the screen rectangle around them widened by 1/16 pixel (rasterizers snap vertices to
+// 1/16 pixel or finer; a fragment is a pixel center a triangle covers, its depth interpolated
+// between its corners', so no farther than the box's nearest), its nearest depth against the
+// farthest depth over those pixels at the pyramid level where they span at most 8 × 8 texels.
+// A box that covers no pixel center on screen draws nothing: occluded.
 fn box_occluded(bx: Box) -> bool {
     var lo = vec3<f32>(1e30);
     var hi = vec3<f32>(-1e30);
@@ -110,24 +113,25 @@ fn box_occluded(bx: Box) -> bool {
         hi = max(hi, ndc);
     }
     let size = vec2<f32>(f32(occlusion.width), f32(occlusion.height));
-    // NDC y up, pixel rows down.
-    let px0 = (lo.x * 0.5 + 0.5) * size.x - 1.0;
-    let px1 = (hi.x * 0.5 + 0.5) * size.x + 1.0;
-    let py0 = (0.5 - hi.y * 0.5) * size.y - 1.0;
-    let py1 = (0.5 - lo.y * 0.5) * size.y + 1.0;
-    if !(px1 >= 0.0 && py1 >= 0.0 && px0 < size.x && py0 < size.y) {
-        return false; // off screen: the frustum test's business
+    // NDC y up, pixel rows down; pixel i's center at i + 0.5.
+    let e = 0.5 + 1.0 / 16.0;
+    let first = ceil(vec2<f32>((lo.x * 0.5 + 0.5) * size.x, (0.5 - hi.y * 0.5) * size.y) - e);
+    let last = floor(vec2<f32>((hi.x * 0.5 + 0.5) * size.x, (0.5 - lo.y * 0.5) * size.y) - 0.5 + 1.0 / 16.0);
+    let start = max(first, vec2<f32>(0.0));
+    let end = min(last, size - 1.0);
+    if !(start.x <= end.x && start.y <= end.y) {
+        return true;
     }
-    let x0 = u32(max(px0, 0.0));
-    let y0 = u32(max(py0, 0.0));
-    let x1 = u32(min(px1, size.x - 1.0));
-    let y1 = u32(min(py1, size.y - 1.0));
-    // The level where the rectangle spans at most 4 × 4 texels, and where it starts.
+    let x0 = u32(start.x);
+    let y0 = u32(start.y);
+    let x1 = u32(end.x);
+    let y1 = u32(end.y);
+    // The level where the pixels span at most 8 × 8 texels, and where it starts.
     var level = 0u;
     var w = occlusion.width;
     var h = occlusion.height;
     var offset = occlusion.pyramid_base;
-    while level + 1u < occlusion.levels && ((x1 >> level) - (x0 >> level) > 3u || (y1 >> level) - (y0 >> level) > 3u) {
+    while level + 1u < occlusion.levels && ((x1 >> level) - (x0 >> level) > 7u || (y1 >> level) - (y0 >> level) > 7u) {
         offset += w * h;
         w = (w + 1u) / 2u;
         h = (h + 1u) / 2u;
@@ -148,31 +152,24 @@ fn box_occluded(bx: Box) -> bool {
     return lo.z * (1.0 - 4e-7) - 1e-7 > far;
 }
 
-// Whether meshlet `s` of `instance` is hidden behind the pyramid: its bounding sphere (the
-// bounds' modes) or the union of its any-pose boxes (boxes alone), moved by their joints.
-fn occluded(s: Slot, instance: u32) -> bool {
-    let b = world_of(instance, s.joint);
-    let mode = joint_records[b + 13u];
-    if mode == 1.0 {
-        return box_occluded(moved_box(b, s.center, vec3<f32>(0.0), s.radius));
-    }
-    if mode != 2.0 {
-        return false;
-    }
+// The union of meshlet `s`'s any-pose boxes moved by their joints (a box around it for any
+// pose); everything where it has none or a joint's matrix was not usable.
+fn moved_boxes(s: Slot, instance: u32) -> Box {
+    let everything = Box(vec3<f32>(-1e30), vec3<f32>(1e30));
     let lo = any_pose_boxes[s.id];
     let hi = any_pose_boxes[s.id + 1u];
     if lo >= hi {
-        return false;
+        return everything;
     }
     var all = Box(vec3<f32>(1e30), vec3<f32>(-1e30));
     for (var k = lo; k < hi; k += 8u) {
         let joint = any_pose_boxes[k];
         if joint >= cull_params.joints {
-            return false;
+            return everything;
         }
         let jb = world_of(instance, joint);
-        if joint_records[jb + 13u] != 2.0 {
-            return false;
+        if joint_records[jb + 13u] < 2.0 {
+            return everything;
         }
         let c = vec3<f32>(bitcast<f32>(any_pose_boxes[k + 1u]), bitcast<f32>(any_pose_boxes[k + 2u]),
             bitcast<f32>(any_pose_boxes[k + 3u]));
@@ -181,7 +178,27 @@ fn occluded(s: Slot, instance: u32) -> bool {
         let one = moved_box(jb, c, h, 0.0);
         all = Box(min(all.lo, one.lo), max(all.hi, one.hi));
     }
-    return box_occluded(all);
+    return all;
+}
+
+// Whether meshlet `s` of `instance` is hidden behind the pyramid: the box around its bounding
+// sphere (the bounds' modes), the union of its moved any-pose boxes (the boxes' modes), or
+// where the instance has both, their intersection (each holds the meshlet).
+fn occluded(s: Slot, instance: u32) -> bool {
+    let b = world_of(instance, s.joint);
+    let mode = u32(joint_records[b + 13u]);
+    if mode == 0u || mode > 3u {
+        return false;
+    }
+    var bx = Box(vec3<f32>(-1e30), vec3<f32>(1e30));
+    if (mode & 1u) != 0u {
+        bx = moved_box(b, s.center, vec3<f32>(0.0), s.radius);
+    }
+    if (mode & 2u) != 0u {
+        let boxes = moved_boxes(s, instance);
+        bx = Box(max(bx.lo, boxes.lo), min(bx.hi, boxes.hi));
+    }
+    return box_occluded(bx);
 }
 
 // One (instance, slot) per invocation: the tests of this phase, the instance's counts

@@ -81,7 +81,7 @@ fn sum(v: vec3<f32>) -> f32 {
 
 // After the records, per instance and joint 16 floats for occlusion culling
 // (crowd_cull.wgsl): the world matrix's three rows, a bound on its spectral norm, the mode
-// (0 not occluded, 1 by the spheres, 2 by the any-pose boxes), and for the rounding of the
+// (0 not occluded, 1 by the spheres, 2 by the any-pose boxes, 3 by both), and for the rounding of the
 // product G was formed by, the largest row sum of |model|·|S|·|bind|'s linear part and its
 // largest translation entry.
 fn write_world(index: u32, g: mat4x4<f32>, m: mat4x4<f32>, mode: f32) {
@@ -150,7 +150,7 @@ fn prepare(@builtin(global_invocation_id) gid: vec3<u32>) {
     let at = m[3].xyz;
     let bounds = instance.mode <= 1u;
     let boxes = instance.mode >= 1u && camera.has_boxes != 0u;
-    write_world(index, g, m, select(select(0.0, 2.0, boxes), 1.0, bounds));
+    write_world(index, g, m, select(0.0, 1.0, bounds) + select(0.0, 2.0, boxes));
     let ext = joint.extent;
     // Frustum: n_j = Aᵀn, w_j = n·t + w, |n_j|, and the margin over the planes.
     let t_len = length(at);
