@@ -6,7 +6,8 @@
 //! Vertex skinning is drawn GPU-driven (`skinlet_lab::gpu_crowd` on
 //! `skinlet_gpu::crowd_culling`): culling prepared and run on the GPU, the survivors drawn
 //! with one call (pulled; `VS-indexed`: one indexed multi-draw with a GPU count). Mesh-shader
-//! skinning is culled in task shaders from per-instance culling prepared on the CPU. Per row:
+//! skinning is culled in task shaders on the joint records the same culling prepares on the
+//! GPU. Per row:
 //! meshlets drawn, draw calls issued per frame, and whether the image equals the unculled one
 //! (up to depth ties between meshlets, where draw order picks the color); per frame the
 //! meshlets with a visible fragment in the unculled ID buffer, the limit no culling beats.
@@ -16,8 +17,7 @@
 //! that warming, clocks and drift fall on all of them alike. A configuration's time is the
 //! median over repeats of its per-repeat median frame; the spread is the range over repeats;
 //! "vs none" is the median (and range) of per-repeat ratios against the same pipeline without
-//! culling. The CPU-side per-instance preparation of culling (`MeshletCuller::prepare`) is
-//! timed apart and not part of the GPU or wall times.
+//! culling.
 
 use crate::RefineArgs;
 use anyhow::{Context, Result};
@@ -26,14 +26,14 @@ use serde_json::json;
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::global_transforms;
 use skinlet::skinning::skin_mesh;
-use skinlet_gpu::crowd_culling::CullMode;
+use skinlet_gpu::crowd_culling::{CullMode, GpuCharacter};
 use skinlet_gpu::mesh::{GpuMesh, Pose};
 use skinlet_lab::crowd::{Animation, CrowdParams, Layout, instance_pose, posed_crowd};
 use skinlet_lab::gpu_crowd::{CrowdFrame, CrowdView, GpuCrowd};
 use skinlet_lab::headless::{self, GpuOptions};
 use skinlet_lab::occlusion_limits::{DepthPyramid, Rect, bounds};
-use skinlet_lab::render::{CrowdDraw, Culling, Image, PosedInstance, Renderer, Skinning};
-use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller, Tests};
+use skinlet_lab::render::{CrowdDraw, Culling, Image, PosedInstance, Renderer, Skinning, TaskCulling};
+use skinlet_runtime::meshlet_cull::{MeshletCuller, Tests};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -86,11 +86,10 @@ pub struct Args {
     json: bool,
 }
 
-/// One instance in one frame: world-space skinning and joint matrices, morph weights, and
+/// One instance in one frame: world-space skinning matrices, morph weights, and
 /// whether the bounds the culling uses hold for the pose (the pose guard's answer).
 struct InstancePose {
     skinning: Vec<Affine3A>,
-    joints: Vec<Affine3A>,
     weights: Vec<f32>,
     /// The pose guard admits the pose (clips: always).
     admitted: bool,
@@ -155,8 +154,6 @@ struct Row {
     wall_ms: Option<Spread>,
     /// GPU time ÷ the same pipeline's without culling, minus one, in percent, per repeat.
     vs_none_pct: Option<Spread>,
-    /// CPU milliseconds per frame preparing the culling of every instance.
-    prepare_ms: Option<f64>,
     culled_pct: Option<f64>,
     /// Triangles drawn per frame.
     triangles: u64,
@@ -263,7 +260,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             pl.world_matrices(skin, &globals, &mut joints, &mut skinning);
             let admitted = guard.as_ref().is_none_or(|g| g.admits(&locals, &weights));
             let boxes = guard.as_ref().is_none_or(|g| g.admits_weights(&weights));
-            instances.push(InstancePose { skinning, joints, weights: weights.clone(), admitted, boxes });
+            instances.push(InstancePose { skinning, weights: weights.clone(), admitted, boxes });
         }
         frames.push(instances);
     }
@@ -349,65 +346,18 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             configs.push(Config { pipeline, skinning, mesh, culler, baked, culling, tests, path, view: Some(view) });
         }
     }
-    // The CPU side of culling, per culler and tests, timed apart: every instance's per-joint
-    // preparation, per frame (median over frames and repeats). Its results are what the
-    // GPU passes read; the CPU culler also counts what they cull.
-    let mut prepared: Vec<Vec<Vec<JointFrame>>> = Vec::new();
-    let mut prepare_ms = Vec::new();
-    // Per configuration (renderer rows) the percentage of meshlets culled and the meshlets
-    // kept per frame.
-    let (mut culled, mut kept) = (Vec::new(), Vec::new());
-    for c in &configs {
-        let (Some(tests), None) = (c.tests, c.view) else {
-            prepared.push(Vec::new());
-            prepare_ms.push(None);
-            culled.push(None);
-            kept.push(None);
-            continue;
-        };
-        let mut times = Vec::new();
-        let mut by_frame = Vec::new();
-        for _ in 0..a.repeats {
-            by_frame = frames
-                .iter()
-                .map(|instances| {
-                    let started = std::time::Instant::now();
-                    let out: Vec<JointFrame> = instances
-                        .iter()
-                        .map(|i| {
-                            // A pose the guard refused gets the any-pose boxes alone, or is
-                            // drawn whole when its morph weights leave their ranges.
-                            let mut frame = JointFrame::default();
-                            match (i.admitted, i.boxes) {
-                                (true, true) => {
-                                    c.culler.prepare_with_boxes(&i.joints, &scene.camera, tests, &mut frame)
-                                }
-                                (true, false) => c.culler.prepare(&i.joints, &scene.camera, tests, &mut frame),
-                                (false, true) => {
-                                    c.culler.prepare_boxes_only(&i.joints, &scene.camera, tests, &mut frame)
-                                }
-                                (false, false) => frame.set_keep_all(skin.joints.len()),
-                            }
-                            frame
-                        })
-                        .collect();
-                    times.push(started.elapsed().as_secs_f64() * 1e3);
-                    out
-                })
-                .collect();
-        }
-        let count: usize = (by_frame[1..].iter().flatten())
-            .map(|f| {
-                let n = c.culler.cull(f, &mut Vec::new(), &mut Vec::new());
-                n.meshlets - n.visible
-            })
-            .sum();
-        let tested = a.frames * instances * c.baked.meshlets.len();
-        culled.push(Some(100.0 * count as f64 / tested as f64));
-        kept.push(Some(((tested - count) / a.frames) as u64));
-        prepare_ms.push(crate::bench::median(times));
-        prepared.push(by_frame);
-    }
+    // Task-culled rows: each mesh's meshlets uploaded for culling once.
+    let characters = (configs.iter())
+        .map(|c| match c.path {
+            Some(_) => {
+                let headers = c.baked.meshlets.headers();
+                let view = c.baked.meshlets.view(&headers);
+                let (_, draws) = skinlet_gpu::mesh::meshlet_index_buffer(&view, c.baked.mesh.positions.len())?;
+                Ok(Some(GpuCharacter::new(&gpu.device, c.culler, &c.baked.inverse_bind, &draws)?))
+            }
+            None => Ok(None),
+        })
+        .collect::<Result<Vec<_>>>()?;
     let light = Vec3::new(0.4, 0.8, 0.6);
     let all_meshlets = (instances * baked.meshlets.len()) as u64;
     // Triangles per meshlet (the GPU-driven crowd's survivors are counted by meshlet).
@@ -441,25 +391,26 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 wall_ms,
             });
         }
-        let list: Vec<PosedInstance> = (frames[f].iter().enumerate())
-            .map(|(i, p)| PosedInstance {
+        let list: Vec<PosedInstance> = (frames[f].iter().zip(&flat[f].1))
+            .map(|(p, &mode)| PosedInstance {
                 pose: Pose { matrices: &p.skinning, morph_weights: &p.weights },
-                frame: prepared[k].get(f).map(|frames| &frames[i]),
+                cull: Some(mode),
             })
             .collect();
-        let how = match c.path {
-            Some(culling) => CrowdDraw::Culled { culler: c.culler, culling, skinning: c.skinning, triangles: None },
-            None => CrowdDraw::Plain(c.skinning),
+        let how = match (c.path, &characters[k], c.tests) {
+            (Some(culling), Some(character), Some(tests)) => {
+                let camera = &scene.camera;
+                CrowdDraw::Culled(TaskCulling { character, camera, tests, culling, triangles: None }, c.skinning)
+            }
+            _ => CrowdDraw::Plain(c.skinning),
         };
         let started = std::time::Instant::now();
         let drawn = renderer.render_crowd(&gpu, c.mesh, &list, scene.camera.view_proj, light, how)?;
         let wall_ms = started.elapsed().as_secs_f64() * 1e3;
         // Draw calls: one per instance, or per instance one per non-empty class pipeline.
-        let per_instance = match c.path {
-            Some(Culling::TaskByClass) => {
-                let class =
-                    |s: &skinlet_runtime::meshlet_cull::CullSlot| if !s.frustum_ok { 2 } else { (s.sin > 1.0) as u8 };
-                c.culler.slots().iter().map(class).collect::<std::collections::BTreeSet<u8>>().len() as u32
+        let per_instance = match (c.path, &characters[k]) {
+            (Some(Culling::TaskByClass), Some(character)) => {
+                character.class_ranges().iter().filter(|r| r[1] > 0).count() as u32
             }
             _ => 1,
         };
@@ -467,7 +418,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             image: drawn.image,
             gpu_ms: drawn.gpu_ms,
             triangles: drawn.triangles.map_or(total_triangles * instances as u64, u64::from),
-            meshlets: kept[k].unwrap_or((instances * c.baked.meshlets.len()) as u64),
+            meshlets: drawn.meshlets.map_or((instances * c.baked.meshlets.len()) as u64, u64::from),
             vertex_refs: None,
             draw_calls: per_instance * instances as u32,
             wall_ms,
@@ -578,16 +529,14 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 }
                 _ => Vec::new(),
             };
-            let crowd_culled = (c.view.is_some() && c.tests.is_some())
-                .then(|| 100.0 * (1.0 - meshlets[k] as f64 / all_meshlets.max(1) as f64));
+            let culled_pct = c.tests.is_some().then(|| 100.0 * (1.0 - meshlets[k] as f64 / all_meshlets.max(1) as f64));
             Row {
                 pipeline: c.pipeline,
                 culling: c.culling,
                 gpu_ms: Spread::of(&gpu_ms[k]),
                 wall_ms: Spread::of(&wall_ms[k]),
                 vs_none_pct: Spread::of(&ratios),
-                prepare_ms: prepare_ms[k],
-                culled_pct: culled[k].or(crowd_culled),
+                culled_pct,
                 triangles: triangles[k],
                 meshlets_drawn: meshlets[k] as f64,
                 vertex_refs: vertex_refs[k],
@@ -606,7 +555,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             .map(|r| {
                 json!({"pipeline": r.pipeline, "culling": r.culling, "gpu_ms": Spread::json(r.gpu_ms),
                     "wall_ms": Spread::json(r.wall_ms), "vs_none_pct": Spread::json(r.vs_none_pct),
-                    "cpu_prepare_ms": r.prepare_ms, "culled_pct": r.culled_pct, "triangles_per_frame": r.triangles,
+                    "culled_pct": r.culled_pct, "triangles_per_frame": r.triangles,
                     "meshlets_drawn": r.meshlets_drawn, "vertex_refs_per_frame": r.vertex_refs,
                     "draws_issued": r.draws_issued,
                     "image_equal_to_unculled": r.image_equal})
@@ -651,12 +600,11 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         );
     }
     println!(
-        "  {:<10} {:<14} {:>22}  {:>13}  {:>14}  {:>15}  {:>14}  {:>15}  {:>5}  {:>5}  GPU vs none [range]",
+        "  {:<10} {:<14} {:>22}  {:>13}  {:>15}  {:>14}  {:>15}  {:>5}  {:>5}  GPU vs none [range]",
         "pipeline",
         "culling",
         "GPU ms/frame [range]",
         "wall ms/frame",
-        "CPU prepare ms",
         "meshlets culled",
         "meshlets drawn",
         "triangles drawn",
@@ -668,10 +616,9 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     };
     for r in &rows {
         let culled = r.culled_pct.map_or("-".into(), |c| format!("{c:.1}%"));
-        let prepare = r.prepare_ms.map_or("-".into(), |t| format!("{t:.3}"));
         let vs = r.vs_none_pct.map_or(String::new(), |s| format!("{:+.0}% [{:+.0}, {:+.0}]", s.median, s.min, s.max));
         println!(
-            "  {:<10} {:<14} {:>22}  {:>13}  {prepare:>14}  {culled:>15}  {:>14}  {:>15}  {:>5}  {:>5}  {vs}",
+            "  {:<10} {:<14} {:>22}  {:>13}  {culled:>15}  {:>14}  {:>15}  {:>5}  {:>5}  {vs}",
             r.pipeline,
             r.culling,
             range(r.gpu_ms, 3),

@@ -620,8 +620,6 @@ fn render_writes_a_png_of_the_posed_character() {
         assert_eq!(r["gpu_ms"].is_object(), j["timestamps"] == true, "{r}");
         let culled = r["culled_pct"].as_f64();
         assert_eq!(culled.is_some(), r["culling"] != "none", "{r}");
-        let task = r["pipeline"].as_str().unwrap().starts_with("MS");
-        assert_eq!(r["cpu_prepare_ms"].is_number(), r["culling"] != "none" && task, "{r}");
         assert_eq!(r["vs_none_pct"].is_object(), r["culling"] != "none" && j["timestamps"] == true, "{r}");
         assert_eq!(r["image_equal_to_unculled"], true, "{r}");
         let drawn = r["meshlets_drawn"].as_f64().unwrap();

@@ -2,8 +2,10 @@
 //! builds its own skinning pipeline, uploads a baked character, records skinlet's culling passes
 //! into its own encoder each frame, draws the survivors with one call of its own pipeline
 //! (pulled by its vertex shader; and as indexed draws where the device counts them), and
-//! compares each image with its own unculled draw of the crowd. Nothing is read back on the
-//! drawing path (images and counts are read only to report).
+//! compares each image with its own unculled draw of the crowd (where fragments of two
+//! meshlets tie in depth, draw order picks the color: such a pixel may be either unculled
+//! draw's, the one where the first fragment wins or the one where the last does). Nothing is
+//! read back on the drawing path (images and counts are read only to report).
 //!
 //! `cargo run --release -p skinlet-gpu --example bring_your_own -- --json` prints one line,
 //! `{"equal_to_unculled": true, "culled_pct": ..., ...}`; exit status 1 when an image differs.
@@ -67,6 +69,8 @@ type Result<T> = std::result::Result<T, Box<dyn std::error::Error>>;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Draw {
     Unculled,
+    /// Unculled, the last of fragments tied in depth winning.
+    UnculledLast,
     Pulled,
     Indexed,
 }
@@ -146,7 +150,7 @@ fn run() -> Result<(bool, String)> {
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: None, source });
     let options = wgpu::PipelineCompilationOptions::default;
     let targets = [Some(FORMAT.into())];
-    let pipeline = |vs: &str| {
+    let pipeline = |vs: &str, depth_compare| {
         device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some(vs),
             layout: None,
@@ -160,7 +164,7 @@ fn run() -> Result<(bool, String)> {
             depth_stencil: Some(wgpu::DepthStencilState {
                 format: wgpu::TextureFormat::Depth32Float,
                 depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Less),
+                depth_compare: Some(depth_compare),
                 stencil: Default::default(),
                 bias: Default::default(),
             }),
@@ -175,7 +179,9 @@ fn run() -> Result<(bool, String)> {
             cache: None,
         })
     };
-    let (indexed, pulled) = (pipeline("vs"), pipeline("vs_pulled"));
+    let (indexed, pulled) =
+        (pipeline("vs", wgpu::CompareFunction::Less), pipeline("vs_pulled", wgpu::CompareFunction::Less));
+    let last = pipeline("vs", wgpu::CompareFunction::LessEqual);
     let (positions, influences) = (buffer(bytemuck::cast_slice(&positions)), buffer(bytemuck::cast_slice(&influences)));
     let (offsets, deltas) = (buffer(bytemuck::cast_slice(&offsets)), buffer(bytemuck::cast_slice(&deltas)));
     let storage_indices = buffer(bytemuck::cast_slice(&indices));
@@ -198,7 +204,7 @@ fn run() -> Result<(bool, String)> {
         let layout = &pipeline.get_bind_group_layout(0);
         device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout, entries: &entries })
     };
-    let (indexed_group, pulled_group) = (group(&indexed, 8), group(&pulled, 10));
+    let (indexed_group, pulled_group, last_group) = (group(&indexed, 8), group(&pulled, 10), group(&last, 8));
     let tex = |format| {
         device.create_texture(&wgpu::TextureDescriptor {
             label: None,
@@ -212,8 +218,9 @@ fn run() -> Result<(bool, String)> {
         })
     };
     let depth = tex(wgpu::TextureFormat::Depth32Float);
-    // The images: unculled, survivors pulled, survivors as indexed draws (where counted).
-    let draws: Vec<Draw> = [Draw::Unculled, Draw::Pulled, Draw::Indexed]
+    // The images: unculled (both ways), survivors pulled, survivors as indexed draws (where
+    // counted).
+    let draws: Vec<Draw> = [Draw::Unculled, Draw::UnculledLast, Draw::Pulled, Draw::Indexed]
         .into_iter()
         .filter(|&d| d != Draw::Indexed || !counted.is_empty())
         .collect();
@@ -261,13 +268,16 @@ fn run() -> Result<(bool, String)> {
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
-            let (pipeline, group) =
-                if draw == Draw::Pulled { (&pulled, &pulled_group) } else { (&indexed, &indexed_group) };
+            let (pipeline, group) = match draw {
+                Draw::Pulled => (&pulled, &pulled_group),
+                Draw::UnculledLast => (&last, &last_group),
+                _ => (&indexed, &indexed_group),
+            };
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, group, &[]);
             pass.set_index_buffer(index_buffer.slice(..), wgpu::IndexFormat::Uint32);
             match draw {
-                Draw::Unculled => pass.draw_indexed(0..indices.len() as u32, 0, 0..n),
+                Draw::Unculled | Draw::UnculledLast => pass.draw_indexed(0..indices.len() as u32, 0, 0..n),
                 Draw::Pulled => culling.draw_pulled(&mut pass, List::First),
                 Draw::Indexed => culling.draw_indexed(&mut pass, List::First)?,
             }
@@ -289,8 +299,9 @@ fn run() -> Result<(bool, String)> {
         out.iter().for_each(|b| b.slice(..).map_async(wgpu::MapMode::Read, |_| {}));
         device.poll(wgpu::PollType::Wait { submission_index: None, timeout: None })?;
         let bytes = out.iter().map(|b| Ok(b.slice(..).get_mapped_range().to_vec())).collect::<Result<Vec<_>>>()?;
-        for culled in &bytes[1..images.len()] {
-            differing += bytes[0].chunks(4).zip(culled.chunks(4)).filter(|(x, y)| x != y).count();
+        for culled in &bytes[2..images.len()] {
+            let unculled = bytes[0].chunks(4).zip(bytes[1].chunks(4));
+            differing += unculled.zip(culled.chunks(4)).filter(|((first, last), c)| c != first && c != last).count();
         }
         covered += bytes[0].chunks(4).filter(|p| p[..3] != [0, 0, 0]).count();
         let counts = bytemuck::pod_collect_to_vec::<u8, u32>(&bytes[images.len()]);
@@ -300,7 +311,7 @@ fn run() -> Result<(bool, String)> {
         100.0 * (1.0 - drawn as f64 / (params.frames as u64 * n as u64 * character.meshlets() as u64) as f64);
     let equal = differing == 0 && covered > 0;
     let (frames, meshlets, adapter) = (params.frames, character.meshlets(), adapter.get_info().name);
-    let ways: Vec<String> = draws[1..].iter().map(|d| format!("{:?}", format!("{d:?}").to_lowercase())).collect();
+    let ways: Vec<String> = draws[2..].iter().map(|d| format!("{:?}", format!("{d:?}").to_lowercase())).collect();
     let ways = ways.join(", ");
     let line = format!(
         "{{\"equal_to_unculled\": {equal}, \"culled_draws\": [{ways}], \"culled_pct\": {culled_pct:.2}, \"differing_pixels\": {differing}, \

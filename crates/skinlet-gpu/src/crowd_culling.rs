@@ -52,11 +52,10 @@
 //! crowd scene in f64, and the `bring_your_own` example compares both draws' images with an
 //! unculled draw.
 
-use crate::cull::{dispatch, flags, pack_boxes, pack_slots};
 use crate::{GpuError, Result};
 use glam::{Mat4, Vec4Swizzles};
 use skinlet_runtime::camera::{Camera, Projection};
-use skinlet_runtime::meshlet_cull::{MeshletCuller, Tests};
+use skinlet_runtime::meshlet_cull::{CullSlot, MeshletCuller, Tests};
 
 /// The per-meshlet culling test as a WGSL module for the caller's own task or compute
 /// shader: `CullParams`, `Slot`, `RECORD` and `meshlet_flag(slot, instance)` (0 visible, bit 0
@@ -153,7 +152,10 @@ pub struct GpuCharacter {
     /// The largest meshlet's index count.
     corners: u32,
     has_boxes: bool,
+    /// Per culling class, where its slots start in `slots_by_class` and how many there are.
+    class_ranges: [[u32; 2]; 3],
     slots: wgpu::Buffer,
+    slots_by_class: wgpu::Buffer,
     boxes: wgpu::Buffer,
     draws: wgpu::Buffer,
     statics: wgpu::Buffer,
@@ -416,13 +418,34 @@ impl GpuCharacter {
         if meshlets > u32::MAX as usize / 4 || joints > u32::MAX as usize / 4 {
             return Err(invalid(location, format!("{meshlets} meshlets and {joints} joints")));
         }
+        // Slots by culling class (paper section 6): both tests, the frustum test only, none.
+        let class = |s: &CullSlot| match (s.frustum_ok, s.sin > 1.0) {
+            (false, _) => 2,
+            (true, none) => none as usize,
+        };
+        let slots = culler.slots();
+        let mut by_class = slots.clone();
+        by_class.sort_by_key(class);
+        let mut class_ranges = [[0u32; 2]; 3];
+        for s in &slots {
+            class_ranges[class(s)][1] += 1;
+        }
+        class_ranges[1][0] = class_ranges[0][1];
+        class_ranges[2][0] = class_ranges[1][0] + class_ranges[1][1];
         let storage = wgpu::BufferUsages::STORAGE;
         crate::context::checked(device, location, || GpuCharacter {
+            class_ranges,
             meshlets: meshlets as u32,
             joints: joints as u32,
             corners: draws.iter().map(|d| d[0]).max().unwrap_or(0),
             has_boxes: !culler.any_pose_boxes().1.is_empty(),
-            slots: crate::context::buffer(device, "skinlet cull slots", &pack_slots(&culler.slots()), storage),
+            slots: crate::context::buffer(device, "skinlet cull slots", &pack_slots(&slots), storage),
+            slots_by_class: crate::context::buffer(
+                device,
+                "skinlet cull slots by class",
+                &pack_slots(&by_class),
+                storage,
+            ),
             boxes: crate::context::buffer(device, "skinlet any-pose boxes", &pack_boxes(culler), storage),
             draws: crate::context::buffer(device, "skinlet meshlet draws", draws, storage),
             statics: crate::context::buffer(device, "skinlet joint statics", &statics, storage),
@@ -441,6 +464,20 @@ impl GpuCharacter {
     /// meshlet's index).
     pub fn slots(&self) -> &wgpu::Buffer {
         &self.slots
+    }
+
+    /// The same slots ordered by culling class (conservative-bounds paper, section 6: both
+    /// tests, the frustum test only, none), for task shaders compiled per class
+    /// (`CLASS_TESTS` of [`CULL_WGSL`]: 3, 1, 0), each over its class's range
+    /// ([`GpuCharacter::class_ranges`]).
+    pub fn slots_by_class(&self) -> &wgpu::Buffer {
+        &self.slots_by_class
+    }
+
+    /// Per culling class, where its slots start in [`GpuCharacter::slots_by_class`] and how
+    /// many there are.
+    pub fn class_ranges(&self) -> [[u32; 2]; 3] {
+        self.class_ranges
     }
 
     /// `any_pose_boxes` of [`CULL_WGSL`].
@@ -653,6 +690,22 @@ impl CrowdCulling {
         self.encode_phase(queue, encoder, camera, tests, instances, timestamps, 0)
     }
 
+    /// Only the per-joint preparation of [`CrowdCulling::encode`] (no survivor lists, no
+    /// counts): [`CrowdCulling::records`] and [`CrowdCulling::params`] then hold what
+    /// `meshlet_flag` of [`CULL_WGSL`] reads, for the caller's own task or compute shader.
+    pub fn encode_prepare(
+        &self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        camera: &Camera,
+        tests: Tests,
+        instances: u32,
+    ) -> Result<()> {
+        let mut pass = self.begin(queue, encoder, camera, tests, instances, None, 0)?;
+        self.prepare_pass(&mut pass, instances);
+        Ok(())
+    }
+
     /// Occlusion culling's first phase: as [`CrowdCulling::encode`], the survivors that were
     /// visible last frame (by the second phase's bits) to [`List::First`]. The caller draws
     /// them into the depth buffer given at construction, then records
@@ -721,6 +774,35 @@ impl CrowdCulling {
         timestamps: Option<wgpu::ComputePassTimestampWrites<'_>>,
         phase: u32,
     ) -> Result<()> {
+        let mut pass = self.begin(queue, encoder, camera, tests, instances, timestamps, phase)?;
+        self.prepare_pass(&mut pass, instances);
+        pass.set_pipeline(&self.cull_pipeline);
+        pass.set_bind_group(0, &self.cull, &[0]);
+        dispatch(&mut pass, instances * self.meshlets);
+        pass.set_pipeline(&self.finish_pipeline);
+        pass.dispatch_workgroups(1, 1, 1);
+        Ok(())
+    }
+
+    fn prepare_pass(&self, pass: &mut wgpu::ComputePass<'_>, instances: u32) {
+        pass.set_pipeline(&self.prepare_pipeline);
+        pass.set_bind_group(0, &self.prepare, &[]);
+        dispatch(pass, instances * self.joints);
+    }
+
+    /// Writes this frame's uniforms, clears the counts and headers, and opens the culling
+    /// pass.
+    #[allow(clippy::too_many_arguments)]
+    fn begin<'e>(
+        &self,
+        queue: &wgpu::Queue,
+        encoder: &'e mut wgpu::CommandEncoder,
+        camera: &Camera,
+        tests: Tests,
+        instances: u32,
+        timestamps: Option<wgpu::ComputePassTimestampWrites<'_>>,
+        phase: u32,
+    ) -> Result<wgpu::ComputePass<'e>> {
         if instances > self.capacity {
             return Err(invalid(
                 "GPU crowd culling",
@@ -756,19 +838,10 @@ impl CrowdCulling {
         self.frame_instances.store(instances, std::sync::atomic::Ordering::Relaxed);
         encoder.clear_buffer(&self.counts, 0, None);
         encoder.clear_buffer(&self.survivors, 0, None);
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        Ok(encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("skinlet crowd culling"),
             timestamp_writes: timestamps,
-        });
-        pass.set_pipeline(&self.prepare_pipeline);
-        pass.set_bind_group(0, &self.prepare, &[]);
-        dispatch(&mut pass, instances * self.joints);
-        pass.set_pipeline(&self.cull_pipeline);
-        pass.set_bind_group(0, &self.cull, &[0]);
-        dispatch(&mut pass, instances * self.meshlets);
-        pass.set_pipeline(&self.finish_pipeline);
-        pass.dispatch_workgroups(1, 1, 1);
-        Ok(())
+        }))
     }
 
     /// Where `list`'s header starts in [`CrowdCulling::survivors`], and its first entry in
@@ -837,6 +910,61 @@ impl CrowdCulling {
     pub fn params(&self) -> wgpu::BufferBinding<'_> {
         wgpu::BufferBinding { buffer: &self.uniforms, offset: 0, size: std::num::NonZeroU64::new(32) }
     }
+}
+
+/// `total` invocations of a 64-wide entry point: index = y × 65535 × 64 + x (crowd_cull.wgsl,
+/// prepare.wgsl dispatch a 2D grid past 65535 groups).
+fn dispatch(pass: &mut wgpu::ComputePass, total: u32) {
+    let groups = total.div_ceil(64);
+    if groups > 0 {
+        pass.dispatch_workgroups(groups.min(65535), groups.div_ceil(65535), 1);
+    }
+}
+
+/// Slots as `Slot` in cull_common.wgsl (12 words each).
+fn pack_slots(slots: &[CullSlot]) -> Vec<u32> {
+    slots
+        .iter()
+        .flat_map(|s| {
+            [
+                s.center.x.to_bits(),
+                s.center.y.to_bits(),
+                s.center.z.to_bits(),
+                s.radius.to_bits(),
+                s.axis.x.to_bits(),
+                s.axis.y.to_bits(),
+                s.axis.z.to_bits(),
+                s.sin.to_bits(),
+                s.frustum_ok as u32,
+                s.joint,
+                s.id,
+                0,
+            ]
+        })
+        .collect()
+}
+
+/// The culler's any-pose boxes as `any_pose_boxes` in cull_common.wgsl: per meshlet
+/// (original index) the first word of its boxes and, after the last, the end; then the
+/// boxes, 8 words each. One zero word without boxes (frames then never test them).
+fn pack_boxes(culler: &MeshletCuller) -> Vec<u32> {
+    let (offsets, boxes) = culler.any_pose_boxes();
+    if boxes.is_empty() {
+        return vec![0];
+    }
+    let start = offsets.len() as u32;
+    let mut out: Vec<u32> = offsets.iter().map(|&o| start + 8 * o).collect();
+    for b in boxes {
+        out.push(b.joint);
+        out.extend(b.center.iter().chain(&b.half).map(|f| f.to_bits()));
+        out.push(b.magnitude.to_bits());
+    }
+    out
+}
+
+/// `CullParams::flags`: bit 0 frustum, bit 1 backface, bit 2 orthographic.
+fn flags(tests: Tests, orthographic: bool) -> u32 {
+    (tests != Tests::Backface) as u32 | ((tests != Tests::Frustum) as u32) << 1 | (orthographic as u32) << 2
 }
 
 #[cfg(test)]

@@ -12,7 +12,6 @@
 //! - [`crowd_culling`]: culling a crowd on the caller's own device, recorded into the caller's
 //!   own encoder: per-joint preparation and per-meshlet tests in one compute pass, indexed
 //!   indirect draws out, nothing read back (the library API an engine links).
-//! - [`cull`]: per-meshlet culling of many instances prepared on the CPU, equal to the CPU's.
 //! - [`contours`]: contour extraction (patch culling and edge test passes), equal to brute
 //!   force.
 //!
@@ -48,7 +47,6 @@
 mod context;
 pub mod contours;
 pub mod crowd_culling;
-pub mod cull;
 pub mod mesh;
 pub mod skinning;
 

@@ -8,12 +8,12 @@
 
 use glam::{Mat4, Vec3};
 use skinlet_gpu::contours::{ContourExtraction, ContourView, DRAW_ARGS_OFFSET, Extracted, GpuContours};
-use skinlet_gpu::cull::CullInput;
+use skinlet_gpu::crowd_culling::{CrowdCulling, CullInstance, CullMode, CullPipelines, GpuCharacter};
 use skinlet_gpu::mesh::{GpuMesh, Pose, entry};
 use skinlet_gpu::skinning::{COMMON_WGSL, ComputeSkinning, buffer_entry, mesh_bindings, mesh_entries};
 use skinlet_gpu::{Gpu, GpuError, Result};
 use skinlet_runtime::camera::{Camera, Projection};
-use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller};
+use skinlet_runtime::meshlet_cull::Tests;
 use skinlet_runtime::overdraw_orders::Overdraw;
 
 /// How skinned vertices reach the rasterizer.
@@ -66,8 +66,10 @@ struct MeshPath {
     meshlet_layout: wgpu::BindGroupLayout,
     pipeline: wgpu::RenderPipeline,
     /// Task-shader culling then mesh-shader skinning of the survivors, and its culling data
-    /// layout (parameters, slots, joint records, any-pose boxes).
+    /// layout (parameters, slots, joint records, the draw's slot range and instance,
+    /// any-pose boxes); the joint records prepared by crowd culling's pipelines.
     cull_layout: wgpu::BindGroupLayout,
+    cull_pipelines: CullPipelines,
     /// Compiled with both tests, the frustum test only, none (`CLASS_TESTS` 3, 1, 0).
     culled_pipelines: [wgpu::RenderPipeline; 3],
     /// Every meshlet in its own color (group 3: one RGBA8 word per meshlet).
@@ -89,9 +91,8 @@ struct SlimPath {
 #[derive(Clone, Copy)]
 enum Draw<'a> {
     Plain(Skinning),
-    /// Culled by `culler` with each instance's frame, then skinned and drawn; per-triangle
-    /// culling (task shaders) from a projection.
-    Culled(&'a MeshletCuller, Option<Projection>, Culling, Skinning),
+    /// Culled in task shaders, then skinned and drawn.
+    Culled(TaskCulling<'a>, Skinning),
     Colored(&'a [[u8; 4]]),
     Contours(&'a ContourExtraction, &'a GpuContours, &'a ContourView),
     Overdraw,
@@ -102,8 +103,21 @@ enum Draw<'a> {
 pub struct PosedInstance<'a> {
     /// Skinning matrices, into the space of the camera's `view_proj` (world), and morph weights.
     pub pose: Pose<'a>,
-    /// For culled drawing: the culler's preparation of this instance for the camera.
-    pub frame: Option<&'a JointFrame>,
+    /// For culled drawing: how the instance is culled (the pose guard's answer).
+    pub cull: Option<CullMode>,
+}
+
+/// Task-shader culling of a draw: `character`'s meshlets (uploaded by `GpuCharacter::new` from
+/// the culler of the mesh's meshlets), the joint records prepared on the GPU by crowd culling
+/// for `camera` and `tests`, and optionally per-triangle culling in the mesh shader from
+/// `triangles` (the camera's projection).
+#[derive(Clone, Copy)]
+pub struct TaskCulling<'a> {
+    pub character: &'a GpuCharacter,
+    pub camera: &'a Camera,
+    pub tests: Tests,
+    pub culling: Culling,
+    pub triangles: Option<Projection>,
 }
 
 /// Where meshlets are culled.
@@ -121,15 +135,9 @@ pub enum Culling {
 #[derive(Clone, Copy)]
 pub enum CrowdDraw<'a> {
     Plain(Skinning),
-    /// Meshlets culled with the instances' frames (prepared by `culler`), then skinned:
-    /// task culling with `Mesh` or `MeshSlim` skinning (and optionally per triangle from
-    /// `triangles`), compute culling with `Vertex` or `Compute` skinning.
-    Culled {
-        culler: &'a MeshletCuller,
-        culling: Culling,
-        skinning: Skinning,
-        triangles: Option<Projection>,
-    },
+    /// Meshlets culled in task shaders, then skinned by `Mesh` or `MeshSlim` skinning
+    /// (vertex skinning is culled by `crate::gpu_crowd`).
+    Culled(TaskCulling<'a>, Skinning),
 }
 
 /// What a draw produced and measured.
@@ -138,6 +146,8 @@ pub struct Drawn {
     pub image: Image,
     /// Culled drawing: the triangles drawn, over all instances.
     pub triangles: Option<u32>,
+    /// Culled drawing: the meshlets drawn, over all instances.
+    pub meshlets: Option<u32>,
     /// GPU time from the first pass's start to the render pass's end, where the device has
     /// timestamp queries (milliseconds).
     pub gpu_ms: Option<f64>,
@@ -172,6 +182,7 @@ impl Renderer {
             return Err(GpuError::Invalid { location: "renderer", message: format!("image size {width}×{height}") });
         }
         let compute = ComputeSkinning::new(gpu)?;
+        let mut cull_pipelines = gpu.has_mesh_shaders().then(|| CullPipelines::new(&gpu.device)).transpose()?;
         gpu.checked("render pipelines", || {
             let device = &gpu.device;
             let vertex = wgpu::ShaderStages::VERTEX;
@@ -231,7 +242,7 @@ impl Renderer {
                 })
             };
             let shade = ("shade", &targets[..]);
-            let mesh_path = gpu.has_mesh_shaders().then(|| {
+            let mesh_path = cull_pipelines.take().map(|cull_pipelines| {
                 let stage = wgpu::ShaderStages::MESH;
                 let read = wgpu::BufferBindingType::Storage { read_only: true };
                 let skin_layout = layout("mesh-shader mesh", &mesh_entries(stage));
@@ -243,7 +254,12 @@ impl Renderer {
                         buffer_entry(0, wgpu::ShaderStages::TASK, wgpu::BufferBindingType::Uniform),
                         buffer_entry(1, wgpu::ShaderStages::TASK, read),
                         buffer_entry(2, wgpu::ShaderStages::TASK, read),
-                        buffer_entry(4, stage, wgpu::BufferBindingType::Storage { read_only: false }),
+                        buffer_entry(3, wgpu::ShaderStages::TASK, wgpu::BufferBindingType::Uniform),
+                        buffer_entry(
+                            4,
+                            stage | wgpu::ShaderStages::TASK,
+                            wgpu::BufferBindingType::Storage { read_only: false },
+                        ),
                         buffer_entry(5, stage, wgpu::BufferBindingType::Uniform),
                         buffer_entry(6, wgpu::ShaderStages::TASK, read),
                     ],
@@ -319,6 +335,7 @@ impl Renderer {
                     meshlet_layout,
                     pipeline,
                     cull_layout,
+                    cull_pipelines,
                     culled_pipelines,
                     color_layout,
                     colored_pipeline,
@@ -410,47 +427,35 @@ impl Renderer {
         light: Vec3,
         skinning: Skinning,
     ) -> Result<Image> {
-        let one = [PosedInstance { pose: pose.into(), frame: None }];
+        let one = [PosedInstance { pose: pose.into(), cull: None }];
         self.draw(gpu, mesh, &one, view_proj, light, Draw::Plain(skinning)).map(|d| d.image)
     }
 
-    /// Draws `mesh` (uploaded with meshlets) with its meshlets culled first (paper section 6):
-    /// `frame` is `culler`'s per-joint preparation for this instance and the camera of
-    /// `view_proj` (`MeshletCuller::prepare`, with joint matrices in the same space as the
-    /// skinned positions). Culling is conservative, so the image is the unculled one. Picked
-    /// by the device's features:
-    /// - with mesh shaders, a task shader culls and launches mesh-shader skinning of the
-    ///   survivors only; with `triangles` (the camera's projection) the mesh shader also culls
-    ///   back-facing and edge-on triangles (thesis 5.1.3);
-    /// - without, an error: [`crate::gpu_crowd`] draws culled crowds on any device.
+    /// Draws `mesh` (uploaded with meshlets) with its meshlets culled first (paper section 6)
+    /// by `cull`, the instance culled in `mode`, through `cull.camera`: crowd culling prepares
+    /// the joint records on the GPU, a task shader tests each meshlet and launches mesh-shader
+    /// skinning of the survivors only; with `cull.triangles` the mesh shader also culls
+    /// back-facing and edge-on triangles (thesis 5.1.3). Culling is conservative, so the image
+    /// is the unculled one. Needs mesh shaders ([`crate::gpu_crowd`] culls vertex skinning on
+    /// any device).
     ///
-    /// Also returns how many triangles were drawn (after per-triangle culling where it runs).
-    #[allow(clippy::too_many_arguments)]
+    /// Also returns how many triangles and meshlets were drawn.
     pub fn render_culled<'a>(
         &self,
         gpu: &Gpu,
         mesh: &GpuMesh,
         pose: impl Into<Pose<'a>>,
-        view_proj: Mat4,
         light: Vec3,
-        culler: &MeshletCuller,
-        frame: &JointFrame,
-        triangles: Option<Projection>,
-    ) -> Result<(Image, u32)> {
-        let one = [PosedInstance { pose: pose.into(), frame: Some(frame) }];
-        let d = self.draw(
-            gpu,
-            mesh,
-            &one,
-            view_proj,
-            light,
-            Draw::Culled(culler, triangles, Culling::Task, Skinning::Mesh),
-        )?;
-        Ok((d.image, d.triangles.unwrap_or(0)))
+        cull: TaskCulling,
+        mode: CullMode,
+    ) -> Result<(Image, u32, u32)> {
+        let one = [PosedInstance { pose: pose.into(), cull: Some(mode) }];
+        let d = self.draw(gpu, mesh, &one, cull.camera.view_proj, light, Draw::Culled(cull, Skinning::Mesh))?;
+        Ok((d.image, d.triangles.unwrap_or(0), d.meshlets.unwrap_or(0)))
     }
 
     /// Draws many instances of `mesh` in one render pass, each with its own skinning matrices
-    /// (and culling frame): the crowd scene of `skinlet gpu-bench`. Also returns the GPU time
+    /// (and culling mode): the crowd scene of `skinlet gpu-bench`. Also returns the GPU time
     /// where the device has timestamp queries.
     pub fn render_crowd(
         &self,
@@ -463,9 +468,7 @@ impl Renderer {
     ) -> Result<Drawn> {
         let draw = match how {
             CrowdDraw::Plain(skinning) => Draw::Plain(skinning),
-            CrowdDraw::Culled { culler, culling, skinning, triangles } => {
-                Draw::Culled(culler, triangles, culling, skinning)
-            }
+            CrowdDraw::Culled(cull, skinning) => Draw::Culled(cull, skinning),
         };
         self.draw(gpu, mesh, instances, view_proj, light, draw)
     }
@@ -482,7 +485,7 @@ impl Renderer {
         light: Vec3,
         colors: &[[u8; 4]],
     ) -> Result<Image> {
-        let one = [PosedInstance { pose: pose.into(), frame: None }];
+        let one = [PosedInstance { pose: pose.into(), cull: None }];
         self.draw(gpu, mesh, &one, view_proj, light, Draw::Colored(colors)).map(|d| d.image)
     }
 
@@ -508,7 +511,7 @@ impl Renderer {
                 message: format!("contours over {} vertices, the mesh has {}", contours.vertices, mesh.vertices),
             });
         }
-        let one = [PosedInstance { pose: pose.into(), frame: None }];
+        let one = [PosedInstance { pose: pose.into(), cull: None }];
         let d = self.draw(gpu, mesh, &one, view_proj, light, Draw::Contours(extraction, contours, view))?;
         Ok((d.image, contours.read(gpu)?))
     }
@@ -525,7 +528,7 @@ impl Renderer {
         pose: impl Into<Pose<'a>>,
         view_proj: Mat4,
     ) -> Result<(Vec<u32>, Overdraw)> {
-        let one = [PosedInstance { pose: pose.into(), frame: None }];
+        let one = [PosedInstance { pose: pose.into(), cull: None }];
         let d = self.draw(gpu, mesh, &one, view_proj, Vec3::ZERO, Draw::Overdraw)?;
         let counts: Vec<u32> = d.image.rgba.chunks_exact(4).map(|p| p[0] as u32).collect();
         let covered = counts.iter().filter(|&&n| n > 0).count() as u64;
@@ -555,13 +558,11 @@ impl Renderer {
         };
         let meshlet_count = mesh.meshlets.as_ref().map_or(0, |m| m.count as usize);
         match draw {
-            Draw::Culled(culler, ..) => {
-                let fits = |i: &PosedInstance| i.frame.is_some_and(|f| f.joints() == culler.joints());
-                if culler.len() != meshlet_count || !instances.iter().all(fits) {
-                    return Err(invalid(
-                        "the culler and every instance's frame must be the mesh's meshlets and joints",
-                    ));
-                }
+            Draw::Culled(cull, _)
+                if cull.character.meshlets() as usize != meshlet_count
+                    || instances.iter().any(|i| i.cull.is_none()) =>
+            {
+                return Err(invalid("the culled character must be the mesh's meshlets, every instance culled"));
             }
             Draw::Colored(colors) if colors.len() != meshlet_count => return Err(invalid("one color per meshlet")),
             Draw::Contours(..) if instances.len() != 1 => return Err(invalid("contours of one instance at a time")),
@@ -575,6 +576,7 @@ impl Renderer {
         let (readback, counter, times) = gpu.checked("render", || -> Result<_> {
             let device = &gpu.device;
             let storage = wgpu::BufferUsages::STORAGE;
+            let uniform = wgpu::BufferUsages::UNIFORM;
             let mut camera = view_proj.to_cols_array().to_vec();
             camera.extend(light.normalize_or_zero().extend(0.0).to_array());
             let camera = gpu.buffer("camera", &camera, wgpu::BufferUsages::UNIFORM);
@@ -600,6 +602,24 @@ impl Renderer {
                 });
                 set
             });
+            // Task culling: every instance's joint records prepared on the GPU by crowd culling.
+            let culling = match (draw, mesh_draw) {
+                (Draw::Culled(cull, _), Some((path, _))) => {
+                    let palette: Vec<Mat4> =
+                        instances.iter().flat_map(|i| i.pose.matrices.iter().map(|&m| Mat4::from(m))).collect();
+                    let modes: Vec<CullInstance> = (instances.iter())
+                        .map(|i| CullInstance::new(Mat4::IDENTITY, i.cull.unwrap_or(CullMode::Keep)))
+                        .collect();
+                    let palette = gpu.buffer("culled palette", &palette, storage);
+                    let modes = gpu.buffer("culled instances", &modes, storage);
+                    let n = instances.len() as u32;
+                    let culling =
+                        CrowdCulling::new(device, &path.cull_pipelines, cull.character, &palette, &modes, n, 0)?;
+                    culling.encode_prepare(&gpu.queue, &mut encoder, cull.camera, cull.tests, n)?;
+                    Some(culling)
+                }
+                _ => None,
+            };
             let mut per_instance: Vec<InstanceDraw> = Vec::new();
             // Shared: group 2 (meshlets) and group 3 (colors) of the mesh-shader pipelines.
             let mut shared = Vec::new();
@@ -608,7 +628,7 @@ impl Renderer {
             let pipeline = match mesh_draw {
                 Some((path, meshlets)) => {
                     let slim = match draw {
-                        Draw::Plain(Skinning::MeshSlim) | Draw::Culled(.., Skinning::MeshSlim) => match &path.slim {
+                        Draw::Plain(Skinning::MeshSlim) | Draw::Culled(_, Skinning::MeshSlim) => match &path.slim {
                             Some(slim) => Some(slim),
                             None => return Err(invalid("slim mesh shading needs 10 storage buffers per shader stage")),
                         },
@@ -635,7 +655,7 @@ impl Renderer {
                         _ => &path.pipeline,
                     };
                     let triangle_cull = match draw {
-                        Draw::Culled(_, triangles, ..) => {
+                        Draw::Culled(TaskCulling { triangles, .. }, _) => {
                             counter =
                                 Some(gpu.buffer("drawn triangles", &[0u32; 4], storage | wgpu::BufferUsages::COPY_SRC));
                             Some(gpu.buffer(
@@ -646,32 +666,40 @@ impl Renderer {
                         }
                         _ => None,
                     };
-                    for (i, m) in instances.iter().zip(&matrices) {
+                    for (k, m) in matrices.iter().enumerate() {
                         let group0 = gpu.bind_group("mesh-shader mesh", &path.skin_layout, &mesh_bindings(mesh, m));
                         // Task draws: (pipeline, group 3, task workgroups) per slot range.
                         let mut tasks = Vec::new();
-                        if let (Draw::Culled(culler, _, how, _), Some(frame), Some(triangle_cull), Some(counter)) =
-                            (draw, i.frame, &triangle_cull, &counter)
+                        if let (Draw::Culled(cull, _), Some(culling), Some(triangle_cull), Some(counter)) =
+                            (draw, &culling, &triangle_cull, &counter)
                         {
-                            let frames = std::slice::from_ref(frame);
-                            let input = match how {
-                                Culling::TaskByClass => CullInput::by_class(culler, frames),
-                                _ => CullInput::new(culler, frames),
+                            // All slots with the pipeline reading each one's class, or each
+                            // class's range with its own pipeline.
+                            let (slots, ranges) = match cull.culling {
+                                Culling::TaskByClass => {
+                                    (cull.character.slots_by_class(), cull.character.class_ranges())
+                                }
+                                Culling::Task => {
+                                    (cull.character.slots(), [[0, cull.character.meshlets()], [0; 2], [0; 2]])
+                                }
                             };
-                            let [_, slots, records, boxes] = input.buffers(gpu);
-                            for (k, &(_, count)) in input.ranges.iter().enumerate().filter(|(_, r)| r.1 > 0) {
-                                let params = input.range_params(gpu, k);
+                            for (class, &[first, count]) in ranges.iter().enumerate().filter(|(_, r)| r[1] > 0) {
+                                let range = gpu.buffer("task range", &[first, count, k as u32, 0], uniform);
                                 let entries = [
-                                    entry(0, &params),
-                                    entry(1, &slots),
-                                    entry(2, &records),
+                                    wgpu::BindGroupEntry {
+                                        binding: 0,
+                                        resource: wgpu::BindingResource::Buffer(culling.params()),
+                                    },
+                                    entry(1, slots),
+                                    entry(2, culling.records()),
+                                    entry(3, &range),
                                     entry(4, counter),
                                     entry(5, triangle_cull),
-                                    entry(6, &boxes),
+                                    entry(6, cull.character.any_pose_boxes()),
                                 ];
                                 let group3 = gpu.bind_group("task culling", &path.cull_layout, &entries);
                                 // One task workgroup per 32 slots (task_cull.wgsl).
-                                tasks.push((&culled_pipelines[k], group3, count.div_ceil(32)));
+                                tasks.push((&culled_pipelines[class], group3, count.div_ceil(32)));
                             }
                         }
                         per_instance.push(InstanceDraw { group0, tasks });
@@ -820,9 +848,12 @@ impl Renderer {
         })??;
         let bytes = gpu.read(&readback, (row * height) as u64)?;
         let rgba = bytes.chunks_exact(row as usize).flat_map(|r| &r[..4 * width as usize]).copied().collect();
-        let triangles = match counter {
-            Some(counter) => Some(bytemuck::pod_collect_to_vec::<u8, u32>(&gpu.read(&counter, 4)?)[0]),
-            None => None,
+        let (triangles, meshlets) = match counter {
+            Some(counter) => {
+                let words = bytemuck::pod_collect_to_vec::<u8, u32>(&gpu.read(&counter, 8)?);
+                (Some(words[0]), Some(words[1]))
+            }
+            None => (None, None),
         };
         let gpu_ms = match times {
             Some(times) => {
@@ -831,7 +862,7 @@ impl Renderer {
             }
             None => None,
         };
-        Ok(Drawn { image: Image { width, height, rgba }, triangles, gpu_ms })
+        Ok(Drawn { image: Image { width, height, rgba }, triangles, meshlets, gpu_ms })
     }
 }
 

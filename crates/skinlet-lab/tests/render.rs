@@ -11,9 +11,13 @@ use glam::Vec3;
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::Poser;
 use skinlet_gpu::Gpu;
+use skinlet_gpu::crowd_culling::{CullMode, GpuCharacter};
 use skinlet_gpu::mesh::{GpuMesh, Pose};
+use skinlet_lab::gpu_crowd::{CrowdFrame, CrowdView, GpuCrowd};
 use skinlet_lab::headless::{self, GpuOptions};
-use skinlet_lab::render::{CrowdDraw, Culling, PosedInstance, Renderer, Skinning, framing};
+use skinlet_lab::render::{CrowdDraw, Culling, PosedInstance, Renderer, Skinning, TaskCulling, framing};
+use skinlet_runtime::camera::Camera;
+use skinlet_runtime::meshlet_cull::{MeshletCuller, Tests};
 
 #[test]
 fn every_skinning_pipeline_draws_the_same_image() {
@@ -98,8 +102,10 @@ fn culled_drawing_gives_the_unculled_image() {
     // by one (thesis 5.1.3). (Without mesh shaders this renderer does not cull: the GPU-driven
     // crowd does, tests/gpu_crowd.rs.) Culling is conservative and back faces are culled by the
     // rasterizer anyway, so each image must equal the unculled one of the same device; views
-    // close enough to cut the character make the frustum test work too. The triangles drawn
-    // are those of the CPU's visible meshlets, and with per-triangle culling the CPU's kept ones.
+    // close enough to cut the character make the frustum test work too. The task shaders
+    // launch exactly the meshlets crowd culling's compute pass keeps on the same GPU-prepared
+    // records, which cull about what the CPU culler culls; with per-triangle culling the
+    // triangles drawn are the CPU's kept ones of those meshlets.
     let Some(gpu) = gpu() else { return };
     if !gpu.has_mesh_shaders() {
         return eprintln!("{} has no mesh shaders: no task culling to draw", gpu.info.name);
@@ -116,9 +122,7 @@ fn culled_drawing_gives_the_unculled_image() {
         let clips: Vec<&skinlet::clip::Clip> = asset.clips.iter().collect();
         let baked = common::bake(&asset, &character);
         let skin = &character.palette;
-        let culler =
-            skinlet_runtime::meshlet_cull::MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len())
-                .unwrap();
+        let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len()).unwrap();
         let clip = clips.first().copied();
         let t = clip.map_or(0.0, |c| c.start + 0.6 * c.duration());
         let mut poser = Poser::default();
@@ -130,38 +134,59 @@ fn culled_drawing_gives_the_unculled_image() {
             let gpu_mesh =
                 GpuMesh::new(device, &baked.mesh.mesh_data(Some(baked.meshlets.view(&baked.meshlets.headers()))))
                     .unwrap();
+            let character = gpu_character(device, &baked, &culler);
             for (dir, zoom) in [(Vec3::new(0.3, 0.2, 1.0), 1.0), (Vec3::new(-1.0, 0.4, -0.5), 2.5)] {
                 let camera = framing(posed, dir, zoom).unwrap();
+                let one = [PosedInstance { pose, cull: Some(CullMode::Bounds) }];
+                let visible = compute_survivors(device, &baked, &culler, &one, &camera);
+                // About what the CPU culler culls (it tests joints' groups first, with other margins).
                 let mut frame = skinlet_runtime::meshlet_cull::JointFrame::default();
-                culler.prepare(&joints, &camera, skinlet_runtime::meshlet_cull::Tests::Both, &mut frame);
-                let mut visible = Vec::new();
-                let counts = culler.cull(&frame, &mut Vec::new(), &mut visible);
-                culled_total += counts.meshlets - counts.visible;
+                culler.prepare(&joints, &camera, Tests::Both, &mut frame);
+                let counts = culler.cull(&frame, &mut Vec::new(), &mut Vec::new());
+                let culled = counts.meshlets - visible[0].len();
+                assert!(
+                    culled.abs_diff(counts.meshlets - counts.visible) * 50 <= counts.meshlets,
+                    "{name}: {counts:?}"
+                );
+                culled_total += culled;
                 let light = Vec3::new(0.4, 0.8, 0.6);
                 let all = renderer.render(device, &gpu_mesh, pose, camera.view_proj, light, Skinning::Mesh).unwrap();
                 // The CPU's per-triangle culling of the visible meshlets, on the same skinned positions.
-                let kept =
-                    skinlet::cull::triangle::cull_triangles(&baked.meshlets, &visible, posed, camera.projection, None);
-                let in_visible: u32 =
-                    visible.iter().map(|&m| baked.meshlets.meshlets[m as usize].triangle_count as u32).sum();
+                let kept = skinlet::cull::triangle::cull_triangles(
+                    &baked.meshlets,
+                    &visible[0],
+                    posed,
+                    camera.projection,
+                    None,
+                );
+                let in_visible = triangles_of(&baked, &visible);
                 for (triangles, expected) in [(None, in_visible), (Some(camera.projection), kept.kept as u32)] {
-                    let (culled, drawn) = renderer
-                        .render_culled(device, &gpu_mesh, pose, camera.view_proj, light, &culler, &frame, triangles)
-                        .unwrap();
+                    let cull = TaskCulling {
+                        character: &character,
+                        camera: &camera,
+                        tests: Tests::Both,
+                        culling: Culling::Task,
+                        triangles,
+                    };
+                    let (culled, drawn, meshlets) =
+                        renderer.render_culled(device, &gpu_mesh, pose, light, cull, CullMode::Bounds).unwrap();
                     let differing = all.rgba.chunks(4).zip(culled.rgba.chunks(4)).filter(|(a, b)| a != b).count();
                     let subgroups = device.has_subgroups();
                     let what = format!("{name} zoom {zoom} subgroups {subgroups} triangles {triangles:?}");
                     assert_eq!(differing, 0, "{what}: {differing} pixels differ ({counts:?})");
                     assert_eq!(drawn, expected, "{what}: triangles drawn");
+                    assert_eq!(meshlets as usize, visible[0].len(), "{what}: meshlets drawn");
                 }
                 // The paper's three task pipelines, one per culling class.
-                let one = [PosedInstance { pose, frame: Some(&frame) }];
-                let how = CrowdDraw::Culled {
-                    culler: &culler,
-                    culling: Culling::TaskByClass,
-                    skinning: Skinning::Mesh,
+                let culling = Culling::TaskByClass;
+                let cull = TaskCulling {
+                    character: &character,
+                    camera: &camera,
+                    tests: Tests::Both,
+                    culling,
                     triangles: None,
                 };
+                let how = CrowdDraw::Culled(cull, Skinning::Mesh);
                 let d = renderer.render_crowd(device, &gpu_mesh, &one, camera.view_proj, light, how).unwrap();
                 let differing = differing_pixels(&all, &d.image);
                 assert_eq!(differing, 0, "{name} zoom {zoom} by class: {differing} pixels differ");
@@ -184,18 +209,18 @@ fn crowd_setup(gpu: &Gpu) -> (Renderer, skinlet::Asset, skinlet::bake::Baked) {
 #[test]
 fn crowd_draws_agree_and_are_timed() {
     // The gpu-bench scene: a crowd of instances in one render pass. Every pipeline, culled
-    // or not, draws the same image; culled drawing draws exactly the triangles of the CPU's
-    // visible meshlets; devices with timestamp queries (lavapipe has them) time the frame.
+    // or not, draws the same image; task-culled drawing draws exactly the triangles of the
+    // meshlets crowd culling's compute pass keeps; devices with timestamp queries (lavapipe
+    // has them) time the frame.
     let Some(gpu) = gpu() else { return };
     let (renderer, demo, baked) = crowd_setup(&gpu);
     let clips: Vec<&skinlet::clip::Clip> = demo.clips.iter().collect();
     let skin = &baked.palette();
     let params = skinlet_lab::crowd::CrowdParams { instances: 12, ..Default::default() };
     let scene = skinlet_lab::crowd::crowd(&baked.mesh.positions, clips.len(), &params).unwrap();
-    let culler =
-        skinlet_runtime::meshlet_cull::MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len()).unwrap();
+    let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len()).unwrap();
     let mut poser = Poser::default();
-    let (mut matrices, mut frames, mut expected) = (Vec::new(), Vec::new(), 0);
+    let mut matrices = Vec::new();
     for pl in &scene.placements {
         let clip = clips[pl.clip];
         let t = pl.time(Some(clip), 0, params.fps);
@@ -204,16 +229,12 @@ fn crowd_draws_agree_and_are_timed() {
         pl.world_matrices(skin, globals, &mut joints, &mut skinning);
         baked.mesh.morphs.weights_at(Some(clip), t, &mut weights);
         matrices.push((skinning, weights));
-        let mut frame = skinlet_runtime::meshlet_cull::JointFrame::default();
-        culler.prepare(&joints, &scene.camera, skinlet_runtime::meshlet_cull::Tests::Both, &mut frame);
-        let mut visible = Vec::new();
-        culler.cull(&frame, &mut Vec::new(), &mut visible);
-        expected += visible.iter().map(|&m| baked.meshlets.meshlets[m as usize].triangle_count as u32).sum::<u32>();
-        frames.push(frame);
     }
-    let instances: Vec<PosedInstance> = (matrices.iter().zip(&frames))
-        .map(|((m, w), f)| PosedInstance { pose: Pose { matrices: m, morph_weights: w }, frame: Some(f) })
+    let instances: Vec<PosedInstance> = (matrices.iter())
+        .map(|(m, w)| PosedInstance { pose: Pose { matrices: m, morph_weights: w }, cull: Some(CullMode::Bounds) })
         .collect();
+    let expected = triangles_of(&baked, &compute_survivors(&gpu, &baked, &culler, &instances, &scene.camera));
+    let character = gpu_character(&gpu, &baked, &culler);
     let mesh_gpu =
         GpuMesh::new(&gpu, &baked.mesh.mesh_data(Some(baked.meshlets.view(&baked.meshlets.headers())))).unwrap();
     let (view_proj, light) = (scene.camera.view_proj, Vec3::new(0.4, 0.8, 0.6));
@@ -227,7 +248,13 @@ fn crowd_draws_agree_and_are_timed() {
     // slim, both task-culled by flags and by class; vertex-fed culled drawing is gpu_crowd's,
     // tests/gpu_crowd.rs). Across the two, lavapipe clips triangles that cross the view's sides
     // in different code, so a few pixels there may differ.
-    let culled = |culling, skinning| CrowdDraw::Culled { culler: &culler, culling, skinning, triangles: None };
+    let camera = &scene.camera;
+    let culled = |culling, skinning| {
+        CrowdDraw::Culled(
+            TaskCulling { character: &character, camera, tests: Tests::Both, culling, triangles: None },
+            skinning,
+        )
+    };
     let mut drawn = vec![("compute", draw(CrowdDraw::Plain(Skinning::Compute)), None)];
     let mut mesh_reference = None;
     if gpu.has_mesh_shaders() {
@@ -266,10 +293,10 @@ fn crowd_draws_agree_and_are_timed() {
 fn game_poses_cull_on_the_gpu_as_on_the_cpu() {
     // IK poses (some joints beyond their range of motion): per instance the CPU pose guard
     // picks the envelope bounds (with the any-pose boxes), or the any-pose boxes alone; the
-    // GPU culling passes draw exactly the CPU's visible meshlets and the same image as
-    // without culling.
+    // task shaders draw exactly the meshlets crowd culling's compute pass keeps (about the
+    // CPU's visible ones) and the same image as without culling.
     use skinlet_lab::crowd::{Animation, CrowdParams, crowd, instance_pose};
-    use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller, Tests};
+    use skinlet_runtime::meshlet_cull::JointFrame;
     let Some(gpu) = gpu() else { return };
     let (renderer, demo, mut baked) = crowd_setup(&gpu);
     let clips: Vec<&skinlet::clip::Clip> = demo.clips.iter().collect();
@@ -282,7 +309,7 @@ fn game_poses_cull_on_the_gpu_as_on_the_cpu() {
     let (guard, culler) = (e.envelope.guard().unwrap(), culler.with_any_pose(&e.any_pose).unwrap());
     let params = CrowdParams { instances: 12, animation: Animation::Ik, seed: 3, ..Default::default() };
     let scene = crowd(&baked.mesh.positions, clips.len(), &params).unwrap();
-    let (mut poses, mut frames, mut expected, mut refused, mut culled_refused) = (Vec::new(), Vec::new(), 0, 0, 0);
+    let (mut poses, mut modes, mut cpu_visible, mut refused, mut culled_refused) = (Vec::new(), Vec::new(), 0, 0, 0);
     let (mut locals, mut weights, mut globals) = (Vec::new(), Vec::new(), Vec::new());
     for (i, pl) in scene.placements.iter().enumerate() {
         instance_pose(&demo.skeleton, &clips, &baked, &params, i, pl, 0, &mut locals, &mut weights);
@@ -302,15 +329,23 @@ fn game_poses_cull_on_the_gpu_as_on_the_cpu() {
             refused += 1;
             culled_refused += counts.frustum;
         }
-        expected += visible.iter().map(|&m| baked.meshlets.meshlets[m as usize].triangle_count as u32).sum::<u32>();
+        cpu_visible += visible.len();
         poses.push((skinning, weights.clone()));
-        frames.push(frame);
+        modes.push(if admitted { CullMode::BoundsAndBoxes } else { CullMode::BoxesOnly });
     }
     assert!(refused > 0 && refused < 12, "the guard refused {refused} of 12 instances");
     assert!(culled_refused > 0, "the any-pose boxes culled nothing of the refused instances");
-    let instances: Vec<PosedInstance> = (poses.iter().zip(&frames))
-        .map(|((m, w), f)| PosedInstance { pose: Pose { matrices: m, morph_weights: w }, frame: Some(f) })
+    let instances: Vec<PosedInstance> = (poses.iter().zip(&modes))
+        .map(|((m, w), &mode)| PosedInstance { pose: Pose { matrices: m, morph_weights: w }, cull: Some(mode) })
         .collect();
+    let visible = compute_survivors(&gpu, &baked, &culler, &instances, &scene.camera);
+    let gpu_visible: usize = visible.iter().map(Vec::len).sum();
+    assert!(
+        gpu_visible.abs_diff(cpu_visible) * 50 <= cpu_visible,
+        "{gpu_visible} meshlets kept, {cpu_visible} on the CPU"
+    );
+    let expected = triangles_of(&baked, &visible);
+    let character = gpu_character(&gpu, &baked, &culler);
     let mesh_gpu =
         GpuMesh::new(&gpu, &baked.mesh.mesh_data(Some(baked.meshlets.view(&baked.meshlets.headers())))).unwrap();
     let (view_proj, light) = (scene.camera.view_proj, Vec3::new(0.4, 0.8, 0.6));
@@ -323,11 +358,54 @@ fn game_poses_cull_on_the_gpu_as_on_the_cpu() {
     let reference = draw(CrowdDraw::Plain(Skinning::Mesh));
     for culling in [Culling::Task, Culling::TaskByClass] {
         let skinning = Skinning::Mesh;
-        let culled = draw(CrowdDraw::Culled { culler: &culler, culling, skinning, triangles: None });
+        let cull =
+            TaskCulling { character: &character, camera: &scene.camera, tests: Tests::Both, culling, triangles: None };
+        let culled = draw(CrowdDraw::Culled(cull, skinning));
         assert_eq!(culled.triangles, Some(expected), "{culling:?}: triangles drawn");
         let n = differing_pixels(&culled.image, &reference.image);
         assert_eq!(n, 0, "{culling:?}: culled and unculled images differ");
     }
+}
+
+/// The meshlets crowd culling's compute pass keeps (per instance, sorted), on the same joint
+/// records task culling reads (`skinlet_lab::gpu_crowd`'s pulled view): the task shaders must
+/// launch exactly these.
+fn compute_survivors(
+    gpu: &Gpu,
+    baked: &skinlet::bake::Baked,
+    culler: &MeshletCuller,
+    instances: &[PosedInstance],
+    camera: &Camera,
+) -> Vec<Vec<u32>> {
+    let crowd = GpuCrowd::new(gpu, baked, culler, instances.len() as u32, 64, 36).unwrap();
+    let morphs = baked.mesh.morphs.weights.len().max(1);
+    let palette: Vec<glam::Mat4> =
+        instances.iter().flat_map(|i| i.pose.matrices.iter().map(|&m| glam::Mat4::from(m))).collect();
+    let modes: Vec<CullMode> = instances.iter().map(|i| i.cull.unwrap()).collect();
+    let weights: Vec<f32> = (instances.iter())
+        .flat_map(|i| (0..morphs).map(|k| i.pose.morph_weights.get(k).copied().unwrap_or(0.0)))
+        .collect();
+    let frame = CrowdFrame { palette: &palette, modes: &modes, weights: &weights, camera, tests: Tests::Both };
+    crowd.draw(gpu, &frame, CrowdView::Pulled, Vec3::Y).unwrap();
+    let mut kept = vec![Vec::new(); instances.len()];
+    for [i, m] in crowd.survivors(gpu).unwrap() {
+        kept[i as usize].push(m);
+    }
+    kept.iter_mut().for_each(|k| k.sort_unstable());
+    kept
+}
+
+/// `baked`'s meshlets uploaded for culling.
+fn gpu_character(gpu: &Gpu, baked: &skinlet::bake::Baked, culler: &MeshletCuller) -> GpuCharacter {
+    let headers = baked.meshlets.headers();
+    let view = baked.meshlets.view(&headers);
+    let (_, draws) = skinlet_gpu::mesh::meshlet_index_buffer(&view, baked.mesh.positions.len()).unwrap();
+    GpuCharacter::new(&gpu.device, culler, &baked.inverse_bind, &draws).unwrap()
+}
+
+/// Triangles of meshlets `visible`.
+fn triangles_of(baked: &skinlet::bake::Baked, visible: &[Vec<u32>]) -> u32 {
+    visible.iter().flatten().map(|&m| baked.meshlets.meshlets[m as usize].triangle_count as u32).sum()
 }
 
 fn differing_pixels(a: &skinlet_lab::render::Image, b: &skinlet_lab::render::Image) -> usize {

@@ -214,30 +214,6 @@ pub struct CullSlot {
     pub id: u32,
 }
 
-/// One joint's values for one instance and frame, as [`MeshletCuller::cull`] reads them (for
-/// GPU culling passes): joint-space planes with their normal lengths and margin (read only
-/// when `group` is [`GROUP_STRADDLES`]), the eye or view direction in joint space with
-/// `sign` = sign(det A) (0: no backface test) and its margin.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct JointRecord {
-    pub planes: [[f32; 4]; 6],
-    pub len: [f32; 6],
-    pub margin: f32,
-    pub view: Vec3,
-    pub sign: f32,
-    pub backface_margin: f32,
-    /// [`GROUP_INSIDE`], [`GROUP_OUTSIDE`] or [`GROUP_STRADDLES`].
-    pub group: u32,
-    /// Whether the any-pose boxes are tested (then `planes` are set for every joint), and
-    /// their margin `[scale, offset]` (see [`PoseBox`]).
-    pub any_pose: bool,
-    pub box_margin: [f32; 2],
-}
-
-pub const GROUP_INSIDE: u32 = 0;
-pub const GROUP_OUTSIDE: u32 = 1;
-pub const GROUP_STRADDLES: u32 = 2;
-
 impl JointFrame {
     /// A frame that culls nothing (every group inside the frustum, no backface test, no
     /// boxes): for an instance whose pose nothing the culler holds covers (morph weights out
@@ -272,27 +248,6 @@ impl JointFrame {
         self.tests = tests;
     }
 
-    /// Per joint, the values the culling loop reads.
-    pub fn records(&self) -> Vec<JointRecord> {
-        (0..self.group.len())
-            .map(|j| JointRecord {
-                planes: self.planes[j],
-                len: self.len[j],
-                margin: self.margin[j],
-                view: self.view[j],
-                sign: self.sign[j],
-                backface_margin: self.backface_margin[j],
-                group: match self.group[j] {
-                    Group::Inside => GROUP_INSIDE,
-                    Group::Outside => GROUP_OUTSIDE,
-                    Group::Straddles => GROUP_STRADDLES,
-                },
-                any_pose: self.any_pose,
-                box_margin: self.box_margin[j],
-            })
-            .collect()
-    }
-
     /// Whether the any-pose boxes are tested.
     pub fn any_pose(&self) -> bool {
         self.any_pose
@@ -301,14 +256,6 @@ impl JointFrame {
     /// Joints prepared.
     pub fn joints(&self) -> usize {
         self.group.len()
-    }
-
-    pub fn tests(&self) -> Tests {
-        self.tests
-    }
-
-    pub fn orthographic(&self) -> bool {
-        self.orthographic
     }
 }
 

@@ -1,5 +1,6 @@
 // The per-meshlet culling test of skinlet::cull::meshlet::MeshletCuller::cull, operation for
-// operation, shared by the compute pass (cull.wgsl) and the task shader (task_cull.wgsl).
+// operation, shared by crowd culling's compute pass (crowd_cull.wgsl) and task shaders
+// (skinlet-lab's task_cull.wgsl).
 // Bindings in group CULL_GROUP (set by the including module's prefix).
 
 struct CullParams {
@@ -8,8 +9,7 @@ struct CullParams {
     instances: u32,
     // bit 0: frustum test, bit 1: backface test, bit 2: orthographic camera.
     flags: u32,
-    // Task shaders: the first slot of the range they test.
-    first: u32,
+    pad: u32,
     // Crowd culling: how many survivors the compacted list holds, and the corners (indices)
     // of the largest meshlet (the vertex count of the pulled draw).
     capacity: u32,

@@ -15,12 +15,12 @@ fn task_ballot(
         atomicStore(&survivors, 0u);
     }
     workgroupBarrier();
-    let slot = cull_params.first + wg.x * 32u + lid;
+    let slot = task_range.first + wg.x * 32u + lid;
     var visible = 0u;
     var id = 0u;
-    if slot < cull_params.first + cull_params.slots {
+    if slot < task_range.first + task_range.count {
         let s = slots[slot];
-        visible = select(0u, 1u, meshlet_flag(s, 0u) == 0u);
+        visible = select(0u, 1u, meshlet_flag(s, task_range.instance) == 0u);
         id = s.id;
     }
     let rank = subgroupExclusiveAdd(visible);
@@ -34,6 +34,5 @@ fn task_ballot(
     if visible == 1u {
         payload.ids[base + rank] = id;
     }
-    workgroupBarrier();
-    return vec3<u32>(atomicLoad(&survivors), 1u, 1u);
+    return launch(lid);
 }

@@ -1,6 +1,7 @@
 // Task-shader culling (paper section 6; after common.wgsl, draw.wgsl, mesh_skin.wgsl and
 // cull_common.wgsl; the module starts with `enable wgpu_mesh_shader;`): one invocation per
-// meshlet slot of one instance runs the culling test, the survivors' ids go to the payload,
+// meshlet slot of one instance runs the culling test on the joint records crowd culling
+// prepared on the GPU (CrowdCulling::encode_prepare), the survivors' ids go to the payload,
 // and one mesh workgroup is launched per survivor.
 
 @group(3) @binding(0) var<uniform> cull_params: CullParams;
@@ -8,6 +9,14 @@
 @group(3) @binding(2) var<storage, read> joint_records: array<f32>;
 // The culler's any-pose boxes (cull_common.wgsl).
 @group(3) @binding(6) var<storage, read> any_pose_boxes: array<u32>;
+// The slots this draw tests (first, count: a culling class's range) and its instance.
+struct TaskRange {
+    first: u32,
+    count: u32,
+    instance: u32,
+    pad: u32,
+}
+@group(3) @binding(3) var<uniform> task_range: TaskRange;
 
 struct TaskPayload {
     ids: array<u32, 32>,
@@ -25,15 +34,25 @@ fn task(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
         atomicStore(&survivors, 0u);
     }
     workgroupBarrier();
-    let slot = cull_params.first + wg.x * 32u + lid;
-    if slot < cull_params.first + cull_params.slots {
+    let slot = task_range.first + wg.x * 32u + lid;
+    if slot < task_range.first + task_range.count {
         let s = slots[slot];
-        if meshlet_flag(s, 0u) == 0u {
+        if meshlet_flag(s, task_range.instance) == 0u {
             payload.ids[atomicAdd(&survivors, 1u)] = s.id;
         }
     }
+    return launch(lid);
+}
+
+// After a task workgroup listed its survivors: counts them (meshlets drawn) and launches one
+// mesh workgroup per survivor.
+fn launch(lid: u32) -> vec3<u32> {
     workgroupBarrier();
-    return vec3<u32>(atomicLoad(&survivors), 1u, 1u);
+    let n = atomicLoad(&survivors);
+    if lid == 0u {
+        atomicAdd(&drawn[1], n);
+    }
+    return vec3<u32>(n, 1u, 1u);
 }
 
 // Per-triangle culling in the mesh shader (thesis 5.1.3): `mode` 0 none, 1 perspective
@@ -43,7 +62,7 @@ struct TriangleCull {
     mode: u32,
 }
 
-// Triangles the mesh shaders emitted and did not cull.
+// Triangles the mesh shaders emitted and did not cull, meshlets the task shaders launched.
 @group(3) @binding(4) var<storage, read_write> drawn: array<atomic<u32>>;
 @group(3) @binding(5) var<uniform> triangle_cull: TriangleCull;
 
