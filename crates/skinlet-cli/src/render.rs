@@ -12,10 +12,12 @@ use skinlet::model::SkinnedMesh;
 use skinlet::overdraw::cluster::ClusterParams;
 use skinlet::pose::Poser;
 use skinlet_gpu::contours::{ContourExtraction, ContourView, GpuContours};
+use skinlet_gpu::crowd_culling::CullMode;
 use skinlet_gpu::mesh::{GpuMesh, Pose};
+use skinlet_lab::gpu_crowd::{CrowdFrame, CrowdView, GpuCrowd};
 use skinlet_lab::headless::{self, GpuOptions};
 use skinlet_lab::render::{Image, Renderer, Skinning, framing};
-use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller, Tests};
+use skinlet_runtime::meshlet_cull::{MeshletCuller, Tests};
 
 /// The default view direction (toward the eye) and the culled view's observer direction.
 const FRONT: Vec3 = Vec3::new(0.3, 0.2, 1.0);
@@ -34,7 +36,8 @@ pub struct Args {
     /// shaded: the posed character. meshlets: skin-aware meshlets, each in its own color
     /// (mesh shaders). culled: the meshlets the conservative bounds cull for a camera 1.6×
     /// closer than a fit, seen by an observer behind and above it: kept ones light,
-    /// frustum-culled red, backface-culled blue (mesh shaders; bounds from key intervals).
+    /// frustum-culled red, backface-culled blue, as skinlet's GPU crowd culling culls them
+    /// (mesh shaders; bounds from key intervals).
     /// classes: meshlets by culling class (paper table 2): both tests green, frustum test
     /// only amber, never culled grey (mesh shaders). contours: the contour edges extracted
     /// on the GPU from patches bounded over the clips, visible orange, hidden dim. overdraw:
@@ -119,25 +122,34 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         "culled" => {
             let baked = bake(&asset, &character, None)?;
             let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len())?;
-            let mut joints = Vec::new();
-            skinlet::pose::joint_globals(skin, poser.globals(&asset.skeleton, clip, t), &mut joints);
             let camera = framing(&posed, FRONT, 1.6)?;
-            let mut frame = JointFrame::default();
-            culler.prepare(&joints, &camera, Tests::Both, &mut frame);
-            let mut flags = Vec::new();
-            let counts = culler.cull(&frame, &mut flags, &mut Vec::new());
-            // Per meshlet: kept, or culled by the frustum test (flag bit 0), or by the backface
-            // test alone (flag 2); `flags` is per slot, `slots` names each slot's meshlet.
+            // Culled on the GPU by crowd culling (the path an engine links): the survivors of
+            // the frustum test alone, and of both tests.
+            let crowd = GpuCrowd::new(&gpu, &baked, &culler, 1, 64, 36)?;
+            let palette: Vec<glam::Mat4> = matrices.iter().map(|&m| m.into()).collect();
+            let mut morphs = weights.clone();
+            morphs.resize(weights.len().max(1), 0.0);
+            let survivors = |tests| -> Result<Vec<bool>> {
+                let modes = [CullMode::Bounds];
+                let frame = CrowdFrame { palette: &palette, modes: &modes, weights: &morphs, camera: &camera, tests };
+                crowd.draw(&gpu, &frame, CrowdView::Pulled, LIGHT)?;
+                let mut kept = vec![false; baked.meshlets.len()];
+                crowd.survivors(&gpu)?.iter().for_each(|&[_, m]| kept[m as usize] = true);
+                Ok(kept)
+            };
+            let (in_frustum, kept) = (survivors(Tests::Frustum)?, survivors(Tests::Both)?);
+            // Per meshlet: kept, or culled by the frustum test, or by the backface test alone.
+            let count = |f: &dyn Fn(usize) -> bool| (0..kept.len()).filter(|&m| f(m)).count();
             let mut colors = vec![[240, 240, 235, 255]; baked.meshlets.len()];
-            for (slot, &flag) in culler.slots().iter().zip(&flags) {
-                if flag & 1 != 0 {
-                    colors[slot.id as usize] = [235, 85, 70, 255];
-                } else if flag == 2 {
-                    colors[slot.id as usize] = [90, 130, 235, 255];
+            for m in 0..kept.len() {
+                if !in_frustum[m] {
+                    colors[m] = [235, 85, 70, 255];
+                } else if !kept[m] {
+                    colors[m] = [90, 130, 235, 255];
                 }
             }
-            summary = json!({"meshlets": counts.meshlets, "kept": counts.visible, "frustum_culled": counts.frustum,
-                "backface_culled": counts.backface});
+            summary = json!({"meshlets": kept.len(), "kept": count(&|m| kept[m]),
+                "frustum_culled": count(&|m| !in_frustum[m]), "backface_culled": count(&|m| in_frustum[m] && !kept[m])});
             let gpu_mesh =
                 GpuMesh::new(&gpu, &baked.mesh.mesh_data(Some(baked.meshlets.view(&baked.meshlets.headers()))))?;
             let observer = framing(&posed, OBSERVER, 0.95)?.view_proj;
