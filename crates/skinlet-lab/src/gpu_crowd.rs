@@ -93,6 +93,8 @@ pub struct GpuCrowd {
     ids: wgpu::Texture,
     depth: wgpu::Texture,
     depth_view: wgpu::TextureView,
+    /// Near 1, far 0.
+    reversed: bool,
 }
 
 const IDS: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
@@ -104,7 +106,7 @@ fn invalid(message: String) -> GpuError {
 impl GpuCrowd {
     /// Uploads `baked`'s mesh, its meshlets' index buffer and `culler` (the bounds the crowd is
     /// culled with: clip or envelope bounds, with any-pose boxes or not) for up to `capacity`
-    /// instances, drawn at `width` × `height`.
+    /// instances, drawn at `width` × `height` with a forward depth range (near 0, far 1).
     pub fn new(
         gpu: &Gpu,
         baked: &skinlet::bake::Baked,
@@ -112,6 +114,22 @@ impl GpuCrowd {
         capacity: u32,
         width: u32,
         height: u32,
+    ) -> Result<GpuCrowd> {
+        GpuCrowd::with_depth_range(gpu, baked, culler, capacity, width, height, false)
+    }
+
+    /// [`GpuCrowd::new`] with a reversed depth range where `reversed` (near 1, far 0: Bevy's
+    /// infinite reverse-Z; the frames' cameras must project so): depth cleared to 0, nearer
+    /// fragments the greater, occlusion culling's pyramid of the nearest.
+    #[allow(clippy::too_many_arguments)]
+    pub fn with_depth_range(
+        gpu: &Gpu,
+        baked: &skinlet::bake::Baked,
+        culler: &MeshletCuller,
+        capacity: u32,
+        width: u32,
+        height: u32,
+        reversed: bool,
     ) -> Result<GpuCrowd> {
         let mesh = &baked.mesh;
         let inf = mesh.influences.as_ref().ok_or_else(|| invalid("the bake has no skin weights".into()))?;
@@ -139,7 +157,7 @@ impl GpuCrowd {
                 | wgpu::TextureUsages::COPY_SRC,
         );
         let depth_view = depth.create_view(&Default::default());
-        let occlusion = OcclusionDepth { view: &depth_view, width, height, reversed: false };
+        let occlusion = OcclusionDepth { view: &depth_view, width, height, reversed };
         let culling = CrowdCulling::with_occlusion(
             device, &pipelines, &character, &palette, &instances, capacity, survivors, occlusion,
         )?;
@@ -213,7 +231,8 @@ impl GpuCrowd {
             };
             let skinning = [0, 1, 2, 3, 4, 5, 6];
             let ids = [&skinning[..], &[7, 9]].concat();
-            use wgpu::CompareFunction::{Less, LessEqual};
+            use wgpu::CompareFunction::{Greater, GreaterEqual, Less, LessEqual};
+            let (nearer, nearer_or_equal) = if reversed { (Greater, GreaterEqual) } else { (Less, LessEqual) };
             GpuCrowd {
                 width,
                 height,
@@ -230,15 +249,16 @@ impl GpuCrowd {
                 view: view.clone(),
                 indices: index_buffer,
                 draws: [
-                    make("vs_indexed", "fs_shaded", COLOR, Less, &skinning),
-                    make("vs_pulled", "fs_shaded", COLOR, Less, &[&skinning[..], &[7, 8]].concat()),
-                    make("vs_ids", "fs_ids", IDS, Less, &ids),
-                    make("vs_ids", "fs_ids", IDS, LessEqual, &ids),
+                    make("vs_indexed", "fs_shaded", COLOR, nearer, &skinning),
+                    make("vs_pulled", "fs_shaded", COLOR, nearer, &[&skinning[..], &[7, 8]].concat()),
+                    make("vs_ids", "fs_ids", IDS, nearer, &ids),
+                    make("vs_ids", "fs_ids", IDS, nearer_or_equal, &ids),
                 ],
                 color: texture(COLOR, target),
                 ids: texture(IDS, target),
                 depth,
                 depth_view,
+                reversed,
                 culling,
             }
         })
@@ -326,7 +346,7 @@ impl GpuCrowd {
                             CrowdView::Ids => wgpu::Color::TRANSPARENT,
                             _ => wgpu::Color { r: 0.08, g: 0.09, b: 0.11, a: 1.0 },
                         }),
-                        wgpu::LoadOp::Clear(1.0),
+                        wgpu::LoadOp::Clear(if self.reversed { 0.0 } else { 1.0 }),
                     ),
                     false => (wgpu::LoadOp::Load, wgpu::LoadOp::Load),
                 };
@@ -423,7 +443,7 @@ impl GpuCrowd {
         Ok(CrowdDrawn { image, ids, ties, headers, draw_calls: passes.len() as u32, gpu_ms })
     }
 
-    /// The depth buffer the last frame left (forward: near 0, far 1), rows top to bottom.
+    /// The depth buffer the last frame left, rows top to bottom.
     pub fn depth(&self, gpu: &Gpu) -> Result<Vec<f32>> {
         let row = (4 * self.width).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
         let bytes = (row * self.height) as u64;

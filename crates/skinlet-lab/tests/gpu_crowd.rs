@@ -15,7 +15,7 @@ use skinlet_gpu::Gpu;
 use skinlet_gpu::crowd_culling::CullMode;
 use skinlet_lab::crowd::{Animation, CrowdParams, Layout, crowd, instance_pose};
 use skinlet_lab::gpu_crowd::{CrowdFrame, CrowdView, GpuCrowd};
-use skinlet_runtime::camera::Camera;
+use skinlet_runtime::camera::{Camera, Projection};
 use skinlet_runtime::meshlet_cull::{MeshletCuller, Tests};
 use std::collections::HashSet;
 
@@ -196,7 +196,8 @@ fn occlusion_culling_misses_nothing_when_the_camera_cuts_or_the_crowd_teleports(
     // walks up to the first row, through it (what it hid is visible at once), cuts back and to
     // the side; then the crowd's instances swap places. Every frame: the image equals the
     // unculled one and every visible meshlet is drawn (check_frame), whatever the visibility
-    // bits of the frame before.
+    // bits of the frame before. With a forward depth range and with Bevy's infinite reverse-Z
+    // (the pyramid then keeps the nearest depth).
     let Some(gpu) = gpu() else { return };
     let demo =
         skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams { triangles: 4000, ..Default::default() });
@@ -206,46 +207,65 @@ fn occlusion_culling_misses_nothing_when_the_camera_cuts_or_the_crowd_teleports(
     let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len()).unwrap();
     let params = CrowdParams { instances: 64, layout: Layout::Dense, ..Default::default() };
     let scene = crowd(&baked.mesh.positions, clips.len(), &params).unwrap();
-    let crowd = GpuCrowd::new(&gpu, &baked, &culler, 64, 320, 180).unwrap();
     let (lo, hi) =
         (baked.mesh.positions.iter()).fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), p| (l.min(*p), h.max(*p)));
     let size = ((hi - lo).length() / 2.0).max(1e-6);
     let modes = vec![CullMode::Bounds; scene.placements.len()];
     let pose = |f: usize, order: &[usize]| clip_pose(&demo, &baked, &scene, params.fps, f, order);
     let in_place: Vec<usize> = (0..scene.placements.len()).collect();
-    let camera = |eye: Vec3, forward: Vec3| {
-        let (fov, aspect) = (50f32.to_radians(), 16.0 / 9.0);
-        Camera::perspective(eye, eye + forward, Vec3::Y, fov, aspect, 0.05 * size, 80.0 * size).unwrap()
-    };
-    let z = |depth: f32| Vec3::new(0.0, 0.0, -depth * size);
-    let walk = [
-        camera(z(0.0), Vec3::NEG_Z),
-        camera(z(1.5), Vec3::NEG_Z),
-        camera(z(2.8), Vec3::NEG_Z),
-        camera(z(3.3), Vec3::NEG_Z), // inside the first row
-        camera(z(4.0), Vec3::NEG_Z), // past it: what it hid, visible at once
-        camera(z(0.0), Vec3::NEG_Z), // a cut back
-        camera(Vec3::new(30.0 * size, 0.0, -20.0 * size), Vec3::NEG_X), // a cut to the side
-    ];
-    let (mut culled_by_occlusion, mut checked) = (0, 0);
-    for (f, cam) in walk.iter().enumerate() {
-        let (palette, weights) = pose(f, &in_place);
-        let frame = CrowdFrame { palette: &palette, modes: &modes, weights: &weights, camera: cam, tests: Tests::Both };
-        let [drawn, occluded, ..] = check_frame(&gpu, &crowd, &frame, &format!("walk frame {f}"));
-        culled_by_occlusion += drawn - occluded;
-        checked += 1;
+    for reversed in [false, true] {
+        let crowd = GpuCrowd::with_depth_range(&gpu, &baked, &culler, 64, 320, 180, reversed).unwrap();
+        let camera = |eye: Vec3, forward: Vec3| {
+            let (fov, aspect) = (50f32.to_radians(), 16.0 / 9.0);
+            if reversed {
+                let view_proj = Mat4::perspective_infinite_reverse_rh(fov, aspect, 0.05 * size)
+                    * Mat4::look_to_rh(eye, forward, Vec3::Y);
+                Camera::from_view_proj(view_proj, Projection::Perspective { eye }).unwrap()
+            } else {
+                Camera::perspective(eye, eye + forward, Vec3::Y, fov, aspect, 0.05 * size, 80.0 * size).unwrap()
+            }
+        };
+        let z = |depth: f32| Vec3::new(0.0, 0.0, -depth * size);
+        let walk = [
+            camera(z(0.0), Vec3::NEG_Z),
+            camera(z(1.5), Vec3::NEG_Z),
+            camera(z(2.8), Vec3::NEG_Z),
+            camera(z(3.3), Vec3::NEG_Z), // inside the first row
+            camera(z(4.0), Vec3::NEG_Z), // past it: what it hid, visible at once
+            camera(z(0.0), Vec3::NEG_Z), // a cut back
+            camera(Vec3::new(30.0 * size, 0.0, -20.0 * size), Vec3::NEG_X), // a cut to the side
+        ];
+        let (mut culled_by_occlusion, mut checked) = (0, 0);
+        for (f, cam) in walk.iter().enumerate() {
+            let (palette, weights) = pose(f, &in_place);
+            let frame =
+                CrowdFrame { palette: &palette, modes: &modes, weights: &weights, camera: cam, tests: Tests::Both };
+            let [drawn, occluded, ..] =
+                check_frame(&gpu, &crowd, &frame, &format!("reversed {reversed}: walk frame {f}"));
+            culled_by_occlusion += drawn - occluded;
+            checked += 1;
+        }
+        // The crowd teleports: every instance moves to another's place (the bits describe where it
+        // stood), twice.
+        for (k, shift) in [7, 31].into_iter().enumerate() {
+            let order: Vec<usize> = (0..scene.placements.len()).map(|i| (i + shift) % scene.placements.len()).collect();
+            let (palette, weights) = pose(10 + k, &order);
+            let frame = CrowdFrame {
+                palette: &palette,
+                modes: &modes,
+                weights: &weights,
+                camera: &walk[0],
+                tests: Tests::Both,
+            };
+            let [drawn, occluded, ..] =
+                check_frame(&gpu, &crowd, &frame, &format!("reversed {reversed}: teleport {k}"));
+            culled_by_occlusion += drawn - occluded;
+            checked += 1;
+        }
+        eprintln!(
+            "reversed {reversed}, {checked} frames: occlusion culled {culled_by_occlusion} meshlets the frustum and \
+         backface tests kept"
+        );
+        assert!(culled_by_occlusion > 0, "reversed {reversed}: occlusion culled nothing: the test would be vacuous");
     }
-    // The crowd teleports: every instance moves to another's place (the bits describe where it
-    // stood), twice.
-    for (k, shift) in [7, 31].into_iter().enumerate() {
-        let order: Vec<usize> = (0..scene.placements.len()).map(|i| (i + shift) % scene.placements.len()).collect();
-        let (palette, weights) = pose(10 + k, &order);
-        let frame =
-            CrowdFrame { palette: &palette, modes: &modes, weights: &weights, camera: &walk[0], tests: Tests::Both };
-        let [drawn, occluded, ..] = check_frame(&gpu, &crowd, &frame, &format!("teleport {k}"));
-        culled_by_occlusion += drawn - occluded;
-        checked += 1;
-    }
-    eprintln!("{checked} frames: occlusion culled {culled_by_occlusion} meshlets the frustum and backface tests kept");
-    assert!(culled_by_occlusion > 0, "occlusion culled nothing: the test would be vacuous");
 }
