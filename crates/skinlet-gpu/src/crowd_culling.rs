@@ -970,9 +970,10 @@ fn flags(tests: Tests, orthographic: bool) -> u32 {
 #[cfg(test)]
 mod tests {
     //! A frame of GPU crowd culling costs the CPU no allocation of skinlet's own: after setup,
-    //! `encode` allocates exactly as often as its own wgpu calls made by hand on the same
-    //! pipelines, bind groups and buffers (wgpu's command recording), whatever the instance
-    //! count. Allocations are counted per thread (wgpu records on the calling thread).
+    //! `encode` and `encode_prepare` allocate exactly as often as their own wgpu calls made by
+    //! hand on the same pipelines, bind groups and buffers (wgpu's command recording),
+    //! whatever the instance count. Allocations are counted per thread (wgpu records on the
+    //! calling thread).
     use super::*;
     use glam::Vec3;
     use std::alloc::{GlobalAlloc, Layout, System};
@@ -1063,14 +1064,16 @@ mod tests {
         let crowd =
             CrowdCulling::new(device, &pipelines, &character, &palette, &instances, capacity, survivors).unwrap();
         let camera = Camera::perspective(Vec3::new(0.0, 1.0, 6.0), Vec3::ZERO, Vec3::Y, 1.0, 1.5, 0.1, 100.0).unwrap();
-        let encode = |n: u32| {
+        // Whole culling, or the preparation alone (`prepare_only`).
+        let encode = |n: u32, prepare_only: bool| {
             let (crowd, camera, queue) = (&crowd, &camera, &gpu.queue);
-            move |encoder: &mut wgpu::CommandEncoder| {
-                crowd.encode(queue, encoder, camera, Tests::Both, n, None).unwrap()
+            move |encoder: &mut wgpu::CommandEncoder| match prepare_only {
+                true => crowd.encode_prepare(queue, encoder, camera, Tests::Both, n).unwrap(),
+                false => crowd.encode(queue, encoder, camera, Tests::Both, n, None).unwrap(),
             }
         };
         // The same wgpu calls, with the same arguments, made here.
-        let by_hand = |n: u32| {
+        let by_hand = |n: u32, prepare_only: bool| {
             let (crowd, queue) = (&crowd, &gpu.queue);
             move |encoder: &mut wgpu::CommandEncoder| {
                 queue.write_buffer(&crowd.uniforms, 0, &[0; std::mem::size_of::<Uniforms>()]);
@@ -1083,6 +1086,9 @@ mod tests {
                 pass.set_pipeline(&crowd.prepare_pipeline);
                 pass.set_bind_group(0, &crowd.prepare, &[]);
                 dispatch(&mut pass, n * crowd.joints);
+                if prepare_only {
+                    return;
+                }
                 pass.set_pipeline(&crowd.cull_pipeline);
                 pass.set_bind_group(0, &crowd.cull, &[0]);
                 dispatch(&mut pass, n * crowd.meshlets);
@@ -1090,19 +1096,24 @@ mod tests {
                 pass.dispatch_workgroups(1, 1, 1);
             }
         };
-        for _ in 0..3 {
-            counted(&gpu, by_hand(capacity));
-            counted(&gpu, encode(capacity));
+        for prepare_only in [false, true] {
+            for _ in 0..3 {
+                counted(&gpu, by_hand(capacity, prepare_only));
+                counted(&gpu, encode(capacity, prepare_only));
+            }
+            let mut seen = Vec::new();
+            for frame in 0..12 {
+                let n = [1, 17, 250, capacity][frame % 4];
+                seen.push((n, counted(&gpu, by_hand(n, prepare_only)), counted(&gpu, encode(n, prepare_only))));
+            }
+            for &(n, hand, ours) in &seen {
+                assert_eq!(
+                    ours, hand,
+                    "{n} instances, prepare only {prepare_only}: {ours} allocations, its wgpu calls by hand {hand}"
+                );
+            }
+            let counts: std::collections::BTreeSet<usize> = seen.iter().map(|s| s.2).collect();
+            assert_eq!(counts.len(), 1, "allocations vary with the instance count: {seen:?}");
         }
-        let mut seen = Vec::new();
-        for frame in 0..12 {
-            let n = [1, 17, 250, capacity][frame % 4];
-            seen.push((n, counted(&gpu, by_hand(n)), counted(&gpu, encode(n))));
-        }
-        for &(n, hand, ours) in &seen {
-            assert_eq!(ours, hand, "{n} instances: encode allocated {ours} times, its wgpu calls by hand {hand}");
-        }
-        let counts: std::collections::BTreeSet<usize> = seen.iter().map(|s| s.2).collect();
-        assert_eq!(counts.len(), 1, "allocations vary with the instance count: {seen:?}");
     }
 }
