@@ -421,7 +421,7 @@ impl GpuCharacter {
         // Slots by culling class (paper section 6): both tests, the frustum test only, none.
         let class = |s: &CullSlot| match (s.frustum_ok, s.sin > 1.0) {
             (false, _) => 2,
-            (true, none) => none as usize,
+            (true, no_cone) => no_cone as usize,
         };
         let slots = culler.slots();
         let mut by_class = slots.clone();
@@ -690,9 +690,10 @@ impl CrowdCulling {
         self.encode_phase(queue, encoder, camera, tests, instances, timestamps, 0)
     }
 
-    /// Only the per-joint preparation of [`CrowdCulling::encode`] (no survivor lists, no
-    /// counts): [`CrowdCulling::records`] and [`CrowdCulling::params`] then hold what
-    /// `meshlet_flag` of [`CULL_WGSL`] reads, for the caller's own task or compute shader.
+    /// Only the per-joint preparation of [`CrowdCulling::encode`] (the counts and survivor
+    /// lists are cleared, not written), with the same inputs: [`CrowdCulling::records`] and
+    /// [`CrowdCulling::params`] then hold what `meshlet_flag` of [`CULL_WGSL`] reads, for the
+    /// caller's own task or compute shader. Allocates nothing itself.
     pub fn encode_prepare(
         &self,
         queue: &wgpu::Queue,
