@@ -2,8 +2,8 @@
 //! `skinlet-gpu` like any other user of it; nothing a game ships.
 //!
 //! - [`render`]: skinlet's own offscreen renderer: vertex-, compute-, mesh- and slim
-//!   mesh-shader skinning drawing the same image, culled drawing (task shaders, or a compute
-//!   pass and indirect draws), crowds timed by timestamp queries, colored, contour and
+//!   mesh-shader skinning drawing the same image, culled drawing (task shaders on the joint
+//!   records GPU crowd culling prepares), crowds timed by timestamp queries, colored, contour and
 //!   overdraw views, every image read back. `skinlet render` and `skinlet gpu-bench` draw
 //!   with it; tests/render.rs checks that every pipeline draws the same pixels.
 //! - [`gpu_crowd`]: a GPU-driven crowd renderer on `skinlet_gpu::crowd_culling` (culling,
