@@ -638,7 +638,9 @@ fn render_writes_a_png_of_the_posed_character() {
     // Boxes of the very pose tested against the unculled depth: the pyramid's texels reach
     // at least the pixels, and occlusion culling's boxes (which hold every such box) are tested
     // against depth that at most part of the crowd wrote.
+    // A meshlet with an unhidden triangle has an unhidden box.
     let (exact, pyramid) = (&j["meshlets_unhidden_pose_box"], &j["meshlets_unhidden_pose_box_pyramid"]);
+    assert!(j["meshlets_unhidden_pose_triangles"].as_f64() <= exact.as_f64(), "{j}");
     assert!(exact.as_f64().unwrap() <= pyramid.as_f64().unwrap(), "{j}");
     assert!(pyramid.as_f64() <= row(&j, "both+occlusion")["meshlets_drawn"].as_f64(), "{j}");
     // The dense crowd, VS only: draw calls do not grow with the instances, occlusion culls.
