@@ -972,8 +972,8 @@ fn flags(tests: Tests, orthographic: bool) -> u32 {
 mod tests {
     //! A frame of GPU crowd culling costs the CPU no allocation of skinlet's own: after setup,
     //! `encode` and `encode_prepare` allocate exactly as often as their own wgpu calls made by
-    //! hand on the same pipelines, bind groups and buffers (wgpu's command recording),
-    //! whatever the instance count. Allocations are counted per thread (wgpu records on the
+    //! hand on the same pipelines, bind groups and buffers (wgpu's command recording; the
+    //! fewest of a few calls on each side), whatever the instance count. Allocations are counted per thread (wgpu records on the
     //! calling thread).
     use super::*;
     use glam::Vec3;
@@ -1102,10 +1102,14 @@ mod tests {
                 counted(&gpu, by_hand(capacity, prepare_only));
                 counted(&gpu, encode(capacity, prepare_only));
             }
+            // An allocation of skinlet's own would come with every call: the fewest over a few
+            // calls each (wgpu's bookkeeping grows a vector now and then, on either side).
             let mut seen = Vec::new();
             for frame in 0..12 {
                 let n = [1, 17, 250, capacity][frame % 4];
-                seen.push((n, counted(&gpu, by_hand(n, prepare_only)), counted(&gpu, encode(n, prepare_only))));
+                let fewest = |record: &dyn Fn() -> usize| (0..4).map(|_| record()).min().unwrap();
+                let hand = fewest(&|| counted(&gpu, by_hand(n, prepare_only)));
+                seen.push((n, hand, fewest(&|| counted(&gpu, encode(n, prepare_only)))));
             }
             for &(n, hand, ours) in &seen {
                 assert_eq!(
