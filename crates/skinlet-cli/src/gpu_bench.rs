@@ -25,13 +25,12 @@ use glam::{Affine3A, Vec3};
 use serde_json::json;
 use skinlet::meshlet::{Builder, MeshletLimits};
 use skinlet::pose::global_transforms;
-use skinlet::skinning::skin_mesh;
 use skinlet_gpu::crowd_culling::{CullMode, GpuCharacter};
 use skinlet_gpu::mesh::{GpuMesh, Pose};
 use skinlet_lab::crowd::{Animation, CrowdParams, Layout, instance_pose, posed_crowd};
 use skinlet_lab::gpu_crowd::{CrowdFrame, CrowdView, GpuCrowd};
 use skinlet_lab::headless::{self, GpuOptions};
-use skinlet_lab::occlusion_limits::{DepthPyramid, Rect, bounds};
+use skinlet_lab::occlusion_limits::{DepthPyramid, pose_limits};
 use skinlet_lab::render::{CrowdDraw, Culling, Image, PosedInstance, Renderer, Skinning, TaskCulling};
 use skinlet_runtime::meshlet_cull::{MeshletCuller, Tests};
 
@@ -469,39 +468,18 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     // front-facing triangles' boxes is not behind the depth at full resolution).
     let (mut oracle, mut box_exact, mut box_pyramid, mut box_triangles) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-    let mut positions = vec![Vec3::ZERO; baked.mesh.positions.len()];
     for (f, poses) in frames.iter().enumerate().skip(1) {
         gpu_crowd.draw(&gpu, &crowd_frame(f, Tests::Both, false), CrowdView::Pulled, light)?;
-        let mut survivors = gpu_crowd.survivors(&gpu)?;
-        survivors.sort_unstable();
+        let survivors = gpu_crowd.survivors(&gpu)?;
         let d = gpu_crowd.draw(&gpu, &crowd_frame(f, Tests::Both, false), CrowdView::Ids, light)?;
         let ids = d.ids.context("the ID view reads ids")?;
         oracle.push(ids.iter().filter(|&&id| id != 0).collect::<std::collections::HashSet<_>>().len() as f64);
         let depth = DepthPyramid::new(a.width, height, gpu_crowd.depth(&gpu)?);
-        let (mut exact, mut pyramid, mut triangles, mut skinned) = (0.0, 0.0, 0.0, usize::MAX);
-        let (view_proj, projection) = (&scene.camera.view_proj, scene.camera.projection);
-        for &[i, m] in &survivors {
-            let pose = &poses[i as usize];
-            if skinned != i as usize {
-                skin_mesh(&baked.mesh, &pose.weights, &pose.skinning, &mut positions, &mut [])?;
-                skinned = i as usize;
-            }
-            let ml = &baked.meshlets.meshlets[m as usize];
-            let start = ml.vertex_offset as usize;
-            let (lo, hi) = bounds(&positions, &baked.meshlets.vertices[start..start + ml.vertex_count as usize]);
-            exact += f64::from(!depth.hidden(view_proj, lo, hi, Rect::Exact) as u8);
-            pyramid += f64::from(!depth.hidden(view_proj, lo, hi, Rect::Pyramid) as u8);
-            let seen = baked.meshlets.mesh_triangles(ml).any(|t| {
-                let [p0, p1, p2] = t.map(|v| positions[v as usize]);
-                let (lo, hi) = (p0.min(p1).min(p2), p0.max(p1).max(p2));
-                skinlet::cull::triangle::facing(p0, p1, p2, projection) < 0.0
-                    && !depth.hidden(view_proj, lo, hi, Rect::Exact)
-            });
-            triangles += f64::from(seen as u8);
-        }
-        box_exact.push(exact);
-        box_pyramid.push(pyramid);
-        box_triangles.push(triangles);
+        let poses: Vec<_> = poses.iter().map(|p| (&p.skinning[..], &p.weights[..])).collect();
+        let [exact, pyramid, triangles] = pose_limits(&baked, &poses, &survivors, &depth, &scene.camera)?;
+        box_exact.push(exact as f64);
+        box_pyramid.push(pyramid as f64);
+        box_triangles.push(triangles as f64);
     }
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
     let visible_oracle = mean(&oracle);

@@ -6,11 +6,15 @@
 //! meshlet's skinned vertices of this very pose, the two split the distance between the
 //! meshlets occlusion culling draws and the ID-buffer oracle into what the bounds' looseness
 //! costs, what the pyramid's coarseness costs, and what no box test can remove (a meshlet
-//! whose box reaches past an occluder's silhouette though its triangles do not).
+//! whose box reaches past an occluder's silhouette though its triangles do not). Per
+//! triangle, the same test says what a per-triangle pass over the survivors could keep.
 //!
 //! Depth is forward (near 0, far 1), as skinlet-lab draws.
 
-use glam::{Mat4, Vec3};
+use glam::{Affine3A, Mat4, Vec3};
+use rayon::prelude::*;
+use skinlet::bake::Baked;
+use skinlet::cull::Camera;
 
 /// A depth buffer and its max pyramid (level 0 the buffer; level k + 1 the farthest of the up
 /// to 2 × 2 texels of level k, as `pyramid.wgsl` builds it).
@@ -100,6 +104,56 @@ impl DepthPyramid {
         }
         a.z > far
     }
+}
+
+/// Meshlets a box test against a frame's unculled `depth` could keep of `survivors` ((instance,
+/// meshlet) pairs of `baked`'s meshlets), instance `i` skinned by `poses[i]` (world-space
+/// skinning matrices and morph weights): those whose box around their skinned vertices of this
+/// very pose is not hidden at full resolution, the same on the pyramid ([`Rect::Pyramid`]),
+/// and those with a front-facing triangle whose box is not hidden at full resolution (what a
+/// per-triangle pass could keep at best). The instances are skinned in parallel.
+pub fn pose_limits(
+    baked: &Baked,
+    poses: &[(&[Affine3A], &[f32])],
+    survivors: &[[u32; 2]],
+    depth: &DepthPyramid,
+    camera: &Camera,
+) -> skinlet::Result<[usize; 3]> {
+    let mut by_instance = survivors.to_vec();
+    by_instance.sort_unstable();
+    let groups: Vec<&[[u32; 2]]> = by_instance.chunk_by(|a, b| a[0] == b[0]).collect();
+    let counts = groups
+        .par_iter()
+        .map(|group| -> skinlet::Result<[usize; 3]> {
+            let (matrices, weights) =
+                poses.get(group[0][0] as usize).copied().ok_or_else(|| skinlet::Error::Invalid {
+                    location: "occlusion limits".into(),
+                    message: format!("no pose for instance {}", group[0][0]),
+                })?;
+            let mut positions = vec![Vec3::ZERO; baked.mesh.positions.len()];
+            skinlet::skinning::skin_mesh(&baked.mesh, weights, matrices, &mut positions, &mut [])?;
+            let mut kept = [0; 3];
+            for &[_, m] in group.iter() {
+                let meshlet = baked.meshlets.meshlets.get(m as usize).ok_or_else(|| skinlet::Error::Invalid {
+                    location: "occlusion limits".into(),
+                    message: format!("no meshlet {m}"),
+                })?;
+                let start = meshlet.vertex_offset as usize;
+                let indices = &baked.meshlets.vertices[start..start + meshlet.vertex_count as usize];
+                let (lo, hi) = bounds(&positions, indices);
+                kept[0] += !depth.hidden(&camera.view_proj, lo, hi, Rect::Exact) as usize;
+                kept[1] += !depth.hidden(&camera.view_proj, lo, hi, Rect::Pyramid) as usize;
+                let seen = baked.meshlets.mesh_triangles(meshlet).any(|t| {
+                    let [p0, p1, p2] = t.map(|v| positions[v as usize]);
+                    skinlet::cull::triangle::facing(p0, p1, p2, camera.projection) < 0.0
+                        && !depth.hidden(&camera.view_proj, p0.min(p1).min(p2), p0.max(p1).max(p2), Rect::Exact)
+                });
+                kept[2] += seen as usize;
+            }
+            Ok(kept)
+        })
+        .collect::<skinlet::Result<Vec<_>>>()?;
+    Ok(counts.iter().fold([0; 3], |a, k| [a[0] + k[0], a[1] + k[1], a[2] + k[2]]))
 }
 
 /// The box around the points of `positions` that `indices` picks.
