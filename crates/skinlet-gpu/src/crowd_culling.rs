@@ -164,7 +164,9 @@ pub struct GpuCharacter {
 /// The depth buffer two-phase occlusion culling reads ([`CrowdCulling::with_occlusion`]): the
 /// caller's depth texture (`Depth32Float` or another depth format readable as
 /// `texture_depth_2d`, with `TEXTURE_BINDING` usage), its size, and whether its depth range
-/// is reversed (near 1, far 0: Bevy's infinite reverse-Z).
+/// is reversed (near 1, far 0: Bevy's infinite reverse-Z). The test takes fragments at pixel
+/// centers: the depth of single-sample rendering (a multisampled frame's coverage is tested
+/// elsewhere in the pixel, which the test does not cover).
 #[derive(Clone, Copy, Debug)]
 pub struct OcclusionDepth<'a> {
     pub view: &'a wgpu::TextureView,
