@@ -265,7 +265,6 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     }
     // The GPU-driven crowd's frames: palettes, culling modes (the pose guard's answer) and
     // morph weights, instance after instance.
-    let morphs = baked.mesh.morphs.weights.len().max(1);
     let flat: Vec<(Vec<glam::Mat4>, Vec<CullMode>, Vec<f32>)> = (frames.iter())
         .map(|instances| {
             let palette = instances.iter().flat_map(|i| i.skinning.iter().map(|&m| glam::Mat4::from(m))).collect();
@@ -277,10 +276,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                     (false, false) => CullMode::Keep,
                 })
                 .collect();
-            let mut weights = Vec::with_capacity(morphs * instances.len());
-            for i in instances {
-                weights.extend((0..morphs).map(|k| i.weights.get(k).copied().unwrap_or(0.0)));
-            }
+            let weights = instances.iter().flat_map(|i| i.weights.iter().copied()).collect();
             (palette, modes, weights)
         })
         .collect();

@@ -127,11 +127,9 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             // the frustum test alone, and of both tests.
             let crowd = GpuCrowd::new(&gpu, &baked, &culler, 1, 64, 36)?;
             let palette: Vec<glam::Mat4> = matrices.iter().map(|&m| m.into()).collect();
-            let mut morphs = weights.clone();
-            morphs.resize(weights.len().max(1), 0.0);
             let survivors = |tests| -> Result<Vec<bool>> {
                 let modes = [CullMode::Bounds];
-                let frame = CrowdFrame { palette: &palette, modes: &modes, weights: &morphs, camera: &camera, tests };
+                let frame = CrowdFrame { palette: &palette, modes: &modes, weights: &weights, camera: &camera, tests };
                 crowd.draw(&gpu, &frame, CrowdView::Pulled, LIGHT)?;
                 let mut kept = vec![false; baked.meshlets.len()];
                 crowd.survivors(&gpu)?.iter().for_each(|&[_, m]| kept[m as usize] = true);

@@ -39,7 +39,8 @@ pub enum CrowdView {
 }
 
 /// One frame of the crowd: per instance its world-space skinning matrices (`joints` each,
-/// instance after instance), how it is culled, and its morph weights (`morph_weights` each).
+/// instance after instance), how it is culled, and its morph weights (the mesh's morph weight
+/// count each: none for a mesh without morph targets).
 #[derive(Clone, Copy, Debug)]
 pub struct CrowdFrame<'a> {
     pub palette: &'a [Mat4],
@@ -140,13 +141,15 @@ impl GpuCrowd {
         let device = &gpu.device;
         let pipelines = CullPipelines::new(device)?;
         let character = GpuCharacter::new(device, culler, &baked.inverse_bind, &draws)?;
-        let (joints, morphs) = (baked.inverse_bind.len() as u32, mesh.morphs.weights.len().max(1) as u32);
+        let (joints, morphs) = (baked.inverse_bind.len() as u32, mesh.morphs.weights.len() as u32);
         let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
         let zeros = |bytes: u64| vec![0u8; bytes as usize];
         let cap = capacity as u64;
         let palette = gpu.buffer("crowd palette", &zeros(64 * joints as u64 * cap), storage);
         let instances = gpu.buffer("crowd instances", &zeros(80 * cap), storage);
-        let weights = gpu.buffer("crowd morph weights", &zeros(4 * morphs as u64 * cap), storage);
+        // At least one word: a storage binding is never empty (without morph targets no vertex
+        // reads it).
+        let weights = gpu.buffer("crowd morph weights", &zeros(4 * morphs.max(1) as u64 * cap), storage);
         let view = gpu.buffer("crowd view", &[0u32; 24], wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST);
         let survivors = capacity.saturating_mul(character.meshlets());
         let texture = |format, usage| target_texture(device, width, height, format, usage);
@@ -286,7 +289,9 @@ impl GpuCrowd {
         queue.write_buffer(&self.palette, 0, bytemuck::cast_slice(frame.palette));
         let instances: Vec<CullInstance> = frame.modes.iter().map(|&m| CullInstance::new(Mat4::IDENTITY, m)).collect();
         queue.write_buffer(&self.instances, 0, bytemuck::cast_slice(&instances));
-        queue.write_buffer(&self.weights, 0, bytemuck::cast_slice(frame.weights));
+        if !frame.weights.is_empty() {
+            queue.write_buffer(&self.weights, 0, bytemuck::cast_slice(frame.weights));
+        }
         let mut uniforms: Vec<u32> = frame.camera.view_proj.to_cols_array().map(f32::to_bits).to_vec();
         uniforms.extend(light.normalize_or_zero().extend(0.0).to_array().map(f32::to_bits));
         uniforms.extend([self.joints, self.stride, self.morphs, self.meshlets]);

@@ -89,7 +89,6 @@ fn clip_pose(
     order: &[usize],
 ) -> (Vec<Mat4>, Vec<f32>) {
     let (skin, clips) = (baked.palette(), &asset.clips);
-    let morphs = baked.mesh.morphs.weights.len().max(1);
     let mut poser = Poser::default();
     let (mut palette, mut weights, mut w) = (Vec::new(), Vec::new(), Vec::new());
     for &k in order {
@@ -101,7 +100,6 @@ fn clip_pose(
         pl.world_matrices(&skin, globals, &mut joints, &mut skinning);
         palette.extend(skinning.iter().map(|&m| Mat4::from(m)));
         baked.mesh.morphs.weights_at(clip, t, &mut w);
-        w.resize(morphs, 0.0);
         weights.extend(&w);
     }
     (palette, weights)
@@ -165,7 +163,6 @@ fn game_poses_under_the_pose_guard_draw_every_visible_meshlet() {
     let params = CrowdParams { instances: 16, animation: Animation::Ik, seed: 3, ..Default::default() };
     let scene = crowd(&baked.mesh.positions, clips.len(), &params).unwrap();
     let crowd = GpuCrowd::new(&gpu, &baked, &culler, 16, 320, 180).unwrap();
-    let morphs = baked.mesh.morphs.weights.len().max(1);
     let (mut palette, mut weights, mut modes) = (Vec::new(), Vec::new(), Vec::new());
     let (mut locals, mut w, mut globals) = (Vec::new(), Vec::new(), Vec::new());
     for (i, pl) in scene.placements.iter().enumerate() {
@@ -179,7 +176,6 @@ fn game_poses_under_the_pose_guard_draw_every_visible_meshlet() {
             (_, true) => CullMode::BoundsAndBoxes,
             (_, false) => CullMode::BoxesOnly,
         });
-        w.resize(morphs, 0.0);
         weights.extend(&w);
     }
     let refused = modes.iter().filter(|&&m| m == CullMode::BoxesOnly).count();

@@ -378,13 +378,10 @@ fn compute_survivors(
     camera: &Camera,
 ) -> Vec<Vec<u32>> {
     let crowd = GpuCrowd::new(gpu, baked, culler, instances.len() as u32, 64, 36).unwrap();
-    let morphs = baked.mesh.morphs.weights.len().max(1);
     let palette: Vec<glam::Mat4> =
         instances.iter().flat_map(|i| i.pose.matrices.iter().map(|&m| glam::Mat4::from(m))).collect();
     let modes: Vec<CullMode> = instances.iter().map(|i| i.cull.unwrap()).collect();
-    let weights: Vec<f32> = (instances.iter())
-        .flat_map(|i| (0..morphs).map(|k| i.pose.morph_weights.get(k).copied().unwrap_or(0.0)))
-        .collect();
+    let weights: Vec<f32> = instances.iter().flat_map(|i| i.pose.morph_weights.iter().copied()).collect();
     let frame = CrowdFrame { palette: &palette, modes: &modes, weights: &weights, camera, tests: Tests::Both };
     crowd.draw(gpu, &frame, CrowdView::Pulled, Vec3::Y).unwrap();
     let mut kept = vec![Vec::new(); instances.len()];
