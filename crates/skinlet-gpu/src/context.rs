@@ -142,13 +142,24 @@ pub(crate) fn compute_pipeline_with(
     entry: &str,
     layout: &wgpu::BindGroupLayout,
 ) -> wgpu::ComputePipeline {
+    compute_pipeline_layouts(device, label, source, entry, &[Some(layout)])
+}
+
+/// A compute pipeline of `source`'s `entry` over bind groups of `layouts`, in order.
+pub(crate) fn compute_pipeline_layouts(
+    device: &wgpu::Device,
+    label: &str,
+    source: String,
+    entry: &str,
+    layouts: &[Option<&wgpu::BindGroupLayout>],
+) -> wgpu::ComputePipeline {
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some(label),
         source: wgpu::ShaderSource::Wgsl(source.into()),
     });
     let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some(label),
-        bind_group_layouts: &[Some(layout)],
+        bind_group_layouts: layouts,
         immediate_size: 0,
     });
     device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {

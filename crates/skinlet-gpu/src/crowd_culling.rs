@@ -66,6 +66,9 @@ use skinlet_runtime::meshlet_cull::{CullSlot, MeshletCuller, Tests};
 /// and reads its slots from `var<storage, read> slots: array<Slot>` ([`GpuCharacter::slots`]).
 pub const CULL_WGSL: &str = include_str!("shaders/cull_common.wgsl");
 
+/// The screen-space occlusion test the meshlet and triangle passes share.
+pub(crate) const OCCLUSION_TEST_WGSL: &str = include_str!("shaders/occlusion_test.wgsl");
+
 /// WGSL for a vertex shader drawn by [`CrowdCulling::draw_pulled`]:
 /// `survivor_corner(instance_index, vertex_index)` gives the survivor's instance, the place in
 /// the caller's index buffer of this corner, and whether the corner is one of the meshlet's
@@ -90,7 +93,9 @@ pub struct SurvivorHeader {
     /// Survivors found; more than `instance_count` when the list overflowed (those past the
     /// capacity were not drawn: raise the capacity).
     pub found: u32,
-    pub pad: [u32; 3],
+    /// The triangle pass's workgroups, one per survivor drawn, in rows of at most 65535
+    /// (`dispatch_workgroups_indirect` arguments).
+    pub workgroups: [u32; 3],
 }
 
 impl SurvivorHeader {
@@ -185,26 +190,28 @@ pub enum List {
 
 /// One crowd's per-frame buffers and bind groups over the caller's palette and instances.
 pub struct CrowdCulling {
-    capacity: u32,
+    pub(crate) capacity: u32,
     /// Places in each survivor list.
-    survivor_capacity: u32,
-    meshlets: u32,
+    pub(crate) survivor_capacity: u32,
+    pub(crate) meshlets: u32,
     joints: u32,
     corners: u32,
     has_boxes: bool,
     /// The device has `MULTI_DRAW_INDIRECT_COUNT`.
     count_draws: bool,
     /// With occlusion culling: the depth size and range, and the pyramid's levels.
-    occlusion: Option<(u32, u32, bool, u32)>,
+    pub(crate) occlusion: Option<(u32, u32, bool, u32)>,
     /// The instances of the frame being recorded (the second phase's dispatch size).
     frame_instances: std::sync::atomic::AtomicU32,
     /// `CullParams` (phases 0 and 1) at 0, `CullCamera` at [`CAMERA_OFFSET`], `CullParams`
     /// (phase 2) at [`SECOND_OFFSET`], `Occlusion` at [`OCCLUSION_OFFSET`].
-    uniforms: wgpu::Buffer,
+    pub(crate) uniforms: wgpu::Buffer,
     records: wgpu::Buffer,
     counts: wgpu::Buffer,
-    commands: wgpu::Buffer,
-    survivors: wgpu::Buffer,
+    pub(crate) commands: wgpu::Buffer,
+    pub(crate) survivors: wgpu::Buffer,
+    /// Visibility bits, then the depth pyramid.
+    pub(crate) state: wgpu::Buffer,
     prepare: wgpu::BindGroup,
     cull: wgpu::BindGroup,
     /// Per pyramid level (a dynamic offset each) the pyramid pass's bind group.
@@ -219,7 +226,7 @@ pub struct CrowdCulling {
 /// buffer (multiples of the uniform offset alignment WebGPU guarantees).
 const CAMERA_OFFSET: usize = 256;
 const SECOND_OFFSET: usize = 512;
-const OCCLUSION_OFFSET: usize = 768;
+pub(crate) const OCCLUSION_OFFSET: usize = 768;
 /// Bytes per (instance, joint) record (`RECORD` floats and 16 for occlusion) and per draw
 /// command; per instance counts.
 const RECORD_BYTES: u64 = (40 + 16) * 4;
@@ -248,19 +255,19 @@ struct Uniforms {
     occlusion: [u32; 8],
 }
 
-fn invalid(location: &'static str, message: String) -> GpuError {
+pub(crate) fn invalid(location: &'static str, message: String) -> GpuError {
     GpuError::Invalid { location, message }
 }
 
-fn bind(binding: u32, resource: wgpu::BindingResource<'_>) -> wgpu::BindGroupEntry<'_> {
+pub(crate) fn bind(binding: u32, resource: wgpu::BindingResource<'_>) -> wgpu::BindGroupEntry<'_> {
     wgpu::BindGroupEntry { binding, resource }
 }
 
-fn whole(buffer: &wgpu::Buffer) -> wgpu::BindingResource<'_> {
+pub(crate) fn whole(buffer: &wgpu::Buffer) -> wgpu::BindingResource<'_> {
     buffer.as_entire_binding()
 }
 
-fn part(buffer: &wgpu::Buffer, offset: usize, size: usize) -> wgpu::BindingResource<'_> {
+pub(crate) fn part(buffer: &wgpu::Buffer, offset: usize, size: usize) -> wgpu::BindingResource<'_> {
     wgpu::BindingResource::Buffer(wgpu::BufferBinding {
         buffer,
         offset: offset as u64,
@@ -268,12 +275,12 @@ fn part(buffer: &wgpu::Buffer, offset: usize, size: usize) -> wgpu::BindingResou
     })
 }
 
-fn layout_entry(binding: u32, ty: wgpu::BufferBindingType) -> wgpu::BindGroupLayoutEntry {
+pub(crate) fn layout_entry(binding: u32, ty: wgpu::BufferBindingType) -> wgpu::BindGroupLayoutEntry {
     crate::skinning::buffer_entry(binding, wgpu::ShaderStages::COMPUTE, ty)
 }
 
 /// A uniform binding with a dynamic offset.
-fn dynamic_uniform(binding: u32) -> wgpu::BindGroupLayoutEntry {
+pub(crate) fn dynamic_uniform(binding: u32) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility: wgpu::ShaderStages::COMPUTE,
@@ -337,7 +344,7 @@ impl CullPipelines {
                     layout_entry(5, write),
                 ],
             );
-            let source = [CULL_WGSL, include_str!("shaders/crowd_cull.wgsl")].concat();
+            let source = [CULL_WGSL, OCCLUSION_TEST_WGSL, include_str!("shaders/crowd_cull.wgsl")].concat();
             let (cull, cull_layout) = pipeline(
                 device,
                 "skinlet cull",
@@ -662,6 +669,7 @@ impl CrowdCulling {
                 counts,
                 commands,
                 survivors,
+                state,
                 prepare,
                 cull,
                 pyramid,
@@ -689,7 +697,8 @@ impl CrowdCulling {
         instances: u32,
         timestamps: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) -> Result<()> {
-        self.encode_phase(queue, encoder, camera, tests, instances, timestamps, 0)
+        self.encode_phase(queue, encoder, camera, tests, instances, timestamps, 0, false)?;
+        Ok(())
     }
 
     /// Only the per-joint preparation of [`CrowdCulling::encode`] (the counts and survivor
@@ -704,7 +713,7 @@ impl CrowdCulling {
         tests: Tests,
         instances: u32,
     ) -> Result<()> {
-        let mut pass = self.begin(queue, encoder, camera, tests, instances, None, 0)?;
+        let mut pass = self.begin(queue, encoder, camera, tests, instances, None, 0, false)?;
         self.prepare_pass(&mut pass, instances);
         Ok(())
     }
@@ -725,7 +734,8 @@ impl CrowdCulling {
         if self.occlusion.is_none() {
             return Err(invalid("GPU occlusion culling", "the crowd was made without occlusion culling".into()));
         }
-        self.encode_phase(queue, encoder, camera, tests, instances, timestamps, 1)
+        self.encode_phase(queue, encoder, camera, tests, instances, timestamps, 1, false)?;
+        Ok(())
     }
 
     /// Occlusion culling's second phase, after the first list was drawn into the depth
@@ -735,6 +745,15 @@ impl CrowdCulling {
     /// visibility bit set for the next frame. Allocates nothing. Errors without occlusion
     /// culling.
     pub fn encode_second(&self, encoder: &mut wgpu::CommandEncoder) -> Result<()> {
+        self.encode_second_pass(encoder)?;
+        Ok(())
+    }
+
+    /// [`CrowdCulling::encode_second`], its last pass left open (for the triangle pass).
+    pub(crate) fn encode_second_pass<'e>(
+        &self,
+        encoder: &'e mut wgpu::CommandEncoder,
+    ) -> Result<wgpu::ComputePass<'e>> {
         let (Some((width, height, _, levels)), Some(pyramid)) = (self.occlusion, &self.pyramid) else {
             return Err(invalid("GPU occlusion culling", "the crowd was made without occlusion culling".into()));
         };
@@ -758,7 +777,7 @@ impl CrowdCulling {
         dispatch(&mut pass, self.frame_instances() * self.meshlets);
         pass.set_pipeline(&self.finish_pipeline);
         pass.dispatch_workgroups(1, 1, 1);
-        Ok(())
+        Ok(pass)
     }
 
     /// The instance count the last `encode*` wrote.
@@ -766,25 +785,28 @@ impl CrowdCulling {
         self.frame_instances.load(std::sync::atomic::Ordering::Relaxed)
     }
 
+    /// Phase `phase`'s culling, its pass left open; `triangles`: the triangle pass follows
+    /// (`crowd_cull.wgsl`).
     #[allow(clippy::too_many_arguments)]
-    fn encode_phase(
+    pub(crate) fn encode_phase<'e>(
         &self,
         queue: &wgpu::Queue,
-        encoder: &mut wgpu::CommandEncoder,
+        encoder: &'e mut wgpu::CommandEncoder,
         camera: &Camera,
         tests: Tests,
         instances: u32,
         timestamps: Option<wgpu::ComputePassTimestampWrites<'_>>,
         phase: u32,
-    ) -> Result<()> {
-        let mut pass = self.begin(queue, encoder, camera, tests, instances, timestamps, phase)?;
+        triangles: bool,
+    ) -> Result<wgpu::ComputePass<'e>> {
+        let mut pass = self.begin(queue, encoder, camera, tests, instances, timestamps, phase, triangles)?;
         self.prepare_pass(&mut pass, instances);
         pass.set_pipeline(&self.cull_pipeline);
         pass.set_bind_group(0, &self.cull, &[0]);
         dispatch(&mut pass, instances * self.meshlets);
         pass.set_pipeline(&self.finish_pipeline);
         pass.dispatch_workgroups(1, 1, 1);
-        Ok(())
+        Ok(pass)
     }
 
     fn prepare_pass(&self, pass: &mut wgpu::ComputePass<'_>, instances: u32) {
@@ -805,6 +827,7 @@ impl CrowdCulling {
         instances: u32,
         timestamps: Option<wgpu::ComputePassTimestampWrites<'_>>,
         phase: u32,
+        triangles: bool,
     ) -> Result<wgpu::ComputePass<'e>> {
         if instances > self.capacity {
             return Err(invalid(
@@ -818,7 +841,7 @@ impl CrowdCulling {
         };
         let planes = &camera.planes;
         let params = |phase| {
-            let f = flags(tests, orthographic);
+            let f = flags(tests, orthographic) | (triangles as u32) << 3;
             [self.meshlets, self.joints, instances, f, 0, self.survivor_capacity, self.corners, phase]
         };
         let (width, height, reversed, levels) = self.occlusion.unwrap_or_default();

@@ -12,6 +12,9 @@
 //! - [`crowd_culling`]: culling a crowd on the caller's own device, recorded into the caller's
 //!   own encoder: per-joint preparation and per-meshlet tests in one compute pass, indexed
 //!   indirect draws out, nothing read back (the library API an engine links).
+//! - [`triangle_culling`]: per-triangle culling of crowd culling's survivors with the caller's
+//!   own skinning function (back faces, triangles between pixel centers, the depth pyramid),
+//!   one compacted index list and one indexed indirect draw out.
 //! - [`contours`]: contour extraction (patch culling and edge test passes), equal to brute
 //!   force.
 //!
@@ -49,6 +52,7 @@ pub mod contours;
 pub mod crowd_culling;
 pub mod mesh;
 pub mod skinning;
+pub mod triangle_culling;
 
 pub use context::Gpu;
 

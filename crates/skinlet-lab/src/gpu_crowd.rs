@@ -5,8 +5,9 @@
 //! Views of the same frame ([`CrowdView`]): every meshlet of every instance (`draw_indexed`
 //! over all instances); the survivors pulled by the vertex shader (one `draw_indirect`); the
 //! survivors as indexed draws (`multi_draw_indexed_indirect_count`, where the device has it);
-//! two-phase occlusion culling, pulled (the visibility bits kept across frames); and the ID
-//! buffer of the unculled crowd, whose set of (instance, meshlet) pairs with a visible
+//! two-phase occlusion culling, pulled (the visibility bits kept across frames); either of the
+//! two with skinlet's triangle pass after it (`skinlet_gpu::triangle_culling`: one indexed
+//! indirect draw per phase of the triangles it keeps); and the ID buffer of the unculled crowd, whose set of (instance, meshlet) pairs with a visible
 //! fragment is what no culling can beat (the oracle). All run the same vertex skinning and
 //! faceted shading, so a culled image equals every meshlet drawn the same way exactly when
 //! culling kept every meshlet with a visible fragment (but where two meshlets tie in depth:
@@ -18,6 +19,7 @@ use skinlet_gpu::crowd_culling::{
     CrowdCulling, CullInstance, CullMode, CullPipelines, GpuCharacter, List, OcclusionDepth, SURVIVORS_WGSL,
     SurvivorHeader,
 };
+use skinlet_gpu::triangle_culling::{TRIANGLES_WGSL, TriangleCulling, TriangleHeader, TriangleSkinning};
 use skinlet_gpu::{Gpu, GpuError, Result};
 use skinlet_runtime::camera::Camera;
 use skinlet_runtime::meshlet_cull::{MeshletCuller, Tests};
@@ -34,6 +36,11 @@ pub enum CrowdView {
     /// Two-phase occlusion culling, the survivors pulled: last frame's visible, then the
     /// newly visible against the depth pyramid of the first (two `draw_indirect`).
     Occluded,
+    /// The survivors' triangles kept by the triangle pass: one `draw_indexed_indirect`.
+    Triangles,
+    /// Two-phase occlusion culling with the triangle pass (the visibility bits from the
+    /// triangles): two `draw_indexed_indirect`.
+    OccludedTriangles,
     /// The unculled crowd's (instance, meshlet) ids.
     Ids,
 }
@@ -62,6 +69,8 @@ pub struct CrowdDrawn {
     pub ties: Option<Vec<bool>>,
     /// The survivor lists' headers (culled views: one, two with occlusion culling).
     pub headers: Vec<SurvivorHeader>,
+    /// The triangle lists' headers (the triangle views: one, two with occlusion culling).
+    pub triangle_headers: Vec<TriangleHeader>,
     /// API draw calls the frame recorded (the ID view draws twice).
     pub draw_calls: u32,
     /// GPU time from the culling pass's start (or the render pass's) to the render pass's
@@ -76,20 +85,23 @@ pub struct GpuCrowd {
     capacity: u32,
     joints: u32,
     morphs: u32,
-    stride: u32,
     meshlets: u32,
     index_count: u32,
     /// Per meshlet its first index (increasing: the index buffer is in meshlet order).
     firsts: Vec<u32>,
+    /// Each triangle's meshlet by its vertex indices (sorted).
+    triangle_meshlet: std::collections::HashMap<[u32; 3], u32>,
     palette: wgpu::Buffer,
     instances: wgpu::Buffer,
     weights: wgpu::Buffer,
     view: wgpu::Buffer,
     indices: wgpu::Buffer,
-    culling: CrowdCulling,
-    /// Pipelines and their bind groups: indexed, pulled, ids (nearer wins, nearer or equal
-    /// wins).
-    draws: [(wgpu::RenderPipeline, wgpu::BindGroup); 4],
+    /// The meshlet culling (`culling.crowd()`) and the triangle pass after it.
+    culling: TriangleCulling,
+    /// Group 0 (view, indices, survivors, triangle meshlets) and group 1 (the skinning).
+    groups: [wgpu::BindGroup; 2],
+    /// Pipelines: indexed, pulled, ids (nearer wins, nearer or equal wins), triangles.
+    draws: [wgpu::RenderPipeline; 5],
     color: wgpu::Texture,
     ids: wgpu::Texture,
     depth: wgpu::Texture,
@@ -165,42 +177,123 @@ impl GpuCrowd {
             device, &pipelines, &character, &palette, &instances, capacity, survivors, occlusion,
         )?;
         let commands = culling.commands().clone();
-        let positions: Vec<f32> = mesh.positions.iter().flat_map(|p| p.to_array()).collect();
-        let influences: Vec<[u32; 2]> =
-            inf.joints.iter().zip(&inf.weights).map(|(&j, w)| [j as u32, w.to_bits()]).collect();
+        // The mesh's words (crowd_skin.wgsl): positions, influences, morph offsets, deltas.
+        let vertices = mesh.positions.len();
+        let mut words: Vec<u32> = mesh.positions.iter().flat_map(|p| p.to_array().map(f32::to_bits)).collect();
+        let influences = words.len() as u32;
+        words.extend(inf.joints.iter().zip(&inf.weights).flat_map(|(&j, w)| [j as u32, w.to_bits()]));
+        let morph_offsets = words.len() as u32;
         let mut offsets = mesh.morphs.offsets.clone();
-        offsets.resize(mesh.positions.len() + 1, 0);
-        let deltas: Vec<u32> = (mesh.morphs.deltas.iter())
-            .flat_map(|d| [d.position.x.to_bits(), d.position.y.to_bits(), d.position.z.to_bits(), d.weight])
-            .collect();
+        offsets.resize(vertices + 1, 0);
+        words.extend(offsets);
+        let morph_deltas = words.len() as u32;
+        words.extend(
+            (mesh.morphs.deltas.iter())
+                .flat_map(|d| [d.position.x.to_bits(), d.position.y.to_bits(), d.position.z.to_bits(), d.weight]),
+        );
+        let skin = [joints, inf.stride as u32, morphs, influences, morph_offsets, morph_deltas, 0, 0];
         let triangle_meshlets: Vec<u32> =
             (draws.iter().enumerate()).flat_map(|(m, d)| std::iter::repeat_n(m as u32, d[0] as usize / 3)).collect();
+        let triangle_meshlet = (indices.chunks_exact(3).zip(&triangle_meshlets))
+            .map(|(t, &m)| {
+                let mut t = [t[0], t[1], t[2]];
+                t.sort_unstable();
+                (t, m)
+            })
+            .collect();
         let read = wgpu::BufferUsages::STORAGE;
-        let buffers = [
-            &view,
-            &palette,
-            &gpu.buffer("crowd positions", &positions, read),
-            &gpu.buffer("crowd influences", &influences, read),
-            &gpu.buffer("crowd morph offsets", &offsets, read),
-            &gpu.buffer("crowd morph deltas", &deltas, read),
-            &weights,
-            &gpu.buffer("crowd indices", &indices, read | wgpu::BufferUsages::INDEX),
-            &commands,
-            &gpu.buffer("crowd triangle meshlets", &triangle_meshlets, read),
-        ];
-        let index_buffer = buffers[7].clone();
+        let index_buffer = gpu.buffer("crowd indices", &indices, read | wgpu::BufferUsages::INDEX);
         let target = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
-        let source = [SURVIVORS_WGSL, include_str!("shaders/crowd.wgsl")].concat();
-        gpu.checked("GPU crowd", || {
+        let source = [
+            SURVIVORS_WGSL,
+            TRIANGLES_WGSL,
+            include_str!("shaders/crowd_skin.wgsl"),
+            include_str!("shaders/crowd.wgsl"),
+        ]
+        .concat();
+        // The triangle pass's rounding margins: 2^-14 of the character's size and of the
+        // position.
+        let size = mesh.positions.iter().fold(0f32, |m, p| m.max(p.abs().max_element()));
+        let (margin, relative) = (size / 16384.0, 1.0 / 16384.0);
+        let uniform = |binding, visibility| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let storage = |binding, visibility| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only: true },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let (built, layouts) = gpu.checked("GPU crowd", || {
+            use wgpu::ShaderStages as S;
+            let layout = |label, entries: &[wgpu::BindGroupLayoutEntry]| {
+                device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries })
+            };
+            let draw_layout = layout(
+                "crowd draw",
+                &[uniform(0, S::VERTEX_FRAGMENT), storage(1, S::VERTEX), storage(2, S::VERTEX), storage(3, S::VERTEX)],
+            );
+            let skin_layout = layout(
+                "crowd skinning",
+                &[
+                    uniform(0, S::VERTEX_FRAGMENT | S::COMPUTE),
+                    storage(1, S::VERTEX | S::COMPUTE),
+                    storage(2, S::VERTEX | S::COMPUTE),
+                    storage(3, S::VERTEX | S::COMPUTE),
+                ],
+            );
+            fn entries<'a>(buffers: &[&'a wgpu::Buffer]) -> Vec<wgpu::BindGroupEntry<'a>> {
+                (buffers.iter().enumerate())
+                    .map(|(b, buffer)| wgpu::BindGroupEntry { binding: b as u32, resource: buffer.as_entire_binding() })
+                    .collect()
+            }
+            let groups = [
+                gpu.bind_group(
+                    "crowd draw",
+                    &draw_layout,
+                    &entries(&[
+                        &view,
+                        &index_buffer,
+                        &commands,
+                        &gpu.buffer("crowd triangle meshlets", &triangle_meshlets, read),
+                    ]),
+                ),
+                gpu.bind_group(
+                    "crowd skinning",
+                    &skin_layout,
+                    &entries(&[
+                        &gpu.buffer("crowd skin", &skin, wgpu::BufferUsages::UNIFORM),
+                        &palette,
+                        &gpu.buffer("crowd mesh", &words, read),
+                        &weights,
+                    ]),
+                ),
+            ];
             let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some("crowd"),
                 source: wgpu::ShaderSource::Wgsl(source.into()),
             });
-            let make = |vs: &str, fs: &str, format: wgpu::TextureFormat, compare, bindings: &[u32]| {
+            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("crowd"),
+                bind_group_layouts: &[Some(&draw_layout), Some(&skin_layout)],
+                immediate_size: 0,
+            });
+            let make = |vs: &str, fs: &str, format: wgpu::TextureFormat, compare| {
                 let targets = [Some(format.into())];
-                let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                     label: Some(vs),
-                    layout: None,
+                    layout: Some(&pipeline_layout),
                     vertex: wgpu::VertexState {
                         module: &module,
                         entry_point: Some(vs),
@@ -224,46 +317,57 @@ impl GpuCrowd {
                     }),
                     multiview_mask: None,
                     cache: None,
-                });
-                let entries: Vec<wgpu::BindGroupEntry> = (bindings.iter())
-                    .map(|&b| wgpu::BindGroupEntry { binding: b, resource: buffers[b as usize].as_entire_binding() })
-                    .collect();
-                let layout = pipeline.get_bind_group_layout(0);
-                let group = gpu.bind_group(vs, &layout, &entries);
-                (pipeline, group)
+                })
             };
-            let skinning = [0, 1, 2, 3, 4, 5, 6];
-            let ids = [&skinning[..], &[7, 9]].concat();
             use wgpu::CompareFunction::{Greater, GreaterEqual, Less, LessEqual};
             let (nearer, nearer_or_equal) = if reversed { (Greater, GreaterEqual) } else { (Less, LessEqual) };
-            GpuCrowd {
-                width,
-                height,
-                capacity,
-                joints,
-                morphs,
-                stride: inf.stride as u32,
-                meshlets: character.meshlets(),
-                index_count: indices.len() as u32,
-                firsts: draws.iter().map(|d| d[1]).collect(),
-                palette: palette.clone(),
-                instances: instances.clone(),
-                weights: weights.clone(),
-                view: view.clone(),
-                indices: index_buffer,
-                draws: [
-                    make("vs_indexed", "fs_shaded", COLOR, nearer, &skinning),
-                    make("vs_pulled", "fs_shaded", COLOR, nearer, &[&skinning[..], &[7, 8]].concat()),
-                    make("vs_ids", "fs_ids", IDS, nearer, &ids),
-                    make("vs_ids", "fs_ids", IDS, nearer_or_equal, &ids),
-                ],
-                color: texture(COLOR, target),
-                ids: texture(IDS, target),
-                depth,
-                depth_view,
-                reversed,
-                culling,
-            }
+            let draws = [
+                make("vs_indexed", "fs_shaded", COLOR, nearer),
+                make("vs_pulled", "fs_shaded", COLOR, nearer),
+                make("vs_ids", "fs_ids", IDS, nearer),
+                make("vs_ids", "fs_ids", IDS, nearer_or_equal),
+                make("vs_triangles", "fs_shaded", COLOR, nearer),
+            ];
+            ((groups, draws), skin_layout)
+        })?;
+        let skinning =
+            TriangleSkinning { wgsl: include_str!("shaders/crowd_skin.wgsl"), layout: &layouts, margin, relative };
+        // As many triangles per list as the crowd has: a list never overflows.
+        let all_triangles = capacity.saturating_mul(indices.len() as u32 / 3);
+        let culling = TriangleCulling::new(
+            device,
+            culling,
+            skinning,
+            &index_buffer,
+            vertices as u32,
+            all_triangles,
+            [width, height],
+            true,
+        )?;
+        let (groups, pipelines) = built;
+        Ok(GpuCrowd {
+            width,
+            height,
+            capacity,
+            joints,
+            morphs,
+            meshlets: character.meshlets(),
+            index_count: indices.len() as u32,
+            firsts: draws.iter().map(|d| d[1]).collect(),
+            triangle_meshlet,
+            palette: palette.clone(),
+            instances: instances.clone(),
+            weights: weights.clone(),
+            view: view.clone(),
+            indices: index_buffer,
+            groups,
+            draws: pipelines,
+            color: texture(COLOR, target),
+            ids: texture(IDS, target),
+            depth,
+            depth_view,
+            reversed,
+            culling,
         })
     }
 
@@ -294,7 +398,7 @@ impl GpuCrowd {
         }
         let mut uniforms: Vec<u32> = frame.camera.view_proj.to_cols_array().map(f32::to_bits).to_vec();
         uniforms.extend(light.normalize_or_zero().extend(0.0).to_array().map(f32::to_bits));
-        uniforms.extend([self.joints, self.stride, self.morphs, self.meshlets]);
+        uniforms.extend([self.meshlets, self.culling.vertex_bits(), 0, 0]);
         queue.write_buffer(&self.view, 0, bytemuck::cast_slice(&uniforms));
         let device = &gpu.device;
         let (row, height) = ((4 * self.width).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT), self.height);
@@ -307,8 +411,12 @@ impl GpuCrowd {
             CrowdView::Indexed => &[(0, Some(List::First), true)],
             CrowdView::Pulled => &[(1, Some(List::First), true)],
             CrowdView::Occluded => &[(1, Some(List::First), true), (1, Some(List::Second), false)],
+            CrowdView::Triangles => &[(4, Some(List::First), true)],
+            CrowdView::OccludedTriangles => &[(4, Some(List::First), true), (4, Some(List::Second), false)],
             CrowdView::Ids => &[(2, None, true), (3, None, true)],
         };
+        let triangles = matches!(view, CrowdView::Triangles | CrowdView::OccludedTriangles);
+        let (culling, skinning) = (&self.culling, &self.groups[1]);
         let (readbacks, times) = gpu.checked("GPU crowd frame", || -> Result<_> {
             let mut encoder = device.create_command_encoder(&Default::default());
             let queries = gpu.has_timestamps().then(|| {
@@ -323,12 +431,15 @@ impl GpuCrowd {
                 beginning_of_pass_write_index: Some(0),
                 end_of_pass_write_index: None,
             });
+            let (camera, tests) = (frame.camera, frame.tests);
             match view {
                 CrowdView::Pulled | CrowdView::Indexed => {
-                    self.culling.encode(queue, &mut encoder, frame.camera, frame.tests, n, start)?
+                    culling.crowd().encode(queue, &mut encoder, camera, tests, n, start)?
                 }
-                CrowdView::Occluded => {
-                    self.culling.encode_first(queue, &mut encoder, frame.camera, frame.tests, n, start)?
+                CrowdView::Occluded => culling.crowd().encode_first(queue, &mut encoder, camera, tests, n, start)?,
+                CrowdView::Triangles => culling.encode(queue, &mut encoder, camera, tests, n, skinning, start)?,
+                CrowdView::OccludedTriangles => {
+                    culling.encode_first(queue, &mut encoder, camera, tests, n, skinning, start)?
                 }
                 _ => {
                     encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -341,8 +452,10 @@ impl GpuCrowd {
             let target_view = target.create_view(&Default::default());
             let mut readbacks = Vec::new();
             for (k, &(p, list, clear)) in passes.iter().enumerate() {
-                if list == Some(List::Second) {
-                    self.culling.encode_second(&mut encoder)?;
+                match (list, triangles) {
+                    (Some(List::Second), false) => culling.crowd().encode_second(&mut encoder)?,
+                    (Some(List::Second), true) => culling.encode_second(&mut encoder, skinning)?,
+                    _ => {}
                 }
                 let last = k + 1 == passes.len();
                 let (color, depth) = match clear {
@@ -376,14 +489,15 @@ impl GpuCrowd {
                     occlusion_query_set: None,
                     multiview_mask: None,
                 });
-                let (pipeline, group) = &self.draws[p];
-                pass.set_pipeline(pipeline);
-                pass.set_bind_group(0, group, &[]);
+                pass.set_pipeline(&self.draws[p]);
+                pass.set_bind_group(0, &self.groups[0], &[]);
+                pass.set_bind_group(1, skinning, &[]);
                 pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
                 match (view, list) {
                     (CrowdView::Ids, _) => pass.draw(0..self.index_count, 0..n),
-                    (CrowdView::Indexed, Some(list)) => self.culling.draw_indexed(&mut pass, list)?,
-                    (_, Some(list)) => self.culling.draw_pulled(&mut pass, list),
+                    (CrowdView::Indexed, Some(list)) => culling.crowd().draw_indexed(&mut pass, list)?,
+                    (_, Some(list)) if triangles => culling.draw(&mut pass, list),
+                    (_, Some(list)) => culling.crowd().draw_pulled(&mut pass, list),
                     (_, None) => pass.draw_indexed(0..self.index_count, 0, 0..n),
                 }
                 drop(pass);
@@ -433,8 +547,16 @@ impl GpuCrowd {
         let headers = match lists {
             0 => Vec::new(),
             _ => {
-                let words = gpu.read(self.culling.survivors(), 2 * SurvivorHeader::SIZE)?;
+                let words = gpu.read(culling.crowd().survivors(), 2 * SurvivorHeader::SIZE)?;
                 let all: Vec<SurvivorHeader> = bytemuck::pod_collect_to_vec(&words);
+                all[..lists].to_vec()
+            }
+        };
+        let triangle_headers = match triangles {
+            false => Vec::new(),
+            true => {
+                let words = gpu.read(culling.triangles(), 2 * TriangleHeader::SIZE)?;
+                let all: Vec<TriangleHeader> = bytemuck::pod_collect_to_vec(&words);
                 all[..lists].to_vec()
             }
         };
@@ -445,7 +567,7 @@ impl GpuCrowd {
             }
             None => None,
         };
-        Ok(CrowdDrawn { image, ids, ties, headers, draw_calls: passes.len() as u32, gpu_ms })
+        Ok(CrowdDrawn { image, ids, ties, headers, triangle_headers, draw_calls: passes.len() as u32, gpu_ms })
     }
 
     /// The depth buffer the last frame left, rows top to bottom.
@@ -476,15 +598,40 @@ impl GpuCrowd {
     /// The survivors of the last culled frame as (instance, meshlet) pairs: the first list's,
     /// then (occlusion culling) the second's.
     pub fn survivors(&self, gpu: &Gpu) -> Result<Vec<[u32; 2]>> {
-        let words = gpu.read(self.culling.survivors(), 2 * SurvivorHeader::SIZE)?;
+        let crowd = self.culling.crowd();
+        let words = gpu.read(crowd.survivors(), 2 * SurvivorHeader::SIZE)?;
         let headers: Vec<SurvivorHeader> = bytemuck::pod_collect_to_vec(&words);
-        let places = self.culling.survivor_capacity() as u64;
-        let all = bytemuck::pod_collect_to_vec::<u8, u32>(&gpu.read(self.culling.commands(), 40 * places)?);
+        let places = crowd.survivor_capacity() as u64;
+        let all = bytemuck::pod_collect_to_vec::<u8, u32>(&gpu.read(crowd.commands(), 40 * places)?);
         let meshlet = |first: u32| self.firsts.binary_search(&first).unwrap_or(usize::MAX) as u32;
         let mut out = Vec::new();
         for (k, h) in headers.iter().enumerate() {
             let list = &all[5 * (k as u64 * places) as usize..];
             out.extend(list.chunks_exact(5).take(h.instance_count as usize).map(|c| [c[4], meshlet(c[2])]));
+        }
+        Ok(out)
+    }
+
+    /// The triangles the last frame of a triangle view drew, as (instance, meshlet) per
+    /// triangle (both lists'): the meshlet found by the triangle's vertices. Errors when a
+    /// listed triangle is none of the mesh's.
+    pub fn drawn_triangles(&self, gpu: &Gpu) -> Result<Vec<[u32; 2]>> {
+        let culling = &self.culling;
+        let words = gpu.read(culling.triangles(), 2 * TriangleHeader::SIZE)?;
+        let headers: Vec<TriangleHeader> = bytemuck::pod_collect_to_vec(&words);
+        let size = 2 * TriangleHeader::SIZE + 2 * 12 * culling.capacity() as u64;
+        let all = bytemuck::pod_collect_to_vec::<u8, u32>(&gpu.read(culling.triangles(), size)?);
+        let (bits, mut out) = (culling.vertex_bits(), Vec::new());
+        for (k, h) in headers.iter().enumerate() {
+            let start = 16 + 3 * k * culling.capacity() as usize;
+            for t in all[start..start + h.index_count as usize].chunks_exact(3) {
+                let mut vertices = [t[0], t[1], t[2]].map(|i| i & ((1u64 << bits) - 1) as u32);
+                vertices.sort_unstable();
+                let meshlet = self.triangle_meshlet.get(&vertices).ok_or_else(|| {
+                    invalid(format!("list {k} holds a triangle {t:?} of no meshlet (vertices {vertices:?})"))
+                })?;
+                out.push([t[0] >> bits, *meshlet]);
+            }
         }
         Ok(out)
     }

@@ -23,8 +23,9 @@ const LIGHT: Vec3 = Vec3::new(0.4, 0.8, 0.6);
 
 /// Draws `frame` every way; checks the images, the draw calls and that the survivors hold
 /// every visible meshlet. Returns the meshlets drawn after frustum and backface culling, after
-/// occlusion culling too, with a visible fragment (the oracle), and in all.
-fn check_frame(gpu: &Gpu, crowd: &GpuCrowd, frame: &CrowdFrame, what: &str) -> [usize; 4] {
+/// occlusion culling too, with a visible fragment (the oracle), in all, and with a triangle
+/// drawn by occlusion culling with the triangle pass.
+fn check_frame(gpu: &Gpu, crowd: &GpuCrowd, frame: &CrowdFrame, what: &str) -> [usize; 5] {
     // Each way of drawing is compared with every meshlet drawn the same way (every instance
     // kept): lavapipe rasterizes a pixel here and there differently between one instanced
     // draw, a pulled draw and a multi-draw of the same triangles (a different vertex shader
@@ -37,13 +38,20 @@ fn check_frame(gpu: &Gpu, crowd: &GpuCrowd, frame: &CrowdFrame, what: &str) -> [
     assert!(!visible.is_empty(), "{what}: nothing visible");
     // Occlusion culling twice: with the bits the crowd's last frame left, then with this
     // frame's.
-    let mut views = vec![CrowdView::Pulled, CrowdView::Occluded, CrowdView::Occluded];
+    let mut views = vec![
+        CrowdView::Pulled,
+        CrowdView::Occluded,
+        CrowdView::Occluded,
+        CrowdView::Triangles,
+        CrowdView::OccludedTriangles,
+        CrowdView::OccludedTriangles,
+    ];
     if gpu.has_indirect_count() {
         views.push(CrowdView::Indexed);
     } else if std::env::var("SKINLET_REQUIRE_GPU").is_ok_and(|v| v == "1") {
         panic!("the adapter lacks MULTI_DRAW_INDIRECT_COUNT: the indexed survivors' draw is not tested");
     }
-    let (mut survivors, mut occluded) = (0, 0);
+    let (mut survivors, mut occluded, mut by_triangles) = (0, 0, 0);
     for view in views {
         let same_way = if view == CrowdView::Indexed { view } else { CrowdView::Pulled };
         let reference = crowd.draw(gpu, &unculled, same_way, LIGHT).unwrap();
@@ -59,8 +67,26 @@ fn check_frame(gpu: &Gpu, crowd: &GpuCrowd, frame: &CrowdFrame, what: &str) -> [
         let differing: Vec<usize> = (0..ties.len()).filter(|&p| a[4 * p..4 * p + 4] != b[4 * p..4 * p + 4]).collect();
         let untied = differing.iter().filter(|&&p| !ties[p]).count();
         assert_eq!(untied, 0, "{what} {view:?}: {untied} pixels without a depth tie differ from the unculled image");
-        let list: HashSet<u32> = crowd.survivors(gpu).unwrap().iter().map(|&[i, m]| i * crowd.meshlets() + m).collect();
-        assert_eq!(list.len(), listed as usize, "{what} {view:?}: survivors listed twice");
+        let list: HashSet<u32> = match drawn.triangle_headers.is_empty() {
+            true => {
+                let list: HashSet<u32> =
+                    crowd.survivors(gpu).unwrap().iter().map(|&[i, m]| i * crowd.meshlets() + m).collect();
+                assert_eq!(list.len(), listed as usize, "{what} {view:?}: survivors listed twice");
+                list
+            }
+            false => {
+                let triangles = crowd.drawn_triangles(gpu).unwrap();
+                let list: HashSet<u32> = triangles.iter().map(|&[i, m]| i * crowd.meshlets() + m).collect();
+                let headers = &drawn.triangle_headers;
+                for h in headers {
+                    assert_eq!(3 * h.found, h.index_count, "{what} {view:?}: the triangle list overflowed");
+                }
+                let meshlets: u32 = headers.iter().map(|h| h.meshlets).sum();
+                assert_eq!(list.len(), meshlets as usize, "{what} {view:?}: meshlets with triangles, counted");
+                assert_eq!(triangles.len() as u32, headers.iter().map(|h| h.found).sum::<u32>(), "{what} {view:?}");
+                list
+            }
+        };
         if let Some(missing) = visible.difference(&list).next() {
             panic!(
                 "{what} {view:?}: meshlet {} of instance {} is visible and was culled",
@@ -74,8 +100,11 @@ fn check_frame(gpu: &Gpu, crowd: &GpuCrowd, frame: &CrowdFrame, what: &str) -> [
         if view == CrowdView::Occluded {
             occluded = list.len();
         }
+        if view == CrowdView::OccludedTriangles {
+            by_triangles = list.len();
+        }
     }
-    [survivors, occluded, visible.len(), frame.modes.len() * crowd.meshlets() as usize]
+    [survivors, occluded, visible.len(), frame.modes.len() * crowd.meshlets() as usize, by_triangles]
 }
 
 /// The palettes and morph weights of `scene` at frame `f`, each instance playing its clip,
@@ -112,7 +141,7 @@ fn survivors_draw_the_unculled_image_and_hold_every_visible_meshlet() {
     let demo =
         skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams { triangles: 4000, ..Default::default() });
     all.push(("demo".into(), demo));
-    let mut totals = [0usize; 4];
+    let mut totals = [0usize; 5];
     for (name, asset) in all {
         let character = asset.character().unwrap();
         let baked = bake(&asset, &character);
@@ -134,10 +163,10 @@ fn survivors_draw_the_unculled_image_and_hold_every_visible_meshlet() {
             }
         }
     }
-    let [drawn, occluded, visible, meshlets] = totals;
+    let [drawn, occluded, visible, meshlets, by_triangles] = totals;
     eprintln!(
-        "{meshlets} (instance, meshlet) pairs: {drawn} drawn, {occluded} with occlusion culling, {visible} with a \
-         visible fragment"
+        "{meshlets} (instance, meshlet) pairs: {drawn} drawn, {occluded} with occlusion culling, {by_triangles} with \
+         a triangle drawn by it and the triangle pass, {visible} with a visible fragment"
     );
     assert!(drawn < meshlets, "nothing was culled: the comparison would be vacuous");
 }
@@ -182,7 +211,7 @@ fn game_poses_under_the_pose_guard_draw_every_visible_meshlet() {
     assert!(refused > 0 && refused < 15, "the guard refused {refused} of 16 instances");
     let frame =
         CrowdFrame { palette: &palette, modes: &modes, weights: &weights, camera: &scene.camera, tests: Tests::Both };
-    let [drawn, _, _, meshlets] = check_frame(&gpu, &crowd, &frame, "IK poses");
+    let [drawn, _, _, meshlets, _] = check_frame(&gpu, &crowd, &frame, "IK poses");
     assert!(drawn < meshlets, "nothing was culled");
 }
 

@@ -9,6 +9,11 @@
 // set to whether it is visible now). Phase 2 tests every meshlet against depth this frame's
 // geometry wrote, so a meshlet with a visible fragment is drawn in phase 1 or 2 whatever
 // last frame's bits say (a camera cut or a teleport costs work, never a missing meshlet).
+//
+// With the triangle pass after it (cull_params.flags bit 3, triangle_cull.wgsl), an entry's
+// instance count holds the meshlet's index instead (the lists are that pass's input, not
+// draws), and phase 2 lists every survivor of its tests, drawn in phase 1 or not, and clears
+// only the bits of those it culls: the triangle pass sets the others' from their triangles.
 
 @group(0) @binding(0) var<uniform> cull_params: CullParams;
 @group(0) @binding(1) var<storage, read> slots: array<Slot>;
@@ -28,22 +33,9 @@
 @group(0) @binding(7) var<storage, read> any_pose_boxes: array<u32>;
 // The lists' headers, 8 words each (A at 0, B at 8): DrawIndirectArgs of the pulled draw
 // (vertex count = the largest meshlet's corners, instance count = survivors drawn, first
-// vertex 0, first instance = where the list starts), then the survivors found.
+// vertex 0, first instance = where the list starts), the survivors found, and the triangle
+// pass's workgroup counts (x, y, z).
 @group(0) @binding(8) var<storage, read_write> survivors: array<atomic<u32>>;
-
-struct Occlusion {
-    view_proj: mat4x4<f32>,
-    width: u32,
-    height: u32,
-    // Where the pyramid starts in `state` (pyramid.wgsl).
-    pyramid_base: u32,
-    // 1: reversed depth (near 1, far 0).
-    reverse: u32,
-    levels: u32,
-    pad0: u32,
-    pad1: u32,
-    pad2: u32,
-}
 
 @group(0) @binding(9) var<uniform> occlusion: Occlusion;
 // Per (instance, meshlet) its visibility bit (a word) last frame, then the depth pyramid.
@@ -91,13 +83,8 @@ fn moved_box(b: u32, c: vec3<f32>, h: vec3<f32>, r: f32) -> Box {
     return Box(center - grow, center + grow);
 }
 
-// Whether every point of the world box is behind the depth pyramid: the box's 8 corners
-// projected (a corner at or behind the eye's plane: not occluded), the pixels whose centers
-// lie in the screen rectangle around them widened by 1/16 pixel (rasterizers snap vertices to
-// 1/16 pixel or finer; a fragment is a pixel center a triangle covers, its depth interpolated
-// between its corners', so no farther than the box's nearest), its nearest depth against the
-// farthest depth over those pixels at the pyramid level where they span at most 8 × 8 texels.
-// A box that covers no pixel center on screen draws nothing: occluded.
+// Whether every point of the world box is behind the depth pyramid: its 8 corners projected
+// (a corner at or behind the eye's plane: not occluded), then `ndc_hidden`.
 fn box_occluded(bx: Box) -> bool {
     var lo = vec3<f32>(1e30);
     var hi = vec3<f32>(-1e30);
@@ -112,44 +99,8 @@ fn box_occluded(bx: Box) -> bool {
         lo = min(lo, ndc);
         hi = max(hi, ndc);
     }
-    let size = vec2<f32>(f32(occlusion.width), f32(occlusion.height));
-    // NDC y up, pixel rows down; pixel i's center at i + 0.5.
-    let e = 0.5 + 1.0 / 16.0;
-    let first = ceil(vec2<f32>((lo.x * 0.5 + 0.5) * size.x, (0.5 - hi.y * 0.5) * size.y) - e);
-    let last = floor(vec2<f32>((hi.x * 0.5 + 0.5) * size.x, (0.5 - lo.y * 0.5) * size.y) - 0.5 + 1.0 / 16.0);
-    let start = max(first, vec2<f32>(0.0));
-    let end = min(last, size - 1.0);
-    if !(start.x <= end.x && start.y <= end.y) {
-        return true;
-    }
-    let x0 = u32(start.x);
-    let y0 = u32(start.y);
-    let x1 = u32(end.x);
-    let y1 = u32(end.y);
-    // The level where the pixels span at most 8 × 8 texels, and where it starts.
-    var level = 0u;
-    var w = occlusion.width;
-    var h = occlusion.height;
-    var offset = occlusion.pyramid_base;
-    while level + 1u < occlusion.levels && ((x1 >> level) - (x0 >> level) > 7u || (y1 >> level) - (y0 >> level) > 7u) {
-        offset += w * h;
-        w = (w + 1u) / 2u;
-        h = (h + 1u) / 2u;
-        level += 1u;
-    }
-    let reverse = occlusion.reverse != 0u;
-    var far = select(0.0, 1.0, reverse);
-    for (var y = y0 >> level; y <= min(y1 >> level, h - 1u); y++) {
-        for (var x = x0 >> level; x <= min(x1 >> level, w - 1u); x++) {
-            let d = bitcast<f32>(state[offset + y * w + x]);
-            far = select(max(far, d), min(far, d), reverse);
-        }
-    }
-    // Nearest depth of the box: lo.z (hi.z reversed), a few ulps nearer for rounding.
-    if reverse {
-        return hi.z * (1.0 + 4e-7) + 1e-7 < far;
-    }
-    return lo.z * (1.0 - 4e-7) - 1e-7 > far;
+    let rect = pixel_rect(lo.xy, hi.xy, vec2<f32>(f32(occlusion.width), f32(occlusion.height)));
+    return rect_empty(rect) || rect_behind(rect, lo.z, hi.z);
 }
 
 // The union of meshlet `s`'s any-pose boxes moved by their joints (a box around it for any
@@ -207,6 +158,7 @@ fn occluded(s: Slot, instance: u32) -> bool {
 fn cull_draws(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
     let index = invocation(gid);
     let phase = cull_params.phase;
+    let triangles = (cull_params.flags & 8u) != 0u;
     var instance = 0u;
     var id = 0u;
     var place = 0xffffffffu;
@@ -225,8 +177,16 @@ fn cull_draws(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invo
                 category = 3u;
                 survives = false;
             }
-            survives = survives && state[bit] == 0u;
-            state[bit] = select(0u, 1u, category == 0u);
+            if triangles {
+                // The triangle pass sets the bits of the survivors (from their triangles) and
+                // skips drawing those phase 1 drew.
+                if !survives {
+                    state[bit] = 0u;
+                }
+            } else {
+                survives = survives && state[bit] == 0u;
+                state[bit] = select(0u, 1u, category == 0u);
+            }
         }
         if phase != 1u {
             atomicAdd(&counts[4u * instance + category], 1u);
@@ -245,7 +205,7 @@ fn cull_draws(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invo
         let draw = meshlet_draws[id];
         let c = 5u * (select(0u, cull_params.capacity, phase == 2u) + base + place);
         commands[c] = draw.x;
-        commands[c + 1u] = 1u;
+        commands[c + 1u] = select(1u, id, triangles);
         commands[c + 2u] = draw.y;
         commands[c + 3u] = 0u;
         commands[c + 4u] = instance;
@@ -253,12 +213,17 @@ fn cull_draws(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invo
 }
 
 // After `cull_draws`: this phase's pulled draw arguments, the count (also that of the indexed
-// draws) clamped to the list's capacity, so a frame draws only entries it wrote.
+// draws) clamped to the list's capacity, so a frame draws only entries it wrote, and the
+// triangle pass's workgroups (one per survivor, rows of at most 65535).
 @compute @workgroup_size(1)
 fn finish_draws() {
     let header = select(0u, 8u, cull_params.phase == 2u);
+    let count = min(atomicLoad(&survivors[header + 4u]), cull_params.capacity);
     atomicStore(&survivors[header], cull_params.corners);
-    atomicStore(&survivors[header + 1u], min(atomicLoad(&survivors[header + 4u]), cull_params.capacity));
+    atomicStore(&survivors[header + 1u], count);
     atomicStore(&survivors[header + 2u], 0u);
     atomicStore(&survivors[header + 3u], select(0u, cull_params.capacity, cull_params.phase == 2u));
+    atomicStore(&survivors[header + 5u], min(count, 65535u));
+    atomicStore(&survivors[header + 6u], (count + 65534u) / 65535u);
+    atomicStore(&survivors[header + 7u], 1u);
 }

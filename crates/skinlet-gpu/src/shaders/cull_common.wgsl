@@ -7,7 +7,8 @@ struct CullParams {
     slots: u32,
     joints: u32,
     instances: u32,
-    // bit 0: frustum test, bit 1: backface test, bit 2: orthographic camera.
+    // bit 0: frustum test, bit 1: backface test, bit 2: orthographic camera; crowd culling:
+    // bit 3, the triangle pass follows (crowd_cull.wgsl).
     flags: u32,
     pad: u32,
     // Crowd culling: how many survivors the compacted list holds, and the corners (indices)

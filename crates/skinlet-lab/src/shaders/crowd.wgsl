@@ -1,33 +1,23 @@
-// The GPU-driven crowd's draws (gpu_crowd.rs): vertex skinning (morph deltas, then linear
-// blend skinning by the palette skinlet culls with), faceted shading or meshlet ids. After
-// skinlet-gpu's SURVIVORS_WGSL.
+// The GPU-driven crowd's draws (gpu_crowd.rs): vertex skinning (crowd_skin.wgsl), faceted
+// shading or meshlet ids. After skinlet-gpu's SURVIVORS_WGSL and TRIANGLES_WGSL.
 
 struct View {
     view_proj: mat4x4<f32>,
     light: vec4<f32>,
-    joints: u32,
-    stride: u32,
-    weights: u32,
     meshlets: u32,
+    // Bits of a triangle list's index that hold the vertex.
+    vertex_bits: u32,
+    pad0: u32,
+    pad1: u32,
 }
 
 @group(0) @binding(0) var<uniform> view: View;
-// Per instance, per joint: the world-space skinning matrix.
-@group(0) @binding(1) var<storage, read> palette: array<mat4x4<f32>>;
-@group(0) @binding(2) var<storage, read> positions: array<f32>;
-// Per vertex `stride` slots: (joint, weight bits).
-@group(0) @binding(3) var<storage, read> influences: array<vec2<u32>>;
-@group(0) @binding(4) var<storage, read> morph_offsets: array<u32>;
-// (delta, target index bits).
-@group(0) @binding(5) var<storage, read> morph_deltas: array<vec4<f32>>;
-// Per instance `weights` morph weights.
-@group(0) @binding(6) var<storage, read> morph_weights: array<f32>;
 // The index buffer in meshlet order, read by the pulled and id draws.
-@group(0) @binding(7) var<storage, read> indices: array<u32>;
+@group(0) @binding(1) var<storage, read> indices: array<u32>;
 // The survivors (skinlet's crowd culling), read by the pulled draw.
-@group(0) @binding(8) var<storage, read> survivor_draws: array<u32>;
+@group(0) @binding(2) var<storage, read> survivor_draws: array<u32>;
 // Per triangle (in index buffer order) its meshlet, read by the id draw.
-@group(0) @binding(9) var<storage, read> triangle_meshlets: array<u32>;
+@group(0) @binding(3) var<storage, read> triangle_meshlets: array<u32>;
 
 struct Shaded {
     @builtin(position) clip: vec4<f32>,
@@ -39,20 +29,8 @@ struct Identified {
     @location(0) @interpolate(flat) id: u32,
 }
 
-fn skinned(v: u32, i: u32) -> vec3<f32> {
-    var p = vec3<f32>(positions[3u * v], positions[3u * v + 1u], positions[3u * v + 2u]);
-    for (var d = morph_offsets[v]; d < morph_offsets[v + 1u]; d++) {
-        p += morph_deltas[d].xyz * morph_weights[i * view.weights + bitcast<u32>(morph_deltas[d].w)];
-    }
-    var s = mat4x4<f32>();
-    for (var k = v * view.stride; k < (v + 1u) * view.stride; k++) {
-        s += palette[i * view.joints + influences[k].x] * bitcast<f32>(influences[k].y);
-    }
-    return (s * vec4<f32>(p, 1.0)).xyz;
-}
-
 fn shaded(v: u32, i: u32) -> Shaded {
-    let world = skinned(v, i);
+    let world = skinned_position(i, v);
     return Shaded(view.view_proj * vec4<f32>(world, 1.0), world);
 }
 
@@ -73,11 +51,18 @@ fn vs_pulled(@builtin(vertex_index) corner: u32, @builtin(instance_index) surviv
     return shaded(indices[c.index], c.instance);
 }
 
+// The triangle pass's list: each index an (instance, vertex).
+@vertex
+fn vs_triangles(@builtin(vertex_index) index: u32) -> Shaded {
+    let iv = triangle_vertex(index, view.vertex_bits);
+    return shaded(iv.y, iv.x);
+}
+
 // Every instance's every triangle (draw(0..indices, 0..instances)), with its (instance,
 // meshlet) id + 1.
 @vertex
 fn vs_ids(@builtin(vertex_index) k: u32, @builtin(instance_index) i: u32) -> Identified {
-    let world = skinned(indices[k], i);
+    let world = skinned_position(i, indices[k]);
     return Identified(view.view_proj * vec4<f32>(world, 1.0), i * view.meshlets + triangle_meshlets[k / 3u] + 1u);
 }
 

@@ -1,0 +1,219 @@
+// Per-triangle culling of the meshlet survivors (skinning thesis, the per-triangle stage after
+// meshlet culling), after occlusion_test.wgsl and the caller's skinning WGSL (which defines
+// `skinned_position(instance, vertex) -> vec3<f32>`, world space, from its bindings in group
+// 1): one workgroup per survivor of crowd_cull.wgsl's list; each lane skins the corners of
+// one triangle at a time and keeps it unless it is certainly
+// - outside one side plane of the clip volume (all three corners beyond it),
+// - back-facing where the draw culls back faces (counter-clockwise front),
+// - covering no pixel center,
+// - or, in occlusion culling's phase 2, behind the depth pyramid;
+// kept triangles go to a list of indices (instance << vertex_bits | vertex) a workgroup's
+// chunk at a time (one atomic per chunk), drawn with one indexed indirect draw.
+//
+// Conservative against the draw: the caller's vertex shader runs the same skinning, which may
+// round differently by `margin + relative × |p|` (world units) at most; the pass widens every corner by that
+// and by its own projection's rounding, and every test above by what rasterizers do (vertices
+// snapped to 1/16 pixel or finer). In phase 2 a survivor's visibility bit becomes whether one
+// of its triangles passed every test, the pyramid's included, and its triangles are listed only
+// if phase 1 did not draw it (its bit was set: crowd_cull.wgsl listed it in phase 1).
+
+struct TriangleParams {
+    // As cull_params.phase: 0 one phase, 1 and 2 occlusion culling's.
+    phase: u32,
+    // Triangles each list holds.
+    capacity: u32,
+    vertex_bits: u32,
+    // bit 0: the draw culls back faces.
+    flags: u32,
+    width: u32,
+    height: u32,
+    // Survivors each of crowd_cull.wgsl's lists holds.
+    survivor_capacity: u32,
+    meshlets: u32,
+    // How far the draw's skinned position may be from this pass's: margin + relative × |p|.
+    margin: f32,
+    relative: f32,
+    pad1: u32,
+    pad2: u32,
+}
+
+@group(0) @binding(0) var<uniform> tri: TriangleParams;
+@group(0) @binding(1) var<uniform> occlusion: Occlusion;
+// crowd_cull.wgsl's survivors: index count, meshlet, first index, 0, instance.
+@group(0) @binding(2) var<storage, read> commands: array<u32>;
+// crowd_cull.wgsl's list headers (8 words each; word 1: survivors listed).
+@group(0) @binding(3) var<storage, read> survivors: array<u32>;
+// Visibility bits, then the depth pyramid (crowd_cull.wgsl, pyramid.wgsl).
+@group(0) @binding(4) var<storage, read_write> state: array<u32>;
+// The caller's index buffer, meshlet by meshlet.
+@group(0) @binding(5) var<storage, read> mesh_indices: array<u32>;
+// Two headers of 8 words (lists A and B): DrawIndexedIndirectArgs (index count, 1, first
+// index, 0, 0), triangles found, meshlets with a triangle listed, 0; then list A's indices,
+// then list B's from 3 × capacity.
+@group(0) @binding(6) var<storage, read_write> triangles: array<atomic<u32>>;
+
+var<workgroup> group_kept: atomic<u32>;
+var<workgroup> group_base: u32;
+var<workgroup> group_seen: atomic<u32>;
+
+// A corner in clip space and how far the draw's may be from it, per component.
+struct Corner {
+    clip: vec4<f32>,
+    err: vec4<f32>,
+}
+
+fn corner(instance: u32, vertex: u32) -> Corner {
+    let p = skinned_position(instance, vertex);
+    let m = occlusion.view_proj;
+    let a = mat4x4<f32>(abs(m[0]), abs(m[1]), abs(m[2]), abs(m[3]));
+    let d = tri.margin + tri.relative * max(max(abs(p.x), abs(p.y)), abs(p.z));
+    // The draw's skinning within `d`; both products rounded within 2^-20 of their terms'
+    // magnitude (four terms, a few ulps each).
+    let err = a * vec4<f32>(d, d, d, 0.0) + (1.0 / 1048576.0) * (a * vec4<f32>(abs(p), 1.0));
+    return Corner(m * vec4<f32>(p, 1.0), err);
+}
+
+// Whether all three corners are beyond the clip plane s·x ≤ w for component k (x or y) and
+// sign s.
+fn beyond(c: array<Corner, 3>, k: u32, s: f32) -> bool {
+    var all = true;
+    for (var i = 0u; i < 3u; i++) {
+        all = all && s * c[i].clip[k] - c[i].clip.w > c[i].err[k] + c[i].err.w;
+    }
+    return all;
+}
+
+// What the tests make of one triangle: 0 culled, 1 drawn (phases 0 and 1, or behind the
+// pyramid's test unknown), 2 drawn and not behind the pyramid (phase 2).
+fn test_triangle(c: array<Corner, 3>) -> u32 {
+    if beyond(c, 0u, 1.0) || beyond(c, 0u, -1.0) || beyond(c, 1u, 1.0) || beyond(c, 1u, -1.0) {
+        return 0u;
+    }
+    // Each corner's NDC interval (w bounded away from 0), the triangle's box.
+    var lo = vec3<f32>(1e30);
+    var hi = vec3<f32>(-1e30);
+    var mid: array<vec2<f32>, 3>;
+    var half: array<f32, 3>;
+    let size = vec2<f32>(f32(tri.width), f32(tri.height));
+    for (var i = 0u; i < 3u; i++) {
+        let q = c[i].clip;
+        let e = c[i].err;
+        let wl = q.w - e.w;
+        if !(wl > 1e-6 * (abs(q.x) + abs(q.y) + abs(q.z)) + 1e-30) {
+            // At or behind the eye's plane: no bounded screen box; drawn.
+            return 2u;
+        }
+        let wh = q.w + e.w;
+        let l = min((q.xyz - e.xyz) / wl, (q.xyz - e.xyz) / wh);
+        let h = max((q.xyz + e.xyz) / wl, (q.xyz + e.xyz) / wh);
+        let l2 = l - 1e-6 * abs(l) - 1e-30;
+        let h2 = h + 1e-6 * abs(h) + 1e-30;
+        lo = min(lo, l2);
+        hi = max(hi, h2);
+        // In pixels (y up: orientation kept): the middle and the half width of the interval.
+        mid[i] = 0.25 * (l2.xy + h2.xy) * size;
+        half[i] = 0.25 * max((h2.x - l2.x) * size.x, (h2.y - l2.y) * size.y);
+    }
+    let rect = pixel_rect(lo.xy, hi.xy, size);
+    if rect_empty(rect) {
+        return 0u;
+    }
+    if (tri.flags & 1u) != 0u {
+        // Twice the signed area (counter-clockwise positive) and how far it can move when each
+        // corner moves by its half width and a rasterizer's snapping (1/16 pixel).
+        let a = mid[1] - mid[0];
+        let b = mid[2] - mid[0];
+        // (And the rounding of the middles and their differences, a few ulps of the middles.)
+        let m0 = max(abs(mid[0].x), abs(mid[0].y));
+        let da = half[0] + half[1] + 0.125 + 5e-7 * (m0 + max(abs(mid[1].x), abs(mid[1].y)));
+        let db = half[0] + half[2] + 0.125 + 5e-7 * (m0 + max(abs(mid[2].x), abs(mid[2].y)));
+        let area = a.x * b.y - a.y * b.x;
+        let slack = da * (abs(b.x) + abs(b.y)) + db * (abs(a.x) + abs(a.y)) + 2.0 * da * db
+            + 1e-6 * (abs(a.x * b.y) + abs(a.y * b.x));
+        if area + slack < 0.0 {
+            return 0u;
+        }
+    }
+    if tri.phase == 2u && rect_behind(rect, lo.z, hi.z) {
+        return 1u;
+    }
+    return 2u;
+}
+
+@compute @workgroup_size(64)
+fn cull_triangles(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
+    let survivor = wid.y * 65535u + wid.x;
+    let phase = tri.phase;
+    let list = select(0u, 1u, phase == 2u);
+    if survivor >= survivors[8u * list + 1u] {
+        return;
+    }
+    let c = 5u * (list * tri.survivor_capacity + survivor);
+    let count = commands[c] / 3u;
+    let meshlet = commands[c + 1u];
+    let first = commands[c + 2u];
+    let instance = commands[c + 4u];
+    let bit = instance * tri.meshlets + meshlet;
+    // Phase 2 lists what phase 1 drew too: for its bit, not to draw it again.
+    let drawn = phase == 2u && state[bit] != 0u;
+    let header = 8u * list;
+    let out = 16u + 3u * list * tri.capacity;
+    var listed = false;
+    for (var t0 = 0u; t0 < count; t0 += 64u) {
+        let t = t0 + lane;
+        var keep = false;
+        var v: array<u32, 3>;
+        if t < count {
+            var k: array<Corner, 3>;
+            for (var i = 0u; i < 3u; i++) {
+                v[i] = mesh_indices[first + 3u * t + i];
+                k[i] = corner(instance, v[i]);
+            }
+            let result = test_triangle(k);
+            if result == 2u {
+                atomicStore(&group_seen, 1u);
+            }
+            keep = select(result != 0u, result == 2u && !drawn, phase == 2u);
+        }
+        var place = 0u;
+        if keep {
+            place = atomicAdd(&group_kept, 1u);
+        }
+        workgroupBarrier();
+        if lane == 0u {
+            let n = atomicLoad(&group_kept);
+            atomicStore(&group_kept, 0u);
+            group_base = atomicAdd(&triangles[header + 5u], n);
+            listed = listed || n > 0u;
+        }
+        let base = workgroupUniformLoad(&group_base);
+        if keep && base + place < tri.capacity {
+            let at = out + 3u * (base + place);
+            for (var i = 0u; i < 3u; i++) {
+                atomicStore(&triangles[at + i], (instance << tri.vertex_bits) | v[i]);
+            }
+        }
+    }
+    storageBarrier();
+    workgroupBarrier();
+    if lane == 0u {
+        if listed {
+            atomicAdd(&triangles[header + 6u], 1u);
+        }
+        if phase == 2u {
+            state[bit] = atomicLoad(&group_seen);
+        }
+    }
+}
+
+// After `cull_triangles`: this phase's indexed draw, its count clamped to the list's capacity.
+@compute @workgroup_size(1)
+fn finish_triangles() {
+    let list = select(0u, 1u, tri.phase == 2u);
+    let header = 8u * list;
+    atomicStore(&triangles[header], 3u * min(atomicLoad(&triangles[header + 5u]), tri.capacity));
+    atomicStore(&triangles[header + 1u], 1u);
+    atomicStore(&triangles[header + 2u], 3u * list * tri.capacity);
+    atomicStore(&triangles[header + 3u], 0u);
+    atomicStore(&triangles[header + 4u], 0u);
+}

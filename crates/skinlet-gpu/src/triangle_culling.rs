@@ -1,0 +1,344 @@
+//! Per-triangle culling of crowd culling's survivors (skinning-with-mesh-shaders thesis, the
+//! per-triangle stage after meshlet culling): a compute pass, one workgroup per surviving
+//! (instance, meshlet), skins each triangle's corners with the caller's own skinning function
+//! and drops the triangles that are certainly outside a side of the view, back-facing, between
+//! pixel centers, or (occlusion culling's second phase) behind the depth pyramid; the rest go
+//! to one compacted index list, drawn with one `draw_indexed_indirect`.
+//!
+//! Conservative: a triangle dropped here draws no fragment in the caller's draw. The caller's
+//! vertex shader skins with the same WGSL function, which the two pipelines may round
+//! differently by at most the margin the caller states ([`TriangleSkinning::margin`]); every
+//! test widens the corners by it, by the pass's own rounding and by a rasterizer's vertex
+//! snapping (1/16 pixel). The image then equals the unculled draw's: `skinlet-lab`'s GPU crowd
+//! tests check it on every shared character.
+//!
+//! With two-phase occlusion culling the visibility bits come from the triangles: in the second
+//! phase every meshlet the bounds test keeps is tested triangle by triangle against the
+//! pyramid, its bit set when a triangle is not behind it, and its triangles listed when the
+//! first phase did not draw it. So a meshlet whose box peeks past an occluder but whose
+//! triangles do not is not drawn next frame.
+//!
+//! The index list holds `instance << vertex_bits | vertex` ([`TriangleCulling::vertex_bits`]):
+//! the draw's vertex shader decodes it ([`TRIANGLES_WGSL`]) and skins the vertex for that
+//! instance. It needs 32-bit index values (`wgpu::DownlevelFlags::FULL_DRAW_INDEX_UINT32`, every
+//! desktop Vulkan, Metal and D3D12 device).
+
+use crate::Result;
+use crate::crowd_culling::{
+    CrowdCulling, List, OCCLUSION_OFFSET, OCCLUSION_TEST_WGSL, bind, dynamic_uniform, invalid, layout_entry, part,
+    whole,
+};
+use skinlet_runtime::camera::Camera;
+use skinlet_runtime::meshlet_cull::Tests;
+
+/// WGSL for the draw's vertex shader: `triangle_vertex(index, vertex_bits)` gives the instance
+/// and the vertex of an index of the list ([`TriangleCulling::draw`] draws with
+/// `@builtin(vertex_index)` equal to it).
+pub const TRIANGLES_WGSL: &str = "
+fn triangle_vertex(index: u32, vertex_bits: u32) -> vec2<u32> {
+    return vec2<u32>(index >> vertex_bits, index & ((1u << vertex_bits) - 1u));
+}
+";
+
+/// The caller's skinning, as the pass runs it.
+#[derive(Clone, Copy, Debug)]
+pub struct TriangleSkinning<'a> {
+    /// WGSL defining `fn skinned_position(instance: u32, vertex: u32) -> vec3<f32>` (world
+    /// space) over bindings of `@group(1)` only: the function the draw's vertex shader skins
+    /// with.
+    pub wgsl: &'a str,
+    /// The layout of those bindings (visible to compute shaders); the bind group is given per
+    /// frame.
+    pub layout: &'a wgpu::BindGroupLayout,
+    /// How far apart the draw's skinned positions and the pass's may be, at a position `p`:
+    /// `margin + relative × max(|p.x|, |p.y|, |p.z|)` (world units). The same function
+    /// compiled into two pipelines rounds differently (fused multiply-adds) by a few ulps of
+    /// the skinning's terms, which are about as large as the position plus a character's size:
+    /// 2^-14 of a character's size and 2^-14 are ample.
+    pub margin: f32,
+    pub relative: f32,
+}
+
+/// A triangle list's header in [`TriangleCulling::triangles`] (32 bytes; list A's at 0, B's at
+/// 32): the indexed draw's arguments, then what the pass found.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
+#[repr(C)]
+pub struct TriangleHeader {
+    /// 3 × the triangles listed (at most the list's capacity).
+    pub index_count: u32,
+    pub instance_count: u32,
+    pub first_index: u32,
+    pub base_vertex: u32,
+    pub first_instance: u32,
+    /// Triangles kept; more than `index_count / 3` when the list overflowed (those past the
+    /// capacity are not drawn: raise it).
+    pub found: u32,
+    /// Meshlets with a triangle kept (listed).
+    pub meshlets: u32,
+    pub pad: u32,
+}
+
+impl TriangleHeader {
+    /// Bytes per header; the indices start after two.
+    pub const SIZE: u64 = 32;
+}
+
+/// Crowd culling followed by the triangle pass.
+pub struct TriangleCulling {
+    crowd: CrowdCulling,
+    /// Triangles per list.
+    capacity: u32,
+    vertex_bits: u32,
+    /// `TriangleParams` for phases 0 and 1 at 0, for phase 2 at 256.
+    uniforms: wgpu::Buffer,
+    params: [u32; 12],
+    triangles: wgpu::Buffer,
+    group: wgpu::BindGroup,
+    cull: wgpu::ComputePipeline,
+    finish: wgpu::ComputePipeline,
+}
+
+const SECOND: u64 = 256;
+
+impl TriangleCulling {
+    /// The triangle pass after `crowd` (which it takes over: [`TriangleCulling::crowd`]), for
+    /// a mesh of `vertices` vertices whose index buffer (`indices`, `STORAGE` usage, meshlet
+    /// by meshlet as given to `GpuCharacter::new`) the pass reads, skinned by `skinning`,
+    /// drawn at `width` × `height` (the occlusion depth's size where `crowd` has one),
+    /// `cull_back_faces` where the draw culls back faces (`wgpu::Face::Back`, counter-clockwise
+    /// front). Each list holds `capacity` triangles. Errors when an argument is out of range,
+    /// the encoded indices would not fit 32 bits, or the pipeline fails validation (e.g. the
+    /// skinning WGSL or its layout).
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        device: &wgpu::Device,
+        crowd: CrowdCulling,
+        skinning: TriangleSkinning,
+        indices: &wgpu::Buffer,
+        vertices: u32,
+        capacity: u32,
+        [width, height]: [u32; 2],
+        cull_back_faces: bool,
+    ) -> Result<TriangleCulling> {
+        let location = "GPU triangle culling";
+        if !indices.usage().contains(wgpu::BufferUsages::STORAGE) {
+            return Err(invalid(location, "the index buffer lacks STORAGE usage".into()));
+        }
+        if vertices == 0 || width == 0 || height == 0 {
+            return Err(invalid(location, format!("{vertices} vertices drawn at {width}×{height}")));
+        }
+        if let Some((w, h, ..)) = crowd.occlusion
+            && (w, h) != (width, height)
+        {
+            return Err(invalid(location, format!("drawn at {width}×{height}, occlusion depth {w}×{h}")));
+        }
+        if ![skinning.margin, skinning.relative].iter().all(|m| m.is_finite() && *m >= 0.0) {
+            let (m, r) = (skinning.margin, skinning.relative);
+            return Err(invalid(location, format!("skinning margins of {m} and {r} (relative)")));
+        }
+        let vertex_bits = u32::BITS - (vertices - 1).leading_zeros();
+        if (crowd.capacity as u64) << vertex_bits > 1 << 32 {
+            return Err(invalid(
+                location,
+                format!("{} instances of {vertices} vertices do not fit 32-bit indices", crowd.capacity),
+            ));
+        }
+        let bytes = 2 * TriangleHeader::SIZE + 2 * 3 * 4 * capacity as u64;
+        if bytes > device.limits().max_storage_buffer_binding_size {
+            return Err(invalid(location, format!("{capacity} triangles per list exceed the storage binding limit")));
+        }
+        let params = [
+            0,
+            capacity,
+            vertex_bits,
+            cull_back_faces as u32,
+            width,
+            height,
+            crowd.survivor_capacity,
+            crowd.meshlets,
+            skinning.margin.to_bits(),
+            skinning.relative.to_bits(),
+            0,
+            0,
+        ];
+        crate::context::checked(device, location, || {
+            use wgpu::BufferBindingType::{Storage, Uniform};
+            use wgpu::BufferUsages as U;
+            let (read, write) = (Storage { read_only: true }, Storage { read_only: false });
+            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some(location),
+                entries: &[
+                    dynamic_uniform(0),
+                    layout_entry(1, Uniform),
+                    layout_entry(2, read),
+                    layout_entry(3, read),
+                    layout_entry(4, write),
+                    layout_entry(5, read),
+                    layout_entry(6, write),
+                ],
+            });
+            let source = [OCCLUSION_TEST_WGSL, skinning.wgsl, include_str!("shaders/triangle_cull.wgsl")].concat();
+            let layouts = [Some(&layout), Some(skinning.layout)];
+            let pipeline =
+                |entry| crate::context::compute_pipeline_layouts(device, location, source.clone(), entry, &layouts);
+            let uniforms = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("skinlet triangle params"),
+                size: SECOND + 48,
+                usage: U::UNIFORM | U::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let triangles = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("skinlet triangles"),
+                size: bytes,
+                usage: U::STORAGE | U::INDEX | U::INDIRECT | U::COPY_SRC | U::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some(location),
+                layout: &layout,
+                entries: &[
+                    bind(0, part(&uniforms, 0, 48)),
+                    bind(1, part(&crowd.uniforms, OCCLUSION_OFFSET, 96)),
+                    bind(2, whole(&crowd.commands)),
+                    bind(3, whole(&crowd.survivors)),
+                    bind(4, whole(&crowd.state)),
+                    bind(5, whole(indices)),
+                    bind(6, whole(&triangles)),
+                ],
+            });
+            TriangleCulling {
+                cull: pipeline("cull_triangles"),
+                finish: pipeline("finish_triangles"),
+                crowd,
+                capacity,
+                vertex_bits,
+                uniforms,
+                params,
+                triangles,
+                group,
+            }
+        })
+    }
+
+    /// One-phase culling (no occlusion): [`CrowdCulling::encode`]'s meshlet tests, then the
+    /// triangle pass over their survivors with the caller's `skinning` bind group (its
+    /// palette and instances holding this frame's values), in one compute pass; the triangles
+    /// to [`List::First`]. Allocates nothing itself. Errors when `instances` exceeds the
+    /// crowd's capacity.
+    #[allow(clippy::too_many_arguments)]
+    pub fn encode(
+        &self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        camera: &Camera,
+        tests: Tests,
+        instances: u32,
+        skinning: &wgpu::BindGroup,
+        timestamps: Option<wgpu::ComputePassTimestampWrites<'_>>,
+    ) -> Result<()> {
+        self.encode_phase(queue, encoder, camera, tests, instances, skinning, timestamps, 0)
+    }
+
+    /// Occlusion culling's first phase: the survivors visible last frame (by their
+    /// triangles), their triangles to [`List::First`]; the caller draws them into the depth
+    /// buffer, then records [`TriangleCulling::encode_second`]. Errors also without occlusion
+    /// culling.
+    #[allow(clippy::too_many_arguments)]
+    pub fn encode_first(
+        &self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        camera: &Camera,
+        tests: Tests,
+        instances: u32,
+        skinning: &wgpu::BindGroup,
+        timestamps: Option<wgpu::ComputePassTimestampWrites<'_>>,
+    ) -> Result<()> {
+        if self.crowd.occlusion.is_none() {
+            return Err(invalid("GPU occlusion culling", "the crowd was made without occlusion culling".into()));
+        }
+        self.encode_phase(queue, encoder, camera, tests, instances, skinning, timestamps, 1)
+    }
+
+    /// Occlusion culling's second phase: [`CrowdCulling::encode_second`]'s pyramid and
+    /// meshlet tests, then every survivor's triangles against the pyramid: its visibility bit
+    /// from them, and where the first phase did not draw it, its triangles not behind the
+    /// pyramid to [`List::Second`]. Errors without occlusion culling.
+    pub fn encode_second(&self, encoder: &mut wgpu::CommandEncoder, skinning: &wgpu::BindGroup) -> Result<()> {
+        let mut pass = self.crowd.encode_second_pass(encoder)?;
+        self.triangle_pass(&mut pass, skinning, List::Second);
+        Ok(())
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn encode_phase(
+        &self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        camera: &Camera,
+        tests: Tests,
+        instances: u32,
+        skinning: &wgpu::BindGroup,
+        timestamps: Option<wgpu::ComputePassTimestampWrites<'_>>,
+        phase: u32,
+    ) -> Result<()> {
+        let mut first = self.params;
+        first[0] = phase;
+        let mut second = self.params;
+        second[0] = 2;
+        queue.write_buffer(&self.uniforms, 0, bytemuck::cast_slice(&first));
+        queue.write_buffer(&self.uniforms, SECOND, bytemuck::cast_slice(&second));
+        encoder.clear_buffer(&self.triangles, 0, Some(2 * TriangleHeader::SIZE));
+        let mut pass = self.crowd.encode_phase(queue, encoder, camera, tests, instances, timestamps, phase, true)?;
+        self.triangle_pass(&mut pass, skinning, List::First);
+        Ok(())
+    }
+
+    fn triangle_pass(&self, pass: &mut wgpu::ComputePass<'_>, skinning: &wgpu::BindGroup, list: List) {
+        let (offset, header) = match list {
+            List::First => (0, 0),
+            List::Second => (SECOND as u32, crate::crowd_culling::SurvivorHeader::SIZE),
+        };
+        pass.set_pipeline(&self.cull);
+        pass.set_bind_group(0, &self.group, &[offset]);
+        pass.set_bind_group(1, skinning, &[]);
+        pass.dispatch_workgroups_indirect(&self.crowd.survivors, header + 20);
+        pass.set_pipeline(&self.finish);
+        pass.dispatch_workgroups(1, 1, 1);
+    }
+
+    /// Draws `list`'s triangles: sets the index buffer (the list, `Uint32`) and records one
+    /// `draw_indexed_indirect` (base vertex 0, instance 0: the vertex shader decodes
+    /// `vertex_index` with [`TRIANGLES_WGSL`]).
+    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, list: List) {
+        let header = match list {
+            List::First => 0,
+            List::Second => TriangleHeader::SIZE,
+        };
+        pass.set_index_buffer(self.triangles.slice(2 * TriangleHeader::SIZE..), wgpu::IndexFormat::Uint32);
+        pass.draw_indexed_indirect(&self.triangles, header);
+    }
+
+    /// The meshlet culling the pass follows (its lists, counts and occlusion state are this
+    /// culling's; its own encode and draw functions draw meshlets as before, sharing the
+    /// visibility bits).
+    pub fn crowd(&self) -> &CrowdCulling {
+        &self.crowd
+    }
+
+    /// Bits of an index that hold the vertex.
+    pub fn vertex_bits(&self) -> u32 {
+        self.vertex_bits
+    }
+
+    /// Triangles each list holds.
+    pub fn capacity(&self) -> u32 {
+        self.capacity
+    }
+
+    /// Two [`TriangleHeader`]s, then list A's indices (3 per triangle), then list B's from
+    /// index 3 × capacity (`INDEX`, `INDIRECT`, `STORAGE`, `COPY_SRC`).
+    pub fn triangles(&self) -> &wgpu::Buffer {
+        &self.triangles
+    }
+}
