@@ -33,6 +33,7 @@ use skinlet_lab::headless::{self, GpuOptions};
 use skinlet_lab::occlusion_limits::{DepthPyramid, pose_limits};
 use skinlet_lab::render::{CrowdDraw, Culling, Image, PosedInstance, Renderer, Skinning, TaskCulling};
 use skinlet_runtime::meshlet_cull::{MeshletCuller, Tests};
+use std::collections::HashSet;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -75,6 +76,10 @@ pub struct Args {
     /// guard admits an instance's pose, and draw the others whole.
     #[arg(long, default_value = "clips", value_parser = ["clips", "blend", "additive", "ik"])]
     animation: String,
+    /// Every frame the crowd's pose of frame 0 (a still crowd: occlusion culling's steady
+    /// state without motion between frames).
+    #[arg(long)]
+    still: bool,
     /// Largest rotation of the additive layer, degrees (and the envelope margin when a glTF
     /// file is baked here).
     #[arg(long, default_value_t = 10.0)]
@@ -116,8 +121,11 @@ struct Frame {
     gpu_ms: Option<f64>,
     triangles: u64,
     meshlets: u64,
-    /// Vertex references of the meshlets drawn (GPU-driven rows).
+    /// Vertex references skinned by the draw (GPU-driven rows): of the meshlets drawn, or
+    /// with the triangle pass, the distinct (instance, vertex) of the triangles drawn.
     vertex_refs: Option<u64>,
+    /// Triangle corners the triangle pass skinned (3 per triangle of the meshlets it tested).
+    pass_corners: Option<u64>,
     draw_calls: u32,
     wall_ms: f64,
 }
@@ -160,6 +168,8 @@ struct Row {
     meshlets_drawn: f64,
     /// Their vertex references per frame (GPU-driven rows).
     vertex_refs: Option<u64>,
+    /// Corners the triangle pass skinned per frame (its rows).
+    pass_corners: Option<u64>,
     /// API draw calls per frame.
     draws_issued: u32,
     /// The warm-up frame's image equals the unculled one (up to depth ties).
@@ -250,7 +260,8 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         baked.envelope.as_ref().filter(|_| animation != Animation::Clips).map(|e| e.envelope.guard()).transpose()?;
     let mut frames: Vec<Vec<InstancePose>> = Vec::new();
     let (mut locals, mut weights, mut globals) = (Vec::new(), Vec::new(), Vec::new());
-    for f in 0..params.frames {
+    for frame in 0..params.frames {
+        let f = if a.still { 0 } else { frame };
         let mut instances = Vec::new();
         for (i, pl) in scene.placements.iter().enumerate() {
             instance_pose(&asset.skeleton, &clips, &baked, &params, i, pl, f, &mut locals, &mut weights);
@@ -309,6 +320,8 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         ("both", Some(Tests::Both)),
         ("both-by-class", Some(Tests::Both)),
         ("both+occlusion", Some(Tests::Both)),
+        ("both+triangles", Some(Tests::Both)),
+        ("both+occl+tri", Some(Tests::Both)),
     ];
     let mut configs = Vec::new();
     for &(pipeline, skinning, mesh, culler, baked) in &pipelines {
@@ -319,8 +332,12 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             let (path, view) = match (task, skinning, culling) {
                 (true, _, "none") => (None, None),
                 (true, _, "both-by-class") => (Some(Culling::TaskByClass), None),
-                (_, _, "both+occlusion") if skinning != Skinning::Vertex => continue,
+                (_, _, "both+occlusion" | "both+triangles" | "both+occl+tri") if skinning != Skinning::Vertex => {
+                    continue;
+                }
                 (_, _, "both+occlusion") => (None, Some(CrowdView::Occluded)),
+                (_, _, "both+triangles") => (None, Some(CrowdView::Triangles)),
+                (_, _, "both+occl+tri") => (None, Some(CrowdView::OccludedTriangles)),
                 (true, ..) => (Some(Culling::Task), None),
                 (false, _, "both-by-class") => continue,
                 (false, Skinning::Vertex, "none") => (None, Some(CrowdView::Unculled)),
@@ -367,14 +384,25 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             let started = std::time::Instant::now();
             let d = gpu_crowd.draw(&gpu, &crowd_frame(f, c.tests.unwrap_or(Tests::Both), false), view, light)?;
             let wall_ms = started.elapsed().as_secs_f64() * 1e3;
-            let (meshlets, triangles, vertex_refs) = match d.headers.is_empty() {
-                false => {
-                    let survivors = gpu_crowd.survivors(&gpu)?;
-                    let sum = |per: &[u64]| survivors.iter().map(|&[_, m]| per[m as usize]).sum();
-                    (survivors.len() as u64, sum(&meshlet_triangles), Some(sum(&meshlet_vertices)))
+            let (mut meshlets, mut triangles, mut vertex_refs, mut pass_corners) =
+                (all_meshlets, total_triangles * instances as u64, Some(all_vertex_refs), None);
+            if !d.headers.is_empty() {
+                let survivors = gpu_crowd.survivors(&gpu)?;
+                let sum = |per: &[u64]| survivors.iter().map(|&[_, m]| per[m as usize]).sum::<u64>();
+                (meshlets, triangles, vertex_refs) =
+                    (survivors.len() as u64, sum(&meshlet_triangles), Some(sum(&meshlet_vertices)));
+                if !d.triangle_headers.is_empty() {
+                    // The pass tested the survivors' triangles; the draw skins each distinct
+                    // (instance, vertex) of those it kept at least once.
+                    pass_corners = Some(3 * triangles);
+                    let drawn = gpu_crowd.drawn_triangles(&gpu)?;
+                    let pairs: HashSet<[u32; 2]> = drawn.iter().map(|t| [t.instance, t.meshlet]).collect();
+                    let corners: HashSet<[u32; 2]> =
+                        drawn.iter().flat_map(|t| t.vertices.map(|v| [t.instance, v])).collect();
+                    (meshlets, triangles, vertex_refs) =
+                        (pairs.len() as u64, drawn.len() as u64, Some(corners.len() as u64));
                 }
-                true => (all_meshlets, total_triangles * instances as u64, Some(all_vertex_refs)),
-            };
+            }
             let image = d.image.context("the crowd draws an image")?;
             return Ok(Frame {
                 image,
@@ -382,6 +410,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 triangles,
                 meshlets,
                 vertex_refs,
+                pass_corners,
                 draw_calls: d.draw_calls,
                 wall_ms,
             });
@@ -415,6 +444,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             triangles: drawn.triangles.map_or(total_triangles * instances as u64, u64::from),
             meshlets: drawn.meshlets.map_or((instances * c.baked.meshlets.len()) as u64, u64::from),
             vertex_refs: None,
+            pass_corners: None,
             draw_calls: per_instance * instances as u32,
             wall_ms,
         })
@@ -432,13 +462,16 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     // is conservative: every configuration draws the same picture, so the first one's is written.
     let mut picture = None;
     let mut image_equal = vec![false; configs.len()];
+    // The occlusion rows share the crowd's visibility bits: each one's timed frames start
+    // after an untimed frame 0 of its own.
+    let occluding = |c: &Config| matches!(c.view, Some(CrowdView::Occluded | CrowdView::OccludedTriangles));
     for k in 0..configs.len() {
         let c = &configs[k];
         // Occlusion culling starts with no history: its first frame draws every survivor of
         // the frustum and backface tests in its second phase and marks them all visible, so
         // its second frame draws them all in its first phase. From the third frame on its
         // lists follow the scene (as in an application's steady state): frame 0 twice first.
-        if c.view == Some(CrowdView::Occluded) {
+        if occluding(c) {
             draw(k, 0)?;
         }
         let frame = draw(k, 0)?;
@@ -469,7 +502,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         let survivors = gpu_crowd.survivors(&gpu)?;
         let d = gpu_crowd.draw(&gpu, &crowd_frame(f, Tests::Both, false), CrowdView::Ids, light)?;
         let ids = d.ids.context("the ID view reads ids")?;
-        oracle.push(ids.iter().filter(|&&id| id != 0).collect::<std::collections::HashSet<_>>().len() as f64);
+        oracle.push(ids.iter().filter(|&&id| id != 0).collect::<HashSet<_>>().len() as f64);
         let depth = DepthPyramid::new(a.width, height, gpu_crowd.depth(&gpu)?);
         let poses: Vec<_> = poses.iter().map(|p| (&p.skinning[..], &p.weights[..])).collect();
         let [exact, pyramid, triangles] = pose_limits(&baked, &poses, &survivors, &depth, &scene.camera)?;
@@ -483,12 +516,15 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let (mut gpu_ms, mut wall_ms) = (vec![Vec::new(); configs.len()], vec![Vec::new(); configs.len()]);
     let (mut triangles, mut meshlets, mut draw_calls) =
         (vec![0u64; configs.len()], vec![0u64; configs.len()], vec![0u32; configs.len()]);
-    let mut vertex_refs = vec![None; configs.len()];
+    let (mut vertex_refs, mut pass_corners) = (vec![None; configs.len()], vec![None; configs.len()]);
     for repeat in 0..a.repeats {
         let order: Vec<usize> =
             if repeat % 2 == 0 { (0..configs.len()).collect() } else { (0..configs.len()).rev().collect() };
         for k in order {
-            let (mut g, mut w, mut t, mut m, mut v) = (Vec::new(), Vec::new(), 0u64, 0u64, None);
+            let (mut g, mut w, mut t, mut m, mut v, mut p) = (Vec::new(), Vec::new(), 0u64, 0u64, None, None);
+            if occluding(&configs[k]) {
+                draw(k, 0)?;
+            }
             for f in 1..=a.frames {
                 let frame = draw(k, f)?;
                 w.push(frame.wall_ms);
@@ -496,12 +532,14 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 t += frame.triangles;
                 m += frame.meshlets;
                 v = frame.vertex_refs.map(|x| x + v.unwrap_or(0));
+                p = frame.pass_corners.map(|x| x + p.unwrap_or(0));
                 draw_calls[k] = frame.draw_calls;
             }
             gpu_ms[k].extend(crate::bench::median(g));
             wall_ms[k].extend(crate::bench::median(w));
             (triangles[k], meshlets[k]) = (t / a.frames as u64, m / a.frames as u64);
             vertex_refs[k] = v.map(|v| v / a.frames as u64);
+            pass_corners[k] = p.map(|p| p / a.frames as u64);
         }
     }
     let rows: Vec<Row> = (0..configs.len())
@@ -525,6 +563,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 triangles: triangles[k],
                 meshlets_drawn: meshlets[k] as f64,
                 vertex_refs: vertex_refs[k],
+                pass_corners: pass_corners[k],
                 draws_issued: draw_calls[k],
                 image_equal: image_equal[k],
             }
@@ -542,6 +581,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                     "wall_ms": Spread::json(r.wall_ms), "vs_none_pct": Spread::json(r.vs_none_pct),
                     "culled_pct": r.culled_pct, "triangles_per_frame": r.triangles,
                     "meshlets_drawn": r.meshlets_drawn, "vertex_refs_per_frame": r.vertex_refs,
+                    "triangle_pass_corners_per_frame": r.pass_corners,
                     "draws_issued": r.draws_issued,
                     "image_equal_to_unculled": r.image_equal})
             })
@@ -550,7 +590,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             "crowd": a.crowd, "meshlets_visible_oracle": visible_oracle,
             "meshlets_unhidden_pose_box": mean(&box_exact), "meshlets_unhidden_pose_box_pyramid": mean(&box_pyramid),
             "meshlets_unhidden_pose_triangles": mean(&box_triangles), "meshlets_per_frame": all_meshlets,
-            "animation": a.animation, "guard_fallback_pct": fallback_pct,
+            "animation": a.animation, "still": a.still, "guard_fallback_pct": fallback_pct,
             "instances": instances, "frames": a.frames, "repeats": a.repeats, "width": a.width, "height": height,
             "meshlets": baked.meshlets.len(), "triangles_per_instance": total_triangles,
             "builder": baked.settings.builder.name(), "ci_meshlets": ci_counts.map(|c| c.0),

@@ -54,7 +54,7 @@ pub struct TriangleSkinning<'a> {
     /// `margin + relative × max(|p.x|, |p.y|, |p.z|)` (world units). The same function
     /// compiled into two pipelines rounds differently (fused multiply-adds) by a few ulps of
     /// the skinning's terms, which are about as large as the position plus a character's size:
-    /// 2^-14 of a character's size and 2^-14 are ample.
+    /// 2^-16 of a character's size and 2^-16 (a few hundred ulps) are ample.
     pub margin: f32,
     pub relative: f32,
 }

@@ -78,6 +78,15 @@ pub struct CrowdDrawn {
     pub gpu_ms: Option<f64>,
 }
 
+/// A triangle the triangle pass listed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DrawnTriangle {
+    pub instance: u32,
+    pub meshlet: u32,
+    /// Its vertices, sorted.
+    pub vertices: [u32; 3],
+}
+
 /// A crowd of up to `capacity` instances of one baked character, drawn at one image size.
 pub struct GpuCrowd {
     pub width: u32,
@@ -211,10 +220,11 @@ impl GpuCrowd {
             include_str!("shaders/crowd.wgsl"),
         ]
         .concat();
-        // The triangle pass's rounding margins: 2^-14 of the character's size and of the
-        // position.
+        // The triangle pass's rounding margins: 2^-16 of the position and of the mesh's size
+        // (in the bake's units: a skin that scales it down to world units, as Xbot's does from
+        // centimeters, only widens this).
         let size = mesh.positions.iter().fold(0f32, |m, p| m.max(p.abs().max_element()));
-        let (margin, relative) = (size / 16384.0, 1.0 / 16384.0);
+        let (margin, relative) = (size / 65536.0, 1.0 / 65536.0);
         let uniform = |binding, visibility| wgpu::BindGroupLayoutEntry {
             binding,
             visibility,
@@ -332,8 +342,10 @@ impl GpuCrowd {
         })?;
         let skinning =
             TriangleSkinning { wgsl: include_str!("shaders/crowd_skin.wgsl"), layout: &layouts, margin, relative };
-        // As many triangles per list as the crowd has: a list never overflows.
-        let all_triangles = capacity.saturating_mul(indices.len() as u32 / 3);
+        // As many triangles per list as the crowd has (a list never overflows), or as the
+        // device's storage bindings hold.
+        let fits = (device.limits().max_storage_buffer_binding_size - 2 * TriangleHeader::SIZE) / 24;
+        let all_triangles = (capacity as u64 * indices.len() as u64 / 3).min(fits) as u32;
         let culling = TriangleCulling::new(
             device,
             culling,
@@ -612,10 +624,10 @@ impl GpuCrowd {
         Ok(out)
     }
 
-    /// The triangles the last frame of a triangle view drew, as (instance, meshlet) per
-    /// triangle (both lists'): the meshlet found by the triangle's vertices. Errors when a
-    /// listed triangle is none of the mesh's.
-    pub fn drawn_triangles(&self, gpu: &Gpu) -> Result<Vec<[u32; 2]>> {
+    /// The triangles the last frame of a triangle view drew (both lists'), each with its
+    /// instance and its meshlet (found by its vertices). Errors when a listed triangle is none
+    /// of the mesh's.
+    pub fn drawn_triangles(&self, gpu: &Gpu) -> Result<Vec<DrawnTriangle>> {
         let culling = &self.culling;
         let words = gpu.read(culling.triangles(), 2 * TriangleHeader::SIZE)?;
         let headers: Vec<TriangleHeader> = bytemuck::pod_collect_to_vec(&words);
@@ -630,7 +642,7 @@ impl GpuCrowd {
                 let meshlet = self.triangle_meshlet.get(&vertices).ok_or_else(|| {
                     invalid(format!("list {k} holds a triangle {t:?} of no meshlet (vertices {vertices:?})"))
                 })?;
-                out.push([t[0] >> bits, *meshlet]);
+                out.push(DrawnTriangle { instance: t[0] >> bits, meshlet: *meshlet, vertices });
             }
         }
         Ok(out)

@@ -40,15 +40,23 @@ pub fn gpu(options: GpuOptions) -> Result<Gpu> {
     }
     let features = adapter.features() & wanted;
     let mesh = features.contains(wgpu::Features::EXPERIMENTAL_MESH_SHADER);
+    // Large storage bindings where the adapter has them (up to 1 GiB): the triangle pass's
+    // lists of a dense crowd's survivors hold millions of triangles.
+    let offered = adapter.limits();
+    let large = |limits: wgpu::Limits| wgpu::Limits {
+        max_storage_buffer_binding_size: (offered.max_storage_buffer_binding_size.min(1 << 30))
+            .max(limits.max_storage_buffer_binding_size),
+        max_buffer_size: offered.max_buffer_size.min(1 << 30).max(limits.max_buffer_size),
+        ..limits
+    };
     let desc = wgpu::DeviceDescriptor {
         label: Some("skinlet"),
         required_features: features,
-        required_limits: if mesh {
+        required_limits: large(if mesh {
             // Task-culled slim mesh shading binds 10 storage buffers to the mesh stage, and
             // one draw launches a task workgroup per meshlet group (more than the 256 per
             // dimension wgpu's portable minimum allows): what the adapter offers.
             let limits = wgpu::Limits::defaults().using_recommended_minimum_mesh_shader_values();
-            let offered = adapter.limits();
             let storage = offered.max_storage_buffers_per_shader_stage.min(16);
             wgpu::Limits {
                 max_storage_buffers_per_shader_stage: limits.max_storage_buffers_per_shader_stage.max(storage),
@@ -60,7 +68,7 @@ pub fn gpu(options: GpuOptions) -> Result<Gpu> {
             }
         } else {
             wgpu::Limits::defaults()
-        },
+        }),
         // SAFETY: mesh shaders are an experimental wgpu feature; we opt in only when the
         // adapter reports them, and every mesh pipeline is checked against the CPU path.
         experimental_features: if mesh {

@@ -76,7 +76,7 @@ fn check_frame(gpu: &Gpu, crowd: &GpuCrowd, frame: &CrowdFrame, what: &str) -> [
             }
             false => {
                 let triangles = crowd.drawn_triangles(gpu).unwrap();
-                let list: HashSet<u32> = triangles.iter().map(|&[i, m]| i * crowd.meshlets() + m).collect();
+                let list: HashSet<u32> = triangles.iter().map(|t| t.instance * crowd.meshlets() + t.meshlet).collect();
                 let headers = &drawn.triangle_headers;
                 for h in headers {
                     assert_eq!(3 * h.found, h.index_count, "{what} {view:?}: the triangle list overflowed");

@@ -56,10 +56,14 @@ var<workgroup> group_kept: atomic<u32>;
 var<workgroup> group_base: u32;
 var<workgroup> group_seen: atomic<u32>;
 
-// A corner in clip space and how far the draw's may be from it, per component.
+// A corner: its position in clip space, how far (per world axis) the draw's skinned position
+// may be from the pass's, and how far the two projections' rounding may set their clip
+// coordinates apart (both products within 2^-20 of their terms' magnitude: four terms, a few
+// ulps each).
 struct Corner {
     clip: vec4<f32>,
-    err: vec4<f32>,
+    d: vec3<f32>,
+    r: vec4<f32>,
 }
 
 fn corner(instance: u32, vertex: u32) -> Corner {
@@ -67,18 +71,17 @@ fn corner(instance: u32, vertex: u32) -> Corner {
     let m = occlusion.view_proj;
     let a = mat4x4<f32>(abs(m[0]), abs(m[1]), abs(m[2]), abs(m[3]));
     let d = tri.margin + tri.relative * max(max(abs(p.x), abs(p.y)), abs(p.z));
-    // The draw's skinning within `d`; both products rounded within 2^-20 of their terms'
-    // magnitude (four terms, a few ulps each).
-    let err = a * vec4<f32>(d, d, d, 0.0) + (1.0 / 1048576.0) * (a * vec4<f32>(abs(p), 1.0));
-    return Corner(m * vec4<f32>(p, 1.0), err);
+    let r = (1.0 / 1048576.0) * (a * vec4<f32>(abs(p), 1.0));
+    return Corner(m * vec4<f32>(p, 1.0), vec3<f32>(d), r);
 }
 
 // Whether all three corners are beyond the clip plane s·x ≤ w for component k (x or y) and
-// sign s.
-fn beyond(c: array<Corner, 3>, k: u32, s: f32) -> bool {
+// sign s: s·x - w moves by at most |s·row_k - row_w|·d plus the rounding of both.
+fn beyond(c: array<Corner, 3>, rows: mat4x4<f32>, k: u32, s: f32) -> bool {
+    let g = abs(s * rows[k].xyz - rows[3].xyz);
     var all = true;
     for (var i = 0u; i < 3u; i++) {
-        all = all && s * c[i].clip[k] - c[i].clip.w > c[i].err[k] + c[i].err.w;
+        all = all && s * c[i].clip[k] - c[i].clip.w > dot(g, c[i].d) + c[i].r[k] + c[i].r.w;
     }
     return all;
 }
@@ -86,10 +89,17 @@ fn beyond(c: array<Corner, 3>, k: u32, s: f32) -> bool {
 // What the tests make of one triangle: 0 culled, 1 drawn (phases 0 and 1, or behind the
 // pyramid's test unknown), 2 drawn and not behind the pyramid (phase 2).
 fn test_triangle(c: array<Corner, 3>) -> u32 {
-    if beyond(c, 0u, 1.0) || beyond(c, 0u, -1.0) || beyond(c, 1u, 1.0) || beyond(c, 1u, -1.0) {
+    // The projection's rows.
+    let rows = transpose(occlusion.view_proj);
+    if beyond(c, rows, 0u, 1.0) || beyond(c, rows, 0u, -1.0) || beyond(c, rows, 1u, 1.0)
+        || beyond(c, rows, 1u, -1.0) {
         return 0u;
     }
-    // Each corner's NDC interval (w bounded away from 0), the triangle's box.
+    // Each corner's NDC interval, the triangle's box. The draw's clip position is q + V δ + σ
+    // (|δ| ≤ d per axis, σ the roundings), so its NDC coordinate k differs from q_k / q_w by
+    // ((row_k - ndc_k row_w)·δ + σ_k - ndc_k σ_w) / (q_w + row_w·δ + σ_w): bounded with the
+    // denominator's least value, which must be positive (else the corner may be at or behind
+    // the eye's plane: no bounded screen box, drawn).
     var lo = vec3<f32>(1e30);
     var hi = vec3<f32>(-1e30);
     var mid: array<vec2<f32>, 3>;
@@ -97,22 +107,22 @@ fn test_triangle(c: array<Corner, 3>) -> u32 {
     let size = vec2<f32>(f32(tri.width), f32(tri.height));
     for (var i = 0u; i < 3u; i++) {
         let q = c[i].clip;
-        let e = c[i].err;
-        let wl = q.w - e.w;
+        let d = c[i].d;
+        let r = c[i].r;
+        let wl = q.w - dot(abs(rows[3].xyz), d) - r.w;
         if !(wl > 1e-6 * (abs(q.x) + abs(q.y) + abs(q.z)) + 1e-30) {
-            // At or behind the eye's plane: no bounded screen box; drawn.
             return 2u;
         }
-        let wh = q.w + e.w;
-        let l = min((q.xyz - e.xyz) / wl, (q.xyz - e.xyz) / wh);
-        let h = max((q.xyz + e.xyz) / wl, (q.xyz + e.xyz) / wh);
-        let l2 = l - 1e-6 * abs(l) - 1e-30;
-        let h2 = h + 1e-6 * abs(h) + 1e-30;
-        lo = min(lo, l2);
-        hi = max(hi, h2);
+        let ndc = q.xyz / q.w;
+        let g = vec3<f32>(dot(abs(rows[0].xyz - ndc.x * rows[3].xyz), d),
+            dot(abs(rows[1].xyz - ndc.y * rows[3].xyz), d), dot(abs(rows[2].xyz - ndc.z * rows[3].xyz), d));
+        // (And the rounding of the division and of this bound, a few ulps.)
+        let e = (g + r.xyz + abs(ndc) * r.w) / wl * (1.0 + 1e-6) + 1e-6 * abs(ndc) + 1e-30;
+        lo = min(lo, ndc - e);
+        hi = max(hi, ndc + e);
         // In pixels (y up: orientation kept): the middle and the half width of the interval.
-        mid[i] = 0.25 * (l2.xy + h2.xy) * size;
-        half[i] = 0.25 * max((h2.x - l2.x) * size.x, (h2.y - l2.y) * size.y);
+        mid[i] = 0.5 * ndc.xy * size;
+        half[i] = 0.5 * max(e.x * size.x, e.y * size.y);
     }
     let rect = pixel_rect(lo.xy, hi.xy, size);
     if rect_empty(rect) {
