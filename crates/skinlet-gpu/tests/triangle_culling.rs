@@ -1,0 +1,274 @@
+//! Per-triangle culling of crowd culling's survivors (`skinlet_gpu::triangle_culling`), with a
+//! skinning function of the test's own (each instance's model matrix on the bind pose): every
+//! triangle of the crowd that covers a pixel center in exact (f64) arithmetic, front-facing,
+//! is in the list, and the list culls a good part of the rest; an overflowing list draws what
+//! it wrote and a later frame nothing stale; bad arguments are errors.
+
+mod common;
+use common::{bake, gpu, read_buffer};
+use glam::{DMat4, DVec3, DVec4, Mat4, Vec3};
+use skinlet_gpu::Gpu;
+use skinlet_gpu::crowd_culling::{CrowdCulling, CullInstance, CullMode, CullPipelines, GpuCharacter};
+use skinlet_gpu::triangle_culling::{TriangleCulling, TriangleHeader, TriangleSkinning};
+use skinlet_lab::crowd::{CrowdParams, crowd};
+use skinlet_runtime::camera::{Camera, Projection};
+use skinlet_runtime::meshlet_cull::{MeshletCuller, Tests};
+use std::collections::HashSet;
+use wgpu::util::DeviceExt;
+
+const SKINNING: &str = "
+@group(1) @binding(0) var<storage, read> test_models: array<mat4x4<f32>>;
+@group(1) @binding(1) var<storage, read> test_positions: array<f32>;
+fn skinned_position(instance: u32, vertex: u32) -> vec3<f32> {
+    let p = vec3<f32>(test_positions[3u * vertex], test_positions[3u * vertex + 1u], test_positions[3u * vertex + 2u]);
+    return (test_models[instance] * vec4<f32>(p, 1.0)).xyz;
+}
+";
+
+const WIDTH: u32 = 320;
+const HEIGHT: u32 = 180;
+
+/// The demo character's crowd (16 instances, every meshlet kept by crowd culling: the triangle
+/// pass tests every triangle) with triangle culling over it.
+struct Scene {
+    gpu: Gpu,
+    culling: TriangleCulling,
+    skinning: wgpu::BindGroup,
+    layout: wgpu::BindGroupLayout,
+    indices: Vec<u32>,
+    positions: Vec<Vec3>,
+    models: Vec<DMat4>,
+    camera: Camera,
+    /// Crowd culling's parts, for more crowds.
+    parts: (CullPipelines, GpuCharacter, wgpu::Buffer, wgpu::Buffer, wgpu::Buffer),
+}
+
+fn scene(capacity: Option<u32>) -> Option<Scene> {
+    let gpu = gpu()?;
+    let device = &gpu.device;
+    let asset = skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams::default());
+    let character = asset.character().unwrap();
+    let baked = bake(&asset, &character);
+    let skin = &character.palette;
+    let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len()).unwrap();
+    let (indices, draws) = skinlet_gpu::mesh::meshlet_index_buffer(
+        &baked.meshlets.view(&baked.meshlets.headers()),
+        baked.mesh.positions.len(),
+    )
+    .unwrap();
+    let pipelines = CullPipelines::new(device).unwrap();
+    let character = GpuCharacter::new(device, &culler, &skin.inverse_bind, &draws).unwrap();
+    let params = CrowdParams { instances: 16, frames: 1, ..CrowdParams::default() };
+    let placed = crowd(&baked.mesh.positions, 1, &params).unwrap();
+    let models: Vec<DMat4> = placed.placements.iter().map(|p| p.model).collect();
+    let n = models.len() as u32;
+    let init = |contents: &[u8]| {
+        let usage = wgpu::BufferUsages::STORAGE;
+        device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: None, contents, usage })
+    };
+    let palette: Vec<f32> = (0..n as usize * skin.joints.len()).flat_map(|_| Mat4::IDENTITY.to_cols_array()).collect();
+    let instances: Vec<CullInstance> = models.iter().map(|m| CullInstance::new(m.as_mat4(), CullMode::Keep)).collect();
+    let (palette, instances) = (init(bytemuck::cast_slice(&palette)), init(bytemuck::cast_slice(&instances)));
+    let index_buffer = init(bytemuck::cast_slice(&indices));
+    let crowd =
+        CrowdCulling::new(device, &pipelines, &character, &palette, &instances, n, n * character.meshlets()).unwrap();
+    let entry = |binding| wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only: true },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    };
+    let layout = device
+        .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: None, entries: &[entry(0), entry(1)] });
+    let model_floats: Vec<f32> = models.iter().flat_map(|m| m.as_mat4().to_cols_array()).collect();
+    let position_floats: Vec<f32> = baked.mesh.positions.iter().flat_map(|p| p.to_array()).collect();
+    let (model_buffer, position_buffer) =
+        (init(bytemuck::cast_slice(&model_floats)), init(bytemuck::cast_slice(&position_floats)));
+    let skinning = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: None,
+        layout: &layout,
+        entries: &[
+            wgpu::BindGroupEntry { binding: 0, resource: model_buffer.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 1, resource: position_buffer.as_entire_binding() },
+        ],
+    });
+    let how = TriangleSkinning { wgsl: SKINNING, layout: &layout, margin: 0.0, relative: 1.0 / 65536.0 };
+    let all = n * indices.len() as u32 / 3;
+    let vertices = baked.mesh.positions.len() as u32;
+    let culling = TriangleCulling::new(
+        device,
+        crowd,
+        how,
+        &index_buffer,
+        vertices,
+        capacity.unwrap_or(all),
+        [WIDTH, HEIGHT],
+        true,
+    )
+    .unwrap();
+    Some(Scene {
+        culling,
+        skinning,
+        layout,
+        indices,
+        positions: baked.mesh.positions.clone(),
+        models,
+        camera: placed.camera,
+        parts: (pipelines, character, palette, instances, index_buffer),
+        gpu,
+    })
+}
+
+/// One frame's list: its header and its triangles as (instance, sorted vertices).
+fn cull(s: &Scene, camera: &Camera) -> (TriangleHeader, Vec<(u32, [u32; 3])>) {
+    let gpu = &s.gpu;
+    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    let n = s.models.len() as u32;
+    s.culling.encode(&gpu.queue, &mut encoder, camera, Tests::Both, n, &s.skinning, None).unwrap();
+    gpu.queue.submit([encoder.finish()]);
+    let size = 2 * TriangleHeader::SIZE + 24 * s.culling.capacity() as u64;
+    let words: Vec<u32> = read_buffer(gpu, s.culling.triangles(), size);
+    let header: TriangleHeader = bytemuck::pod_read_unaligned(bytemuck::cast_slice(&words[..8]));
+    let bits = s.culling.vertex_bits();
+    let list = words[16..16 + header.index_count as usize]
+        .chunks_exact(3)
+        .map(|t| {
+            let mut v = [t[0], t[1], t[2]].map(|i| i & ((1u32 << bits) - 1));
+            v.sort_unstable();
+            (t[0] >> bits, v)
+        })
+        .collect();
+    (header, list)
+}
+
+/// Whether triangle `t` of instance `i` covers a pixel center, front-facing, in f64: the
+/// center at least 0.02 pixel inside each edge (rasterizers snap vertices to 1/256 pixel or
+/// finer; the f32 corners are within 1e-4 pixel here), every corner in front of the eye.
+fn covers_a_pixel_center(s: &Scene, i: usize, t: &[u32]) -> bool {
+    let view_proj = s.camera.view_proj.as_dmat4();
+    let size = DVec3::new(WIDTH as f64, HEIGHT as f64, 1.0);
+    let mut corners = [DVec3::ZERO; 3];
+    for (k, &v) in t.iter().enumerate() {
+        let world = s.models[i] * s.positions[v as usize].as_dvec3().extend(1.0);
+        let clip: DVec4 = view_proj * world;
+        if clip.w <= 1e-9 {
+            return false;
+        }
+        // Pixels, y up.
+        corners[k] = (clip.truncate() / clip.w * 0.5 + 0.5) * size;
+    }
+    let [a, b, c] = corners;
+    let area = (b - a).x * (c - a).y - (b - a).y * (c - a).x;
+    if area <= 0.0 {
+        return false;
+    }
+    let inside = |p: DVec3| {
+        [(a, b), (b, c), (c, a)].iter().all(|&(u, w)| {
+            let e = w - u;
+            (e.x * (p.y - u.y) - e.y * (p.x - u.x)) / e.truncate().length() > 0.02
+        })
+    };
+    let lo = a.min(b).min(c).max(DVec3::ZERO);
+    let hi = a.max(b).max(c).min(size - 1e-9);
+    let (mut x, y0) = (lo.x.floor(), lo.y.floor());
+    while x <= hi.x {
+        let mut y = y0;
+        while y <= hi.y {
+            if inside(DVec3::new(x + 0.5, y + 0.5, 0.0)) {
+                return true;
+            }
+            y += 1.0;
+        }
+        x += 1.0;
+    }
+    false
+}
+
+#[test]
+fn every_triangle_covering_a_pixel_center_is_kept() {
+    let Some(s) = scene(None) else { return };
+    let (header, list) = cull(&s, &s.camera);
+    assert_eq!(3 * header.found, header.index_count, "the list overflowed");
+    let kept: HashSet<(u32, [u32; 3])> = list.iter().copied().collect();
+    assert_eq!(kept.len(), list.len(), "a triangle listed twice");
+    let triangles: HashSet<[u32; 3]> = s
+        .indices
+        .chunks_exact(3)
+        .map(|t| {
+            let mut v = [t[0], t[1], t[2]];
+            v.sort_unstable();
+            v
+        })
+        .collect();
+    assert!(kept.iter().all(|(i, t)| (*i as usize) < s.models.len() && triangles.contains(t)), "a stranger listed");
+    let (mut required, mut all) = (0, 0);
+    for i in 0..s.models.len() {
+        for t in s.indices.chunks_exact(3) {
+            all += 1;
+            if covers_a_pixel_center(&s, i, t) {
+                required += 1;
+                let mut v = [t[0], t[1], t[2]];
+                v.sort_unstable();
+                assert!(kept.contains(&(i as u32, v)), "instance {i}'s triangle {t:?} covers a pixel center: culled");
+            }
+        }
+    }
+    eprintln!("{all} triangles: {} kept, {required} cover a pixel center", list.len());
+    assert!(required > 100, "too few visible triangles for a test");
+    assert!(2 * list.len() < all, "the pass culled less than half the crowd's triangles");
+}
+
+#[test]
+fn an_overflowing_triangle_list_draws_what_it_wrote_and_a_later_frame_nothing_stale() {
+    let Some(whole_scene) = scene(None) else { return };
+    let (whole, all) = cull(&whole_scene, &whole_scene.camera);
+    let found = whole.found;
+    let all: HashSet<_> = all.into_iter().collect();
+    for capacity in [1, found / 2, found - 1] {
+        let s = scene(Some(capacity)).unwrap();
+        let (header, part) = cull(&s, &s.camera);
+        assert_eq!((header.found, header.index_count), (found, 3 * capacity), "capacity {capacity}");
+        assert!(part.iter().all(|t| all.contains(t)), "capacity {capacity}: a triangle listed that was culled");
+        // A camera facing away: nothing found, nothing drawn (the first frame's entries are
+        // still in the list).
+        let Projection::Perspective { eye } = s.camera.projection else { unreachable!() };
+        let target = s.camera.planes[0].truncate();
+        let away = Camera::perspective(eye, eye + (eye - target).normalize(), Vec3::Y, 0.5, 1.5, 0.1, 0.2).unwrap();
+        let (header, _) = cull(&s, &away);
+        assert_eq!((header.found, header.index_count), (0, 0));
+    }
+}
+
+#[test]
+fn triangle_culling_refuses_bad_arguments() {
+    let Some(s) = scene(None) else { return };
+    let device = &s.gpu.device;
+    let (pipelines, character, palette, instances, indices) = &s.parts;
+    let crowd = || CrowdCulling::new(device, pipelines, character, palette, instances, 16, 16).unwrap();
+    let skinning = TriangleSkinning { wgsl: SKINNING, layout: &s.layout, margin: 0.0, relative: 0.0 };
+    let make = |skinning: TriangleSkinning, indices: &wgpu::Buffer, vertices: u32, size: [u32; 2]| {
+        TriangleCulling::new(device, crowd(), skinning, indices, vertices, 64, size, true)
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default()
+    };
+    let uniform = device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: 64,
+        usage: wgpu::BufferUsages::UNIFORM,
+        mapped_at_creation: false,
+    });
+    assert!(make(skinning, &uniform, 100, [WIDTH, HEIGHT]).contains("STORAGE"));
+    assert!(make(skinning, indices, 0, [WIDTH, HEIGHT]).contains("0 vertices"));
+    assert!(make(skinning, indices, 100, [0, HEIGHT]).contains("drawn at 0×"));
+    assert!(make(skinning, indices, 1 << 31, [WIDTH, HEIGHT]).contains("32-bit indices"));
+    let nan = TriangleSkinning { margin: f32::NAN, ..skinning };
+    assert!(make(nan, indices, 100, [WIDTH, HEIGHT]).contains("margins"));
+    let broken =
+        TriangleSkinning { wgsl: "fn skinned_position(i: u32, v: u32) -> vec3<f32> { return q; }", ..skinning };
+    assert!(!make(broken, indices, 100, [WIDTH, HEIGHT]).is_empty(), "a skinning function that does not compile");
+}
