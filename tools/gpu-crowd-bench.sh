@@ -2,8 +2,9 @@
 # The GPU-driven crowd measured on this machine's GPU: builds skinlet in release, then runs
 # `skinlet gpu-bench --json` on the shared characters (Xbot, mannequiny, BrainStem, the demo)
 # for the paper's crowd and the dense street-level crowd, per meshlet builder, and prints a
-# table of GPU ms per frame, meshlets drawn (frustum + backface, + occlusion, the oracle, what
-# boxes of the very pose could keep) and draw calls, with the adapter's name. Every JSON file stays in the output folder.
+# table of GPU ms per frame, meshlets drawn (frustum + backface, + occlusion, + the triangle
+# pass, the oracle, what boxes of the very pose could keep), triangles drawn and draw calls,
+# with the adapter's name. Every JSON file stays in the output folder.
 #
 #   bash tools/gpu-crowd-bench.sh [OUT_DIR]
 #
@@ -42,8 +43,8 @@ node - "$out"/*.json <<'EOF'
 const fs = require('fs');
 const files = process.argv.slice(2);
 let adapter = null;
-console.log('| character | crowd | builder | pipeline | culling | GPU ms/frame | meshlets drawn | vertex refs | oracle | pose box | draws | image |');
-console.log('|---|---|---|---|---|---|---|---|---|---|---|---|');
+console.log('| character | crowd | builder | pipeline | culling | GPU ms/frame | meshlets drawn | triangles drawn | vertex refs | oracle | pose box | pose triangles | draws | image |');
+console.log('|---|---|---|---|---|---|---|---|---|---|---|---|---|---|');
 for (const f of files) {
     const j = JSON.parse(fs.readFileSync(f, 'utf8'));
     adapter = j.adapter;
@@ -51,8 +52,9 @@ for (const f of files) {
     for (const r of j.rows) {
         const ms = r.gpu_ms ? r.gpu_ms.median.toFixed(2) : '-';
         console.log(`| ${name} | ${j.crowd} ${j.instances} | ${j.builder} | ${r.pipeline} | ${r.culling} | ${ms} | ` +
-            `${Math.round(r.meshlets_drawn)} | ${r.vertex_refs_per_frame ?? '-'} | ${Math.round(j.meshlets_visible_oracle)} | ` +
-            `${Math.round(j.meshlets_unhidden_pose_box)} | ` +
+            `${Math.round(r.meshlets_drawn)} | ${r.triangles_per_frame} | ${r.vertex_refs_per_frame ?? '-'} | ` +
+            `${Math.round(j.meshlets_visible_oracle)} | ${Math.round(j.meshlets_unhidden_pose_box)} | ` +
+            `${Math.round(j.meshlets_unhidden_pose_triangles)} | ` +
             `${r.draws_issued} | ${r.image_equal_to_unculled ? 'equal' : 'DIFFERENT'} |`);
     }
 }

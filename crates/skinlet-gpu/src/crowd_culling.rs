@@ -46,6 +46,9 @@
 //! draws those too. A meshlet with a visible fragment is drawn in one of the two phases
 //! whatever the bits say (camera cuts, teleports).
 //!
+//! [`crate::triangle_culling`] adds a per-triangle pass over the survivors (with the
+//! visibility bits then set from the triangles).
+//!
 //! Nothing is read back. The visible set is conservative: a meshlet culled here is culled by
 //! the same test in exact arithmetic on the same matrices (the GPU's margins cover its f32
 //! rounding, `prepare.wgsl`); `tests/crowd_culling.rs` checks every culled meshlet of the
