@@ -124,8 +124,8 @@ struct Frame {
     /// Vertex references skinned by the draw (GPU-driven rows): of the meshlets drawn, or
     /// with the triangle pass, the distinct (instance, vertex) of the triangles drawn.
     vertex_refs: Option<u64>,
-    /// Triangle corners the triangle pass skinned (3 per triangle of the meshlets it tested).
-    pass_corners: Option<u64>,
+    /// Vertices the triangle pass skinned (those of the meshlets it tested, once each).
+    pass_vertices: Option<u64>,
     draw_calls: u32,
     wall_ms: f64,
 }
@@ -168,8 +168,8 @@ struct Row {
     meshlets_drawn: f64,
     /// Their vertex references per frame (GPU-driven rows).
     vertex_refs: Option<u64>,
-    /// Corners the triangle pass skinned per frame (its rows).
-    pass_corners: Option<u64>,
+    /// Vertices the triangle pass skinned per frame (its rows).
+    pass_vertices: Option<u64>,
     /// API draw calls per frame.
     draws_issued: u32,
     /// The warm-up frame's image equals the unculled one (up to depth ties).
@@ -384,7 +384,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             let started = std::time::Instant::now();
             let d = gpu_crowd.draw(&gpu, &crowd_frame(f, c.tests.unwrap_or(Tests::Both), false), view, light)?;
             let wall_ms = started.elapsed().as_secs_f64() * 1e3;
-            let (mut meshlets, mut triangles, mut vertex_refs, mut pass_corners) =
+            let (mut meshlets, mut triangles, mut vertex_refs, mut pass_vertices) =
                 (all_meshlets, total_triangles * instances as u64, Some(all_vertex_refs), None);
             if !d.headers.is_empty() {
                 let survivors = gpu_crowd.survivors(&gpu)?;
@@ -392,9 +392,9 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 (meshlets, triangles, vertex_refs) =
                     (survivors.len() as u64, sum(&meshlet_triangles), Some(sum(&meshlet_vertices)));
                 if !d.triangle_headers.is_empty() {
-                    // The pass tested the survivors' triangles; the draw skins each distinct
-                    // (instance, vertex) of those it kept at least once.
-                    pass_corners = Some(3 * triangles);
+                    // The pass skinned the survivors' vertices; the draw skins each distinct
+                    // (instance, vertex) of the triangles it kept at least once.
+                    pass_vertices = vertex_refs;
                     let drawn = gpu_crowd.drawn_triangles(&gpu)?;
                     let pairs: HashSet<[u32; 2]> = drawn.iter().map(|t| [t.instance, t.meshlet]).collect();
                     let corners: HashSet<[u32; 2]> =
@@ -410,7 +410,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 triangles,
                 meshlets,
                 vertex_refs,
-                pass_corners,
+                pass_vertices,
                 draw_calls: d.draw_calls,
                 wall_ms,
             });
@@ -444,7 +444,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             triangles: drawn.triangles.map_or(total_triangles * instances as u64, u64::from),
             meshlets: drawn.meshlets.map_or((instances * c.baked.meshlets.len()) as u64, u64::from),
             vertex_refs: None,
-            pass_corners: None,
+            pass_vertices: None,
             draw_calls: per_instance * instances as u32,
             wall_ms,
         })
@@ -516,7 +516,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let (mut gpu_ms, mut wall_ms) = (vec![Vec::new(); configs.len()], vec![Vec::new(); configs.len()]);
     let (mut triangles, mut meshlets, mut draw_calls) =
         (vec![0u64; configs.len()], vec![0u64; configs.len()], vec![0u32; configs.len()]);
-    let (mut vertex_refs, mut pass_corners) = (vec![None; configs.len()], vec![None; configs.len()]);
+    let (mut vertex_refs, mut pass_vertices) = (vec![None; configs.len()], vec![None; configs.len()]);
     for repeat in 0..a.repeats {
         let order: Vec<usize> =
             if repeat % 2 == 0 { (0..configs.len()).collect() } else { (0..configs.len()).rev().collect() };
@@ -532,14 +532,14 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 t += frame.triangles;
                 m += frame.meshlets;
                 v = frame.vertex_refs.map(|x| x + v.unwrap_or(0));
-                p = frame.pass_corners.map(|x| x + p.unwrap_or(0));
+                p = frame.pass_vertices.map(|x| x + p.unwrap_or(0));
                 draw_calls[k] = frame.draw_calls;
             }
             gpu_ms[k].extend(crate::bench::median(g));
             wall_ms[k].extend(crate::bench::median(w));
             (triangles[k], meshlets[k]) = (t / a.frames as u64, m / a.frames as u64);
             vertex_refs[k] = v.map(|v| v / a.frames as u64);
-            pass_corners[k] = p.map(|p| p / a.frames as u64);
+            pass_vertices[k] = p.map(|p| p / a.frames as u64);
         }
     }
     let rows: Vec<Row> = (0..configs.len())
@@ -563,7 +563,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 triangles: triangles[k],
                 meshlets_drawn: meshlets[k] as f64,
                 vertex_refs: vertex_refs[k],
-                pass_corners: pass_corners[k],
+                pass_vertices: pass_vertices[k],
                 draws_issued: draw_calls[k],
                 image_equal: image_equal[k],
             }
@@ -581,7 +581,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                     "wall_ms": Spread::json(r.wall_ms), "vs_none_pct": Spread::json(r.vs_none_pct),
                     "culled_pct": r.culled_pct, "triangles_per_frame": r.triangles,
                     "meshlets_drawn": r.meshlets_drawn, "vertex_refs_per_frame": r.vertex_refs,
-                    "triangle_pass_corners_per_frame": r.pass_corners,
+                    "triangle_pass_vertices_per_frame": r.pass_vertices,
                     "draws_issued": r.draws_issued,
                     "image_equal_to_unculled": r.image_equal})
             })

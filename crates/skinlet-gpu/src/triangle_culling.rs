@@ -1,7 +1,7 @@
 //! Per-triangle culling of crowd culling's survivors (skinning-with-mesh-shaders thesis, the
 //! per-triangle stage after meshlet culling): a compute pass, one workgroup per surviving
-//! (instance, meshlet), skins each triangle's corners with the caller's own skinning function
-//! and drops the triangles that are certainly outside a side of the view, back-facing, between
+//! (instance, meshlet), skins the meshlet's vertices once with the caller's own skinning
+//! function and drops the triangles that are certainly outside a side of the view, back-facing, between
 //! pixel centers, or (occlusion culling's second phase) behind the depth pyramid; the rest go
 //! to one compacted index list, drawn with one `draw_indexed_indirect`.
 //!
@@ -28,6 +28,7 @@ use crate::crowd_culling::{
     CrowdCulling, List, OCCLUSION_OFFSET, OCCLUSION_TEST_WGSL, bind, dynamic_uniform, invalid, layout_entry, part,
     whole,
 };
+use skinlet_runtime::bake_view::MeshletView;
 use skinlet_runtime::camera::Camera;
 use skinlet_runtime::meshlet_cull::Tests;
 
@@ -100,33 +101,60 @@ pub struct TriangleCulling {
 
 const SECOND: u64 = 256;
 
+/// Most vertices a meshlet may have (the pass skins them into workgroup memory).
+pub const MAX_MESHLET_VERTICES: usize = 128;
+
+/// The meshlets as `meshlet_words` of triangle_cull.wgsl: per meshlet where its vertices
+/// start, their count, where its triangles start, their count (words of this array); the
+/// vertices; the triangles, one word each (local indices in the low three bytes).
+fn pack_meshlets(m: &MeshletView) -> Vec<u32> {
+    let mut words = vec![0u32; 4 * m.len()];
+    for i in 0..m.len() {
+        let (first, (vertices, _)) = (words.len() as u32, m.counts(i));
+        words[4 * i..4 * i + 2].copy_from_slice(&[first, vertices as u32]);
+        words.extend(m.vertices_of(i));
+    }
+    for i in 0..m.len() {
+        let (h, triangles) = (m.headers[i], m.counts(i).1);
+        let first = words.len() as u32;
+        words[4 * i + 2..4 * i + 4].copy_from_slice(&[first, triangles as u32]);
+        let local = &m.triangles[h[1] as usize..h[1] as usize + 3 * triangles];
+        words.extend(local.chunks_exact(3).map(|t| t[0] as u32 | (t[1] as u32) << 8 | (t[2] as u32) << 16));
+    }
+    words
+}
+
 impl TriangleCulling {
     /// The triangle pass after `crowd` (which it takes over: [`TriangleCulling::crowd`]), for
-    /// a mesh of `vertices` vertices whose index buffer (`indices`, `STORAGE` usage, meshlet
-    /// by meshlet as given to `GpuCharacter::new`) the pass reads, skinned by `skinning`,
+    /// a mesh of `vertices` vertices and its `meshlets` (the culler's, in its order; at most
+    /// [`MAX_MESHLET_VERTICES`] vertices each), skinned by `skinning`,
     /// drawn at `width` × `height` (the occlusion depth's size where `crowd` has one),
     /// `cull_back_faces` where the draw culls back faces (`wgpu::Face::Back`, counter-clockwise
     /// front). Each list holds `capacity` triangles. Errors when an argument is out of range,
-    /// the encoded indices would not fit 32 bits, or the pipeline fails validation (e.g. the
-    /// skinning WGSL or its layout).
+    /// the meshlets are not the crowd's or fail their check, the encoded indices would not fit
+    /// 32 bits, or the pipeline fails validation (e.g. the skinning WGSL or its layout).
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         device: &wgpu::Device,
         crowd: CrowdCulling,
         skinning: TriangleSkinning,
-        indices: &wgpu::Buffer,
+        meshlets: &MeshletView,
         vertices: u32,
         capacity: u32,
         [width, height]: [u32; 2],
         cull_back_faces: bool,
     ) -> Result<TriangleCulling> {
         let location = "GPU triangle culling";
-        if !indices.usage().contains(wgpu::BufferUsages::STORAGE) {
-            return Err(invalid(location, "the index buffer lacks STORAGE usage".into()));
-        }
         if vertices == 0 || width == 0 || height == 0 {
             return Err(invalid(location, format!("{vertices} vertices drawn at {width}×{height}")));
         }
+        if meshlets.len() != crowd.meshlets as usize {
+            return Err(invalid(location, format!("{} meshlets for a crowd of {}", meshlets.len(), crowd.meshlets)));
+        }
+        meshlets
+            .check(vertices as usize, [MAX_MESHLET_VERTICES, usize::MAX])
+            .map_err(|e| invalid(location, e.to_string()))?;
+        let words = pack_meshlets(meshlets);
         if let Some((w, h, ..)) = crowd.occlusion
             && (w, h) != (width, height)
         {
@@ -202,7 +230,7 @@ impl TriangleCulling {
                     bind(2, whole(&crowd.commands)),
                     bind(3, whole(&crowd.survivors)),
                     bind(4, whole(&crowd.state)),
-                    bind(5, whole(indices)),
+                    bind(5, whole(&crate::context::buffer(device, "skinlet triangle meshlets", &words, U::STORAGE))),
                     bind(6, whole(&triangles)),
                 ],
             });

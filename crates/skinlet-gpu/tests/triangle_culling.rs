@@ -11,6 +11,7 @@ use skinlet_gpu::Gpu;
 use skinlet_gpu::crowd_culling::{CrowdCulling, CullInstance, CullMode, CullPipelines, GpuCharacter};
 use skinlet_gpu::triangle_culling::{TriangleCulling, TriangleHeader, TriangleSkinning};
 use skinlet_lab::crowd::{CrowdParams, crowd};
+use skinlet_runtime::bake_view::MeshletView;
 use skinlet_runtime::camera::{Camera, Projection};
 use skinlet_runtime::meshlet_cull::{MeshletCuller, Tests};
 use std::collections::HashSet;
@@ -40,7 +41,8 @@ struct Scene {
     models: Vec<DMat4>,
     camera: Camera,
     /// Crowd culling's parts, for more crowds.
-    parts: (CullPipelines, GpuCharacter, wgpu::Buffer, wgpu::Buffer, wgpu::Buffer),
+    parts: (CullPipelines, GpuCharacter, wgpu::Buffer, wgpu::Buffer),
+    baked: skinlet::bake::Baked,
 }
 
 fn scene(capacity: Option<u32>) -> Option<Scene> {
@@ -51,11 +53,9 @@ fn scene(capacity: Option<u32>) -> Option<Scene> {
     let baked = bake(&asset, &character);
     let skin = &character.palette;
     let culler = MeshletCuller::new(&baked.bounds, &baked.classes, skin.joints.len()).unwrap();
-    let (indices, draws) = skinlet_gpu::mesh::meshlet_index_buffer(
-        &baked.meshlets.view(&baked.meshlets.headers()),
-        baked.mesh.positions.len(),
-    )
-    .unwrap();
+    let headers = baked.meshlets.headers();
+    let meshlets = baked.meshlets.view(&headers);
+    let (indices, draws) = skinlet_gpu::mesh::meshlet_index_buffer(&meshlets, baked.mesh.positions.len()).unwrap();
     let pipelines = CullPipelines::new(device).unwrap();
     let character = GpuCharacter::new(device, &culler, &skin.inverse_bind, &draws).unwrap();
     let params = CrowdParams { instances: 16, frames: 1, ..CrowdParams::default() };
@@ -69,7 +69,6 @@ fn scene(capacity: Option<u32>) -> Option<Scene> {
     let palette: Vec<f32> = (0..n as usize * skin.joints.len()).flat_map(|_| Mat4::IDENTITY.to_cols_array()).collect();
     let instances: Vec<CullInstance> = models.iter().map(|m| CullInstance::new(m.as_mat4(), CullMode::Keep)).collect();
     let (palette, instances) = (init(bytemuck::cast_slice(&palette)), init(bytemuck::cast_slice(&instances)));
-    let index_buffer = init(bytemuck::cast_slice(&indices));
     let crowd =
         CrowdCulling::new(device, &pipelines, &character, &palette, &instances, n, n * character.meshlets()).unwrap();
     let entry = |binding| wgpu::BindGroupLayoutEntry {
@@ -99,17 +98,9 @@ fn scene(capacity: Option<u32>) -> Option<Scene> {
     let how = TriangleSkinning { wgsl: SKINNING, layout: &layout, margin: 0.0, relative: 1.0 / 65536.0 };
     let all = n * indices.len() as u32 / 3;
     let vertices = baked.mesh.positions.len() as u32;
-    let culling = TriangleCulling::new(
-        device,
-        crowd,
-        how,
-        &index_buffer,
-        vertices,
-        capacity.unwrap_or(all),
-        [WIDTH, HEIGHT],
-        true,
-    )
-    .unwrap();
+    let culling =
+        TriangleCulling::new(device, crowd, how, &meshlets, vertices, capacity.unwrap_or(all), [WIDTH, HEIGHT], true)
+            .unwrap();
     Some(Scene {
         culling,
         skinning,
@@ -118,7 +109,8 @@ fn scene(capacity: Option<u32>) -> Option<Scene> {
         positions: baked.mesh.positions.clone(),
         models,
         camera: placed.camera,
-        parts: (pipelines, character, palette, instances, index_buffer),
+        parts: (pipelines, character, palette, instances),
+        baked,
         gpu,
     })
 }
@@ -247,28 +239,29 @@ fn an_overflowing_triangle_list_draws_what_it_wrote_and_a_later_frame_nothing_st
 fn triangle_culling_refuses_bad_arguments() {
     let Some(s) = scene(None) else { return };
     let device = &s.gpu.device;
-    let (pipelines, character, palette, instances, indices) = &s.parts;
+    let (pipelines, character, palette, instances) = &s.parts;
     let crowd = || CrowdCulling::new(device, pipelines, character, palette, instances, 16, 16).unwrap();
     let skinning = TriangleSkinning { wgsl: SKINNING, layout: &s.layout, margin: 0.0, relative: 0.0 };
-    let make = |skinning: TriangleSkinning, indices: &wgpu::Buffer, vertices: u32, size: [u32; 2]| {
-        TriangleCulling::new(device, crowd(), skinning, indices, vertices, 64, size, true)
+    let headers = s.baked.meshlets.headers();
+    let meshlets = s.baked.meshlets.view(&headers);
+    let vertices = s.positions.len() as u32;
+    let make = |skinning: TriangleSkinning, meshlets: &MeshletView, vertices: u32, size: [u32; 2]| {
+        TriangleCulling::new(device, crowd(), skinning, meshlets, vertices, 64, size, true)
             .err()
             .map(|e| e.to_string())
             .unwrap_or_default()
     };
-    let uniform = device.create_buffer(&wgpu::BufferDescriptor {
-        label: None,
-        size: 64,
-        usage: wgpu::BufferUsages::UNIFORM,
-        mapped_at_creation: false,
-    });
-    assert!(make(skinning, &uniform, 100, [WIDTH, HEIGHT]).contains("STORAGE"));
-    assert!(make(skinning, indices, 0, [WIDTH, HEIGHT]).contains("0 vertices"));
-    assert!(make(skinning, indices, 100, [0, HEIGHT]).contains("drawn at 0×"));
-    assert!(make(skinning, indices, 1 << 31, [WIDTH, HEIGHT]).contains("32-bit indices"));
+    let size = [WIDTH, HEIGHT];
+    assert_eq!(make(skinning, &meshlets, vertices, size), "");
+    let fewer = MeshletView { headers: &headers[1..], ..meshlets };
+    assert!(make(skinning, &fewer, vertices, size).contains("meshlets for a crowd of"));
+    assert!(make(skinning, &meshlets, 0, size).contains("0 vertices"));
+    assert!(make(skinning, &meshlets, 10, size).contains("past"));
+    assert!(make(skinning, &meshlets, vertices, [0, HEIGHT]).contains("drawn at 0×"));
+    assert!(make(skinning, &meshlets, 1 << 31, size).contains("32-bit indices"));
     let nan = TriangleSkinning { margin: f32::NAN, ..skinning };
-    assert!(make(nan, indices, 100, [WIDTH, HEIGHT]).contains("margins"));
+    assert!(make(nan, &meshlets, vertices, size).contains("margins"));
     let broken =
         TriangleSkinning { wgsl: "fn skinned_position(i: u32, v: u32) -> vec3<f32> { return q; }", ..skinning };
-    assert!(!make(broken, indices, 100, [WIDTH, HEIGHT]).is_empty(), "a skinning function that does not compile");
+    assert!(!make(broken, &meshlets, vertices, size).is_empty(), "a skinning function that does not compile");
 }

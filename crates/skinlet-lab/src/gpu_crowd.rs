@@ -64,8 +64,11 @@ pub struct CrowdDrawn {
     pub image: Option<Image>,
     /// Per pixel, 0 or the drawn (instance × meshlets + meshlet) + 1 ([`CrowdView::Ids`]).
     pub ids: Option<Vec<u32>>,
-    /// Per pixel, whether the nearest fragments of two meshlets tie in depth there (the
-    /// meshlet drawn first and the one drawn last differ): where draw order picks the color.
+    /// Per pixel, 0 or the drawn (instance × triangles + triangle) + 1, the triangle's place
+    /// in the mesh's meshlet-order index buffer ([`CrowdView::Ids`]).
+    pub triangle_ids: Option<Vec<u32>>,
+    /// Per pixel, whether the nearest fragments of two triangles tie in depth there (the
+    /// triangle drawn first and the one drawn last differ): where draw order picks the color.
     pub ties: Option<Vec<bool>>,
     /// The survivor lists' headers (culled views: one, two with occlusion culling).
     pub headers: Vec<SurvivorHeader>,
@@ -83,6 +86,8 @@ pub struct CrowdDrawn {
 pub struct DrawnTriangle {
     pub instance: u32,
     pub meshlet: u32,
+    /// Its place in the mesh's meshlet-order index buffer.
+    pub triangle: u32,
     /// Its vertices, sorted.
     pub vertices: [u32; 3],
 }
@@ -98,8 +103,10 @@ pub struct GpuCrowd {
     index_count: u32,
     /// Per meshlet its first index (increasing: the index buffer is in meshlet order).
     firsts: Vec<u32>,
-    /// Each triangle's meshlet by its vertex indices (sorted).
-    triangle_meshlet: std::collections::HashMap<[u32; 3], u32>,
+    /// Each triangle's meshlet (in index buffer order), and each triangle by its vertex
+    /// indices (sorted).
+    triangle_meshlets: Vec<u32>,
+    triangle_by_vertices: std::collections::HashMap<[u32; 3], u32>,
     palette: wgpu::Buffer,
     instances: wgpu::Buffer,
     weights: wgpu::Buffer,
@@ -107,7 +114,7 @@ pub struct GpuCrowd {
     indices: wgpu::Buffer,
     /// The meshlet culling (`culling.crowd()`) and the triangle pass after it.
     culling: TriangleCulling,
-    /// Group 0 (view, indices, survivors, triangle meshlets) and group 1 (the skinning).
+    /// Group 0 (view, indices, survivors) and group 1 (the skinning).
     groups: [wgpu::BindGroup; 2],
     /// Pipelines: indexed, pulled, ids (nearer wins, nearer or equal wins), triangles.
     draws: [wgpu::RenderPipeline; 5],
@@ -155,10 +162,9 @@ impl GpuCrowd {
     ) -> Result<GpuCrowd> {
         let mesh = &baked.mesh;
         let inf = mesh.influences.as_ref().ok_or_else(|| invalid("the bake has no skin weights".into()))?;
-        let (indices, draws) = skinlet_gpu::mesh::meshlet_index_buffer(
-            &baked.meshlets.view(&baked.meshlets.headers()),
-            mesh.positions.len(),
-        )?;
+        let headers = baked.meshlets.headers();
+        let meshlets = baked.meshlets.view(&headers);
+        let (indices, draws) = skinlet_gpu::mesh::meshlet_index_buffer(&meshlets, mesh.positions.len())?;
         let device = &gpu.device;
         let pipelines = CullPipelines::new(device)?;
         let character = GpuCharacter::new(device, culler, &baked.inverse_bind, &draws)?;
@@ -203,11 +209,11 @@ impl GpuCrowd {
         let skin = [joints, inf.stride as u32, morphs, influences, morph_offsets, morph_deltas, 0, 0];
         let triangle_meshlets: Vec<u32> =
             (draws.iter().enumerate()).flat_map(|(m, d)| std::iter::repeat_n(m as u32, d[0] as usize / 3)).collect();
-        let triangle_meshlet = (indices.chunks_exact(3).zip(&triangle_meshlets))
-            .map(|(t, &m)| {
+        let triangle_by_vertices = (indices.chunks_exact(3).enumerate())
+            .map(|(k, t)| {
                 let mut t = [t[0], t[1], t[2]];
                 t.sort_unstable();
-                (t, m)
+                (t, k as u32)
             })
             .collect();
         let read = wgpu::BufferUsages::STORAGE;
@@ -250,10 +256,8 @@ impl GpuCrowd {
             let layout = |label, entries: &[wgpu::BindGroupLayoutEntry]| {
                 device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries })
             };
-            let draw_layout = layout(
-                "crowd draw",
-                &[uniform(0, S::VERTEX_FRAGMENT), storage(1, S::VERTEX), storage(2, S::VERTEX), storage(3, S::VERTEX)],
-            );
+            let draw_layout =
+                layout("crowd draw", &[uniform(0, S::VERTEX_FRAGMENT), storage(1, S::VERTEX), storage(2, S::VERTEX)]);
             let skin_layout = layout(
                 "crowd skinning",
                 &[
@@ -269,16 +273,7 @@ impl GpuCrowd {
                     .collect()
             }
             let groups = [
-                gpu.bind_group(
-                    "crowd draw",
-                    &draw_layout,
-                    &entries(&[
-                        &view,
-                        &index_buffer,
-                        &commands,
-                        &gpu.buffer("crowd triangle meshlets", &triangle_meshlets, read),
-                    ]),
-                ),
+                gpu.bind_group("crowd draw", &draw_layout, &entries(&[&view, &index_buffer, &commands])),
                 gpu.bind_group(
                     "crowd skinning",
                     &skin_layout,
@@ -350,7 +345,7 @@ impl GpuCrowd {
             device,
             culling,
             skinning,
-            &index_buffer,
+            &meshlets,
             vertices as u32,
             all_triangles,
             [width, height],
@@ -366,7 +361,8 @@ impl GpuCrowd {
             meshlets: character.meshlets(),
             index_count: indices.len() as u32,
             firsts: draws.iter().map(|d| d[1]).collect(),
-            triangle_meshlet,
+            triangle_by_vertices,
+            triangle_meshlets,
             palette: palette.clone(),
             instances: instances.clone(),
             weights: weights.clone(),
@@ -385,6 +381,11 @@ impl GpuCrowd {
 
     pub fn meshlets(&self) -> u32 {
         self.meshlets
+    }
+
+    /// Triangles per instance.
+    pub fn triangles(&self) -> u32 {
+        self.index_count / 3
     }
 
     /// Draws one frame of the first `frame.modes.len()` instances.
@@ -410,7 +411,7 @@ impl GpuCrowd {
         }
         let mut uniforms: Vec<u32> = frame.camera.view_proj.to_cols_array().map(f32::to_bits).to_vec();
         uniforms.extend(light.normalize_or_zero().extend(0.0).to_array().map(f32::to_bits));
-        uniforms.extend([self.meshlets, self.culling.vertex_bits(), 0, 0]);
+        uniforms.extend([self.index_count / 3, self.culling.vertex_bits(), 0, 0]);
         queue.write_buffer(&self.view, 0, bytemuck::cast_slice(&uniforms));
         let device = &gpu.device;
         let (row, height) = ((4 * self.width).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT), self.height);
@@ -546,12 +547,20 @@ impl GpuCrowd {
             let rows = bytes.chunks_exact(row as usize).map(|r| r[..4 * self.width as usize].to_vec());
             images.push(rows.flatten().collect::<Vec<u8>>());
         }
-        let (mut image, mut ids, mut ties) = (None, None, None);
+        let (mut image, mut ids, mut triangle_ids, mut ties) = (None, None, None, None);
         if let [first, last] = &images[..] {
             let words = |b: &Vec<u8>| bytemuck::pod_collect_to_vec::<u8, u32>(b);
             let (first, last) = (words(first), words(last));
+            // Ties between any two triangles (of one meshlet too: faceted shading tells them
+            // apart), ids by meshlet.
             ties = Some(first.iter().zip(&last).map(|(a, b)| a != b).collect());
-            ids = Some(first);
+            let triangles = self.index_count / 3;
+            let meshlet = |id: u32| match id {
+                0 => 0,
+                _ => (id - 1) / triangles * self.meshlets + self.triangle_meshlets[((id - 1) % triangles) as usize] + 1,
+            };
+            ids = Some(first.iter().map(|&id| meshlet(id)).collect());
+            triangle_ids = Some(first);
         } else {
             image = Some(Image { width: self.width, height, rgba: images.swap_remove(0) });
         }
@@ -579,7 +588,16 @@ impl GpuCrowd {
             }
             None => None,
         };
-        Ok(CrowdDrawn { image, ids, ties, headers, triangle_headers, draw_calls: passes.len() as u32, gpu_ms })
+        Ok(CrowdDrawn {
+            image,
+            ids,
+            triangle_ids,
+            ties,
+            headers,
+            triangle_headers,
+            draw_calls: passes.len() as u32,
+            gpu_ms,
+        })
     }
 
     /// The depth buffer the last frame left, rows top to bottom.
@@ -639,10 +657,11 @@ impl GpuCrowd {
             for t in all[start..start + h.index_count as usize].chunks_exact(3) {
                 let mut vertices = [t[0], t[1], t[2]].map(|i| i & ((1u64 << bits) - 1) as u32);
                 vertices.sort_unstable();
-                let meshlet = self.triangle_meshlet.get(&vertices).ok_or_else(|| {
+                let &triangle = self.triangle_by_vertices.get(&vertices).ok_or_else(|| {
                     invalid(format!("list {k} holds a triangle {t:?} of no meshlet (vertices {vertices:?})"))
                 })?;
-                out.push(DrawnTriangle { instance: t[0] >> bits, meshlet: *meshlet, vertices });
+                let meshlet = self.triangle_meshlets[triangle as usize];
+                out.push(DrawnTriangle { instance: t[0] >> bits, meshlet, triangle, vertices });
             }
         }
         Ok(out)

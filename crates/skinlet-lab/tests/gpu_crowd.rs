@@ -4,7 +4,9 @@
 //! depth), and every (instance, meshlet) with a visible fragment in
 //! the unculled ID buffer is among them, on every shared asset and the demo, for clips and
 //! for game poses under the pose guard; with two-phase occlusion culling too, also when the
-//! camera cuts or moves through a wall of characters and when the crowd teleports.
+//! camera cuts or moves through a wall of characters and when the crowd teleports. With the
+//! triangle pass (`skinlet_gpu::triangle_culling`, one phase or two), every triangle with a
+//! visible fragment in the unculled ID buffer is drawn.
 
 #[path = "../../skinlet-gpu/tests/common/mod.rs"]
 mod common;
@@ -35,6 +37,9 @@ fn check_frame(gpu: &Gpu, crowd: &GpuCrowd, frame: &CrowdFrame, what: &str) -> [
     let oracle = crowd.draw(gpu, frame, CrowdView::Ids, LIGHT).unwrap();
     let ties = oracle.ties.unwrap();
     let visible: HashSet<u32> = oracle.ids.unwrap().into_iter().filter(|&id| id != 0).map(|id| id - 1).collect();
+    let visible_triangles: HashSet<u32> =
+        oracle.triangle_ids.unwrap().into_iter().filter(|&id| id != 0).map(|id| id - 1).collect();
+    let triangles = crowd.triangles();
     assert!(!visible.is_empty(), "{what}: nothing visible");
     // Occlusion culling twice: with the bits the crowd's last frame left, then with this
     // frame's.
@@ -66,7 +71,14 @@ fn check_frame(gpu: &Gpu, crowd: &GpuCrowd, frame: &CrowdFrame, what: &str) -> [
         // the survivors' order is not the unculled draw's); elsewhere every pixel is equal.
         let differing: Vec<usize> = (0..ties.len()).filter(|&p| a[4 * p..4 * p + 4] != b[4 * p..4 * p + 4]).collect();
         let untied = differing.iter().filter(|&&p| !ties[p]).count();
-        assert_eq!(untied, 0, "{what} {view:?}: {untied} pixels without a depth tie differ from the unculled image");
+        // The triangle views draw with another vertex shader than the ID view and the
+        // reference, whose positions lavapipe may round apart: a near tie there can go either
+        // way (every visible triangle is drawn: below). At most 1 pixel in 10,000.
+        let allowed = if drawn.triangle_headers.is_empty() { 0 } else { ties.len() / 10_000 };
+        assert!(
+            untied <= allowed,
+            "{what} {view:?}: {untied} pixels without a depth tie differ from the unculled image"
+        );
         let list: HashSet<u32> = match drawn.triangle_headers.is_empty() {
             true => {
                 let list: HashSet<u32> =
@@ -75,15 +87,29 @@ fn check_frame(gpu: &Gpu, crowd: &GpuCrowd, frame: &CrowdFrame, what: &str) -> [
                 list
             }
             false => {
-                let triangles = crowd.drawn_triangles(gpu).unwrap();
-                let list: HashSet<u32> = triangles.iter().map(|t| t.instance * crowd.meshlets() + t.meshlet).collect();
+                let drawn_triangles = crowd.drawn_triangles(gpu).unwrap();
+                let list: HashSet<u32> =
+                    drawn_triangles.iter().map(|t| t.instance * crowd.meshlets() + t.meshlet).collect();
+                let listed: HashSet<u32> =
+                    drawn_triangles.iter().map(|t| t.instance * triangles + t.triangle).collect();
+                if let Some(missing) = visible_triangles.difference(&listed).next() {
+                    panic!(
+                        "{what} {view:?}: triangle {} of instance {} is visible and was culled",
+                        missing % triangles,
+                        missing / triangles
+                    );
+                }
                 let headers = &drawn.triangle_headers;
                 for h in headers {
                     assert_eq!(3 * h.found, h.index_count, "{what} {view:?}: the triangle list overflowed");
                 }
                 let meshlets: u32 = headers.iter().map(|h| h.meshlets).sum();
                 assert_eq!(list.len(), meshlets as usize, "{what} {view:?}: meshlets with triangles, counted");
-                assert_eq!(triangles.len() as u32, headers.iter().map(|h| h.found).sum::<u32>(), "{what} {view:?}");
+                assert_eq!(
+                    drawn_triangles.len() as u32,
+                    headers.iter().map(|h| h.found).sum::<u32>(),
+                    "{what} {view:?}"
+                );
                 list
             }
         };

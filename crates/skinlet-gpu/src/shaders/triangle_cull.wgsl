@@ -1,8 +1,9 @@
 // Per-triangle culling of the meshlet survivors (skinning thesis, the per-triangle stage after
 // meshlet culling), after occlusion_test.wgsl and the caller's skinning WGSL (which defines
 // `skinned_position(instance, vertex) -> vec3<f32>`, world space, from its bindings in group
-// 1): one workgroup per survivor of crowd_cull.wgsl's list; each lane skins the corners of
-// one triangle at a time and keeps it unless it is certainly
+// 1): one workgroup per survivor of crowd_cull.wgsl's list skins the meshlet's vertices once
+// (into workgroup memory), then each lane takes one triangle at a time and keeps it unless it
+// is certainly
 // - outside one side plane of the clip volume (all three corners beyond it),
 // - back-facing where the draw culls back faces (counter-clockwise front),
 // - covering no pixel center,
@@ -45,8 +46,10 @@ struct TriangleParams {
 @group(0) @binding(3) var<storage, read> survivors: array<u32>;
 // Visibility bits, then the depth pyramid (crowd_cull.wgsl, pyramid.wgsl).
 @group(0) @binding(4) var<storage, read_write> state: array<u32>;
-// The caller's index buffer, meshlet by meshlet.
-@group(0) @binding(5) var<storage, read> mesh_indices: array<u32>;
+// The meshlets: per meshlet where its vertices start (in this array), their count, where its
+// triangles start, their count; then the vertices (mesh vertex indices); then the triangles
+// (local vertex indices in the low three bytes).
+@group(0) @binding(5) var<storage, read> meshlet_words: array<u32>;
 // Two headers of 8 words (lists A and B): DrawIndexedIndirectArgs (index count, 1, first
 // index, 0, 0), triangles found, meshlets with a triangle listed, 0; then list A's indices,
 // then list B's from 3 × capacity.
@@ -55,6 +58,11 @@ struct TriangleParams {
 var<workgroup> group_kept: atomic<u32>;
 var<workgroup> group_base: u32;
 var<workgroup> group_seen: atomic<u32>;
+// The survivor's vertices as corners (at most MAX_VERTICES).
+const MAX_VERTICES: u32 = 128u;
+var<workgroup> corner_clip: array<vec4<f32>, MAX_VERTICES>;
+var<workgroup> corner_r: array<vec4<f32>, MAX_VERTICES>;
+var<workgroup> corner_d: array<f32, MAX_VERTICES>;
 
 // A corner: its position in clip space, how far (per world axis) the draw's skinned position
 // may be from the pass's, and how far the two projections' rounding may set their clip
@@ -159,11 +167,21 @@ fn cull_triangles(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocati
         return;
     }
     let c = 5u * (list * tri.survivor_capacity + survivor);
-    let count = commands[c] / 3u;
     let meshlet = commands[c + 1u];
-    let first = commands[c + 2u];
     let instance = commands[c + 4u];
+    let m = 4u * meshlet;
+    let first_vertex = meshlet_words[m];
+    let vertices = meshlet_words[m + 1u];
+    let first_triangle = meshlet_words[m + 2u];
+    let count = meshlet_words[m + 3u];
     let bit = instance * tri.meshlets + meshlet;
+    for (var k = lane; k < vertices; k += 64u) {
+        let q = corner(instance, meshlet_words[first_vertex + k]);
+        corner_clip[k] = q.clip;
+        corner_r[k] = q.r;
+        corner_d[k] = q.d.x;
+    }
+    workgroupBarrier();
     // Phase 2 lists what phase 1 drew too: for its bit, not to draw it again.
     let drawn = phase == 2u && state[bit] != 0u;
     let header = 8u * list;
@@ -174,10 +192,12 @@ fn cull_triangles(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocati
         var keep = false;
         var v: array<u32, 3>;
         if t < count {
+            let local = meshlet_words[first_triangle + t];
             var k: array<Corner, 3>;
             for (var i = 0u; i < 3u; i++) {
-                v[i] = mesh_indices[first + 3u * t + i];
-                k[i] = corner(instance, v[i]);
+                let l = (local >> (8u * i)) & 0xffu;
+                v[i] = meshlet_words[first_vertex + l];
+                k[i] = Corner(corner_clip[l], vec3<f32>(corner_d[l]), corner_r[l]);
             }
             let result = test_triangle(k);
             if result == 2u {

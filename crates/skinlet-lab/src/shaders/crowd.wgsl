@@ -4,7 +4,8 @@
 struct View {
     view_proj: mat4x4<f32>,
     light: vec4<f32>,
-    meshlets: u32,
+    // Triangles per instance.
+    triangles: u32,
     // Bits of a triangle list's index that hold the vertex.
     vertex_bits: u32,
     pad0: u32,
@@ -16,16 +17,14 @@ struct View {
 @group(0) @binding(1) var<storage, read> indices: array<u32>;
 // The survivors (skinlet's crowd culling), read by the pulled draw.
 @group(0) @binding(2) var<storage, read> survivor_draws: array<u32>;
-// Per triangle (in index buffer order) its meshlet, read by the id draw.
-@group(0) @binding(3) var<storage, read> triangle_meshlets: array<u32>;
 
 struct Shaded {
-    @builtin(position) clip: vec4<f32>,
+    @invariant @builtin(position) clip: vec4<f32>,
     @location(0) world: vec3<f32>,
 }
 
 struct Identified {
-    @builtin(position) clip: vec4<f32>,
+    @invariant @builtin(position) clip: vec4<f32>,
     @location(0) @interpolate(flat) id: u32,
 }
 
@@ -59,11 +58,11 @@ fn vs_triangles(@builtin(vertex_index) index: u32) -> Shaded {
 }
 
 // Every instance's every triangle (draw(0..indices, 0..instances)), with its (instance,
-// meshlet) id + 1.
+// triangle) id + 1.
 @vertex
 fn vs_ids(@builtin(vertex_index) k: u32, @builtin(instance_index) i: u32) -> Identified {
     let world = skinned_position(i, indices[k]);
-    return Identified(view.view_proj * vec4<f32>(world, 1.0), i * view.meshlets + triangle_meshlets[k / 3u] + 1u);
+    return Identified(view.view_proj * vec4<f32>(world, 1.0), i * view.triangles + k / 3u + 1u);
 }
 
 @fragment
