@@ -127,10 +127,9 @@ fn pack_meshlets(m: &MeshletView) -> Vec<u32> {
 impl TriangleCulling {
     /// The triangle pass after `crowd` (which it takes over: [`TriangleCulling::crowd`]), for
     /// a mesh of `vertices` vertices and its `meshlets` (the culler's, in its order; at most
-    /// [`MAX_MESHLET_VERTICES`] vertices each), skinned by `skinning`,
-    /// drawn at `width` × `height` (the occlusion depth's size where `crowd` has one),
-    /// `cull_back_faces` where the draw culls back faces (`wgpu::Face::Back`, counter-clockwise
-    /// front). Each list holds `capacity` triangles. Errors when an argument is out of range,
+    /// [`MAX_MESHLET_VERTICES`] vertices each), skinned by `skinning`, drawn at `width` ×
+    /// `height` (the occlusion depth's size where `crowd` has one), `cull_back_faces` where the
+    /// draw culls back faces (`wgpu::Face::Back`, counter-clockwise front). Each list holds `capacity` triangles. Errors when an argument is out of range,
     /// the meshlets are not the crowd's or fail their check, the encoded indices would not fit
     /// 32 bits, or the pipeline fails validation (e.g. the skinning WGSL or its layout).
     #[allow(clippy::too_many_arguments)]

@@ -12,9 +12,9 @@
 // chunk at a time (one atomic per chunk), drawn with one indexed indirect draw.
 //
 // Conservative against the draw: the caller's vertex shader runs the same skinning, which may
-// round differently by `margin + relative × |p|` (world units) at most; the pass widens every corner by that
-// and by its own projection's rounding, and every test above by what rasterizers do (vertices
-// snapped to 1/16 pixel or finer). In phase 2 a survivor's visibility bit becomes whether one
+// round differently by `margin + relative × |p|` (world units) at most; the pass widens every
+// corner by that and by its own projection's rounding, and every test above by what
+// rasterizers do (vertices snapped to 1/16 pixel or finer). In phase 2 a survivor's visibility bit becomes whether one
 // of its triangles passed every test, the pyramid's included, and its triangles are listed only
 // if phase 1 did not draw it (its bit was set: crowd_cull.wgsl listed it in phase 1).
 
@@ -94,8 +94,8 @@ fn beyond(c: array<Corner, 3>, rows: mat4x4<f32>, k: u32, s: f32) -> bool {
     return all;
 }
 
-// What the tests make of one triangle: 0 culled, 1 drawn (phases 0 and 1, or behind the
-// pyramid's test unknown), 2 drawn and not behind the pyramid (phase 2).
+// What the tests make of one triangle: 0 culled, 1 behind the pyramid (phase 2 only), 2
+// drawn.
 fn test_triangle(c: array<Corner, 3>) -> u32 {
     // The projection's rows.
     let rows = transpose(occlusion.view_proj);
