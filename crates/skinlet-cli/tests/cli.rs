@@ -612,7 +612,7 @@ fn render_writes_a_png_of_the_posed_character() {
     assert_eq!(code, 0, "{err}");
     let j: serde_json::Value = serde_json::from_str(&stdout).unwrap();
     let rows = j["rows"].as_array().unwrap();
-    assert!(rows.len() == 18 || (rows.len() == 8 && !needs_mesh), "{j}");
+    assert!(rows.len() == 20 || (rows.len() == 10 && !needs_mesh), "{j}");
     for r in rows {
         let wall = &r["wall_ms"];
         assert!(wall["min"].as_f64().unwrap() > 0.0, "{r}");
@@ -626,15 +626,21 @@ fn render_writes_a_png_of_the_posed_character() {
         assert!(drawn >= j["meshlets_visible_oracle"].as_f64().unwrap(), "{r}");
         assert!(drawn <= j["meshlets_per_frame"].as_f64().unwrap(), "{r}");
         if r["pipeline"].as_str().unwrap().starts_with("VS") {
-            let calls = if r["culling"] == "both+occlusion" { 2 } else { 1 };
+            let calls = if r["culling"] == "both+occlusion" || r["culling"] == "both+occl+tri" { 2 } else { 1 };
             assert_eq!(r["draws_issued"], calls, "{r}");
         }
+        let triangle_pass = r["culling"] == "both+triangles" || r["culling"] == "both+occl+tri";
+        assert_eq!(r["triangle_pass_vertices_per_frame"].is_u64(), triangle_pass, "{r}");
     }
     let row = |j: &serde_json::Value, culling: &str| {
         let rows = j["rows"].as_array().unwrap();
         rows.iter().find(|r| r["pipeline"] == "VS" && r["culling"] == culling).unwrap().clone()
     };
     assert!(row(&j, "both+occlusion")["meshlets_drawn"].as_f64() <= row(&j, "both")["meshlets_drawn"].as_f64());
+    // The triangle pass keeps some of the same survivors' triangles.
+    let (both, triangles) = (row(&j, "both"), row(&j, "both+triangles"));
+    assert!(triangles["meshlets_drawn"].as_f64() <= both["meshlets_drawn"].as_f64(), "{j}");
+    assert!(triangles["triangles_per_frame"].as_u64() < both["triangles_per_frame"].as_u64(), "{j}");
     // Boxes of the very pose tested against the unculled depth: the pyramid's texels reach
     // at least the pixels, and occlusion culling's boxes (which hold every such box) are tested
     // against depth that at most part of the crowd wrote.
@@ -650,8 +656,8 @@ fn render_writes_a_png_of_the_posed_character() {
         serde_json::from_str::<serde_json::Value>(&stdout).unwrap()
     };
     let (small, large) = (dense("6"), dense("48"));
-    assert_eq!(large["rows"].as_array().unwrap().len(), 5, "{large}");
-    for culling in ["none", "both", "both+occlusion"] {
+    assert_eq!(large["rows"].as_array().unwrap().len(), 7, "{large}");
+    for culling in ["none", "both", "both+occlusion", "both+occl+tri"] {
         assert_eq!(row(&small, culling)["draws_issued"], row(&large, culling)["draws_issued"]);
     }
     let (both, occluded) = (row(&large, "both"), row(&large, "both+occlusion"));
