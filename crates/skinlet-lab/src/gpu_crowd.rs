@@ -7,11 +7,12 @@
 //! survivors as indexed draws (`multi_draw_indexed_indirect_count`, where the device has it);
 //! two-phase occlusion culling, pulled (the visibility bits kept across frames); either of the
 //! two with skinlet's triangle pass after it (`skinlet_gpu::triangle_culling`: one indexed
-//! indirect draw per phase of the triangles it keeps); and the ID buffer of the unculled crowd, whose set of (instance, meshlet) pairs with a visible
-//! fragment is what no culling can beat (the oracle). All run the same vertex skinning and
-//! faceted shading, so a culled image equals every meshlet drawn the same way exactly when
-//! culling kept every meshlet with a visible fragment (but where two meshlets tie in depth:
-//! draw order picks the color there, and the ID view finds those pixels).
+//! indirect draw per phase of the triangles it keeps); and the ID buffer of the unculled
+//! crowd, whose set of (instance, meshlet) pairs with a visible fragment is what no culling
+//! can beat (the oracle). All run the same vertex skinning (`crowd_skin.wgsl`) and faceted
+//! shading, so a culled image equals every meshlet drawn the same way exactly when culling
+//! kept every triangle with a visible fragment (but where two triangles tie in depth: draw
+//! order picks the color there, and the ID view finds those pixels).
 
 use crate::render::{COLOR, DEPTH, Image, target_texture};
 use glam::{Mat4, Vec3};
