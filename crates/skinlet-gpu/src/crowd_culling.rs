@@ -262,6 +262,11 @@ pub(crate) fn invalid(location: &'static str, message: String) -> GpuError {
     GpuError::Invalid { location, message }
 }
 
+/// The error of an occlusion phase recorded on a crowd made without occlusion culling.
+pub(crate) fn no_occlusion() -> GpuError {
+    invalid("GPU occlusion culling", "the crowd was made without occlusion culling".into())
+}
+
 pub(crate) fn bind(binding: u32, resource: wgpu::BindingResource<'_>) -> wgpu::BindGroupEntry<'_> {
     wgpu::BindGroupEntry { binding, resource }
 }
@@ -735,7 +740,7 @@ impl CrowdCulling {
         timestamps: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) -> Result<()> {
         if self.occlusion.is_none() {
-            return Err(invalid("GPU occlusion culling", "the crowd was made without occlusion culling".into()));
+            return Err(no_occlusion());
         }
         self.encode_phase(queue, encoder, camera, tests, instances, timestamps, 1, false)?;
         Ok(())
@@ -758,7 +763,7 @@ impl CrowdCulling {
         encoder: &'e mut wgpu::CommandEncoder,
     ) -> Result<wgpu::ComputePass<'e>> {
         let (Some((width, height, _, levels)), Some(pyramid)) = (self.occlusion, &self.pyramid) else {
-            return Err(invalid("GPU occlusion culling", "the crowd was made without occlusion culling".into()));
+            return Err(no_occlusion());
         };
         // Each level in its own pass: the next one reads what this one wrote.
         for level in 0..levels {

@@ -25,8 +25,8 @@
 
 use crate::Result;
 use crate::crowd_culling::{
-    CrowdCulling, List, OCCLUSION_OFFSET, OCCLUSION_TEST_WGSL, bind, dynamic_uniform, invalid, layout_entry, part,
-    whole,
+    CrowdCulling, List, OCCLUSION_OFFSET, OCCLUSION_TEST_WGSL, bind, dynamic_uniform, invalid, layout_entry,
+    no_occlusion, part, whole,
 };
 use skinlet_runtime::bake_view::MeshletView;
 use skinlet_runtime::camera::Camera;
@@ -282,7 +282,7 @@ impl TriangleCulling {
         timestamps: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) -> Result<()> {
         if self.crowd.occlusion.is_none() {
-            return Err(invalid("GPU occlusion culling", "the crowd was made without occlusion culling".into()));
+            return Err(no_occlusion());
         }
         self.encode_phase(queue, encoder, camera, tests, instances, skinning, timestamps, 1)
     }

@@ -71,15 +71,9 @@ fn scene(capacity: Option<u32>) -> Option<Scene> {
     let (palette, instances) = (init(bytemuck::cast_slice(&palette)), init(bytemuck::cast_slice(&instances)));
     let crowd =
         CrowdCulling::new(device, &pipelines, &character, &palette, &instances, n, n * character.meshlets()).unwrap();
-    let entry = |binding| wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only: true },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
+    let entry = |binding| {
+        let ty = wgpu::BufferBindingType::Storage { read_only: true };
+        skinlet_gpu::skinning::buffer_entry(binding, wgpu::ShaderStages::COMPUTE, ty)
     };
     let layout = device
         .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: None, entries: &[entry(0), entry(1)] });

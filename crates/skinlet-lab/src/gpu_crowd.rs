@@ -232,26 +232,10 @@ impl GpuCrowd {
         // centimeters, only widens this).
         let size = mesh.positions.iter().fold(0f32, |m, p| m.max(p.abs().max_element()));
         let (margin, relative) = (size / 65536.0, 1.0 / 65536.0);
-        let uniform = |binding, visibility| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Uniform,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
-        let storage = |binding, visibility| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Storage { read_only: true },
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
+        use skinlet_gpu::skinning::buffer_entry;
+        use wgpu::BufferBindingType::{Storage, Uniform};
+        let uniform = |binding, stages| buffer_entry(binding, stages, Uniform);
+        let storage = |binding, stages| buffer_entry(binding, stages, Storage { read_only: true });
         let (built, layouts) = gpu.checked("GPU crowd", || {
             use wgpu::ShaderStages as S;
             let layout = |label, entries: &[wgpu::BindGroupLayoutEntry]| {
