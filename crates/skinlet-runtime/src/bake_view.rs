@@ -230,6 +230,7 @@ pub struct BakeView<'a> {
     part_windows: Option<BakedPartWindows>,
     overdraw: Option<Orders>,
     contours: Option<(BakedContours, Edges)>,
+    sources: Option<&'a [u32]>,
 }
 
 /// The little-endian `u32` at byte `at` of `b`, or `None` past its end.
@@ -267,6 +268,7 @@ impl<'a> BakeView<'a> {
         let contours = (find(b"CONT"))
             .map(|s| read_contours(s, &vertices, morphs, triangles, drivers, info.clips.len()))
             .transpose()?;
+        let sources = find(b"SRCT").map(|s| read_sources(s, &meshlets)).transpose()?;
         Ok(BakeView {
             sections,
             info,
@@ -283,6 +285,7 @@ impl<'a> BakeView<'a> {
             part_windows,
             overdraw,
             contours,
+            sources,
         })
     }
 
@@ -400,6 +403,14 @@ impl<'a> BakeView<'a> {
     /// when the patches are visible-only).
     pub fn contours(&self) -> Option<(&BakedContours, &Edges)> {
         self.contours.as_ref().map(|(c, e)| (c, e))
+    }
+
+    /// The optional `SRCT` section: per triangle of `MLET` (the one at triangle byte `3·i`
+    /// is entry `i`), its source triangle in its part's glTF primitive (bits 0–29) and the
+    /// rotation of its corners (bits 30–31: corner `k` is the source triangle's corner
+    /// `(k + rotation) % 3`), for drawing meshlets with the source's vertex attributes.
+    pub fn sources(&self) -> Option<&'a [u32]> {
+        self.sources
     }
 }
 
@@ -583,6 +594,24 @@ fn read_triangles(s: &[u8], vertices: usize) -> Result<&[[u32; 3]]> {
         ));
     }
     Ok(triangles)
+}
+
+/// `SRCT`: one entry per triangle byte triple of `MLET`, every rotation below 3.
+fn read_sources<'a>(s: &'a [u8], meshlets: &MeshletView) -> Result<&'a [u32]> {
+    let location = "bake section SRCT";
+    let n = u32_at(s, 0).ok_or_else(|| Error::invalid(location, "byte 0: truncated"))? as usize;
+    if n != meshlets.triangles.len() / 3 || n.checked_mul(4).and_then(|b| b.checked_add(4)) != Some(s.len()) {
+        let m = meshlets.triangles.len() / 3;
+        return Err(Error::invalid(
+            location,
+            format!("{} bytes for {n} entries, where MLET has {m} triangles", s.len()),
+        ));
+    }
+    let sources: &[u32] = cast(&s[4..], "SRCT")?;
+    if let Some(i) = sources.iter().position(|&x| x >> 30 == 3) {
+        return Err(Error::invalid(location, format!("entry {i}: rotation 3 (at most 2)")));
+    }
+    Ok(sources)
 }
 
 /// `MLET`: the layout ([`MeshletView::new`]) and every meshlet ([`MeshletView::check`]).

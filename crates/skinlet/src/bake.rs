@@ -21,6 +21,7 @@ use crate::character::{Character, PartKind};
 use crate::clip::Clip;
 use crate::contour::skinned::{SkinnedParams, skinned_edges};
 use crate::cull::any_pose::AnyPoseBoxes;
+use crate::meshlet::sources::source_triangles;
 use crate::meshlet::{
     Builder, MeshletLimits, Meshlets, PartRange, PreparedMesh, build_moving, flat, motion_for, prepare_parts,
 };
@@ -92,6 +93,9 @@ pub struct Baked {
     pub envelope: Option<BakedEnvelope>,
     /// Per part, a box per time window of each clip (section PWIN; none without clips).
     pub part_windows: Option<PartWindows>,
+    /// Per meshlet triangle, its source triangle and corner rotation
+    /// ([`crate::meshlet::sources`]; section SRCT, written by [`bake`]).
+    pub sources: Option<Vec<u32>>,
 }
 
 /// Bounds for the poses games make: a pose envelope with meshlet bounds (and their classes)
@@ -158,8 +162,15 @@ pub fn bake(
         });
         first_meshlet = end;
     }
+    let ranges: Vec<Range<u32>> = parts.iter().map(|p| p.meshlets.clone()).collect();
+    let sources = source_triangles(character, &prepared, &meshlets, &ranges)?;
     let started = std::time::Instant::now();
-    let refined = refine_with_progress(&asset.skeleton, s, clips, &prepared.mesh, &meshlets, how, progress)?;
+    let mut refined = refine_with_progress(&asset.skeleton, s, clips, &prepared.mesh, &meshlets, how, progress)?;
+    // A radius past f32's range (a joint that nearly collapses within a key interval): the
+    // largest finite one, which never culls, keeps the file's floats finite.
+    for b in refined.bounds.iter_mut().filter(|b| !b.radius.is_finite()) {
+        b.radius = f32::MAX;
+    }
     let part_windows = if clips.is_empty() {
         None
     } else {
@@ -189,6 +200,7 @@ pub fn bake(
         contours: None,
         envelope: None,
         part_windows,
+        sources: Some(sources),
     };
     Ok((baked, stats))
 }
@@ -267,9 +279,10 @@ fn baked_clips<'a>(baked: &Baked, asset: &'a Asset) -> Result<Vec<&'a Clip>> {
 }
 
 /// Section tags: the seven required ones, then the optional overdraw orders, contours, morph
-/// targets, pose envelope and part windows.
-const TAGS: [&[u8; 4]; 12] =
-    [b"INFO", b"SKIN", b"VERT", b"TRIS", b"MLET", b"BNDS", b"PART", b"OVDR", b"CONT", b"MRPH", b"ENVL", b"PWIN"];
+/// targets, pose envelope, part windows and source triangles.
+const TAGS: [&[u8; 4]; 13] = [
+    b"INFO", b"SKIN", b"VERT", b"TRIS", b"MLET", b"BNDS", b"PART", b"OVDR", b"CONT", b"MRPH", b"ENVL", b"PWIN", b"SRCT",
+];
 const HEADER: usize = 16;
 const ENTRY: usize = 24;
 
@@ -511,6 +524,13 @@ pub fn to_bytes(b: &Baked) -> Vec<u8> {
         w.boxes.iter().flatten().for_each(|&v| pw.vec3(v));
         sections.push(pw.0);
     }
+    if let Some(sources) = &b.sources {
+        tags.push(TAGS[12]);
+        let mut st = Out::default();
+        st.u32(sources.len() as u32);
+        sources.iter().for_each(|&x| st.u32(x));
+        sections.push(st.0);
+    }
     let mut out = Vec::new();
     out.extend_from_slice(&MAGIC);
     out.extend_from_slice(&VERSION.to_le_bytes());
@@ -712,5 +732,6 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
         contours: view.contours().map(|(c, _)| c.clone()),
         envelope,
         part_windows: view.part_windows().cloned(),
+        sources: view.sources().map(<[u32]>::to_vec),
     })
 }

@@ -89,7 +89,74 @@ fn the_bake_holds_every_triangle_the_scene_draws() {
                 assert!(baked.meshlets.vertices_of(m).iter().all(|v| p.vertices.contains(v)), "{name}");
             }
         }
+        check_sources(name, asset, &baked, dropped);
     }
+}
+
+#[test]
+fn every_builder_keeps_where_each_triangle_came_from() {
+    let asset =
+        skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams { triangles: 3000, ..Default::default() });
+    let character = asset.character().unwrap();
+    let dropped = prepare_character(&character).unwrap().dropped_triangles;
+    let clips: Vec<&Clip> = asset.clips.iter().collect();
+    for builder in Builder::ALL {
+        let (baked, _) =
+            bake(&asset, &character, &clips, builder, MeshletLimits::SMALL, &Refinement::NONE, &mut |_| {}).unwrap();
+        check_sources(builder.name(), &asset, &baked, dropped);
+    }
+}
+
+#[test]
+fn a_bad_source_table_is_an_error_that_says_where() {
+    let asset =
+        skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams { triangles: 1000, ..Default::default() });
+    let (baked, _) = bake_all(&asset);
+    let bytes = skinlet::bake::to_bytes(&baked);
+    let word = |at: usize| u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap()) as usize;
+    let sections = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let entry = (0..sections).map(|k| 16 + 24 * k).find(|&e| &bytes[e..e + 4] == b"SRCT").expect("an SRCT section");
+    let at = word(entry + 8);
+    let error = |patch: &dyn Fn(&mut Vec<u8>)| {
+        let mut b = bytes.clone();
+        patch(&mut b);
+        skinlet::bake::from_bytes(&b).unwrap_err().to_string()
+    };
+    let e = error(&|b| b[at + 4..at + 8].copy_from_slice(&(3u32 << 30).to_le_bytes()));
+    assert!(e.contains("bake section SRCT") && e.contains("entry 0: rotation 3"), "{e}");
+    let e = error(&|b| b[at..at + 4].copy_from_slice(&1u32.to_le_bytes()));
+    assert!(e.contains("bake section SRCT") && e.contains("1 entries, where MLET has"), "{e}");
+}
+
+/// Every meshlet triangle's source (`Baked::sources`) is a distinct triangle of its part's
+/// glTF primitive whose corners, rotated as stored, are at the baked corners' positions (the
+/// welded vertices keep bit-identical positions); the source triangles left over are the
+/// `dropped` ones, which repeat a welded vertex. Also through the file's bytes.
+fn check_sources(name: &str, asset: &Asset, baked: &Baked, dropped: usize) {
+    let sources = baked.sources.as_ref().expect("bake writes the sources");
+    let reread = skinlet::bake::from_bytes(&skinlet::bake::to_bytes(baked))
+        .unwrap_or_else(|e| panic!("{name}: {e}; bounds {:?}", &baked.bounds[..1]));
+    assert_eq!(reread.sources.as_ref(), Some(sources), "{name}: SRCT round trip");
+    let mut unused = 0;
+    for (k, part) in baked.parts.iter().enumerate() {
+        let primitive = asset.meshes[part.mesh as usize].primitives.iter().find(|p| p.index == part.primitive as usize);
+        let source = &primitive.unwrap().geometry;
+        let mut used = vec![false; source.triangles.len()];
+        for m in &baked.meshlets.meshlets[part.meshlets.start as usize..part.meshlets.end as usize] {
+            for (t, baked_triangle) in baked.meshlets.mesh_triangles(m).enumerate() {
+                let code = sources[m.triangle_offset as usize / 3 + t];
+                let (index, rotation) = ((code & ((1 << 30) - 1)) as usize, (code >> 30) as usize);
+                assert!(rotation < 3 && index < used.len() && !used[index], "{name} part {k}: source {code:#x}");
+                used[index] = true;
+                for (c, &v) in baked_triangle.iter().enumerate() {
+                    let s = source.triangles[index][(c + rotation) % 3] as usize;
+                    assert_eq!(baked.mesh.positions[v as usize], source.positions[s], "{name} part {k}");
+                }
+            }
+        }
+        unused += used.iter().filter(|u| !**u).count();
+    }
+    assert_eq!(unused, dropped, "{name}: the source triangles no meshlet holds are the degenerate ones");
 }
 
 /// Random soft weights over `joints` joints, 1 to 4 per vertex, sorted by decreasing weight.
@@ -255,6 +322,7 @@ fn check_scene(asset: &Asset, seed: u64, poses: usize) {
     let how = Refinement { max_rounds: 1, ..Refinement::NONE };
     let (baked, _) =
         bake(asset, &character, &clips, Builder::SkinAware, MeshletLimits::SMALL, &how, &mut |_| {}).unwrap();
+    check_sources(&format!("seed {seed}"), asset, &baked, prepare_character(&character).unwrap().dropped_triangles);
     let palette = baked.palette();
     let report = skinlet::bounds::verify::verify_bounds(
         &asset.skeleton,

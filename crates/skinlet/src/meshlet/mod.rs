@@ -20,6 +20,7 @@ pub mod greedy;
 pub mod prepare;
 pub mod scan;
 pub mod skin_aware;
+pub mod sources;
 pub mod stats;
 
 pub use prepare::{PartRange, PreparedMesh, prepare, prepare_parts};
