@@ -587,7 +587,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             })
             .collect();
         let out = json!({"file": file, "adapter": gpu.info.name, "timestamps": gpu.has_timestamps(),
-            "crowd": a.crowd, "meshlets_visible_oracle": visible_oracle,
+            "subpixel_bits": gpu.subpixel_bits, "crowd": a.crowd, "meshlets_visible_oracle": visible_oracle,
             "meshlets_unhidden_pose_box": mean(&box_exact), "meshlets_unhidden_pose_box_pyramid": mean(&box_pyramid),
             "meshlets_unhidden_pose_triangles": mean(&box_triangles), "meshlets_per_frame": all_meshlets,
             "animation": a.animation, "still": a.still, "guard_fallback_pct": fallback_pct,

@@ -13,6 +13,10 @@ pub struct Gpu {
     /// Features enabled on the device (what skinlet may use: mesh shaders, timestamps,
     /// subgroups, f64, indirect first instance).
     pub features: wgpu::Features,
+    /// The rasterizer's sub-pixel precision the culling tests assume
+    /// ([`crate::crowd_culling::MIN_SUBPIXEL_BITS`] unless set from
+    /// [`crate::crowd_culling::subpixel_bits`]).
+    pub subpixel_bits: u32,
 }
 
 impl Gpu {
@@ -22,7 +26,7 @@ impl Gpu {
     /// `EXPERIMENTAL_MESH_SHADER`, crowd culling `INDIRECT_FIRST_INSTANCE`.
     pub fn from_device(device: wgpu::Device, queue: wgpu::Queue, info: wgpu::AdapterInfo) -> Gpu {
         let features = device.features();
-        Gpu { device, queue, info, features }
+        Gpu { device, queue, info, features, subpixel_bits: crate::crowd_culling::MIN_SUBPIXEL_BITS }
     }
 
     /// Whether GPU timestamps can be written (frame times in `Drawn::gpu_ms`).

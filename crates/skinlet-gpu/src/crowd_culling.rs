@@ -172,7 +172,8 @@ pub struct GpuCharacter {
 /// The depth buffer two-phase occlusion culling reads ([`CrowdCulling::with_occlusion`]): the
 /// caller's depth texture (`Depth32Float` or another depth format readable as
 /// `texture_depth_2d`, with `TEXTURE_BINDING` usage), its size, and whether its depth range
-/// is reversed (near 1, far 0: Bevy's infinite reverse-Z). The test takes fragments at pixel
+/// is reversed (near 1, far 0: Bevy's infinite reverse-Z), and the sub-pixel precision of the
+/// rasterizer that draws into it ([`subpixel_bits`]). The test takes fragments at pixel
 /// centers: the depth of single-sample rendering (a multisampled frame's coverage is tested
 /// elsewhere in the pixel, which the test does not cover).
 #[derive(Clone, Copy, Debug)]
@@ -181,6 +182,36 @@ pub struct OcclusionDepth<'a> {
     pub width: u32,
     pub height: u32,
     pub reversed: bool,
+    pub subpixel_bits: u32,
+}
+
+/// The sub-pixel precision every Vulkan rasterizer has at least (`subPixelPrecisionBits`):
+/// vertices snap to a grid of 1/16 pixel. D3D12 requires 8 bits, as desktop Vulkan drivers
+/// and lavapipe have; pass what the device reports where it can tell ([`subpixel_bits`]).
+pub const MIN_SUBPIXEL_BITS: u32 = 4;
+
+/// The device's sub-pixel precision where its backend reports it (Vulkan:
+/// `VkPhysicalDeviceLimits::subPixelPrecisionBits`), else [`MIN_SUBPIXEL_BITS`].
+pub fn subpixel_bits(adapter: &wgpu::Adapter) -> u32 {
+    #[cfg(feature = "vulkan")]
+    {
+        // SAFETY: the hal adapter is only read (its limits), never used to create or
+        // destroy anything behind wgpu's back.
+        if let Some(vulkan) = unsafe { adapter.as_hal::<wgpu::hal::api::Vulkan>() } {
+            return vulkan.physical_device_capabilities().properties().limits.sub_pixel_precision_bits;
+        }
+    }
+    let _ = adapter;
+    MIN_SUBPIXEL_BITS
+}
+
+/// The vertex snapping of a rasterizer with `bits` of sub-pixel precision, in pixels (the
+/// largest distance it may move a vertex); errors above 16 bits.
+pub(crate) fn snap(bits: u32, location: &'static str) -> Result<f32> {
+    if bits > 16 {
+        return Err(invalid(location, format!("{bits} sub-pixel bits (at most 16)")));
+    }
+    Ok(0.5f32.powi(bits as i32))
 }
 
 /// Which survivor list a draw reads: the only one (one-phase culling) or occlusion culling's
@@ -204,6 +235,8 @@ pub struct CrowdCulling {
     count_draws: bool,
     /// With occlusion culling: the depth size and range, and the pyramid's levels.
     pub(crate) occlusion: Option<(u32, u32, bool, u32)>,
+    /// The occlusion depth's vertex snapping, in pixels.
+    snap: f32,
     /// The instances of the frame being recorded (the second phase's dispatch size).
     frame_instances: std::sync::atomic::AtomicU32,
     /// `CullParams` (phases 0 and 1) at 0, `CullCamera` at [`CAMERA_OFFSET`], `CullParams`
@@ -557,6 +590,7 @@ impl CrowdCulling {
         depth: Option<OcclusionDepth>,
     ) -> Result<CrowdCulling> {
         let location = "GPU crowd culling";
+        let snap = depth.map_or(Ok(1.0), |d| snap(d.subpixel_bits, location))?;
         let cap = capacity as u64;
         let (joints, meshlets) = (character.joints as u64, character.meshlets as u64);
         let need = |buffer: &wgpu::Buffer, name: &str, bytes: u64| {
@@ -671,6 +705,7 @@ impl CrowdCulling {
                 has_boxes: character.has_boxes,
                 count_draws: device.features().contains(wgpu::Features::MULTI_DRAW_INDIRECT_COUNT),
                 occlusion: depth.map(|d| (d.width, d.height, d.reversed, levels)),
+                snap,
                 frame_instances: std::sync::atomic::AtomicU32::new(0),
                 uniforms,
                 records,
@@ -866,7 +901,16 @@ impl CrowdCulling {
             second: params(2),
             pad4: [0; (OCCLUSION_OFFSET - SECOND_OFFSET - 32) / 4],
             view_proj: camera.view_proj.to_cols_array(),
-            occlusion: [width, height, self.capacity * self.meshlets, reversed as u32, levels, 0, 0, 0],
+            occlusion: [
+                width,
+                height,
+                self.capacity * self.meshlets,
+                reversed as u32,
+                levels,
+                self.snap.to_bits(),
+                0,
+                0,
+            ],
         };
         queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&uniforms));
         self.frame_instances.store(instances, std::sync::atomic::Ordering::Relaxed);

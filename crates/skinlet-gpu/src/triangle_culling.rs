@@ -8,8 +8,8 @@
 //! Conservative: a triangle dropped here draws no fragment in the caller's draw. The caller's
 //! vertex shader skins with the same WGSL function, which the two pipelines may round
 //! differently by at most the margin the caller states ([`TriangleSkinning::margin`]); every
-//! test widens the corners by it, by the pass's own rounding and by a rasterizer's vertex
-//! snapping (1/16 pixel). The image then equals the unculled draw's: `skinlet-lab`'s GPU crowd
+//! test widens the corners by it, by the pass's own rounding and by the rasterizer's vertex
+//! snapping ([`Raster::subpixel_bits`]). The image then equals the unculled draw's: `skinlet-lab`'s GPU crowd
 //! tests check it on every shared character.
 //!
 //! With two-phase occlusion culling the visibility bits come from the triangles: in the second
@@ -18,9 +18,9 @@
 //! first phase did not draw it. So a meshlet whose box peeks past an occluder but whose
 //! triangles do not is not drawn next frame.
 //!
-//! The index list holds `instance << vertex_bits | vertex` ([`TriangleCulling::vertex_bits`]):
-//! the draw's vertex shader decodes it ([`TRIANGLES_WGSL`]) and skins the vertex for that
-//! instance. It needs 32-bit index values (`wgpu::DownlevelFlags::FULL_DRAW_INDEX_UINT32`, every
+//! The index list holds `instance << id_bits | id` ([`TriangleCulling::id_bits`]), the id a
+//! mesh vertex or a triangle corner ([`Entries`]): the draw's vertex shader decodes it
+//! ([`TRIANGLES_WGSL`]) and skins the vertex for that instance. It needs 32-bit index values (`wgpu::DownlevelFlags::FULL_DRAW_INDEX_UINT32`, every
 //! desktop Vulkan, Metal and D3D12 device).
 
 use crate::Result;
@@ -32,12 +32,12 @@ use skinlet_runtime::bake_view::MeshletView;
 use skinlet_runtime::camera::Camera;
 use skinlet_runtime::meshlet_cull::Tests;
 
-/// WGSL for the draw's vertex shader: `triangle_vertex(index, vertex_bits)` gives the instance
-/// and the vertex of an index of the list ([`TriangleCulling::draw`] draws with
-/// `@builtin(vertex_index)` equal to it).
+/// WGSL for the draw's vertex shader: `triangle_entry(index, id_bits)` gives the instance
+/// and the vertex or corner ([`Entries`]) of an index of the list ([`TriangleCulling::draw`]
+/// draws with `@builtin(vertex_index)` equal to it).
 pub const TRIANGLES_WGSL: &str = "
-fn triangle_vertex(index: u32, vertex_bits: u32) -> vec2<u32> {
-    return vec2<u32>(index >> vertex_bits, index & ((1u << vertex_bits) - 1u));
+fn triangle_entry(index: u32, id_bits: u32) -> vec2<u32> {
+    return vec2<u32>(index >> id_bits, index & ((1u << id_bits) - 1u));
 }
 ";
 
@@ -58,6 +58,29 @@ pub struct TriangleSkinning<'a> {
     /// 2^-16 of a character's size and 2^-16 (a few hundred ulps) are ample.
     pub margin: f32,
     pub relative: f32,
+}
+
+/// How the draw rasterizes: its viewport (the occlusion depth's size where the crowd has
+/// one), the rasterizer's sub-pixel precision
+/// ([`crate::crowd_culling::subpixel_bits`]), and whether it culls back faces
+/// (`wgpu::Face::Back`, counter-clockwise front).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Raster {
+    pub width: u32,
+    pub height: u32,
+    pub subpixel_bits: u32,
+    pub cull_back_faces: bool,
+}
+
+/// What the list's indices name besides the instance ([`TriangleCulling::id_bits`] low bits).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Entries {
+    /// The mesh vertex: a draw of the bake's vertices alone (positions, normals, skin).
+    Vertices,
+    /// The corner: `3·i + k` for corner `k` of the triangle at MLET triangle byte `3·i`, for a
+    /// draw that looks up each corner's own attributes (the bake's `SRCT` section names its
+    /// source vertex, welded away in the bake's vertices).
+    Corners,
 }
 
 /// A triangle list's header in [`TriangleCulling::triangles`] (32 bytes; list A's at 0, B's at
@@ -89,7 +112,7 @@ pub struct TriangleCulling {
     crowd: CrowdCulling,
     /// Triangles per list.
     capacity: u32,
-    vertex_bits: u32,
+    id_bits: u32,
     /// `TriangleParams` for phases 0 and 1 at 0, for phase 2 at 256.
     uniforms: wgpu::Buffer,
     params: [u32; 12],
@@ -106,33 +129,35 @@ pub const MAX_MESHLET_VERTICES: usize = 128;
 
 /// The meshlets as `meshlet_words` of triangle_cull.wgsl: per meshlet where its vertices
 /// start, their count, where its triangles start, their count (words of this array); the
-/// vertices; the triangles, one word each (local indices in the low three bytes).
-fn pack_meshlets(m: &MeshletView) -> Vec<u32> {
+/// vertices; from the returned base, the triangles, one word each (local indices in the low
+/// three bytes), the one at MLET triangle byte `3·i` at word `base + i`.
+fn pack_meshlets(m: &MeshletView) -> (Vec<u32>, u32) {
     let mut words = vec![0u32; 4 * m.len()];
     for i in 0..m.len() {
         let (first, (vertices, _)) = (words.len() as u32, m.counts(i));
         words[4 * i..4 * i + 2].copy_from_slice(&[first, vertices as u32]);
         words.extend(m.vertices_of(i));
     }
+    let base = words.len();
+    words.resize(base + m.triangles.len() / 3, 0);
     for i in 0..m.len() {
         let (h, triangles) = (m.headers[i], m.counts(i).1);
-        let first = words.len() as u32;
-        words[4 * i + 2..4 * i + 4].copy_from_slice(&[first, triangles as u32]);
+        let first = base + h[1] as usize / 3;
+        words[4 * i + 2..4 * i + 4].copy_from_slice(&[first as u32, triangles as u32]);
         let local = &m.triangles[h[1] as usize..h[1] as usize + 3 * triangles];
-        words.extend(local.chunks_exact(3).map(|t| t[0] as u32 | (t[1] as u32) << 8 | (t[2] as u32) << 16));
+        let packed = local.chunks_exact(3).map(|t| t[0] as u32 | (t[1] as u32) << 8 | (t[2] as u32) << 16);
+        words.splice(first..first + triangles, packed);
     }
-    words
+    (words, base as u32)
 }
 
 impl TriangleCulling {
     /// The triangle pass after `crowd` (which it takes over: [`TriangleCulling::crowd`]), for
     /// a mesh of `vertices` vertices and its `meshlets` (the culler's, in its order; at most
-    /// [`MAX_MESHLET_VERTICES`] vertices each), skinned by `skinning`, drawn at `width` ×
-    /// `height` (the occlusion depth's size where `crowd` has one), `cull_back_faces` where the
-    /// draw culls back faces (`wgpu::Face::Back`, counter-clockwise front). Each list holds `capacity` triangles. Errors when an argument is out of range,
-    /// the meshlets are not the crowd's or fail their check, the encoded indices would not fit
-    /// 32 bits, or the pipeline fails validation (e.g. the skinning WGSL or its layout).
-    #[allow(clippy::too_many_arguments)]
+    /// [`MAX_MESHLET_VERTICES`] vertices each), skinned by `skinning`, drawn as `raster` says;
+    /// the lists name `entries`. Each list holds `capacity` triangles. Errors when an argument is out of range, the
+    /// meshlets are not the crowd's or fail their check, the encoded indices would not fit 32
+    /// bits, or the pipeline fails validation (e.g. the skinning WGSL or its layout).
     pub fn new(
         device: &wgpu::Device,
         crowd: CrowdCulling,
@@ -140,10 +165,12 @@ impl TriangleCulling {
         meshlets: &MeshletView,
         vertices: u32,
         capacity: u32,
-        [width, height]: [u32; 2],
-        cull_back_faces: bool,
+        raster: Raster,
+        entries: Entries,
     ) -> Result<TriangleCulling> {
         let location = "GPU triangle culling";
+        let Raster { width, height, subpixel_bits, cull_back_faces } = raster;
+        let snap = crate::crowd_culling::snap(subpixel_bits, location)?;
         if vertices == 0 || width == 0 || height == 0 {
             return Err(invalid(location, format!("{vertices} vertices drawn at {width}×{height}")));
         }
@@ -153,7 +180,7 @@ impl TriangleCulling {
         meshlets
             .check(vertices as usize, [MAX_MESHLET_VERTICES, usize::MAX])
             .map_err(|e| invalid(location, e.to_string()))?;
-        let words = pack_meshlets(meshlets);
+        let (words, triangle_base) = pack_meshlets(meshlets);
         if let Some((w, h, ..)) = crowd.occlusion
             && (w, h) != (width, height)
         {
@@ -163,11 +190,15 @@ impl TriangleCulling {
             let (m, r) = (skinning.margin, skinning.relative);
             return Err(invalid(location, format!("skinning margins of {m} and {r} (relative)")));
         }
-        let vertex_bits = u32::BITS - (vertices - 1).leading_zeros();
-        if (crowd.capacity as u64) << vertex_bits > 1 << 32 {
+        let ids = match entries {
+            Entries::Vertices => vertices as u64,
+            Entries::Corners => meshlets.triangles.len() as u64 / 3 * 3,
+        };
+        let id_bits = u64::BITS - ids.saturating_sub(1).leading_zeros();
+        if (crowd.capacity as u64) << id_bits > 1 << 32 {
             return Err(invalid(
                 location,
-                format!("{} instances of {vertices} vertices do not fit 32-bit indices", crowd.capacity),
+                format!("{} instances of {ids} {entries:?} ids do not fit 32-bit indices", crowd.capacity),
             ));
         }
         let bytes = 2 * TriangleHeader::SIZE + 2 * 3 * 4 * capacity as u64;
@@ -177,16 +208,16 @@ impl TriangleCulling {
         let params = [
             0,
             capacity,
-            vertex_bits,
-            cull_back_faces as u32,
+            id_bits,
+            cull_back_faces as u32 | ((entries == Entries::Corners) as u32) << 1,
             width,
             height,
             crowd.survivor_capacity,
             crowd.meshlets,
             skinning.margin.to_bits(),
             skinning.relative.to_bits(),
-            0,
-            0,
+            snap.to_bits(),
+            triangle_base,
         ];
         crate::context::checked(device, location, || {
             use wgpu::BufferBindingType::{Storage, Uniform};
@@ -238,7 +269,7 @@ impl TriangleCulling {
                 finish: pipeline("finish_triangles"),
                 crowd,
                 capacity,
-                vertex_bits,
+                id_bits,
                 uniforms,
                 params,
                 triangles,
@@ -353,9 +384,9 @@ impl TriangleCulling {
         &self.crowd
     }
 
-    /// Bits of an index that hold the vertex.
-    pub fn vertex_bits(&self) -> u32 {
-        self.vertex_bits
+    /// Bits of an index that hold the vertex or corner ([`Entries`]).
+    pub fn id_bits(&self) -> u32 {
+        self.id_bits
     }
 
     /// Triangles each list holds.

@@ -9,7 +9,7 @@ use common::{bake, gpu, read_buffer};
 use glam::{DMat4, DVec3, DVec4, Mat4, Vec3};
 use skinlet_gpu::Gpu;
 use skinlet_gpu::crowd_culling::{CrowdCulling, CullInstance, CullMode, CullPipelines, GpuCharacter};
-use skinlet_gpu::triangle_culling::{TriangleCulling, TriangleHeader, TriangleSkinning};
+use skinlet_gpu::triangle_culling::{Entries, Raster, TriangleCulling, TriangleHeader, TriangleSkinning};
 use skinlet_lab::crowd::{CrowdParams, crowd};
 use skinlet_runtime::bake_view::MeshletView;
 use skinlet_runtime::camera::{Camera, Projection};
@@ -34,6 +34,8 @@ const HEIGHT: u32 = 180;
 struct Scene {
     gpu: Gpu,
     culling: TriangleCulling,
+    /// With `Entries::Corners`, each corner id's mesh vertex.
+    corners: Option<Vec<u32>>,
     skinning: wgpu::BindGroup,
     layout: wgpu::BindGroupLayout,
     indices: Vec<u32>,
@@ -45,7 +47,7 @@ struct Scene {
     baked: skinlet::bake::Baked,
 }
 
-fn scene(capacity: Option<u32>) -> Option<Scene> {
+fn scene(capacity: Option<u32>, entries: Entries) -> Option<Scene> {
     let gpu = gpu()?;
     let device = &gpu.device;
     let asset = skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams::default());
@@ -92,10 +94,20 @@ fn scene(capacity: Option<u32>) -> Option<Scene> {
     let how = TriangleSkinning { wgsl: SKINNING, layout: &layout, margin: 0.0, relative: 1.0 / 65536.0 };
     let all = n * indices.len() as u32 / 3;
     let vertices = baked.mesh.positions.len() as u32;
+    let raster = Raster { width: WIDTH, height: HEIGHT, subpixel_bits: gpu.subpixel_bits, cull_back_faces: true };
     let culling =
-        TriangleCulling::new(device, crowd, how, &meshlets, vertices, capacity.unwrap_or(all), [WIDTH, HEIGHT], true)
+        TriangleCulling::new(device, crowd, how, &meshlets, vertices, capacity.unwrap_or(all), raster, entries)
             .unwrap();
+    // Per corner id (MLET's triangle i, corner k at 3·i + k), the mesh vertex.
+    let mut corners = vec![u32::MAX; baked.meshlets.triangles.len()];
+    for m in &baked.meshlets.meshlets {
+        for (t, v) in baked.meshlets.mesh_triangles(m).enumerate() {
+            corners[m.triangle_offset as usize + 3 * t..][..3].copy_from_slice(&v);
+        }
+    }
+    let corners = (entries == Entries::Corners).then_some(corners);
     Some(Scene {
+        corners,
         culling,
         skinning,
         layout,
@@ -119,11 +131,15 @@ fn cull(s: &Scene, camera: &Camera) -> (TriangleHeader, Vec<(u32, [u32; 3])>) {
     let size = 2 * TriangleHeader::SIZE + 24 * s.culling.capacity() as u64;
     let words: Vec<u32> = read_buffer(gpu, s.culling.triangles(), size);
     let header: TriangleHeader = bytemuck::pod_read_unaligned(bytemuck::cast_slice(&words[..8]));
-    let bits = s.culling.vertex_bits();
+    let bits = s.culling.id_bits();
     let list = words[16..16 + header.index_count as usize]
         .chunks_exact(3)
         .map(|t| {
             let mut v = [t[0], t[1], t[2]].map(|i| i & ((1u32 << bits) - 1));
+            if let Some(corners) = &s.corners {
+                assert!(v[0] % 3 == 0 && v[1] == v[0] + 1 && v[2] == v[0] + 2, "corners {v:?}: not one triangle's");
+                v = v.map(|c| corners[c as usize]);
+            }
             v.sort_unstable();
             (t[0] >> bits, v)
         })
@@ -176,7 +192,7 @@ fn covers_a_pixel_center(s: &Scene, i: usize, t: &[u32]) -> bool {
 
 #[test]
 fn every_triangle_covering_a_pixel_center_is_kept() {
-    let Some(s) = scene(None) else { return };
+    let Some(s) = scene(None, Entries::Vertices) else { return };
     let (header, list) = cull(&s, &s.camera);
     assert_eq!(3 * header.found, header.index_count, "the list overflowed");
     let kept: HashSet<(u32, [u32; 3])> = list.iter().copied().collect();
@@ -210,12 +226,12 @@ fn every_triangle_covering_a_pixel_center_is_kept() {
 
 #[test]
 fn an_overflowing_triangle_list_draws_what_it_wrote_and_a_later_frame_nothing_stale() {
-    let Some(whole_scene) = scene(None) else { return };
+    let Some(whole_scene) = scene(None, Entries::Vertices) else { return };
     let (whole, all) = cull(&whole_scene, &whole_scene.camera);
     let found = whole.found;
     let all: HashSet<_> = all.into_iter().collect();
     for capacity in [1, found / 2, found - 1] {
-        let s = scene(Some(capacity)).unwrap();
+        let s = scene(Some(capacity), Entries::Vertices).unwrap();
         let (header, part) = cull(&s, &s.camera);
         assert_eq!((header.found, header.index_count), (found, 3 * capacity), "capacity {capacity}");
         assert!(part.iter().all(|t| all.contains(t)), "capacity {capacity}: a triangle listed that was culled");
@@ -230,8 +246,22 @@ fn an_overflowing_triangle_list_draws_what_it_wrote_and_a_later_frame_nothing_st
 }
 
 #[test]
+fn corner_lists_name_the_triangles_vertex_lists_do() {
+    let (Some(by_vertex), Some(by_corner)) = (scene(None, Entries::Vertices), scene(None, Entries::Corners)) else {
+        return;
+    };
+    let (a, mut vertex_list) = cull(&by_vertex, &by_vertex.camera);
+    let (b, mut corner_list) = cull(&by_corner, &by_vertex.camera);
+    assert_eq!(a, b);
+    assert!(!vertex_list.is_empty());
+    vertex_list.sort_unstable();
+    corner_list.sort_unstable();
+    assert_eq!(vertex_list, corner_list);
+}
+
+#[test]
 fn triangle_culling_refuses_bad_arguments() {
-    let Some(s) = scene(None) else { return };
+    let Some(s) = scene(None, Entries::Vertices) else { return };
     let device = &s.gpu.device;
     let (pipelines, character, palette, instances) = &s.parts;
     let crowd = || CrowdCulling::new(device, pipelines, character, palette, instances, 16, 16).unwrap();
@@ -239,19 +269,20 @@ fn triangle_culling_refuses_bad_arguments() {
     let headers = s.baked.meshlets.headers();
     let meshlets = s.baked.meshlets.view(&headers);
     let vertices = s.positions.len() as u32;
-    let make = |skinning: TriangleSkinning, meshlets: &MeshletView, vertices: u32, size: [u32; 2]| {
-        TriangleCulling::new(device, crowd(), skinning, meshlets, vertices, 64, size, true)
+    let make = |skinning: TriangleSkinning, meshlets: &MeshletView, vertices: u32, raster: Raster| {
+        TriangleCulling::new(device, crowd(), skinning, meshlets, vertices, 64, raster, Entries::Vertices)
             .err()
             .map(|e| e.to_string())
             .unwrap_or_default()
     };
-    let size = [WIDTH, HEIGHT];
+    let size = Raster { width: WIDTH, height: HEIGHT, subpixel_bits: 8, cull_back_faces: true };
     assert_eq!(make(skinning, &meshlets, vertices, size), "");
     let fewer = MeshletView { headers: &headers[1..], ..meshlets };
     assert!(make(skinning, &fewer, vertices, size).contains("meshlets for a crowd of"));
     assert!(make(skinning, &meshlets, 0, size).contains("0 vertices"));
     assert!(make(skinning, &meshlets, 10, size).contains("past"));
-    assert!(make(skinning, &meshlets, vertices, [0, HEIGHT]).contains("drawn at 0×"));
+    assert!(make(skinning, &meshlets, vertices, Raster { width: 0, ..size }).contains("drawn at 0×"));
+    assert!(make(skinning, &meshlets, vertices, Raster { subpixel_bits: 17, ..size }).contains("17 sub-pixel bits"));
     assert!(make(skinning, &meshlets, 1 << 31, size).contains("32-bit indices"));
     let nan = TriangleSkinning { margin: f32::NAN, ..skinning };
     assert!(make(nan, &meshlets, vertices, size).contains("margins"));

@@ -20,7 +20,9 @@ use skinlet_gpu::crowd_culling::{
     CrowdCulling, CullInstance, CullMode, CullPipelines, GpuCharacter, List, OcclusionDepth, SURVIVORS_WGSL,
     SurvivorHeader,
 };
-use skinlet_gpu::triangle_culling::{TRIANGLES_WGSL, TriangleCulling, TriangleHeader, TriangleSkinning};
+use skinlet_gpu::triangle_culling::{
+    Entries, Raster, TRIANGLES_WGSL, TriangleCulling, TriangleHeader, TriangleSkinning,
+};
 use skinlet_gpu::{Gpu, GpuError, Result};
 use skinlet_runtime::camera::Camera;
 use skinlet_runtime::meshlet_cull::{MeshletCuller, Tests};
@@ -188,7 +190,8 @@ impl GpuCrowd {
                 | wgpu::TextureUsages::COPY_SRC,
         );
         let depth_view = depth.create_view(&Default::default());
-        let occlusion = OcclusionDepth { view: &depth_view, width, height, reversed };
+        let subpixel_bits = gpu.subpixel_bits;
+        let occlusion = OcclusionDepth { view: &depth_view, width, height, reversed, subpixel_bits };
         let culling = CrowdCulling::with_occlusion(
             device, &pipelines, &character, &palette, &instances, capacity, survivors, occlusion,
         )?;
@@ -333,8 +336,8 @@ impl GpuCrowd {
             &meshlets,
             vertices as u32,
             all_triangles,
-            [width, height],
-            true,
+            Raster { width, height, subpixel_bits, cull_back_faces: true },
+            Entries::Vertices,
         )?;
         let (groups, pipelines) = built;
         Ok(GpuCrowd {
@@ -396,7 +399,7 @@ impl GpuCrowd {
         }
         let mut uniforms: Vec<u32> = frame.camera.view_proj.to_cols_array().map(f32::to_bits).to_vec();
         uniforms.extend(light.normalize_or_zero().extend(0.0).to_array().map(f32::to_bits));
-        uniforms.extend([self.index_count / 3, self.culling.vertex_bits(), 0, 0]);
+        uniforms.extend([self.index_count / 3, self.culling.id_bits(), 0, 0]);
         queue.write_buffer(&self.view, 0, bytemuck::cast_slice(&uniforms));
         let device = &gpu.device;
         let (row, height) = ((4 * self.width).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT), self.height);
@@ -636,7 +639,7 @@ impl GpuCrowd {
         let headers: Vec<TriangleHeader> = bytemuck::pod_collect_to_vec(&words);
         let size = 2 * TriangleHeader::SIZE + 2 * 12 * culling.capacity() as u64;
         let all = bytemuck::pod_collect_to_vec::<u8, u32>(&gpu.read(culling.triangles(), size)?);
-        let (bits, mut out) = (culling.vertex_bits(), Vec::new());
+        let (bits, mut out) = (culling.id_bits(), Vec::new());
         for (k, h) in headers.iter().enumerate() {
             let start = 16 + 3 * k * culling.capacity() as usize;
             for t in all[start..start + h.index_count as usize].chunks_exact(3) {

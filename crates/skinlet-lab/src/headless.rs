@@ -81,5 +81,7 @@ pub fn gpu(options: GpuOptions) -> Result<Gpu> {
     };
     let (device, queue) =
         pollster::block_on(adapter.request_device(&desc)).map_err(|e| GpuError::Device(e.to_string()))?;
-    Ok(Gpu::from_device(device, queue, adapter.get_info()))
+    let mut gpu = Gpu::from_device(device, queue, adapter.get_info());
+    gpu.subpixel_bits = skinlet_gpu::crowd_culling::subpixel_bits(&adapter);
+    Ok(gpu)
 }

@@ -99,7 +99,7 @@ fn box_occluded(bx: Box) -> bool {
         lo = min(lo, ndc);
         hi = max(hi, ndc);
     }
-    let rect = pixel_rect(lo.xy, hi.xy, vec2<f32>(f32(occlusion.width), f32(occlusion.height)));
+    let rect = pixel_rect(lo.xy, hi.xy, vec2<f32>(f32(occlusion.width), f32(occlusion.height)), occlusion.snap);
     return rect_empty(rect) || rect_behind(rect, lo.z, hi.z);
 }
 

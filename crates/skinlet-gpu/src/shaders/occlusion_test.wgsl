@@ -14,19 +14,20 @@ struct Occlusion {
     // 1: reversed depth (near 1, far 0).
     reverse: u32,
     levels: u32,
-    pad0: u32,
+    // The rasterizer's vertex snapping: 2^-subpixel bits, in pixels.
+    snap: f32,
     pad1: u32,
     pad2: u32,
 }
 
 // The pixels (first x, first y, last x, last y, inclusive) whose centers lie in the NDC
-// rectangle lo..hi widened by 1/16 pixel, on a `size` screen: rasterizers snap vertices to
-// 1/16 pixel or finer, and a fragment is a pixel center a triangle covers. NDC y is up, pixel
-// rows down; pixel i's center is at i + 0.5.
-fn pixel_rect(lo: vec2<f32>, hi: vec2<f32>, size: vec2<f32>) -> vec4<f32> {
-    let e = 0.5 + 1.0 / 16.0;
+// rectangle lo..hi widened by `snap` pixels, on a `size` screen: rasterizers snap vertices to
+// their sub-pixel grid (`snap`, 1/16 pixel or finer), and a fragment is a pixel center a
+// triangle covers. NDC y is up, pixel rows down; pixel i's center is at i + 0.5.
+fn pixel_rect(lo: vec2<f32>, hi: vec2<f32>, size: vec2<f32>, snap: f32) -> vec4<f32> {
+    let e = 0.5 + snap;
     let first = ceil(vec2<f32>((lo.x * 0.5 + 0.5) * size.x, (0.5 - hi.y * 0.5) * size.y) - e);
-    let last = floor(vec2<f32>((hi.x * 0.5 + 0.5) * size.x, (0.5 - lo.y * 0.5) * size.y) - 0.5 + 1.0 / 16.0);
+    let last = floor(vec2<f32>((hi.x * 0.5 + 0.5) * size.x, (0.5 - lo.y * 0.5) * size.y) - 0.5 + snap);
     return vec4<f32>(max(first, vec2<f32>(0.0)), min(last, size - 1.0));
 }
 
@@ -63,7 +64,18 @@ fn rect_behind(r: vec4<f32>, lo_z: f32, hi_z: f32) -> bool {
             far = select(max(far, d), min(far, d), reverse);
         }
     }
-    if reverse {
+    return behind(far, lo_z, hi_z);
+}
+
+// Whether depths from lo_z to hi_z are all behind the pixel (x, y) of the depth buffer
+// (pyramid level 0).
+fn pixel_behind(x: u32, y: u32, lo_z: f32, hi_z: f32) -> bool {
+    return behind(bitcast<f32>(state[occlusion.pyramid_base + y * occlusion.width + x]), lo_z, hi_z);
+}
+
+// Whether depths from lo_z to hi_z are all behind the depth `far`.
+fn behind(far: f32, lo_z: f32, hi_z: f32) -> bool {
+    if occlusion.reverse != 0u {
         return hi_z * (1.0 + 4e-7) + 1e-7 < far;
     }
     return lo_z * (1.0 - 4e-7) - 1e-7 > far;

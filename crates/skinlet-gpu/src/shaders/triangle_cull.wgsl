@@ -6,25 +6,30 @@
 // is certainly
 // - outside one side plane of the clip volume (all three corners beyond it),
 // - back-facing where the draw culls back faces (counter-clockwise front),
-// - covering no pixel center,
-// - or, in occlusion culling's phase 2, behind the depth pyramid;
-// kept triangles go to a list of indices (instance << vertex_bits | vertex) a workgroup's
-// chunk at a time (one atomic per chunk), drawn with one indexed indirect draw.
+// - covering no pixel center (its box, and for a few pixels wide, each center by its edges),
+// - or, in occlusion culling's phase 2, behind the depth buffer at every pixel center it may
+//   cover (a few pixels wide) or behind the depth pyramid over its box;
+// kept triangles go to a list of indices (instance << id_bits | id, the id the mesh vertex or
+// the corner 3·i + k of MLET's triangle i) a workgroup's chunk at a time (one atomic per chunk), drawn with one indexed indirect draw.
 //
 // Conservative against the draw: the caller's vertex shader runs the same skinning, which may
 // round differently by `margin + relative × |p|` (world units) at most; the pass widens every
-// corner by that and by its own projection's rounding, and every test above by what
-// rasterizers do (vertices snapped to 1/16 pixel or finer). In phase 2 a survivor's visibility bit becomes whether one
-// of its triangles passed every test, the pyramid's included, and its triangles are listed only
-// if phase 1 did not draw it (its bit was set: crowd_cull.wgsl listed it in phase 1).
+// corner by that, by its own projection's rounding and by the rasterizer's vertex snapping
+// (`snap`: its sub-pixel grid).
+//
+// Visibility bits (what the first phase of the next frame draws; a choice, not a bound): in
+// phase 2 a survivor's bit becomes whether one of its triangles looks visible: kept, and, a
+// few pixels wide, covering a pixel center where its depth (as this pass computes it) is not
+// behind the depth buffer. Its triangles are listed only if phase 1 did not draw it (its bit
+// was set: crowd_cull.wgsl listed it in phase 1).
 
 struct TriangleParams {
     // As cull_params.phase: 0 one phase, 1 and 2 occlusion culling's.
     phase: u32,
     // Triangles each list holds.
     capacity: u32,
-    vertex_bits: u32,
-    // bit 0: the draw culls back faces.
+    id_bits: u32,
+    // bit 0: the draw culls back faces; bit 1: the lists name corners (else vertices).
     flags: u32,
     width: u32,
     height: u32,
@@ -34,8 +39,10 @@ struct TriangleParams {
     // How far the draw's skinned position may be from this pass's: margin + relative × |p|.
     margin: f32,
     relative: f32,
-    pad1: u32,
-    pad2: u32,
+    // The draw's vertex snapping: 2^-subpixel bits, in pixels.
+    snap: f32,
+    // Where MLET's triangle 0 is in `meshlet_words` (triangle i at triangle_base + i).
+    triangle_base: u32,
 }
 
 @group(0) @binding(0) var<uniform> tri: TriangleParams;
@@ -47,8 +54,8 @@ struct TriangleParams {
 // Visibility bits, then the depth pyramid (crowd_cull.wgsl, pyramid.wgsl).
 @group(0) @binding(4) var<storage, read_write> state: array<u32>;
 // The meshlets: per meshlet where its vertices start (in this array), their count, where its
-// triangles start, their count; then the vertices (mesh vertex indices); then the triangles
-// (local vertex indices in the low three bytes).
+// triangles start, their count; then the vertices (mesh vertex indices); then, from
+// triangle_base in MLET's order, the triangles (local vertex indices in the low three bytes).
 @group(0) @binding(5) var<storage, read> meshlet_words: array<u32>;
 // Two headers of 8 words (lists A and B): DrawIndexedIndirectArgs (index count, 1, first
 // index, 0, 0), triangles found, meshlets with a triangle listed, 0; then list A's indices,
@@ -94,8 +101,15 @@ fn beyond(c: array<Corner, 3>, rows: mat4x4<f32>, k: u32, s: f32) -> bool {
     return all;
 }
 
-// What the tests make of one triangle: 0 culled, 1 behind the pyramid (phase 2 only), 2
-// drawn.
+// What the tests make of one triangle.
+const CULLED: u32 = 0u;
+// Behind the pyramid (phase 2 only).
+const BEHIND: u32 = 1u;
+// Drawn, and (phase 2) no pixel where it looks visible.
+const UNSEEN: u32 = 2u;
+// Drawn, and (phase 2) a pixel where it looks visible, or too big to look at pixel by pixel.
+const SEEN: u32 = 3u;
+
 fn test_triangle(c: array<Corner, 3>) -> u32 {
     // The projection's rows.
     let rows = transpose(occlusion.view_proj);
@@ -111,6 +125,7 @@ fn test_triangle(c: array<Corner, 3>) -> u32 {
     var lo = vec3<f32>(1e30);
     var hi = vec3<f32>(-1e30);
     var mid: array<vec2<f32>, 3>;
+    var z: vec3<f32>;
     var half: array<f32, 3>;
     let size = vec2<f32>(f32(tri.width), f32(tri.height));
     for (var i = 0u; i < 3u; i++) {
@@ -119,7 +134,7 @@ fn test_triangle(c: array<Corner, 3>) -> u32 {
         let r = c[i].r;
         let wl = q.w - dot(abs(rows[3].xyz), d) - r.w;
         if !(wl > 1e-6 * (abs(q.x) + abs(q.y) + abs(q.z)) + 1e-30) {
-            return 2u;
+            return SEEN;
         }
         let ndc = q.xyz / q.w;
         let g = vec3<f32>(dot(abs(rows[0].xyz - ndc.x * rows[3].xyz), d),
@@ -130,32 +145,118 @@ fn test_triangle(c: array<Corner, 3>) -> u32 {
         hi = max(hi, ndc + e);
         // In pixels (y up: orientation kept): the middle and the half width of the interval.
         mid[i] = 0.5 * ndc.xy * size;
+        z[i] = ndc.z;
         half[i] = 0.5 * max(e.x * size.x, e.y * size.y);
     }
-    let rect = pixel_rect(lo.xy, hi.xy, size);
+    let rect = pixel_rect(lo.xy, hi.xy, size, tri.snap);
     if rect_empty(rect) {
-        return 0u;
+        return CULLED;
     }
-    if (tri.flags & 1u) != 0u {
-        // Twice the signed area (counter-clockwise positive) and how far it can move when each
-        // corner moves by its half width and a rasterizer's snapping (1/16 pixel).
-        let a = mid[1] - mid[0];
-        let b = mid[2] - mid[0];
-        // (And the rounding of the middles and their differences, a few ulps of the middles.)
-        let m0 = max(abs(mid[0].x), abs(mid[0].y));
-        let da = half[0] + half[1] + 0.125 + 5e-7 * (m0 + max(abs(mid[1].x), abs(mid[1].y)));
-        let db = half[0] + half[2] + 0.125 + 5e-7 * (m0 + max(abs(mid[2].x), abs(mid[2].y)));
-        let area = a.x * b.y - a.y * b.x;
-        let slack = da * (abs(b.x) + abs(b.y)) + db * (abs(a.x) + abs(a.y)) + 2.0 * da * db
-            + 1e-6 * (abs(a.x * b.y) + abs(a.y * b.x));
-        if area + slack < 0.0 {
-            return 0u;
+    // Twice the signed area (counter-clockwise positive) and how far it can move when each
+    // corner moves by its half width and the rasterizer's snapping.
+    let a = mid[1] - mid[0];
+    let b = mid[2] - mid[0];
+    // (And the rounding of the middles and their differences, a few ulps of the middles.)
+    let m0 = max(abs(mid[0].x), abs(mid[0].y));
+    let da = half[0] + half[1] + 2.0 * tri.snap + 5e-7 * (m0 + max(abs(mid[1].x), abs(mid[1].y)));
+    let db = half[0] + half[2] + 2.0 * tri.snap + 5e-7 * (m0 + max(abs(mid[2].x), abs(mid[2].y)));
+    let area = a.x * b.y - a.y * b.x;
+    let slack = da * (abs(b.x) + abs(b.y)) + db * (abs(a.x) + abs(a.y)) + 2.0 * da * db
+        + 1e-6 * (abs(a.x * b.y) + abs(a.y * b.x));
+    let cull_back = (tri.flags & 1u) != 0u;
+    if cull_back && area + slack < 0.0 {
+        return CULLED;
+    }
+    // Its orientation as drawn: 1 counter-clockwise (all the draw keeps when it culls back
+    // faces), -1 clockwise, 0 either.
+    let orient = select(select(select(0.0, -1.0, area + slack < 0.0), 1.0, area - slack > 0.0), 1.0, cull_back);
+    // A few pixels wide: which pixel centers the drawn triangle may cover, and (phase 2)
+    // whether one of them is not behind the depth buffer there.
+    if rect.z - rect.x < 8.0 && rect.w - rect.y < 8.0 {
+        var covered = false;
+        var drawn = false;
+        for (var y = u32(rect.y); y <= u32(rect.w); y++) {
+            for (var x = u32(rect.x); x <= u32(rect.z); x++) {
+                let p = vec2<f32>(f32(x) + 0.5 - 0.5 * size.x, 0.5 * size.y - f32(y) - 0.5);
+                if may_cover(mid, half, orient, p) {
+                    if tri.phase != 2u {
+                        return SEEN;
+                    }
+                    covered = true;
+                    if !pixel_behind(x, y, lo.z, hi.z) {
+                        drawn = true;
+                        if looks_visible(mid, z, p, x, y) {
+                            return SEEN;
+                        }
+                    }
+                }
+            }
         }
+        return select(select(CULLED, BEHIND, covered), UNSEEN, drawn);
     }
     if tri.phase == 2u && rect_behind(rect, lo.z, hi.z) {
-        return 1u;
+        return BEHIND;
     }
-    return 2u;
+    return SEEN;
+}
+
+// Whether the triangle as this pass computed it (corners at mid, NDC depths z) covers the
+// pixel center p (pixel x, y) and is there at most a few ulps behind the depth buffer: the
+// visibility bit's test (what the first phase of the next frame draws), not a bound.
+fn looks_visible(mid: array<vec2<f32>, 3>, z: vec3<f32>, p: vec2<f32>, x: u32, y: u32) -> bool {
+    var w: vec3<f32>;
+    for (var i = 0u; i < 3u; i++) {
+        let e = mid[(i + 2u) % 3u] - mid[(i + 1u) % 3u];
+        let f = p - mid[(i + 1u) % 3u];
+        w[i] = e.x * f.y - e.y * f.x;
+    }
+    let sum = w.x + w.y + w.z;
+    if sum == 0.0 || any(w * sign(sum) < vec3<f32>(0.0)) {
+        return false;
+    }
+    let depth = dot(w, z) / sum;
+    let buffer = bitcast<f32>(state[occlusion.pyramid_base + y * occlusion.width + x]);
+    let tolerance = 1e-5 * max(abs(depth), abs(buffer));
+    if occlusion.reverse != 0u {
+        return depth >= buffer - tolerance;
+    }
+    return depth <= buffer + tolerance;
+}
+
+// Whether the drawn triangle may cover the pixel center p (pixels from the screen's center, y
+// up), its corners within half[i] of mid[i] (per axis) and the rasterizer's snapping, of
+// orientation `orient` (1 counter-clockwise, -1 clockwise, 0 either) whatever they are. A
+// point is inside a counter-clockwise triangle when no edge function (b - a) × (p - a) is
+// negative, inside a clockwise one when none is positive; so p is certainly outside when one
+// edge function is negative (counter-clockwise), positive (clockwise), or one each (either)
+// however the corners move: by at most (h_a + h_b)·|p - a|₁ + h_a·|b - a|₁ + 2 (h_a + h_b) h_a
+// when a and b move by h_a and h_b (and by its rounding: the differences' as a few ulps more
+// on each h, the products' relative).
+fn may_cover(mid: array<vec2<f32>, 3>, half: array<f32, 3>, orient: f32, p: vec2<f32>) -> bool {
+    let ulps = 5e-7 * (max(abs(p.x), abs(p.y)) + max(max(max(abs(mid[0].x), abs(mid[0].y)),
+        max(abs(mid[1].x), abs(mid[1].y))), max(abs(mid[2].x), abs(mid[2].y))));
+    var negative = false;
+    var positive = false;
+    for (var i = 0u; i < 3u; i++) {
+        let j = (i + 1u) % 3u;
+        let e = mid[j] - mid[i];
+        let f = p - mid[i];
+        let ha = half[i] + tri.snap + ulps;
+        let hb = half[j] + tri.snap + ulps;
+        let edge = e.x * f.y - e.y * f.x;
+        let l1e = abs(e.x) + abs(e.y);
+        let l1f = abs(f.x) + abs(f.y);
+        let moved = (ha + hb) * l1f + ha * l1e + 2.0 * (ha + hb) * ha + 1e-6 * l1e * l1f;
+        negative = negative || edge + moved < 0.0;
+        positive = positive || edge - moved > 0.0;
+    }
+    if orient > 0.0 {
+        return !negative;
+    }
+    if orient < 0.0 {
+        return !positive;
+    }
+    return !(negative && positive);
 }
 
 @compute @workgroup_size(64)
@@ -194,16 +295,17 @@ fn cull_triangles(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocati
         if t < count {
             let local = meshlet_words[first_triangle + t];
             var k: array<Corner, 3>;
+            let corners = (tri.flags & 2u) != 0u;
             for (var i = 0u; i < 3u; i++) {
                 let l = (local >> (8u * i)) & 0xffu;
-                v[i] = meshlet_words[first_vertex + l];
+                v[i] = select(meshlet_words[first_vertex + l], 3u * (first_triangle + t - tri.triangle_base) + i, corners);
                 k[i] = Corner(corner_clip[l], vec3<f32>(corner_d[l]), corner_r[l]);
             }
             let result = test_triangle(k);
-            if result == 2u {
+            if result == SEEN {
                 atomicStore(&group_seen, 1u);
             }
-            keep = select(result != 0u, result == 2u && !drawn, phase == 2u);
+            keep = select(result != CULLED, result >= UNSEEN && !drawn, phase == 2u);
         }
         var place = 0u;
         if keep {
@@ -220,7 +322,7 @@ fn cull_triangles(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocati
         if keep && base + place < tri.capacity {
             let at = out + 3u * (base + place);
             for (var i = 0u; i < 3u; i++) {
-                atomicStore(&triangles[at + i], (instance << tri.vertex_bits) | v[i]);
+                atomicStore(&triangles[at + i], (instance << tri.id_bits) | v[i]);
             }
         }
     }

@@ -7,7 +7,7 @@ struct View {
     // Triangles per instance.
     triangles: u32,
     // Bits of a triangle list's index that hold the vertex.
-    vertex_bits: u32,
+    id_bits: u32,
     pad0: u32,
     pad1: u32,
 }
@@ -53,7 +53,7 @@ fn vs_pulled(@builtin(vertex_index) corner: u32, @builtin(instance_index) surviv
 // The triangle pass's list: each index an (instance, vertex).
 @vertex
 fn vs_triangles(@builtin(vertex_index) index: u32) -> Shaded {
-    let iv = triangle_vertex(index, view.vertex_bits);
+    let iv = triangle_entry(index, view.id_bits);
     return shaded(iv.y, iv.x);
 }
 
