@@ -50,6 +50,7 @@
 mod context;
 pub mod contours;
 pub mod crowd_culling;
+pub mod crowd_skinning;
 pub mod mesh;
 pub mod skinning;
 pub mod triangle_culling;

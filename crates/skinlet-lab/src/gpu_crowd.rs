@@ -20,6 +20,7 @@ use skinlet_gpu::crowd_culling::{
     CrowdCulling, CullInstance, CullMode, CullPipelines, GpuCharacter, List, OcclusionDepth, SURVIVORS_WGSL,
     SurvivorHeader,
 };
+use skinlet_gpu::crowd_skinning::{CROWD_SKIN_WGSL, CrowdMesh, layout_entries};
 use skinlet_gpu::triangle_culling::{
     Entries, Raster, TRIANGLES_WGSL, TriangleCulling, TriangleHeader, TriangleSkinning,
 };
@@ -164,7 +165,6 @@ impl GpuCrowd {
         reversed: bool,
     ) -> Result<GpuCrowd> {
         let mesh = &baked.mesh;
-        let inf = mesh.influences.as_ref().ok_or_else(|| invalid("the bake has no skin weights".into()))?;
         let headers = baked.meshlets.headers();
         let meshlets = baked.meshlets.view(&headers);
         let (indices, draws) = skinlet_gpu::mesh::meshlet_index_buffer(&meshlets, mesh.positions.len())?;
@@ -196,21 +196,7 @@ impl GpuCrowd {
             device, &pipelines, &character, &palette, &instances, capacity, survivors, occlusion,
         )?;
         let commands = culling.commands().clone();
-        // The mesh's words (crowd_skin.wgsl): positions, influences, morph offsets, deltas.
-        let vertices = mesh.positions.len();
-        let mut words: Vec<u32> = mesh.positions.iter().flat_map(|p| p.to_array().map(f32::to_bits)).collect();
-        let influences = words.len() as u32;
-        words.extend(inf.joints.iter().zip(&inf.weights).flat_map(|(&j, w)| [j as u32, w.to_bits()]));
-        let morph_offsets = words.len() as u32;
-        let mut offsets = mesh.morphs.offsets.clone();
-        offsets.resize(vertices + 1, 0);
-        words.extend(offsets);
-        let morph_deltas = words.len() as u32;
-        words.extend(
-            (mesh.morphs.deltas.iter())
-                .flat_map(|d| [d.position.x.to_bits(), d.position.y.to_bits(), d.position.z.to_bits(), d.weight]),
-        );
-        let skin = [joints, inf.stride as u32, morphs, influences, morph_offsets, morph_deltas, 0, 0];
+        let packed = CrowdMesh::pack(&mesh.mesh_data(None), joints)?;
         let triangle_meshlets: Vec<u32> =
             (draws.iter().enumerate()).flat_map(|(m, d)| std::iter::repeat_n(m as u32, d[0] as usize / 3)).collect();
         let triangle_by_vertices = (indices.chunks_exact(3).enumerate())
@@ -223,18 +209,8 @@ impl GpuCrowd {
         let read = wgpu::BufferUsages::STORAGE;
         let index_buffer = gpu.buffer("crowd indices", &indices, read | wgpu::BufferUsages::INDEX);
         let target = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
-        let source = [
-            SURVIVORS_WGSL,
-            TRIANGLES_WGSL,
-            include_str!("shaders/crowd_skin.wgsl"),
-            include_str!("shaders/crowd.wgsl"),
-        ]
-        .concat();
-        // The triangle pass's rounding margins: 2^-16 of the position and of the mesh's size
-        // (in the bake's units: a skin that scales it down to world units, as Xbot's does from
-        // centimeters, only widens this).
-        let size = mesh.positions.iter().fold(0f32, |m, p| m.max(p.abs().max_element()));
-        let (margin, relative) = (size / 65536.0, 1.0 / 65536.0);
+        let source = [SURVIVORS_WGSL, TRIANGLES_WGSL, CROWD_SKIN_WGSL, include_str!("shaders/crowd.wgsl")].concat();
+        let (margin, relative) = packed.margins();
         use skinlet_gpu::skinning::buffer_entry;
         use wgpu::BufferBindingType::{Storage, Uniform};
         let uniform = |binding, stages| buffer_entry(binding, stages, Uniform);
@@ -246,15 +222,7 @@ impl GpuCrowd {
             };
             let draw_layout =
                 layout("crowd draw", &[uniform(0, S::VERTEX_FRAGMENT), storage(1, S::VERTEX), storage(2, S::VERTEX)]);
-            let skin_layout = layout(
-                "crowd skinning",
-                &[
-                    uniform(0, S::VERTEX_FRAGMENT | S::COMPUTE),
-                    storage(1, S::VERTEX | S::COMPUTE),
-                    storage(2, S::VERTEX | S::COMPUTE),
-                    storage(3, S::VERTEX | S::COMPUTE),
-                ],
-            );
+            let skin_layout = layout("crowd skinning", &layout_entries(S::VERTEX_FRAGMENT | S::COMPUTE));
             fn entries<'a>(buffers: &[&'a wgpu::Buffer]) -> Vec<wgpu::BindGroupEntry<'a>> {
                 (buffers.iter().enumerate())
                     .map(|(b, buffer)| wgpu::BindGroupEntry { binding: b as u32, resource: buffer.as_entire_binding() })
@@ -266,9 +234,9 @@ impl GpuCrowd {
                     "crowd skinning",
                     &skin_layout,
                     &entries(&[
-                        &gpu.buffer("crowd skin", &skin, wgpu::BufferUsages::UNIFORM),
+                        &gpu.buffer("crowd skin", &packed.uniform, wgpu::BufferUsages::UNIFORM),
                         &palette,
-                        &gpu.buffer("crowd mesh", &words, read),
+                        &gpu.buffer("crowd mesh", &packed.words, read),
                         &weights,
                     ]),
                 ),
@@ -323,8 +291,7 @@ impl GpuCrowd {
             ];
             ((groups, draws), skin_layout)
         })?;
-        let skinning =
-            TriangleSkinning { wgsl: include_str!("shaders/crowd_skin.wgsl"), layout: &layouts, margin, relative };
+        let skinning = TriangleSkinning { wgsl: CROWD_SKIN_WGSL, layout: &layouts, margin, relative };
         // As many triangles per list as the crowd has (a list never overflows), or as the
         // device's storage bindings hold.
         let fits = (device.limits().max_storage_buffer_binding_size - 2 * TriangleHeader::SIZE) / 24;
@@ -334,7 +301,7 @@ impl GpuCrowd {
             culling,
             skinning,
             &meshlets,
-            vertices as u32,
+            mesh.positions.len() as u32,
             all_triangles,
             Raster { width, height, subpixel_bits, cull_back_faces: true },
             Entries::Vertices,

@@ -22,6 +22,8 @@
 //!   force as the reference.
 //! - [`contour_patches`]: contour extraction with a bake's patches (static or skinned, per
 //!   time window), exactly brute force's edges.
+//! - [`source_corners`]: each meshlet corner's vertex in its glTF primitive, for drawing the
+//!   meshlets with the source's own vertex attributes.
 //!
 //! Culling one instance of a baked character (one meshlet here, built by hand):
 //!
@@ -71,6 +73,7 @@ pub mod meshlet_cull;
 pub mod overdraw_orders;
 pub mod part_bounds;
 pub mod pose_guard;
+pub mod source_corners;
 
 pub use error::{Error, Result};
 pub use pose_guard::Trs;

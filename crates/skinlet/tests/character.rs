@@ -157,6 +157,57 @@ fn check_sources(name: &str, asset: &Asset, baked: &Baked, dropped: usize) {
         unused += used.iter().filter(|u| !**u).count();
     }
     assert_eq!(unused, dropped, "{name}: the source triangles no meshlet holds are the degenerate ones");
+    check_source_corners(name, asset, baked);
+}
+
+/// `skinlet_runtime::source_corners` on the bake's bytes and the asset's primitives (their
+/// indices and positions, as an engine loads them): every meshlet corner gets its bake vertex
+/// and a source vertex at the same position; positions moved, a primitive missing and a bake
+/// without `SRCT` are errors.
+fn check_source_corners(name: &str, asset: &Asset, baked: &Baked) {
+    use skinlet_runtime::source_corners::{PartSource, source_corners};
+    // A bake's bytes in 4-byte aligned storage.
+    let words = |baked: &Baked| -> (Vec<u32>, usize) {
+        let mut bytes = skinlet::bake::to_bytes(baked);
+        let n = bytes.len();
+        bytes.resize(n.next_multiple_of(4), 0);
+        (bytemuck::pod_collect_to_vec(&bytes), n)
+    };
+    let (bytes, n) = words(baked);
+    let view = skinlet_runtime::bake_view::BakeView::new(&bytemuck::cast_slice(&bytes)[..n]).unwrap();
+    let primitives: Vec<(Vec<u32>, Vec<[f32; 3]>)> = (baked.parts.iter())
+        .map(|part| {
+            let p = asset.meshes[part.mesh as usize].primitives.iter().find(|p| p.index == part.primitive as usize);
+            let g = &p.unwrap().geometry;
+            (g.triangles.iter().flatten().copied().collect(), g.positions.iter().map(|v| v.to_array()).collect())
+        })
+        .collect();
+    let sources: Vec<PartSource> = (primitives.iter())
+        .map(|(i, p)| PartSource { indices: Some(i), vertices: p.len() as u32, positions: Some(p) })
+        .collect();
+    let corners = source_corners(&view, &sources).unwrap_or_else(|e| panic!("{name}: {e}"));
+    for m in &baked.meshlets.meshlets {
+        for (t, tri) in baked.meshlets.mesh_triangles(m).enumerate() {
+            for (k, &v) in tri.iter().enumerate() {
+                let c = corners[m.triangle_offset as usize + 3 * t + k];
+                assert_eq!(c.vertex, v, "{name}");
+                let (_, positions) = &primitives[c.part as usize];
+                assert_eq!(positions[c.source as usize], baked.mesh.positions[v as usize].to_array(), "{name}");
+            }
+        }
+    }
+    let mut moved = primitives[0].1.clone();
+    moved.iter_mut().for_each(|p| p[0] += 1.0);
+    let wrong: Vec<PartSource> = (sources.iter().enumerate())
+        .map(|(p, s)| if p == 0 { PartSource { positions: Some(&moved), ..*s } } else { *s })
+        .collect();
+    let e = source_corners(&view, &wrong).unwrap_err().to_string();
+    assert!(e.contains("part 0") && e.contains("not of this file"), "{name}: {e}");
+    let e = source_corners(&view, &sources[1..]).unwrap_err().to_string();
+    assert!(e.contains("source primitives for"), "{name}: {e}");
+    let (bytes, n) = words(&Baked { sources: None, ..baked.clone() });
+    let view = skinlet_runtime::bake_view::BakeView::new(&bytemuck::cast_slice(&bytes)[..n]).unwrap();
+    assert!(source_corners(&view, &sources).unwrap_err().to_string().contains("no SRCT"), "{name}");
 }
 
 /// Random soft weights over `joints` joints, 1 to 4 per vertex, sorted by decreasing weight.
