@@ -9,6 +9,7 @@ use proptest::prelude::*;
 use skinlet_runtime::Trs;
 use skinlet_runtime::any_pose::AnyPoseBoxes;
 use skinlet_runtime::bake_view::BakeView;
+use skinlet_runtime::source_corners::{PartSource, source_corners};
 use skinlet_runtime::camera::{Camera, Projection, planes};
 use skinlet_runtime::contour_edges::{Edges, Viewer, brute_force, extract_uncullable, quad_is_contour};
 use skinlet_runtime::contour_patches::{BakedContours, ClipWindows, skinned_edges};
@@ -101,7 +102,8 @@ fn camera() -> impl Strategy<Value = Camera> {
 }
 
 /// The bytes of a small valid bake: one driver (node 0), a tetrahedron of four vertices on it
-/// with normals, one meshlet with its bounds, one part. Each section 16-byte aligned.
+/// with normals, one meshlet with its bounds, one part, each triangle's source (the same
+/// triangle of a primitive indexed as `TRIS`). Each section 16-byte aligned.
 fn tetrahedron_bake() -> Vec<u8> {
     let w = |v: &[u32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
     let f = |v: &[f32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
@@ -127,7 +129,8 @@ fn tetrahedron_bake() -> Vec<u8> {
     skin.extend(w(&[0, 0]));
     let info = [w(&[2, 64, 124]), f(&[0.0, 0.0]), w(&[0, 0, 0])].concat();
     let part = w(&[1, 0, 0, 0, 0, 0, 4, 0, 4, 0, 1]);
-    let sections: [(&[u8; 4], Vec<u8>); 7] = [
+    let sources = w(&[4, 0, 1, 2, 3]);
+    let sections: [(&[u8; 4], Vec<u8>); 8] = [
         (b"INFO", info),
         (b"SKIN", skin),
         (b"VERT", vert),
@@ -135,6 +138,7 @@ fn tetrahedron_bake() -> Vec<u8> {
         (b"MLET", mlet),
         (b"BNDS", bnds),
         (b"PART", part),
+        (b"SRCT", sources),
     ];
     let mut b = [&b"SKINLET\0"[..], &w(&[3, sections.len() as u32])].concat();
     b.resize(16 + 24 * sections.len(), 0);
@@ -163,6 +167,18 @@ fn the_tetrahedron_bake_is_valid() {
     let words = aligned(&bytes);
     let view = BakeView::new(&bytemuck::cast_slice(&words)[..bytes.len()]).unwrap();
     assert_eq!((view.joint_count(), view.meshlet_count(), view.parts().len()), (1, 1, 1));
+    let (indices, positions) = tetrahedron_source();
+    let source = PartSource { indices: Some(&indices), vertices: 4, positions: Some(&positions) };
+    let corners = source_corners(&view, &[source]).unwrap();
+    let vertices: Vec<u32> = corners.iter().map(|c| c.vertex).collect();
+    assert_eq!(vertices, indices);
+    assert!(corners.iter().zip(&indices).all(|(c, &i)| c.source == i && c.part == 0));
+}
+
+/// The tetrahedron's primitive as an engine loads it: indices and positions.
+fn tetrahedron_source() -> (Vec<u32>, Vec<[f32; 3]>) {
+    let indices = vec![0, 1, 2, 0, 3, 1, 0, 2, 3, 1, 3, 2];
+    (indices, vec![[1.0, 1.0, 1.0], [1.0, -1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0]])
 }
 
 proptest! {
@@ -178,6 +194,9 @@ proptest! {
         joints in affines(3),
         weights in proptest::collection::vec(any_f32(), 0..3),
         cam in camera(),
+        indices in proptest::option::of(proptest::collection::vec(0u32..8, 0..16)),
+        vertices in 0u32..8,
+        moved in any::<bool>(),
     ) {
         let mut bytes = tetrahedron_bake();
         for (at, x) in &edits {
@@ -190,6 +209,11 @@ proptest! {
         let words = aligned(&bytes);
         if let Ok(view) = BakeView::new(&bytemuck::cast_slice(&words)[..bytes.len()]) {
             let _ = view.meshlets().index_buffer();
+            let (_, mut positions) = tetrahedron_source();
+            positions.resize(vertices as usize, [0.0; 3]);
+            positions.iter_mut().for_each(|p| p[0] += moved as u8 as f32);
+            let positions = (vertices > 0).then_some(&positions[..]);
+            let _ = source_corners(&view, &[PartSource { indices: indices.as_deref(), vertices, positions }]);
             if let Ok(culler) = view.culler() {
                 let mut frame = JointFrame::default();
                 culler.prepare(&joints, &cam, Tests::Both, &mut frame);
