@@ -62,14 +62,16 @@ pub struct TriangleSkinning<'a> {
 
 /// How the draw rasterizes: its viewport (the occlusion depth's size where the crowd has
 /// one), the rasterizer's sub-pixel precision
-/// ([`crate::crowd_culling::subpixel_bits`]), and whether it culls back faces
-/// (`wgpu::Face::Back`, counter-clockwise front).
+/// ([`crate::crowd_culling::subpixel_bits`]), whether it culls back faces
+/// (`wgpu::Face::Back`, counter-clockwise front), and whether it is multisampled (then a
+/// triangle is kept when it may cover any point of a pixel, not only its center).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Raster {
     pub width: u32,
     pub height: u32,
     pub subpixel_bits: u32,
     pub cull_back_faces: bool,
+    pub multisampled: bool,
 }
 
 /// What the list's indices name besides the instance ([`TriangleCulling::id_bits`] low bits).
@@ -158,6 +160,7 @@ impl TriangleCulling {
     /// the lists name `entries`. Each list holds `capacity` triangles. Errors when an argument is out of range, the
     /// meshlets are not the crowd's or fail their check, the encoded indices would not fit 32
     /// bits, or the pipeline fails validation (e.g. the skinning WGSL or its layout).
+    #[allow(clippy::too_many_arguments)]
     pub fn new(
         device: &wgpu::Device,
         crowd: CrowdCulling,
@@ -169,8 +172,9 @@ impl TriangleCulling {
         entries: Entries,
     ) -> Result<TriangleCulling> {
         let location = "GPU triangle culling";
-        let Raster { width, height, subpixel_bits, cull_back_faces } = raster;
-        let snap = crate::crowd_culling::snap(subpixel_bits, location)?;
+        let Raster { width, height, subpixel_bits, cull_back_faces, multisampled } = raster;
+        // Multisampled: samples anywhere in a pixel, as if its center could move half a pixel.
+        let snap = crate::crowd_culling::snap(subpixel_bits, location)? + if multisampled { 0.5 } else { 0.0 };
         if vertices == 0 || width == 0 || height == 0 {
             return Err(invalid(location, format!("{vertices} vertices drawn at {width}×{height}")));
         }

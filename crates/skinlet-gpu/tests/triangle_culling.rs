@@ -94,7 +94,13 @@ fn scene(capacity: Option<u32>, entries: Entries) -> Option<Scene> {
     let how = TriangleSkinning { wgsl: SKINNING, layout: &layout, margin: 0.0, relative: 1.0 / 65536.0 };
     let all = n * indices.len() as u32 / 3;
     let vertices = baked.mesh.positions.len() as u32;
-    let raster = Raster { width: WIDTH, height: HEIGHT, subpixel_bits: gpu.subpixel_bits, cull_back_faces: true };
+    let raster = Raster {
+        width: WIDTH,
+        height: HEIGHT,
+        subpixel_bits: gpu.subpixel_bits,
+        cull_back_faces: true,
+        multisampled: false,
+    };
     let culling =
         TriangleCulling::new(device, crowd, how, &meshlets, vertices, capacity.unwrap_or(all), raster, entries)
             .unwrap();
@@ -275,7 +281,7 @@ fn triangle_culling_refuses_bad_arguments() {
             .map(|e| e.to_string())
             .unwrap_or_default()
     };
-    let size = Raster { width: WIDTH, height: HEIGHT, subpixel_bits: 8, cull_back_faces: true };
+    let size = Raster { width: WIDTH, height: HEIGHT, subpixel_bits: 8, cull_back_faces: true, multisampled: false };
     assert_eq!(make(skinning, &meshlets, vertices, size), "");
     let fewer = MeshletView { headers: &headers[1..], ..meshlets };
     assert!(make(skinning, &fewer, vertices, size).contains("meshlets for a crowd of"));

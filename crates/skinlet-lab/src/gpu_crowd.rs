@@ -303,7 +303,7 @@ impl GpuCrowd {
             &meshlets,
             mesh.positions.len() as u32,
             all_triangles,
-            Raster { width, height, subpixel_bits, cull_back_faces: true },
+            Raster { width, height, subpixel_bits, cull_back_faces: true, multisampled: false },
             Entries::Vertices,
         )?;
         let (groups, pipelines) = built;

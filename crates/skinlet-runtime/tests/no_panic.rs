@@ -9,7 +9,6 @@ use proptest::prelude::*;
 use skinlet_runtime::Trs;
 use skinlet_runtime::any_pose::AnyPoseBoxes;
 use skinlet_runtime::bake_view::BakeView;
-use skinlet_runtime::source_corners::{PartSource, source_corners};
 use skinlet_runtime::camera::{Camera, Projection, planes};
 use skinlet_runtime::contour_edges::{Edges, Viewer, brute_force, extract_uncullable, quad_is_contour};
 use skinlet_runtime::contour_patches::{BakedContours, ClipWindows, skinned_edges};
@@ -19,6 +18,7 @@ use skinlet_runtime::meshlet_cull::{JointFrame, MeshletCuller, Tests};
 use skinlet_runtime::overdraw_orders::{Lookup, Orders};
 use skinlet_runtime::part_bounds::{PartBounds, PoseBounds};
 use skinlet_runtime::pose_guard::{NodeRange, PoseGuard};
+use skinlet_runtime::source_corners::{PartSource, source_corners};
 
 /// Any f32, weighted toward the awkward ones.
 fn any_f32() -> impl Strategy<Value = f32> {

@@ -36,6 +36,38 @@ fn rect_empty(r: vec4<f32>) -> bool {
     return !(r.x <= r.z && r.y <= r.w);
 }
 
+// The level at which the pixels x0..=x1, y0..=y1 span at most 8 × 8 blocks of 2^level × 2^level
+// pixels (the pyramid's texels at that level).
+fn block_level(x0: u32, y0: u32, x1: u32, y1: u32) -> u32 {
+    var level = 0u;
+    while level < 31u && ((x1 >> level) - (x0 >> level) > 7u || (y1 >> level) - (y0 >> level) > 7u) {
+        level += 1u;
+    }
+    return level;
+}
+
+// A level of the pyramid: where it starts in `state`, its width and height.
+struct PyramidLevel {
+    offset: u32,
+    width: u32,
+    height: u32,
+}
+
+fn pyramid_level(level: u32) -> PyramidLevel {
+    var l = PyramidLevel(occlusion.pyramid_base, occlusion.width, occlusion.height);
+    for (var k = 0u; k < level; k++) {
+        l.offset += l.width * l.height;
+        l.width = (l.width + 1u) / 2u;
+        l.height = (l.height + 1u) / 2u;
+    }
+    return l;
+}
+
+// The farthest depth over the pixels of texel (x, y) of level `l`.
+fn texel_far(l: PyramidLevel, x: u32, y: u32) -> f32 {
+    return bitcast<f32>(state[l.offset + min(y, l.height - 1u) * l.width + min(x, l.width - 1u)]);
+}
+
 // Whether depths from lo_z to hi_z (NDC) over the pixels of the non-empty rectangle `r` are
 // all behind the pyramid: the nearest (lo_z; hi_z reversed), a few ulps nearer for rounding,
 // against the farthest depth over those pixels at the level where they span at most 8 × 8
@@ -46,31 +78,17 @@ fn rect_behind(r: vec4<f32>, lo_z: f32, hi_z: f32) -> bool {
     let y0 = u32(r.y);
     let x1 = u32(r.z);
     let y1 = u32(r.w);
-    var level = 0u;
-    var w = occlusion.width;
-    var h = occlusion.height;
-    var offset = occlusion.pyramid_base;
-    while level + 1u < occlusion.levels && ((x1 >> level) - (x0 >> level) > 7u || (y1 >> level) - (y0 >> level) > 7u) {
-        offset += w * h;
-        w = (w + 1u) / 2u;
-        h = (h + 1u) / 2u;
-        level += 1u;
-    }
+    let level = min(block_level(x0, y0, x1, y1), occlusion.levels - 1u);
+    let l = pyramid_level(level);
     let reverse = occlusion.reverse != 0u;
     var far = select(0.0, 1.0, reverse);
-    for (var y = y0 >> level; y <= min(y1 >> level, h - 1u); y++) {
-        for (var x = x0 >> level; x <= min(x1 >> level, w - 1u); x++) {
-            let d = bitcast<f32>(state[offset + y * w + x]);
+    for (var y = y0 >> level; y <= y1 >> level; y++) {
+        for (var x = x0 >> level; x <= x1 >> level; x++) {
+            let d = texel_far(l, x, y);
             far = select(max(far, d), min(far, d), reverse);
         }
     }
     return behind(far, lo_z, hi_z);
-}
-
-// Whether depths from lo_z to hi_z are all behind the pixel (x, y) of the depth buffer
-// (pyramid level 0).
-fn pixel_behind(x: u32, y: u32, lo_z: f32, hi_z: f32) -> bool {
-    return behind(bitcast<f32>(state[occlusion.pyramid_base + y * occlusion.width + x]), lo_z, hi_z);
 }
 
 // Whether depths from lo_z to hi_z are all behind the depth `far`.

@@ -6,9 +6,9 @@
 // is certainly
 // - outside one side plane of the clip volume (all three corners beyond it),
 // - back-facing where the draw culls back faces (counter-clockwise front),
-// - covering no pixel center (its box, and for a few pixels wide, each center by its edges),
-// - or, in occlusion culling's phase 2, behind the depth buffer at every pixel center it may
-//   cover (a few pixels wide) or behind the depth pyramid over its box;
+// - covering no pixel center (its box, then block by block of pixels by its edges),
+// - or, in occlusion culling's phase 2, behind the depth pyramid at every block of pixels
+//   where it may cover a center (single pixels for a triangle a few pixels wide);
 // kept triangles go to a list of indices (instance << id_bits | id, the id the mesh vertex or
 // the corner 3·i + k of MLET's triangle i) a workgroup's chunk at a time (one atomic per chunk), drawn with one indexed indirect draw.
 //
@@ -20,7 +20,7 @@
 // Visibility bits (what the first phase of the next frame draws; a choice, not a bound): in
 // phase 2 a survivor's bit becomes whether one of its triangles looks visible: kept, and, a
 // few pixels wide, covering a pixel center where its depth (as this pass computes it) is not
-// behind the depth buffer. Its triangles are listed only if phase 1 did not draw it (its bit
+// behind the depth buffer (larger ones: kept). Its triangles are listed only if phase 1 did not draw it (its bit
 // was set: crowd_cull.wgsl listed it in phase 1).
 
 struct TriangleParams {
@@ -170,34 +170,42 @@ fn test_triangle(c: array<Corner, 3>) -> u32 {
     // Its orientation as drawn: 1 counter-clockwise (all the draw keeps when it culls back
     // faces), -1 clockwise, 0 either.
     let orient = select(select(select(0.0, -1.0, area + slack < 0.0), 1.0, area - slack > 0.0), 1.0, cull_back);
-    // A few pixels wide: which pixel centers the drawn triangle may cover, and (phase 2)
-    // whether one of them is not behind the depth buffer there.
-    if rect.z - rect.x < 8.0 && rect.w - rect.y < 8.0 {
-        var covered = false;
-        var drawn = false;
-        for (var y = u32(rect.y); y <= u32(rect.w); y++) {
-            for (var x = u32(rect.x); x <= u32(rect.z); x++) {
-                let p = vec2<f32>(f32(x) + 0.5 - 0.5 * size.x, 0.5 * size.y - f32(y) - 0.5);
-                if may_cover(mid, half, orient, p) {
-                    if tri.phase != 2u {
+    // Which pixel centers the drawn triangle may cover, block by block of the level where its
+    // rectangle spans at most 8 × 8 blocks (single pixels for a triangle a few pixels wide),
+    // and (phase 2) whether one of them is not behind the depth pyramid's texel there.
+    let x0 = u32(rect.x);
+    let y0 = u32(rect.y);
+    let x1 = u32(rect.z);
+    let y1 = u32(rect.w);
+    var level = block_level(x0, y0, x1, y1);
+    if tri.phase == 2u {
+        level = min(level, occlusion.levels - 1u);
+    }
+    let pyramid = pyramid_level(level);
+    var covered = false;
+    var drawn = false;
+    for (var ty = y0 >> level; ty <= y1 >> level; ty++) {
+        for (var tx = x0 >> level; tx <= x1 >> level; tx++) {
+            // The block's pixels in the rectangle, and their centers' extremes (y up).
+            let bx = vec2<u32>(max(tx << level, x0), min(((tx + 1u) << level) - 1u, x1));
+            let by = vec2<u32>(max(ty << level, y0), min(((ty + 1u) << level) - 1u, y1));
+            let low = vec2<f32>(f32(bx.x) + 0.5 - 0.5 * size.x, 0.5 * size.y - f32(by.y) - 0.5);
+            let high = vec2<f32>(f32(bx.y) + 0.5 - 0.5 * size.x, 0.5 * size.y - f32(by.x) - 0.5);
+            if may_cover(mid, half, orient, low, high) {
+                if tri.phase != 2u {
+                    return SEEN;
+                }
+                covered = true;
+                if !behind(texel_far(pyramid, tx, ty), lo.z, hi.z) {
+                    drawn = true;
+                    if level > 0u || looks_visible(mid, z, low, bx.x, by.x) {
                         return SEEN;
-                    }
-                    covered = true;
-                    if !pixel_behind(x, y, lo.z, hi.z) {
-                        drawn = true;
-                        if looks_visible(mid, z, p, x, y) {
-                            return SEEN;
-                        }
                     }
                 }
             }
         }
-        return select(select(CULLED, BEHIND, covered), UNSEEN, drawn);
     }
-    if tri.phase == 2u && rect_behind(rect, lo.z, hi.z) {
-        return BEHIND;
-    }
-    return SEEN;
+    return select(select(CULLED, BEHIND, covered), UNSEEN, drawn);
 }
 
 // Whether the triangle as this pass computed it (corners at mid, NDC depths z) covers the
@@ -223,32 +231,42 @@ fn looks_visible(mid: array<vec2<f32>, 3>, z: vec3<f32>, p: vec2<f32>, x: u32, y
     return depth <= buffer + tolerance;
 }
 
-// Whether the drawn triangle may cover the pixel center p (pixels from the screen's center, y
-// up), its corners within half[i] of mid[i] (per axis) and the rasterizer's snapping, of
-// orientation `orient` (1 counter-clockwise, -1 clockwise, 0 either) whatever they are. A
-// point is inside a counter-clockwise triangle when no edge function (b - a) × (p - a) is
-// negative, inside a clockwise one when none is positive; so p is certainly outside when one
-// edge function is negative (counter-clockwise), positive (clockwise), or one each (either)
-// however the corners move: by at most (h_a + h_b)·|p - a|₁ + h_a·|b - a|₁ + 2 (h_a + h_b) h_a
-// when a and b move by h_a and h_b (and by its rounding: the differences' as a few ulps more
-// on each h, the products' relative).
-fn may_cover(mid: array<vec2<f32>, 3>, half: array<f32, 3>, orient: f32, p: vec2<f32>) -> bool {
-    let ulps = 5e-7 * (max(abs(p.x), abs(p.y)) + max(max(max(abs(mid[0].x), abs(mid[0].y)),
+// Whether the drawn triangle may cover a pixel center in the box low..high (pixels from the
+// screen's center, y up), its corners within half[i] of mid[i] (per axis) and the
+// rasterizer's snapping, of orientation `orient` (1 counter-clockwise, -1 clockwise, 0 either)
+// whatever they are. A point is inside a counter-clockwise triangle when no edge function
+// (b - a) × (p - a) is negative, inside a clockwise one when none is positive; so the box is
+// certainly uncovered when one edge function is negative (counter-clockwise), positive
+// (clockwise), or one each (either) over the whole box however the corners move: by at most
+// (h_a + h_b)·|p - a|₁ + h_a·|b - a|₁ + 2 (h_a + h_b) h_a when a and b move by h_a and h_b (and
+// by its rounding: the differences' as a few ulps more on each h, the products' relative).
+// The edge function is linear and that bound convex in p, so their sum is largest (their
+// difference least) at a corner of the box.
+fn may_cover(mid: array<vec2<f32>, 3>, half: array<f32, 3>, orient: f32, low: vec2<f32>, high: vec2<f32>) -> bool {
+    let far = max(max(abs(low.x), abs(low.y)), max(abs(high.x), abs(high.y)));
+    let ulps = 5e-7 * (far + max(max(max(abs(mid[0].x), abs(mid[0].y)),
         max(abs(mid[1].x), abs(mid[1].y))), max(abs(mid[2].x), abs(mid[2].y))));
+    let corners = array<vec2<f32>, 4>(low, vec2<f32>(high.x, low.y), vec2<f32>(low.x, high.y), high);
     var negative = false;
     var positive = false;
     for (var i = 0u; i < 3u; i++) {
         let j = (i + 1u) % 3u;
         let e = mid[j] - mid[i];
-        let f = p - mid[i];
         let ha = half[i] + tri.snap + ulps;
         let hb = half[j] + tri.snap + ulps;
-        let edge = e.x * f.y - e.y * f.x;
         let l1e = abs(e.x) + abs(e.y);
-        let l1f = abs(f.x) + abs(f.y);
-        let moved = (ha + hb) * l1f + ha * l1e + 2.0 * (ha + hb) * ha + 1e-6 * l1e * l1f;
-        negative = negative || edge + moved < 0.0;
-        positive = positive || edge - moved > 0.0;
+        var most = -1e30;
+        var least = 1e30;
+        for (var c = 0u; c < 4u; c++) {
+            let f = corners[c] - mid[i];
+            let edge = e.x * f.y - e.y * f.x;
+            let l1f = abs(f.x) + abs(f.y);
+            let moved = (ha + hb) * l1f + ha * l1e + 2.0 * (ha + hb) * ha + 1e-6 * l1e * l1f;
+            most = max(most, edge + moved);
+            least = min(least, edge - moved);
+        }
+        negative = negative || most < 0.0;
+        positive = positive || least > 0.0;
     }
     if orient > 0.0 {
         return !negative;
