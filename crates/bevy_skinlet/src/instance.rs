@@ -97,6 +97,16 @@ impl SkinletInstance {
     pub fn part_entities(&self) -> &[Entity] {
         &self.parts
     }
+
+    /// The entities of the bake's drivers (joints and rigid parts' nodes), in its order.
+    pub fn drivers(&self) -> &[Entity] {
+        &self.drivers
+    }
+
+    /// This frame's morph weights, in the bake's order (after the bounds' update).
+    pub fn morph_weights(&self) -> &[f32] {
+        &self.weights
+    }
 }
 
 /// A baked clip (its index among the bake's clips) and what it leaves alone, which must be at

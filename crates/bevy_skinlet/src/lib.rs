@@ -39,9 +39,13 @@ pub mod bake_asset;
 pub mod bake_processor;
 pub mod gltf_tags;
 pub mod instance;
+#[cfg(feature = "meshlets")]
+pub mod meshlet_draw;
 
 pub use bake_asset::{Bake, BakeLoader, BakeSettings};
 pub use instance::{PoseEdited, SkinletBounds, SkinletError, SkinletInstance};
+#[cfg(feature = "meshlets")]
+pub use meshlet_draw::{SkinletDrawnPart, SkinletMeshletPlugin, SkinletMeshlets};
 pub use skinlet_gpu;
 pub use skinlet_runtime;
 

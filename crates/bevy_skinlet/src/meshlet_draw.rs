@@ -1,0 +1,703 @@
+//! Skinned characters drawn by meshlet in Bevy's own opaque pass, culled on the GPU by skinlet.
+//!
+//! Put [`SkinletMeshlets`] beside [`crate::SkinletBounds`] on a scene root and add
+//! [`SkinletMeshletPlugin`]: once the instance is bound to its bake, Bevy stops drawing its
+//! parts (their `MeshMaterial3d<StandardMaterial>` moves into [`SkinletDrawnPart`]) and skinlet
+//! draws them instead, every instance of a bake in one indexed indirect draw:
+//! - per frame, each instance's palette comes from the drivers' `GlobalTransform`s (the joints
+//!   Bevy animated) times the bake's inverse bind matrices, its morph weights and its pose
+//!   guard's answer from the bounds plugin ([`crate::SkinletInstance::pose`]);
+//! - before the cameras render (a system in Bevy's `RenderGraph` schedule), skinlet's crowd
+//!   culling and triangle pass (`skinlet_gpu::crowd_culling`, `triangle_culling`) run for the
+//!   first camera on Bevy's own device and encoder, writing one compacted list of triangle
+//!   corners;
+//! - a phase item in `Opaque3d` draws that list with Bevy's view bindings (groups 0 and 1),
+//!   skinning each corner's bake vertex with the function the culling tested (so the culling
+//!   is conservative for this draw) and its source vertex's normal (the bake's `SRCT`
+//!   section, `skinlet_runtime::source_corners`), shaded by Bevy's PBR functions with the
+//!   part's `StandardMaterial` as Bevy uploads it.
+//!
+//! Not yet: base colour, metallic-roughness and normal textures (the factors are used),
+//! morph targets' normal deltas (positions morph), the depth prepass and shadow views (the
+//! characters receive shadows, cast none), occlusion culling, more than one camera.
+
+use crate::SkinletBounds;
+use crate::bake_asset::Bake;
+use crate::instance::{SkinletError, SkinletInstance};
+use bevy::camera::primitives::Aabb;
+use bevy::camera::visibility::{self, NoFrustumCulling, VisibilityClass};
+use bevy::core_pipeline::core_3d::{CORE_3D_DEPTH_FORMAT, Opaque3d, Opaque3dBatchSetKey, Opaque3dBinKey};
+use bevy::core_pipeline::schedule::camera_driver;
+use bevy::ecs::query::ROQueryItem;
+use bevy::ecs::system::{SystemParamItem, lifetimeless::SRes};
+use bevy::mesh::{Indices, MeshVertexBufferLayouts, PrimitiveTopology, VertexAttributeValues};
+use bevy::pbr::{
+    MeshPipeline, MeshPipelineKey, MeshPipelineSystems, SetMeshViewBindGroup, SetMeshViewBindingArrayBindGroup,
+    StandardMaterialUniform, ViewKeyCache,
+};
+use bevy::platform::collections::HashMap;
+use bevy::prelude::*;
+use bevy::render::camera::{DirtySpecializations, ExtractedCamera, PendingQueues};
+use bevy::render::extract_component::{ExtractComponent, ExtractComponentPlugin};
+use bevy::render::mesh::allocator::MeshSlabs;
+use bevy::render::render_asset::RenderAssets;
+use bevy::render::render_phase::{
+    AddRenderCommand, BinnedRenderPhaseType, DrawFunctions, InputUniformIndex, PhaseItem, RenderCommand,
+    RenderCommandResult, SetItemPipeline, TrackedRenderPass, ViewBinnedRenderPhases,
+};
+use bevy::render::render_resource::{
+    AsBindGroupShaderType, BindGroup, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer, ColorTargetState,
+    ColorWrites, CompareFunction, DepthStencilState, Face, FragmentState, IndexFormat, MultisampleState, PipelineCache,
+    PrimitiveState, RenderPipelineDescriptor, ShaderStages, ShaderType, SpecializedMeshPipeline,
+    SpecializedRenderPipeline, SpecializedRenderPipelines, VertexState,
+    binding_types::{storage_buffer_read_only_sized, uniform_buffer_sized},
+    encase,
+};
+use bevy::render::renderer::{RenderAdapter, RenderContext, RenderDevice, RenderGraph, RenderQueue};
+use bevy::render::texture::GpuImage;
+use bevy::render::view::{ExtractedView, RenderVisibleEntities};
+use bevy::render::{Extract, ExtractSchedule, Render, RenderApp, RenderStartup, RenderSystems};
+use bevy::shader::ShaderDefVal;
+use skinlet_gpu::crowd_culling::{CrowdCulling, CullInstance, CullMode, CullPipelines, GpuCharacter, subpixel_bits};
+use skinlet_gpu::crowd_skinning::{CROWD_SKIN_WGSL, CrowdMesh, layout_entries};
+use skinlet_gpu::triangle_culling::{
+    Entries, Raster, TRIANGLES_WGSL, TriangleCulling, TriangleHeader, TriangleSkinning,
+};
+use skinlet_runtime::camera::{Camera as CullCamera, Projection};
+use skinlet_runtime::meshlet_cull::Tests;
+use skinlet_runtime::part_bounds::PoseBounds;
+use skinlet_runtime::source_corners::{PartSource, source_corners};
+use std::sync::Arc;
+
+/// Put beside [`crate::SkinletBounds`] on a scene root: skinlet draws the scene's parts by
+/// meshlet (culled on the GPU) instead of Bevy's mesh pipeline.
+#[derive(Component, Clone, Copy, Debug, Default)]
+pub struct SkinletMeshlets;
+
+/// On a part entity skinlet draws: the material Bevy drew it with (no longer on the entity,
+/// so Bevy's pipeline skips it).
+#[derive(Component, Clone, Debug)]
+pub struct SkinletDrawnPart {
+    pub material: Handle<StandardMaterial>,
+}
+
+/// The entity whose phase item draws every instance of one bake (spawned by the plugin).
+#[derive(Component, Clone, Debug, ExtractComponent)]
+#[require(VisibilityClass)]
+#[component(on_add = visibility::add_visibility_class::<SkinletMeshletDraw>)]
+pub struct SkinletMeshletDraw {
+    pub bake: AssetId<Bake>,
+}
+
+/// Draws the parts of scene instances marked [`SkinletMeshlets`] by meshlet (see the module
+/// documentation). Needs [`crate::SkinletPlugin`] and Bevy's renderer.
+#[derive(Default)]
+pub struct SkinletMeshletPlugin;
+
+impl Plugin for SkinletMeshletPlugin {
+    fn build(&self, app: &mut App) {
+        let shader = {
+            let source =
+                [CROWD_SKIN_WGSL.replace("@group(1)", "@group(2)").as_str(), TRIANGLES_WGSL, DRAW_WGSL].concat();
+            app.world_mut().resource_mut::<Assets<Shader>>().add(Shader::from_wgsl(source, "skinlet/meshlet_draw.wgsl"))
+        };
+        app.init_resource::<BakeDraws>()
+            .add_plugins(ExtractComponentPlugin::<SkinletMeshletDraw>::default())
+            .add_systems(PostUpdate, (take_over_parts, build_bake_draws).chain().after(crate::SkinletSystems::Bind));
+        let Some(render_app) = app.get_sub_app_mut(RenderApp) else { return };
+        render_app
+            .insert_resource(DrawShader(shader))
+            .init_resource::<MeshletFrames>()
+            .init_resource::<MeshletGpu>()
+            .init_resource::<PendingMeshletQueues>()
+            .init_resource::<SpecializedRenderPipelines<MeshletDrawPipeline>>()
+            .add_render_command::<Opaque3d, DrawMeshletCommands>()
+            .add_systems(RenderStartup, init_pipeline.after(MeshPipelineSystems))
+            .add_systems(ExtractSchedule, extract_frames)
+            .add_systems(Render, prepare_gpu.in_set(RenderSystems::PrepareResources))
+            .add_systems(Render, queue_draws.in_set(RenderSystems::Queue))
+            .add_systems(RenderGraph, cull.before(camera_driver));
+    }
+}
+
+const DRAW_WGSL: &str = include_str!("meshlet_draw.wgsl");
+
+/// Per bake drawn by meshlet: what the render world uploads once.
+#[derive(Resource, Default)]
+struct BakeDraws(HashMap<AssetId<Bake>, Arc<BakeDraw>>);
+
+/// A bake's static draw data, from the bake and its first bound instance's meshes.
+struct BakeDraw {
+    /// The bake's bytes, 4-byte aligned (the first `len`).
+    words: Vec<u32>,
+    len: usize,
+    mesh: CrowdMesh,
+    /// Per corner id: bake vertex, attribute vertex, part, 0.
+    corners: Vec<[u32; 4]>,
+    /// Per attribute vertex (the parts' source vertices one part after another): its normal.
+    normals: Vec<[f32; 4]>,
+}
+
+/// Moves the `StandardMaterial` of every part of a bound, marked instance into
+/// [`SkinletDrawnPart`].
+fn take_over_parts(
+    mut commands: Commands,
+    roots: Query<&SkinletInstance, With<SkinletMeshlets>>,
+    materials: Query<&MeshMaterial3d<StandardMaterial>, Without<SkinletDrawnPart>>,
+) {
+    for instance in &roots {
+        for &e in instance.part_entities() {
+            if let Ok(m) = materials.get(e) {
+                commands
+                    .entity(e)
+                    .insert(SkinletDrawnPart { material: m.0.clone() })
+                    .remove::<MeshMaterial3d<StandardMaterial>>();
+            }
+        }
+    }
+}
+
+/// Marked scene roots not in error.
+type Marked = (With<SkinletMeshlets>, Without<SkinletError>);
+
+/// Builds each bake's [`BakeDraw`] once its first marked instance is bound and its meshes are
+/// loaded; an error (a bake without `SRCT`, a mesh that is not the bake's) goes on the root.
+fn build_bake_draws(
+    mut commands: Commands,
+    mut draws: ResMut<BakeDraws>,
+    roots: Query<(Entity, &SkinletInstance, &SkinletBounds), Marked>,
+    parts: Query<&Mesh3d>,
+    bakes: Res<Assets<Bake>>,
+    meshes: Res<Assets<Mesh>>,
+) {
+    for (root, instance, bounds) in &roots {
+        let id = bounds.0.id();
+        if draws.0.contains_key(&id) {
+            continue;
+        }
+        let Some(bake) = bakes.get(id) else { continue };
+        let loaded: Option<Vec<&Mesh>> =
+            instance.part_entities().iter().map(|&e| parts.get(e).ok().and_then(|m| meshes.get(&m.0))).collect();
+        let Some(loaded) = loaded else { continue };
+        match bake_draw(bake, &loaded) {
+            Ok((mesh, corners, normals)) => {
+                commands.spawn((
+                    SkinletMeshletDraw { bake: id },
+                    Transform::default(),
+                    Visibility::default(),
+                    NoFrustumCulling,
+                    Aabb::default(),
+                ));
+                let bytes = bake.bytes();
+                let mut words = vec![0u32; bytes.len().div_ceil(4)];
+                bytemuck::cast_slice_mut::<u32, u8>(&mut words)[..bytes.len()].copy_from_slice(bytes);
+                let draw = BakeDraw { words, len: bytes.len(), mesh, corners, normals };
+                draws.0.insert(id, Arc::new(draw));
+            }
+            Err(message) => {
+                error!("skinlet meshlets: {message}");
+                commands.entity(root).insert(SkinletError(message));
+            }
+        }
+    }
+}
+
+type Drawn = (CrowdMesh, Vec<[u32; 4]>, Vec<[f32; 4]>);
+
+/// The crowd skinning's mesh, the corner table and the normals of a bake drawn with `meshes`
+/// (one per part, Bevy's meshes of the parts' glTF primitives).
+fn bake_draw(bake: &Bake, meshes: &[&Mesh]) -> Result<Drawn, String> {
+    let view = bake.view().map_err(|e| e.to_string())?;
+    let mut sources = Vec::with_capacity(meshes.len());
+    let mut normals = Vec::new();
+    let mut offsets = Vec::with_capacity(meshes.len());
+    let mut indices = Vec::with_capacity(meshes.len());
+    let mut positions = Vec::with_capacity(meshes.len());
+    for (p, mesh) in meshes.iter().enumerate() {
+        if mesh.primitive_topology() != PrimitiveTopology::TriangleList {
+            return Err(format!("part {p}: a {:?} mesh (triangle lists only)", mesh.primitive_topology()));
+        }
+        let Some(VertexAttributeValues::Float32x3(pos)) = mesh.attribute(Mesh::ATTRIBUTE_POSITION) else {
+            return Err(format!("part {p}: no f32 positions"));
+        };
+        let Some(VertexAttributeValues::Float32x3(nor)) = mesh.attribute(Mesh::ATTRIBUTE_NORMAL) else {
+            return Err(format!("part {p}: no f32 normals"));
+        };
+        offsets.push(normals.len() as u32);
+        normals.extend(nor.iter().map(|n| [n[0], n[1], n[2], 0.0]));
+        indices.push(match mesh.indices() {
+            Some(Indices::U16(i)) => Some(i.iter().map(|&x| x as u32).collect::<Vec<u32>>()),
+            Some(Indices::U32(i)) => Some(i.clone()),
+            None => None,
+        });
+        positions.push(pos.clone());
+    }
+    for (p, pos) in positions.iter().enumerate() {
+        sources.push(PartSource { indices: indices[p].as_deref(), vertices: pos.len() as u32, positions: Some(pos) });
+    }
+    let corners = source_corners(&view, &sources).map_err(|e| e.to_string())?;
+    let corners = (corners.iter())
+        .map(|c| if c.part == u32::MAX { [0; 4] } else { [c.vertex, offsets[c.part as usize] + c.source, c.part, 0] })
+        .collect();
+    let mesh = CrowdMesh::pack(&view.mesh_data(), view.joint_count() as u32).map_err(|e| e.to_string())?;
+    Ok((mesh, corners, normals))
+}
+
+/// This frame's instances of each bake, as the render world uploads them.
+#[derive(Resource, Default)]
+struct MeshletFrames(HashMap<AssetId<Bake>, BakeFrame>);
+
+struct BakeFrame {
+    draw: Arc<BakeDraw>,
+    palette: Vec<Mat4>,
+    instances: Vec<CullInstance>,
+    weights: Vec<f32>,
+    materials: Vec<StandardMaterialUniform>,
+}
+
+#[allow(clippy::too_many_arguments)]
+fn extract_frames(
+    mut frames: ResMut<MeshletFrames>,
+    draws: Extract<Res<BakeDraws>>,
+    roots: Extract<Query<(&SkinletInstance, &SkinletBounds), With<SkinletMeshlets>>>,
+    globals: Extract<Query<&GlobalTransform>>,
+    parts: Extract<Query<&SkinletDrawnPart>>,
+    bakes: Extract<Res<Assets<Bake>>>,
+    materials: Extract<Res<Assets<StandardMaterial>>>,
+    images: Res<RenderAssets<GpuImage>>,
+) {
+    for frame in frames.0.values_mut() {
+        frame.palette.clear();
+        frame.instances.clear();
+        frame.weights.clear();
+    }
+    for (instance, bounds) in &roots {
+        let id = bounds.0.id();
+        let (Some(draw), Some(bake)) = (draws.0.get(&id), bakes.get(id)) else { continue };
+        let Ok(view) = bake.view() else { continue };
+        let frame = frames.0.entry(id).or_insert_with(|| BakeFrame {
+            draw: draw.clone(),
+            palette: Vec::new(),
+            instances: Vec::new(),
+            weights: Vec::new(),
+            materials: Vec::new(),
+        });
+        if frame.instances.is_empty() {
+            frame.draw = draw.clone();
+            frame.materials = (instance.part_entities().iter())
+                .map(|&e| {
+                    let m = parts.get(e).ok().and_then(|p| materials.get(&p.material));
+                    m.map(|m| m.as_bind_group_shader_type(&images)).unwrap_or_default()
+                })
+                .collect();
+        }
+        for (d, &e) in instance.drivers().iter().enumerate() {
+            let global = globals.get(e).map_or(Mat4::NAN, |g| g.to_matrix());
+            frame.palette.push(global * Mat4::from_cols_array(&view.inverse_bind()[d]));
+        }
+        let mode = match instance.pose {
+            PoseBounds::Clips | PoseBounds::ClipAt { .. } => CullMode::Bounds,
+            _ if view.envelope().is_some() => CullMode::BoxesOnly,
+            _ => CullMode::Keep,
+        };
+        frame.instances.push(CullInstance::new(Mat4::IDENTITY, mode));
+        frame.weights.extend_from_slice(instance.morph_weights());
+    }
+    frames.0.retain(|_, f| !f.instances.is_empty());
+}
+
+/// The draw's shader (made in the main world).
+#[derive(Resource)]
+struct DrawShader(Handle<Shader>);
+
+/// The render pipeline (Bevy's mesh pipeline's view layouts and shader defs for the view's
+/// key, skinlet's shader and group 2).
+#[derive(Resource)]
+struct MeshletDrawPipeline {
+    mesh_pipeline: MeshPipeline,
+    group2: BindGroupLayoutDescriptor,
+    shader: Handle<Shader>,
+}
+
+fn draw_layout() -> BindGroupLayoutDescriptor {
+    let storage = || storage_buffer_read_only_sized(false, None);
+    BindGroupLayoutDescriptor::new(
+        "skinlet meshlet draw",
+        &BindGroupLayoutEntries::sequential(
+            ShaderStages::VERTEX_FRAGMENT,
+            (
+                uniform_buffer_sized(false, None),
+                storage(),
+                storage(),
+                storage(),
+                storage(),
+                storage(),
+                storage(),
+                uniform_buffer_sized(false, None),
+            ),
+        ),
+    )
+}
+
+fn init_pipeline(mut commands: Commands, mesh_pipeline: Res<MeshPipeline>, shader: Res<DrawShader>) {
+    commands.insert_resource(MeshletDrawPipeline {
+        mesh_pipeline: mesh_pipeline.clone(),
+        group2: draw_layout(),
+        shader: shader.0.clone(),
+    });
+}
+
+impl SpecializedRenderPipeline for MeshletDrawPipeline {
+    type Key = MeshPipelineKey;
+
+    fn specialize(&self, key: MeshPipelineKey) -> RenderPipelineDescriptor {
+        // What Bevy's forward mesh pipeline uses for this view: its view layouts (groups 0
+        // and 1) and shader defs (view key bits and Bevy's cargo features), from a POSITION +
+        // NORMAL mesh layout.
+        let mut layouts = MeshVertexBufferLayouts::default();
+        let layout_mesh = Mesh::new(PrimitiveTopology::TriangleList, bevy::asset::RenderAssetUsages::default())
+            .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, vec![[0.0f32; 3]])
+            .with_inserted_attribute(Mesh::ATTRIBUTE_NORMAL, vec![[0.0f32, 1.0, 0.0]]);
+        let vertex_layout = layout_mesh.get_mesh_vertex_buffer_layout(&mut layouts);
+        let (layout, shader_defs): (Vec<BindGroupLayoutDescriptor>, Vec<ShaderDefVal>) =
+            match <MeshPipeline as SpecializedMeshPipeline>::specialize(&self.mesh_pipeline, key, &vertex_layout) {
+                Ok(bevy) => (
+                    vec![bevy.layout[0].clone(), bevy.layout[1].clone(), self.group2.clone()],
+                    bevy.fragment.map(|f| f.shader_defs).unwrap_or_default(),
+                ),
+                Err(e) => {
+                    error!("skinlet meshlets: Bevy's mesh pipeline does not specialize for this view: {e}");
+                    (Vec::new(), Vec::new())
+                }
+            };
+        RenderPipelineDescriptor {
+            label: Some("skinlet meshlet draw".into()),
+            layout,
+            vertex: VertexState {
+                shader: self.shader.clone(),
+                shader_defs: shader_defs.clone(),
+                entry_point: Some("vertex".into()),
+                buffers: vec![],
+            },
+            fragment: Some(FragmentState {
+                shader: self.shader.clone(),
+                shader_defs,
+                entry_point: Some("fragment".into()),
+                targets: vec![Some(ColorTargetState {
+                    format: key.target_format(),
+                    blend: None,
+                    write_mask: ColorWrites::ALL,
+                })],
+            }),
+            primitive: PrimitiveState {
+                topology: PrimitiveTopology::TriangleList,
+                cull_mode: Some(Face::Back),
+                ..default()
+            },
+            depth_stencil: Some(DepthStencilState {
+                format: CORE_3D_DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(CompareFunction::GreaterEqual),
+                stencil: default(),
+                bias: default(),
+            }),
+            multisample: MultisampleState { count: key.msaa_samples(), mask: !0, alpha_to_coverage_enabled: false },
+            ..default()
+        }
+    }
+}
+
+/// Per bake, its GPU culling and buffers.
+#[derive(Resource, Default)]
+struct MeshletGpu {
+    pipelines: Option<CullPipelines>,
+    bakes: HashMap<AssetId<Bake>, BakeGpu>,
+}
+
+struct BakeGpu {
+    culling: TriangleCulling,
+    capacity: u32,
+    /// The raster the triangle pass was made for.
+    raster: Raster,
+    instances: u32,
+    palette: wgpu::Buffer,
+    instance_buffer: wgpu::Buffer,
+    weights: wgpu::Buffer,
+    materials: Buffer,
+    skinning: wgpu::BindGroup,
+    draw_group: BindGroup,
+    triangles: Buffer,
+}
+
+/// The camera the culling runs for this frame: the first active 3D camera's view.
+fn cull_camera(view: &ExtractedView) -> Option<CullCamera> {
+    let view_from_world = view.world_from_view.to_matrix().inverse();
+    let clip_from_world = view.clip_from_world.unwrap_or(view.clip_from_view * view_from_world);
+    let eye = view.world_from_view.translation();
+    let projection = if view.clip_from_view.w_axis.w == 1.0 {
+        Projection::Orthographic { dir: view.world_from_view.forward().into() }
+    } else {
+        Projection::Perspective { eye }
+    };
+    CullCamera::from_view_proj(clip_from_world, projection).ok()
+}
+
+#[allow(clippy::too_many_arguments)]
+fn prepare_gpu(
+    mut gpu: ResMut<MeshletGpu>,
+    frames: Res<MeshletFrames>,
+    device: Res<RenderDevice>,
+    adapter: Res<RenderAdapter>,
+    queue: Res<RenderQueue>,
+    cache: Res<PipelineCache>,
+    views: Query<(&ExtractedView, &Msaa), With<ExtractedCamera>>,
+) {
+    let Some((view, msaa)) = views.iter().next() else { return };
+    let raster = Raster {
+        width: view.viewport.z.max(1),
+        height: view.viewport.w.max(1),
+        subpixel_bits: subpixel_bits(&adapter),
+        cull_back_faces: true,
+        multisampled: msaa.samples() > 1,
+    };
+    let wgpu_device = device.wgpu_device();
+    let gpu = &mut *gpu;
+    if gpu.pipelines.is_none() {
+        match CullPipelines::new(wgpu_device) {
+            Ok(p) => gpu.pipelines = Some(p),
+            Err(e) => {
+                error!("skinlet meshlets: {e}");
+                return;
+            }
+        }
+    }
+    gpu.bakes.retain(|id, _| frames.0.contains_key(id));
+    for (&id, frame) in &frames.0 {
+        let n = frame.instances.len() as u32;
+        let fits = gpu.bakes.get(&id).is_some_and(|b| b.capacity >= n && b.raster == raster);
+        if !fits {
+            let capacity = n.next_power_of_two().max(4);
+            match bake_gpu(wgpu_device, gpu.pipelines.as_ref().unwrap(), &cache, frame, capacity, raster) {
+                Ok(b) => {
+                    gpu.bakes.insert(id, b);
+                }
+                Err(e) => {
+                    error!("skinlet meshlets: {e}");
+                    continue;
+                }
+            }
+        }
+        let b = gpu.bakes.get_mut(&id).unwrap();
+        b.instances = n;
+        queue.write_buffer(&b.palette, 0, bytemuck::cast_slice(&frame.palette));
+        queue.write_buffer(&b.instance_buffer, 0, bytemuck::cast_slice(&frame.instances));
+        if !frame.weights.is_empty() {
+            queue.write_buffer(&b.weights, 0, bytemuck::cast_slice(&frame.weights));
+        }
+        let mut bytes = encase::StorageBuffer::new(Vec::<u8>::new());
+        if bytes.write(&frame.materials).is_ok() {
+            queue.write_buffer(&b.materials, 0, bytes.as_ref());
+        }
+    }
+}
+
+/// A bake's culling and buffers for `capacity` instances drawn as `raster` says.
+fn bake_gpu(
+    device: &wgpu::Device,
+    pipelines: &CullPipelines,
+    cache: &PipelineCache,
+    frame: &BakeFrame,
+    capacity: u32,
+    raster: Raster,
+) -> Result<BakeGpu, String> {
+    use wgpu::util::DeviceExt;
+    let draw = &frame.draw;
+    let e = |e: skinlet_gpu::GpuError| e.to_string();
+    let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
+    let init = |label: &str, contents: &[u8], usage| {
+        device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
+    };
+    let zeros = |label: &str, bytes: u64, usage| init(label, &vec![0u8; bytes.max(16) as usize], usage);
+    let joints = draw.mesh.uniform[0] as u64;
+    let morphs = draw.mesh.uniform[2] as u64;
+    let palette = zeros("skinlet palette", 64 * joints * capacity as u64, storage);
+    let instance_buffer = zeros("skinlet instances", 80 * capacity as u64, storage);
+    let weights = zeros("skinlet morph weights", 4 * morphs.max(1) * capacity as u64, storage);
+    let skin_uniform = init("skinlet skin", bytemuck::cast_slice(&draw.mesh.uniform), wgpu::BufferUsages::UNIFORM);
+    let words = init("skinlet mesh", bytemuck::cast_slice(&draw.mesh.words), wgpu::BufferUsages::STORAGE);
+    let corners = init("skinlet corners", bytemuck::cast_slice(&draw.corners), wgpu::BufferUsages::STORAGE);
+    let normals = init("skinlet normals", bytemuck::cast_slice(&draw.normals), wgpu::BufferUsages::STORAGE);
+    let material_size = StandardMaterialUniform::min_size().get();
+    let materials = zeros("skinlet materials", material_size * frame.materials.len().max(1) as u64, storage);
+    let bytes = &bytemuck::cast_slice::<u32, u8>(&draw.words)[..draw.len];
+    let view = skinlet_runtime::bake_view::BakeView::new(bytes).map_err(|e| e.to_string())?;
+    let culler = view.culler().map_err(|e| e.to_string())?;
+    let meshlets = view.meshlets();
+    let vertices = view.vertices().positions.len();
+    let (_, draws) = skinlet_gpu::mesh::meshlet_index_buffer(&meshlets, vertices).map_err(e)?;
+    let inverse_bind: Vec<Mat4> = view.inverse_bind().iter().map(Mat4::from_cols_array).collect();
+    let character = GpuCharacter::new(device, &culler, &inverse_bind, &draws).map_err(e)?;
+    let crowd = CrowdCulling::new(
+        device,
+        pipelines,
+        &character,
+        &palette,
+        &instance_buffer,
+        capacity,
+        capacity * character.meshlets(),
+    )
+    .map_err(e)?;
+    let skin_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("skinlet skinning"),
+        entries: &layout_entries(wgpu::ShaderStages::COMPUTE),
+    });
+    fn bind(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+        wgpu::BindGroupEntry { binding, resource: buffer.as_entire_binding() }
+    }
+    let skinning = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("skinlet skinning"),
+        layout: &skin_layout,
+        entries: &[bind(0, &skin_uniform), bind(1, &palette), bind(2, &words), bind(3, &weights)],
+    });
+    let (margin, relative) = draw.mesh.margins();
+    let how = TriangleSkinning { wgsl: CROWD_SKIN_WGSL, layout: &skin_layout, margin, relative };
+    let triangles_per_list = (capacity as u64 * view.triangles().len() as u64)
+        .min((device.limits().max_storage_buffer_binding_size - 2 * TriangleHeader::SIZE) / 24)
+        as u32;
+    let culling = TriangleCulling::new(
+        device,
+        crowd,
+        how,
+        &meshlets,
+        vertices as u32,
+        triangles_per_list,
+        raster,
+        Entries::Corners,
+    )
+    .map_err(e)?;
+    let params =
+        init("skinlet draw params", bytemuck::cast_slice(&[culling.id_bits(), 0, 0, 0]), wgpu::BufferUsages::UNIFORM);
+    let draw_layout = cache.get_bind_group_layout(&draw_layout());
+    let entries: Vec<wgpu::BindGroupEntry> =
+        [&skin_uniform, &palette, &words, &weights, &corners, &normals, &materials, &params]
+            .iter()
+            .enumerate()
+            .map(|(b, buffer)| bind(b as u32, buffer))
+            .collect();
+    let draw_group = BindGroup::from(device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("skinlet meshlet draw"),
+        layout: &draw_layout,
+        entries: &entries,
+    }));
+    Ok(BakeGpu {
+        triangles: Buffer::from(culling.triangles().clone()),
+        culling,
+        capacity,
+        raster,
+        instances: 0,
+        palette,
+        instance_buffer,
+        weights,
+        materials: Buffer::from(materials),
+        skinning,
+        draw_group,
+    })
+}
+
+/// Before the cameras render: each bake's culling for the first camera.
+fn cull(
+    mut ctx: RenderContext,
+    gpu: Res<MeshletGpu>,
+    queue: Res<RenderQueue>,
+    views: Query<&ExtractedView, With<ExtractedCamera>>,
+) {
+    let Some(camera) = views.iter().next().and_then(cull_camera) else { return };
+    for b in gpu.bakes.values() {
+        if b.instances == 0 {
+            continue;
+        }
+        let encoder = ctx.command_encoder();
+        if let Err(e) = b.culling.encode(&queue, encoder, &camera, Tests::Both, b.instances, &b.skinning, None) {
+            error!("skinlet meshlets: {e}");
+        }
+    }
+}
+
+#[derive(Default, Deref, DerefMut, Resource)]
+struct PendingMeshletQueues(PendingQueues);
+
+#[allow(clippy::too_many_arguments)]
+fn queue_draws(
+    cache: Res<PipelineCache>,
+    draw_pipeline: Option<Res<MeshletDrawPipeline>>,
+    mut pipelines: ResMut<SpecializedRenderPipelines<MeshletDrawPipeline>>,
+    view_keys: Res<ViewKeyCache>,
+    mut phases: ResMut<ViewBinnedRenderPhases<Opaque3d>>,
+    draw_functions: Res<DrawFunctions<Opaque3d>>,
+    views: Query<(&ExtractedView, &RenderVisibleEntities)>,
+    dirty: Res<DirtySpecializations>,
+    mut pending: ResMut<PendingMeshletQueues>,
+) {
+    let Some(draw_pipeline) = draw_pipeline else { return };
+    let draw_function = draw_functions.read().id::<DrawMeshletCommands>();
+    for (view, visible) in &views {
+        let Some(phase) = phases.get_mut(&view.retained_view_entity) else { continue };
+        let Some(visible) = visible.get::<SkinletMeshletDraw>() else { continue };
+        let view_pending = pending.prepare_for_new_frame(view.retained_view_entity);
+        for &main_entity in dirty.iter_to_dequeue(view.retained_view_entity, visible) {
+            phase.remove(main_entity);
+        }
+        for (render_entity, main_entity) in
+            dirty.iter_to_queue(view.retained_view_entity, visible, &view_pending.prev_frame)
+        {
+            let Some(key) = view_keys.get(&view.retained_view_entity) else {
+                view_pending.current_frame.insert((*render_entity, *main_entity));
+                continue;
+            };
+            let pipeline = pipelines.specialize(&cache, &draw_pipeline, *key);
+            phase.add(
+                Opaque3dBatchSetKey {
+                    draw_function,
+                    pipeline,
+                    material_bind_group_index: None,
+                    lightmap_slab: None,
+                    slabs: MeshSlabs::default(),
+                },
+                Opaque3dBinKey { asset_id: AssetId::<Mesh>::invalid().untyped() },
+                (*render_entity, *main_entity),
+                InputUniformIndex::default(),
+                BinnedRenderPhaseType::NonMesh,
+            );
+        }
+    }
+}
+
+/// Group 2 and the bake's one indexed indirect draw.
+struct DrawMeshlets;
+
+impl<P: PhaseItem> RenderCommand<P> for DrawMeshlets {
+    type Param = SRes<MeshletGpu>;
+    type ViewQuery = ();
+    type ItemQuery = bevy::ecs::system::lifetimeless::Read<SkinletMeshletDraw>;
+
+    fn render<'w>(
+        _: &P,
+        _: ROQueryItem<'w, '_, Self::ViewQuery>,
+        item: Option<ROQueryItem<'w, '_, Self::ItemQuery>>,
+        gpu: SystemParamItem<'w, '_, Self::Param>,
+        pass: &mut TrackedRenderPass<'w>,
+    ) -> RenderCommandResult {
+        let gpu = gpu.into_inner();
+        let Some(b) = item.and_then(|d| gpu.bakes.get(&d.bake)) else { return RenderCommandResult::Skip };
+        if b.instances == 0 {
+            return RenderCommandResult::Skip;
+        }
+        pass.set_bind_group(2, &b.draw_group, &[]);
+        pass.set_index_buffer(b.triangles.slice(2 * TriangleHeader::SIZE..), IndexFormat::Uint32);
+        pass.draw_indexed_indirect(&b.triangles, 0);
+        RenderCommandResult::Success
+    }
+}
+
+type DrawMeshletCommands =
+    (SetItemPipeline, SetMeshViewBindGroup<0>, SetMeshViewBindingArrayBindGroup<1>, DrawMeshlets);

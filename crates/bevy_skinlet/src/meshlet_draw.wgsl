@@ -1,0 +1,79 @@
+// skinlet's meshlet draw in Bevy's opaque pass (meshlet_draw.rs): the triangle list skinlet's
+// culling wrote names (instance, corner); the corner's bake vertex is skinned by the crowd
+// skinning the culling tested with (crowd_skin.wgsl, here in group 2), its normal comes from
+// the source primitive's vertex (welding merged hard edges away in the bake's vertices) and is
+// skinned as Bevy skins normals; the fragment shades like Bevy's StandardMaterial.
+
+#import bevy_pbr::{
+    mesh_view_bindings::view,
+    pbr_types::{PbrInput, pbr_input_new, StandardMaterial, STANDARD_MATERIAL_FLAGS_DOUBLE_SIDED_BIT,
+        STANDARD_MATERIAL_FLAGS_UNLIT_BIT},
+    pbr_functions,
+    mesh_types::MESH_FLAGS_SHADOW_RECEIVER_BIT,
+    view_transformations::position_world_to_clip,
+}
+
+struct DrawParams {
+    id_bits: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
+}
+
+// Per corner: bake vertex, source attribute vertex, part, 0.
+@group(2) @binding(4) var<storage, read> corners: array<vec4<u32>>;
+// Per source attribute vertex: its normal (w 0).
+@group(2) @binding(5) var<storage, read> normals: array<vec4<f32>>;
+// Per part: its material as Bevy uploads a StandardMaterial.
+@group(2) @binding(6) var<storage, read> materials: array<StandardMaterial>;
+@group(2) @binding(7) var<uniform> draw: DrawParams;
+
+struct VertexOut {
+    @builtin(position) position: vec4<f32>,
+    @location(0) world_position: vec4<f32>,
+    @location(1) world_normal: vec3<f32>,
+    @location(2) @interpolate(flat) part: u32,
+}
+
+// The inverse transpose of m's 3 × 3 part, as Bevy's `inverse_transpose_3x3` skins normals.
+fn inverse_transpose_3x3(m: mat4x4<f32>) -> mat3x3<f32> {
+    let a = m[0].xyz;
+    let b = m[1].xyz;
+    let c = m[2].xyz;
+    let cof = mat3x3<f32>(cross(b, c), cross(c, a), cross(a, b));
+    return cof * (1.0 / dot(a, cross(b, c)));
+}
+
+@vertex
+fn vertex(@builtin(vertex_index) index: u32) -> VertexOut {
+    let entry = triangle_entry(index, draw.id_bits);
+    let corner = corners[entry.y];
+    let skin = skin_matrix(entry.x, corner.x);
+    var out: VertexOut;
+    out.world_position = vec4<f32>(skinned_position(entry.x, corner.x), 1.0);
+    out.position = position_world_to_clip(out.world_position.xyz);
+    out.world_normal = normalize(inverse_transpose_3x3(skin) * normals[corner.y].xyz);
+    out.part = corner.z;
+    return out;
+}
+
+@fragment
+fn fragment(in: VertexOut, @builtin(front_facing) is_front: bool) -> @location(0) vec4<f32> {
+    var p: PbrInput = pbr_input_new();
+    p.material = materials[in.part];
+    p.flags = MESH_FLAGS_SHADOW_RECEIVER_BIT;
+    p.is_orthographic = view.clip_from_view[3].w == 1.0;
+    p.V = pbr_functions::calculate_view(in.world_position, p.is_orthographic);
+    p.frag_coord = in.position;
+    p.world_position = in.world_position;
+    let double_sided = (p.material.flags & STANDARD_MATERIAL_FLAGS_DOUBLE_SIDED_BIT) != 0u;
+    p.world_normal = pbr_functions::prepare_world_normal(in.world_normal, double_sided, is_front);
+    p.N = normalize(p.world_normal);
+    p.clearcoat_N = p.N;
+    p.material.base_color = pbr_functions::alpha_discard(p.material, p.material.base_color);
+    var color = p.material.base_color;
+    if (p.material.flags & STANDARD_MATERIAL_FLAGS_UNLIT_BIT) == 0u {
+        color = pbr_functions::apply_pbr_lighting(p);
+    }
+    return pbr_functions::main_pass_post_lighting_processing(p, color);
+}
