@@ -39,6 +39,7 @@ use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 use bevy::render::camera::{DirtySpecializations, ExtractedCamera, PendingQueues};
 use bevy::render::extract_component::{ExtractComponent, ExtractComponentPlugin};
+use bevy::render::extract_resource::{ExtractResource, ExtractResourcePlugin};
 use bevy::render::mesh::allocator::MeshSlabs;
 use bevy::render::render_asset::RenderAssets;
 use bevy::render::render_phase::{
@@ -89,6 +90,20 @@ pub struct SkinletMeshletDraw {
     pub bake: AssetId<Bake>,
 }
 
+/// The meshlet draw's settings, a resource (extracted every frame).
+#[derive(Resource, Clone, Copy, Debug, PartialEq, Eq, ExtractResource)]
+pub struct SkinletMeshletSettings {
+    /// Cull on the GPU (meshlets, then triangles); `false` draws every triangle of every
+    /// instance (the reference the culled image must equal).
+    pub culling: bool,
+}
+
+impl Default for SkinletMeshletSettings {
+    fn default() -> Self {
+        SkinletMeshletSettings { culling: true }
+    }
+}
+
 /// Draws the parts of scene instances marked [`SkinletMeshlets`] by meshlet (see the module
 /// documentation). Needs [`crate::SkinletPlugin`] and Bevy's renderer.
 #[derive(Default)]
@@ -102,7 +117,11 @@ impl Plugin for SkinletMeshletPlugin {
             app.world_mut().resource_mut::<Assets<Shader>>().add(Shader::from_wgsl(source, "skinlet/meshlet_draw.wgsl"))
         };
         app.init_resource::<BakeDraws>()
-            .add_plugins(ExtractComponentPlugin::<SkinletMeshletDraw>::default())
+            .init_resource::<SkinletMeshletSettings>()
+            .add_plugins((
+                ExtractComponentPlugin::<SkinletMeshletDraw>::default(),
+                ExtractResourcePlugin::<SkinletMeshletSettings>::default(),
+            ))
             .add_systems(PostUpdate, (take_over_parts, build_bake_draws).chain().after(crate::SkinletSystems::Bind));
         let Some(render_app) = app.get_sub_app_mut(RenderApp) else { return };
         render_app
@@ -427,6 +446,12 @@ struct BakeGpu {
     skinning: wgpu::BindGroup,
     draw_group: BindGroup,
     triangles: Buffer,
+    /// The draw's parameters (id bits, whether this frame is drawn unculled).
+    params: wgpu::Buffer,
+    id_bits: u32,
+    /// Corner ids (MLET's triangle bytes).
+    corners: u32,
+    unculled: bool,
 }
 
 /// The camera the culling runs for this frame: the first active 3D camera's view.
@@ -450,6 +475,7 @@ fn prepare_gpu(
     adapter: Res<RenderAdapter>,
     queue: Res<RenderQueue>,
     cache: Res<PipelineCache>,
+    settings: Res<SkinletMeshletSettings>,
     views: Query<(&ExtractedView, &Msaa), With<ExtractedCamera>>,
 ) {
     let Some((view, msaa)) = views.iter().next() else { return };
@@ -489,6 +515,8 @@ fn prepare_gpu(
         }
         let b = gpu.bakes.get_mut(&id).unwrap();
         b.instances = n;
+        b.unculled = !settings.culling;
+        queue.write_buffer(&b.params, 0, bytemuck::cast_slice(&[b.id_bits, b.unculled as u32]));
         queue.write_buffer(&b.palette, 0, bytemuck::cast_slice(&frame.palette));
         queue.write_buffer(&b.instance_buffer, 0, bytemuck::cast_slice(&frame.instances));
         if !frame.weights.is_empty() {
@@ -575,8 +603,11 @@ fn bake_gpu(
         Entries::Corners,
     )
     .map_err(e)?;
-    let params =
-        init("skinlet draw params", bytemuck::cast_slice(&[culling.id_bits(), 0, 0, 0]), wgpu::BufferUsages::UNIFORM);
+    let params = init(
+        "skinlet draw params",
+        bytemuck::cast_slice(&[culling.id_bits(), 0, 0, 0]),
+        wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+    );
     let draw_layout = cache.get_bind_group_layout(&draw_layout());
     let entries: Vec<wgpu::BindGroupEntry> =
         [&skin_uniform, &palette, &words, &weights, &corners, &normals, &materials, &params]
@@ -589,6 +620,7 @@ fn bake_gpu(
         layout: &draw_layout,
         entries: &entries,
     }));
+    let culling_id_bits = culling.id_bits();
     Ok(BakeGpu {
         triangles: Buffer::from(culling.triangles().clone()),
         culling,
@@ -601,6 +633,10 @@ fn bake_gpu(
         materials: Buffer::from(materials),
         skinning,
         draw_group,
+        id_bits: culling_id_bits,
+        corners: draw.corners.len() as u32,
+        params,
+        unculled: false,
     })
 }
 
@@ -613,7 +649,7 @@ fn cull(
 ) {
     let Some(camera) = views.iter().next().and_then(cull_camera) else { return };
     for b in gpu.bakes.values() {
-        if b.instances == 0 {
+        if b.instances == 0 || b.unculled {
             continue;
         }
         let encoder = ctx.command_encoder();
@@ -693,8 +729,13 @@ impl<P: PhaseItem> RenderCommand<P> for DrawMeshlets {
             return RenderCommandResult::Skip;
         }
         pass.set_bind_group(2, &b.draw_group, &[]);
-        pass.set_index_buffer(b.triangles.slice(2 * TriangleHeader::SIZE..), IndexFormat::Uint32);
-        pass.draw_indexed_indirect(&b.triangles, 0);
+        if b.unculled {
+            // Every corner of every instance: the vertex and instance indices name them.
+            pass.draw(0..b.corners, 0..b.instances);
+        } else {
+            pass.set_index_buffer(b.triangles.slice(2 * TriangleHeader::SIZE..), IndexFormat::Uint32);
+            pass.draw_indexed_indirect(&b.triangles, 0);
+        }
         RenderCommandResult::Success
     }
 }

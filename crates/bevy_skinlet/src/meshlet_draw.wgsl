@@ -15,7 +15,8 @@
 
 struct DrawParams {
     id_bits: u32,
-    pad0: u32,
+    // 1: drawn unculled (vertex index the corner, instance index the instance).
+    unculled: u32,
     pad1: u32,
     pad2: u32,
 }
@@ -45,8 +46,11 @@ fn inverse_transpose_3x3(m: mat4x4<f32>) -> mat3x3<f32> {
 }
 
 @vertex
-fn vertex(@builtin(vertex_index) index: u32) -> VertexOut {
-    let entry = triangle_entry(index, draw.id_bits);
+fn vertex(@builtin(vertex_index) index: u32, @builtin(instance_index) instance: u32) -> VertexOut {
+    var entry = triangle_entry(index, draw.id_bits);
+    if draw.unculled != 0u {
+        entry = vec2<u32>(instance, index);
+    }
     let corner = corners[entry.y];
     let skin = skin_matrix(entry.x, corner.x);
     var out: VertexOut;

@@ -1,7 +1,11 @@
 //! Bevy as the oracle for `SkinletMeshletPlugin` (headless, Bevy's renderer on the machine's
 //! Vulkan device: lavapipe on CPU-only machines): the same animated crowd, same frame, drawn
-//! by Bevy's own skinned mesh pipeline and by skinlet's meshlet draw (GPU culling on), agree
-//! pixel for pixel but where the two skinnings round apart.
+//! by Bevy's own skinned mesh pipeline and by skinlet's meshlet draw (GPU culling on). The
+//! tolerance: Bevy skins in its own order (joint matrices blended after its own product with
+//! the inverse binds), so positions and normals round apart by a few ulps: interior pixels
+//! shade within 2 levels of 255, and a silhouette pixel whose center a triangle edge nearly
+//! touches may flip coverage (then any color): at most 1 in 200 drawn pixels differs by more
+//! than 2 levels. skinlet's image with culling on equals its image with culling off exactly.
 
 mod common;
 
@@ -12,7 +16,10 @@ use bevy::prelude::*;
 use bevy::render::gpu_readback::{Readback, ReadbackComplete};
 use bevy::render::render_resource::{CachedPipelineState, PipelineCache, TextureFormat, TextureUsages};
 use bevy::render::{Render, RenderApp, RenderSystems};
-use bevy_skinlet::{Bake, SkinletBounds, SkinletDrawnPart, SkinletInstance, SkinletMeshletPlugin, SkinletMeshlets};
+use bevy_skinlet::{
+    Bake, SkinletBounds, SkinletDrawnPart, SkinletInstance, SkinletMeshletPlugin, SkinletMeshletSettings,
+    SkinletMeshlets,
+};
 use common::{app, asset_folder, update_until};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -147,6 +154,8 @@ fn skinlets_meshlet_draw_looks_like_bevys_own() {
         app.world_mut().entity_mut(root).insert(SkinletMeshlets);
     }
     let skinlet = settled_image(&mut app);
+    app.world_mut().resource_mut::<SkinletMeshletSettings>().culling = false;
+    let unculled = settled_image(&mut app);
     let taken = {
         let world = app.world_mut();
         world.query::<&SkinletDrawnPart>().iter(world).count()
@@ -154,6 +163,8 @@ fn skinlets_meshlet_draw_looks_like_bevys_own() {
     let out = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
     write_png(&out.join("meshlet_draw_bevy.png"), &bevy);
     write_png(&out.join("meshlet_draw_skinlet.png"), &skinlet);
+    write_png(&out.join("meshlet_draw_skinlet_unculled.png"), &unculled);
+    let culled_away = skinlet.chunks(4).zip(unculled.chunks(4)).filter(|(a, b)| a != b).count();
     let diff: Vec<u8> = (bevy.chunks(4).zip(skinlet.chunks(4)))
         .flat_map(|(a, b)| {
             let d = (0..3).map(|k| a[k].abs_diff(b[k])).max().unwrap();
@@ -166,12 +177,13 @@ fn skinlets_meshlet_draw_looks_like_bevys_own() {
         .collect();
     let drawn = bevy.chunks(4).filter(|p| p[..3] != bevy[..3]).count();
     let differing = per_pixel.iter().filter(|&&d| d > 0).count();
-    let large = per_pixel.iter().filter(|&&d| d > 8).count();
+    let large = per_pixel.iter().filter(|&&d| d > 2).count();
     eprintln!(
-        "{taken} parts drawn by skinlet; {drawn} pixels drawn by Bevy; {differing} differ, {large} by more than 8, at most {} (images in {})",
+        "{taken} parts drawn by skinlet; {drawn} pixels drawn by Bevy; {differing} differ, {large} by more than 2, at most {} (images in {}); culled and unculled differ at {culled_away}",
         per_pixel.iter().max().unwrap(),
         out.display()
     );
     assert!(taken > 0 && drawn > (WIDTH * HEIGHT / 20) as usize);
-    assert!(large * 100 < drawn, "{large} of {drawn} pixels differ by more than 8 levels");
+    assert_eq!(culled_away, 0, "skinlet's culling changed {culled_away} pixels");
+    assert!(large * 200 < drawn, "{large} of {drawn} pixels differ by more than 2 levels");
 }
