@@ -67,7 +67,12 @@ fn settled_image(app: &mut App) -> Vec<u8> {
 }
 
 fn write_png(path: &std::path::Path, rgba: &[u8]) {
-    let mut encoder = png::Encoder::new(std::io::BufWriter::new(std::fs::File::create(path).unwrap()), WIDTH, HEIGHT);
+    write_png_sized(path, rgba, WIDTH);
+}
+
+fn write_png_sized(path: &std::path::Path, rgba: &[u8], width: u32) {
+    let height = (rgba.len() / 4) as u32 / width;
+    let mut encoder = png::Encoder::new(std::io::BufWriter::new(std::fs::File::create(path).unwrap()), width, height);
     encoder.set_color(png::ColorType::Rgba);
     encoder.set_depth(png::BitDepth::Eight);
     encoder.write_header().unwrap().write_image_data(rgba).unwrap();
@@ -172,6 +177,12 @@ fn skinlets_meshlet_draw_looks_like_bevys_own() {
         })
         .collect();
     write_png(&out.join("meshlet_draw_diff.png"), &diff);
+    // Bevy's frame, skinlet's, and their difference (× 8) side by side.
+    let row = 4 * WIDTH as usize;
+    let side: Vec<u8> = (0..HEIGHT as usize)
+        .flat_map(|y| [&bevy, &skinlet, &diff].map(|img| img[y * row..(y + 1) * row].to_vec()).concat())
+        .collect();
+    write_png_sized(&out.join("meshlet_draw_side_by_side.png"), &side, 3 * WIDTH);
     let per_pixel: Vec<u8> = (bevy.chunks(4).zip(skinlet.chunks(4)))
         .map(|(a, b)| (0..3).map(|k| a[k].abs_diff(b[k])).max().unwrap())
         .collect();
