@@ -260,6 +260,12 @@ impl<'a> BakeView<'a> {
         let bounds = read_bounds(required(b"BNDS")?, meshlets.len(), drivers)?;
         let morphs = find(b"MRPH").map(|s| read_morphs(s, n)).transpose()?;
         let parts = read_parts(required(b"PART")?, n, triangles, &meshlets)?;
+        // A rigid part (or every part of a bake without skin weights) is weight 1 on its
+        // node's driver.
+        let rigid = |p: &BakedPartRecord| vertices.stride == 0 || p.skin == u32::MAX;
+        if let Some((i, p)) = parts.iter().enumerate().find(|(_, p)| rigid(p) && !joint_nodes.contains(&p.node)) {
+            return Err(Error::invalid("bake section PART", format!("part {i}: no driver for node {}", p.node)));
+        }
         let weights = morphs.map_or(0, |m| m.weights.len());
         let envelope = find(b"ENVL").map(|s| read_envelope(s, meshlets.len(), weights, drivers)).transpose()?;
         let part_windows =
