@@ -9,62 +9,15 @@
 
 mod common;
 
-use bevy::animation::graph::{AnimationGraph, AnimationGraphHandle};
-use bevy::camera::RenderTarget;
-use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::prelude::*;
-use bevy::render::gpu_readback::{Readback, ReadbackComplete};
-use bevy::render::render_resource::{CachedPipelineState, PipelineCache, TextureFormat, TextureUsages};
-use bevy::render::{Render, RenderApp, RenderSystems};
 use bevy_skinlet::{
     Bake, SkinletBounds, SkinletDrawnPart, SkinletInstance, SkinletMeshletPlugin, SkinletMeshletSettings,
     SkinletMeshlets,
 };
-use common::{app, asset_folder, update_until};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex};
+use common::{app, asset_folder, settled_image, update_until};
 
 const WIDTH: u32 = 256;
 const HEIGHT: u32 = 160;
-
-/// The images read back since the last `take`.
-#[derive(Resource, Clone, Default)]
-struct Frames(Arc<Mutex<Vec<Vec<u8>>>>);
-
-/// Whether every pipeline of the render world is compiled (set by a render-world system: the
-/// render app may run on its own thread).
-#[derive(Resource, Clone, Default)]
-struct PipelinesReady(Arc<AtomicBool>);
-
-fn report_pipelines(cache: Res<PipelineCache>, ready: Res<PipelinesReady>) {
-    let all = cache.waiting_pipelines().next().is_none()
-        && cache.pipelines().all(|p| matches!(p.state, CachedPipelineState::Ok(_)));
-    ready.0.store(all, Ordering::Relaxed);
-}
-
-/// Updates until every pipeline is compiled and then three images in a row are equal and
-/// drawn; returns that image.
-fn settled_image(app: &mut App) -> Vec<u8> {
-    let frames = app.world().resource::<Frames>().clone();
-    let ready = app.world().resource::<PipelinesReady>().clone();
-    frames.0.lock().unwrap().clear();
-    let mut ready_updates = 0;
-    for _ in 0..600 {
-        app.update();
-        ready_updates = if ready.0.load(Ordering::Relaxed) { ready_updates + 1 } else { 0 };
-        let got = frames.0.lock().unwrap();
-        if ready_updates >= 5
-            && let [.., a, b, c] = &got[..]
-            && got.len() >= 8
-            && a == b
-            && b == c
-            && c.chunks(4).any(|p| p != &c[..4])
-        {
-            return c.clone();
-        }
-    }
-    panic!("the image did not settle");
-}
 
 fn write_png(path: &std::path::Path, rgba: &[u8]) {
     write_png_sized(path, rgba, WIDTH);
@@ -87,11 +40,7 @@ fn skinlets_meshlet_draw_looks_like_bevys_own() {
     let Some((dir, characters)) = asset_folder("meshlet_draw", &files) else { return };
     let mut app = app(&dir, true);
     app.add_plugins(SkinletMeshletPlugin);
-    let ready = PipelinesReady::default();
-    app.init_resource::<Frames>().insert_resource(ready.clone());
-    app.sub_app_mut(RenderApp)
-        .insert_resource(ready)
-        .add_systems(Render, report_pipelines.in_set(RenderSystems::Cleanup));
+    common::watch_pipelines(&mut app);
     let mut roots = Vec::new();
     {
         let world = app.world_mut();
@@ -111,43 +60,14 @@ fn skinlets_meshlet_draw_looks_like_bevys_own() {
                 roots.push((world.spawn((WorldAssetRoot(scene.clone()), SkinletBounds(bake.clone()), at)).id(), c));
             }
         }
-        let mut target = Image::new_target_texture(WIDTH, HEIGHT, TextureFormat::Rgba8UnormSrgb, None);
-        target.texture_descriptor.usage |= TextureUsages::COPY_SRC;
-        let target = world.resource_mut::<Assets<Image>>().add(target);
-        world.spawn((
-            Camera3d::default(),
-            RenderTarget::Image(target.clone().into()),
-            Tonemapping::None,
-            Msaa::Off,
-            Transform::from_xyz(0.0, 1.2, 4.0).looking_at(Vec3::new(0.0, 0.8, -1.0), Vec3::Y),
-        ));
-        world.spawn((DirectionalLight::default(), Transform::from_xyz(3.0, 8.0, 4.0).looking_at(Vec3::ZERO, Vec3::Y)));
-        let frames = world.resource::<Frames>().clone();
-        world.spawn(Readback::texture(target)).observe(move |event: On<ReadbackComplete>| {
-            frames.0.lock().unwrap().push(event.data.clone());
-        });
+        let at = Transform::from_xyz(0.0, 1.2, 4.0).looking_at(Vec3::new(0.0, 0.8, -1.0), Vec3::Y);
+        common::readback_camera(world, WIDTH, HEIGHT, at);
     }
     update_until(&mut app, 3000, "every instance bound", |w| {
         roots.iter().all(|&(e, _)| w.get::<SkinletInstance>(e).is_some())
     });
     for (i, &(root, c)) in roots.iter().enumerate() {
-        let character = &characters[c];
-        let world = app.world_mut();
-        let assets = world.resource::<AssetServer>().clone();
-        let clips: Vec<Handle<AnimationClip>> = (0..character.asset.clips.len())
-            .map(|k| assets.load(GltfAssetLabel::Animation(k).from_asset(character.file.clone())))
-            .collect();
-        if clips.is_empty() {
-            continue;
-        }
-        let (graph, nodes) = AnimationGraph::from_clips(clips);
-        let graph = world.resource_mut::<Assets<AnimationGraph>>().add(graph);
-        let mut players = world.query_filtered::<Entity, With<AnimationPlayer>>();
-        let descendants: Vec<Entity> = world.query::<&Children>().query(world).iter_descendants(root).collect();
-        let player = descendants.into_iter().find(|&d| players.get(world, d).is_ok()).unwrap();
-        let mut p = world.get_mut::<AnimationPlayer>(player).unwrap();
-        p.play(nodes[i % nodes.len()]).repeat();
-        world.entity_mut(player).insert(AnimationGraphHandle(graph));
+        common::play_clips(app.world_mut(), root, &characters[c], |nodes| vec![(nodes[i % nodes.len()], 1.0)]);
     }
     for _ in 0..25 {
         app.update();

@@ -7,17 +7,11 @@
 
 mod common;
 
-use bevy::animation::graph::{AnimationGraph, AnimationGraphHandle};
-use bevy::camera::RenderTarget;
 use bevy::camera::primitives::Aabb;
 use bevy::camera::visibility::{NoFrustumCulling, ViewVisibility};
-use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::prelude::*;
-use bevy::render::gpu_readback::{Readback, ReadbackComplete};
-use bevy::render::render_resource::{TextureFormat, TextureUsages};
 use bevy_skinlet::{Bake, SkinletBounds, SkinletInstance, SkinletSystems};
-use common::{app, asset_folder, update_until};
-use std::sync::{Arc, Mutex};
+use common::{app, asset_folder, settled_image, update_until};
 
 const WIDTH: u32 = 256;
 const HEIGHT: u32 = 160;
@@ -38,32 +32,6 @@ fn displace_boxes(displace: Res<Displace>, instances: Query<&SkinletInstance>, m
     }
 }
 
-/// The images read back since the last `take`.
-#[derive(Resource, Clone, Default)]
-struct Frames(Arc<Mutex<Vec<Vec<u8>>>>);
-
-/// Updates until three images in a row are equal (pipelines compiled, nothing moving) and
-/// returns that image.
-fn settled_image(app: &mut App) -> Vec<u8> {
-    let frames = app.world().resource::<Frames>().clone();
-    frames.0.lock().unwrap().clear();
-    for _ in 0..400 {
-        app.update();
-        let got = frames.0.lock().unwrap();
-        // Settled: three equal frames, and drawn (not the target's untouched contents, one
-        // color: while Bevy still compiles the pipelines, frames are blank).
-        if let [.., a, b, c] = &got[..]
-            && got.len() >= 6
-            && a == b
-            && b == c
-            && c.chunks(4).any(|p| p != &c[..4])
-        {
-            return c.clone();
-        }
-    }
-    panic!("the image did not settle");
-}
-
 fn write_png(path: &std::path::Path, rgba: &[u8]) {
     let mut encoder = png::Encoder::new(std::io::BufWriter::new(std::fs::File::create(path).unwrap()), WIDTH, HEIGHT);
     encoder.set_color(png::ColorType::Rgba);
@@ -79,7 +47,7 @@ fn skinlets_bounds_cull_nothing_visible() {
     let files = ["skinned/Fox.glb", "skinned/CesiumMan.glb", "morph/MorphStressTest.gltf", "@demo"];
     let Some((dir, characters)) = asset_folder("rendered", &files) else { return };
     let mut app = app(&dir, true);
-    app.init_resource::<Displace>().init_resource::<Frames>().add_systems(
+    app.init_resource::<Displace>().add_systems(
         PostUpdate,
         displace_boxes
             .after(SkinletSystems::UpdateBounds)
@@ -105,52 +73,24 @@ fn skinlets_bounds_cull_nothing_visible() {
                 roots.push((world.spawn((WorldAssetRoot(scene.clone()), SkinletBounds(bake.clone()), at)).id(), c));
             }
         }
-        let mut target = Image::new_target_texture(WIDTH, HEIGHT, TextureFormat::Rgba8UnormSrgb, None);
-        target.texture_descriptor.usage |= TextureUsages::COPY_SRC;
-        let target = world.resource_mut::<Assets<Image>>().add(target);
-        world.spawn((
-            Camera3d::default(),
-            RenderTarget::Image(target.clone().into()),
-            Tonemapping::None,
-            Msaa::Off,
-            Transform::from_xyz(0.0, 1.0, 3.4).looking_at(Vec3::new(0.0, 0.7, -4.0), Vec3::Y),
-        ));
-        world.spawn((DirectionalLight::default(), Transform::from_xyz(3.0, 8.0, 4.0).looking_at(Vec3::ZERO, Vec3::Y)));
-        let frames = world.resource::<Frames>().clone();
-        world.spawn(Readback::texture(target)).observe(move |event: On<ReadbackComplete>| {
-            frames.0.lock().unwrap().push(event.data.clone());
-        });
+        let at = Transform::from_xyz(0.0, 1.0, 3.4).looking_at(Vec3::new(0.0, 0.7, -4.0), Vec3::Y);
+        common::readback_camera(world, WIDTH, HEIGHT, at);
     }
     update_until(&mut app, 3000, "every instance bound", |w| {
         roots.iter().all(|&(e, _)| w.get::<SkinletInstance>(e).is_some())
     });
     // Every instance plays a clip of its file (a different one, or a crossfade of two).
     for (i, &(root, c)) in roots.iter().enumerate() {
-        let character = &characters[c];
-        let world = app.world_mut();
-        let assets = world.resource::<AssetServer>().clone();
-        let clips: Vec<Handle<AnimationClip>> = (0..character.asset.clips.len())
-            .map(|k| assets.load(GltfAssetLabel::Animation(k).from_asset(character.file.clone())))
-            .collect();
-        if clips.is_empty() {
-            continue;
-        }
-        let (graph, nodes) = AnimationGraph::from_clips(clips);
-        let graph = world.resource_mut::<Assets<AnimationGraph>>().add(graph);
-        let mut players = world.query_filtered::<Entity, With<AnimationPlayer>>();
-        let descendants: Vec<Entity> = world.query::<&Children>().query(world).iter_descendants(root).collect();
-        let player = descendants.into_iter().find(|&d| players.get(world, d).is_ok()).unwrap();
-        let mut p = world.get_mut::<AnimationPlayer>(player).unwrap();
-        if nodes.len() >= 2 && i % 4 == 3 {
-            p.play(nodes[0]).repeat().set_weight(0.5);
-            p.play(nodes[1]).repeat().set_weight(0.5);
-        } else {
-            // One speed for all: Bevy 0.19.1 panics sampling a CUBICSPLINE morph-weight curve
-            // exactly on a key or past its ends (`WideCubicKeyframeCurve`, the demo's wave
-            // clip), which other speeds can reach within these frames.
-            p.play(nodes[i % nodes.len()]).repeat();
-        }
-        world.entity_mut(player).insert(AnimationGraphHandle(graph));
+        common::play_clips(app.world_mut(), root, &characters[c], |nodes| {
+            if nodes.len() >= 2 && i % 4 == 3 {
+                vec![(nodes[0], 0.5), (nodes[1], 0.5)]
+            } else {
+                // One speed for all: Bevy 0.19.1 panics sampling a CUBICSPLINE morph-weight
+                // curve exactly on a key or past its ends (`WideCubicKeyframeCurve`, the demo's
+                // wave clip), which other speeds can reach within these frames.
+                vec![(nodes[i % nodes.len()], 1.0)]
+            }
+        });
     }
     for _ in 0..25 {
         app.update();

@@ -9,6 +9,8 @@ use bevy::prelude::*;
 use bevy_skinlet::gltf_tags::{GltfNodeIndex, GltfPrimitiveIndex};
 use skinlet::Asset;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
 
 #[path = "../../../skinlet/tests/common/mod.rs"]
 mod shared;
@@ -115,6 +117,113 @@ pub fn start(app: &mut App) {
         app.finish();
         app.cleanup();
     }
+}
+
+/// The images read back from [`readback_camera`]'s target, every frame.
+#[derive(Resource, Clone, Default)]
+pub struct Frames(pub Arc<Mutex<Vec<Vec<u8>>>>);
+
+/// Whether every pipeline of the render world is compiled (set by a render-world system that
+/// [`watch_pipelines`] adds: the render app may run on its own thread).
+#[derive(Resource, Clone, Default)]
+pub struct PipelinesReady(pub Arc<AtomicBool>);
+
+/// Makes [`settled_image`] wait for every pipeline to compile (pipelines compile
+/// asynchronously: frames can repeat while one is still missing).
+pub fn watch_pipelines(app: &mut App) {
+    use bevy::render::render_resource::{CachedPipelineState, PipelineCache};
+    use bevy::render::{Render, RenderApp, RenderSystems};
+    fn report(cache: Res<PipelineCache>, ready: Res<PipelinesReady>) {
+        let all = cache.waiting_pipelines().next().is_none()
+            && cache.pipelines().all(|p| matches!(p.state, CachedPipelineState::Ok(_)));
+        ready.0.store(all, Ordering::Relaxed);
+    }
+    let ready = PipelinesReady::default();
+    app.insert_resource(ready.clone());
+    app.sub_app_mut(RenderApp).insert_resource(ready).add_systems(Render, report.in_set(RenderSystems::Cleanup));
+}
+
+/// Spawns a camera (tonemapping and MSAA off) at `at` drawing into a `width` × `height` RGBA8
+/// image read back into [`Frames`] every frame, and a directional light; returns the camera.
+pub fn readback_camera(world: &mut World, width: u32, height: u32, at: Transform) -> Entity {
+    use bevy::camera::RenderTarget;
+    use bevy::render::gpu_readback::{Readback, ReadbackComplete};
+    use bevy::render::render_resource::{TextureFormat, TextureUsages};
+    let mut target = Image::new_target_texture(width, height, TextureFormat::Rgba8UnormSrgb, None);
+    target.texture_descriptor.usage |= TextureUsages::COPY_SRC;
+    let target = world.resource_mut::<Assets<Image>>().add(target);
+    let camera = world
+        .spawn((
+            Camera3d::default(),
+            RenderTarget::Image(target.clone().into()),
+            bevy::core_pipeline::tonemapping::Tonemapping::None,
+            Msaa::Off,
+            at,
+        ))
+        .id();
+    world.spawn((DirectionalLight::default(), Transform::from_xyz(3.0, 8.0, 4.0).looking_at(Vec3::ZERO, Vec3::Y)));
+    let frames = world.get_resource_or_init::<Frames>().clone();
+    world.spawn(Readback::texture(target)).observe(move |event: On<ReadbackComplete>| {
+        frames.0.lock().unwrap().push(event.data.clone());
+    });
+    camera
+}
+
+/// Updates until three images in a row are equal and drawn (not one color: while Bevy still
+/// compiles pipelines, frames are blank), and every pipeline has been compiled for five
+/// updates where [`watch_pipelines`] watches them; returns that image.
+pub fn settled_image(app: &mut App) -> Vec<u8> {
+    let frames = app.world().resource::<Frames>().clone();
+    let ready = app.world().get_resource::<PipelinesReady>().cloned();
+    frames.0.lock().unwrap().clear();
+    let mut ready_updates = 0;
+    for _ in 0..2000 {
+        app.update();
+        let now = ready.as_ref().is_none_or(|r| r.0.load(Ordering::Relaxed));
+        ready_updates = if now { ready_updates + 1 } else { 0 };
+        let got = frames.0.lock().unwrap();
+        if ready_updates >= 5
+            && let [.., a, b, c] = &got[..]
+            && got.len() >= 6
+            && a == b
+            && b == c
+            && c.chunks(4).any(|p| p != &c[..4])
+        {
+            return c.clone();
+        }
+    }
+    panic!("the image did not settle");
+}
+
+/// Plays on the animation player under `root` the clips `pick` chooses (node and weight, each
+/// repeating) from a graph of every clip of `character`'s file; nothing for a file without
+/// clips.
+pub fn play_clips(
+    world: &mut World,
+    root: Entity,
+    character: &Character,
+    pick: impl FnOnce(
+        &[bevy::animation::graph::AnimationNodeIndex],
+    ) -> Vec<(bevy::animation::graph::AnimationNodeIndex, f32)>,
+) {
+    use bevy::animation::graph::{AnimationGraph, AnimationGraphHandle};
+    let assets = world.resource::<AssetServer>().clone();
+    let clips: Vec<Handle<AnimationClip>> = (0..character.asset.clips.len())
+        .map(|k| assets.load(GltfAssetLabel::Animation(k).from_asset(character.file.clone())))
+        .collect();
+    if clips.is_empty() {
+        return;
+    }
+    let (graph, nodes) = AnimationGraph::from_clips(clips);
+    let graph = world.resource_mut::<Assets<AnimationGraph>>().add(graph);
+    let mut players = world.query_filtered::<Entity, With<AnimationPlayer>>();
+    let descendants: Vec<Entity> = world.query::<&Children>().query(world).iter_descendants(root).collect();
+    let player = descendants.into_iter().find(|&d| players.get(world, d).is_ok()).unwrap();
+    let mut p = world.get_mut::<AnimationPlayer>(player).unwrap();
+    for (node, weight) in pick(&nodes) {
+        p.play(node).repeat().set_weight(weight);
+    }
+    world.entity_mut(player).insert(AnimationGraphHandle(graph));
 }
 
 /// Updates `app` until `done` holds (at most `limit` updates; panics past it with `what`).
