@@ -30,6 +30,10 @@
 //!   per-frame boxes (`skinlet_runtime::part_bounds`), between transform propagation and
 //!   Bevy's visibility check.
 //!
+//! - [`meshlet_draw`] (feature `meshlets`): [`SkinletMeshletPlugin`] draws marked scene
+//!   instances by meshlet in Bevy's opaque pass, culled per meshlet and per triangle on Bevy's
+//!   device, shaded by Bevy's PBR functions.
+//!
 //! The plugin never links the baker; the asset-processor step that bakes glTF files when Bevy
 //! processes assets is behind the `bake` feature. [`skinlet_gpu`] is re-exported: its GPU
 //! culling runs on Bevy's own wgpu device.

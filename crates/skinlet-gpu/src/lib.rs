@@ -12,6 +12,8 @@
 //! - [`crowd_culling`]: culling a crowd on the caller's own device, recorded into the caller's
 //!   own encoder: per-joint preparation and per-meshlet tests in one compute pass, indexed
 //!   indirect draws out, nothing read back (the library API an engine links).
+//! - [`crowd_skinning`]: a crowd's skinning as one WGSL function of (instance, vertex), for
+//!   the triangle pass and the caller's draw alike.
 //! - [`triangle_culling`]: per-triangle culling of crowd culling's survivors with the caller's
 //!   own skinning function (back faces, triangles between pixel centers, the depth pyramid),
 //!   one compacted index list and one indexed indirect draw out.
