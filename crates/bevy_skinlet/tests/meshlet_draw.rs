@@ -36,7 +36,7 @@ fn skinlets_meshlet_draw_looks_like_bevys_own() {
     if !common::vulkan_available() {
         return;
     }
-    let files = ["skinned/Xbot.glb", "@demo"];
+    let files = ["skinned/Xbot.glb", "skinned/BrainStem.glb", "@demo"];
     let Some((dir, characters)) = asset_folder("meshlet_draw", &files) else { return };
     let mut app = app(&dir, true);
     app.add_plugins(SkinletMeshletPlugin);
@@ -45,14 +45,14 @@ fn skinlets_meshlet_draw_looks_like_bevys_own() {
     {
         let world = app.world_mut();
         let assets = world.resource::<AssetServer>().clone();
-        // Two rows, one character each, about 1.6 units tall; the camera sees part of each
+        // Three rows, one character each, about 1.6 units tall; the camera sees part of each
         // row, the others are beside or behind it (culled).
         for (c, character) in characters.iter().enumerate() {
             let scale = 1.6 / common::rest_size(character);
             let stem = character.file.rsplit_once('.').unwrap().0.to_string();
             let bake: Handle<Bake> = assets.load(format!("{stem}.skinlet"));
             let scene = assets.load(GltfAssetLabel::Scene(0).from_asset(character.file.clone()));
-            let z = [0.0, -2.2][c];
+            let z = [0.0, -2.2, -4.4][c];
             for k in 0..5 {
                 let at = Transform::from_xyz(1.4 * k as f32 - 2.8, 0.0, z)
                     .with_rotation(Quat::from_rotation_y(0.9 * (k + c) as f32))
