@@ -94,6 +94,12 @@ impl Bake {
         &bytemuck::cast_slice(&self.words)[..self.len]
     }
 
+    /// The file's bytes as 4-byte aligned words (the last one zero-padded; `bytes` is the
+    /// first `bytes().len()` of them).
+    pub(crate) fn words(&self) -> &[u32] {
+        &self.words
+    }
+
     /// A view of the bake (checked at load, so this only fails if the bytes were changed).
     pub fn view(&self) -> Result<BakeView<'_>, skinlet_runtime::Error> {
         BakeView::new(self.bytes())

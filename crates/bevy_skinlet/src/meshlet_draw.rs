@@ -155,6 +155,10 @@ struct BakeDraw {
     corners: Vec<[u32; 4]>,
     /// Per attribute vertex (the parts' source vertices one part after another): its normal.
     normals: Vec<[f32; 4]>,
+    /// Per driver, its inverse bind matrix.
+    inverse_bind: Vec<Mat4>,
+    /// Whether the bake has any-pose boxes (its envelope section).
+    has_boxes: bool,
 }
 
 /// Moves the `StandardMaterial` of every part of a bound, marked instance into
@@ -207,10 +211,17 @@ fn build_bake_draws(
                     NoFrustumCulling,
                     Aabb::default(),
                 ));
-                let bytes = bake.bytes();
-                let mut words = vec![0u32; bytes.len().div_ceil(4)];
-                bytemuck::cast_slice_mut::<u32, u8>(&mut words)[..bytes.len()].copy_from_slice(bytes);
-                let draw = BakeDraw { words, len: bytes.len(), mesh, corners, normals };
+                let draw = BakeDraw {
+                    words: bake.words().to_vec(),
+                    len: bake.bytes().len(),
+                    mesh,
+                    corners,
+                    normals,
+                    inverse_bind: bake
+                        .view()
+                        .map_or(Vec::new(), |v| v.inverse_bind().iter().map(Mat4::from_cols_array).collect()),
+                    has_boxes: bake.has_envelope(),
+                };
                 draws.0.insert(id, Arc::new(draw));
             }
             Err(message) => {
@@ -281,7 +292,6 @@ fn extract_frames(
     roots: Extract<Query<(&SkinletInstance, &SkinletBounds), With<SkinletMeshlets>>>,
     globals: Extract<Query<&GlobalTransform>>,
     parts: Extract<Query<&SkinletDrawnPart>>,
-    bakes: Extract<Res<Assets<Bake>>>,
     materials: Extract<Res<Assets<StandardMaterial>>>,
     images: Res<RenderAssets<GpuImage>>,
 ) {
@@ -292,8 +302,7 @@ fn extract_frames(
     }
     for (instance, bounds) in &roots {
         let id = bounds.0.id();
-        let (Some(draw), Some(bake)) = (draws.0.get(&id), bakes.get(id)) else { continue };
-        let Ok(view) = bake.view() else { continue };
+        let Some(draw) = draws.0.get(&id) else { continue };
         let frame = frames.0.entry(id).or_insert_with(|| BakeFrame {
             draw: draw.clone(),
             palette: Vec::new(),
@@ -310,13 +319,13 @@ fn extract_frames(
                 })
                 .collect();
         }
-        for (d, &e) in instance.drivers().iter().enumerate() {
+        for (&e, inverse_bind) in instance.drivers().iter().zip(&draw.inverse_bind) {
             let global = globals.get(e).map_or(Mat4::NAN, |g| g.to_matrix());
-            frame.palette.push(global * Mat4::from_cols_array(&view.inverse_bind()[d]));
+            frame.palette.push(global * *inverse_bind);
         }
         let mode = match instance.pose {
             PoseBounds::Clips | PoseBounds::ClipAt { .. } => CullMode::Bounds,
-            _ if view.envelope().is_some() => CullMode::BoxesOnly,
+            _ if draw.has_boxes => CullMode::BoxesOnly,
             _ => CullMode::Keep,
         };
         frame.instances.push(CullInstance::new(Mat4::IDENTITY, mode));
@@ -563,8 +572,7 @@ fn bake_gpu(
     let meshlets = view.meshlets();
     let vertices = view.vertices().positions.len();
     let (_, draws) = skinlet_gpu::mesh::meshlet_index_buffer(&meshlets, vertices).map_err(e)?;
-    let inverse_bind: Vec<Mat4> = view.inverse_bind().iter().map(Mat4::from_cols_array).collect();
-    let character = GpuCharacter::new(device, &culler, &inverse_bind, &draws).map_err(e)?;
+    let character = GpuCharacter::new(device, &culler, &draw.inverse_bind, &draws).map_err(e)?;
     let crowd = CrowdCulling::new(
         device,
         pipelines,

@@ -10,10 +10,7 @@
 mod common;
 
 use bevy::prelude::*;
-use bevy_skinlet::{
-    Bake, SkinletBounds, SkinletDrawnPart, SkinletInstance, SkinletMeshletPlugin, SkinletMeshletSettings,
-    SkinletMeshlets,
-};
+use bevy_skinlet::{SkinletDrawnPart, SkinletInstance, SkinletMeshletPlugin, SkinletMeshletSettings, SkinletMeshlets};
 use common::{app, asset_folder, settled_image, update_until};
 
 const WIDTH: u32 = 256;
@@ -41,28 +38,11 @@ fn skinlets_meshlet_draw_looks_like_bevys_own() {
     let mut app = app(&dir, true);
     app.add_plugins(SkinletMeshletPlugin);
     common::watch_pipelines(&mut app);
-    let mut roots = Vec::new();
-    {
-        let world = app.world_mut();
-        let assets = world.resource::<AssetServer>().clone();
-        // Three rows, one character each, about 1.6 units tall; the camera sees part of each
-        // row, the others are beside or behind it (culled).
-        for (c, character) in characters.iter().enumerate() {
-            let scale = 1.6 / common::rest_size(character);
-            let stem = character.file.rsplit_once('.').unwrap().0.to_string();
-            let bake: Handle<Bake> = assets.load(format!("{stem}.skinlet"));
-            let scene = assets.load(GltfAssetLabel::Scene(0).from_asset(character.file.clone()));
-            let z = [0.0, -2.2, -4.4][c];
-            for k in 0..5 {
-                let at = Transform::from_xyz(1.4 * k as f32 - 2.8, 0.0, z)
-                    .with_rotation(Quat::from_rotation_y(0.9 * (k + c) as f32))
-                    .with_scale(Vec3::splat(scale));
-                roots.push((world.spawn((WorldAssetRoot(scene.clone()), SkinletBounds(bake.clone()), at)).id(), c));
-            }
-        }
-        let at = Transform::from_xyz(0.0, 1.2, 4.0).looking_at(Vec3::new(0.0, 0.8, -1.0), Vec3::Y);
-        common::readback_camera(world, WIDTH, HEIGHT, at);
-    }
+    // Three rows, one character each; the camera sees part of each row, the others are
+    // beside or behind it (culled).
+    let roots = common::spawn_rows(app.world_mut(), &characters, &[0.0, -2.2, -4.4], 5);
+    let at = Transform::from_xyz(0.0, 1.2, 4.0).looking_at(Vec3::new(0.0, 0.8, -1.0), Vec3::Y);
+    common::readback_camera(app.world_mut(), WIDTH, HEIGHT, at);
     update_until(&mut app, 3000, "every instance bound", |w| {
         roots.iter().all(|&(e, _)| w.get::<SkinletInstance>(e).is_some())
     });

@@ -10,7 +10,7 @@ mod common;
 use bevy::camera::primitives::Aabb;
 use bevy::camera::visibility::{NoFrustumCulling, ViewVisibility};
 use bevy::prelude::*;
-use bevy_skinlet::{Bake, SkinletBounds, SkinletInstance, SkinletSystems};
+use bevy_skinlet::{SkinletInstance, SkinletSystems};
 use common::{app, asset_folder, settled_image, update_until};
 
 const WIDTH: u32 = 256;
@@ -53,29 +53,12 @@ fn skinlets_bounds_cull_nothing_visible() {
             .after(SkinletSystems::UpdateBounds)
             .before(bevy::camera::visibility::VisibilitySystems::CheckVisibility),
     );
-    let mut roots = Vec::new();
-    {
-        let world = app.world_mut();
-        let assets = world.resource::<AssetServer>().clone();
-        // A crowd in rows, one character per row, each scaled to about 1.6 units across; the
-        // camera stands between the first row (behind it) and the others, so instances are
-        // behind it, beside the frustum, cut by its sides and in full view.
-        for (c, character) in characters.iter().enumerate() {
-            let scale = 1.6 / common::rest_size(character);
-            let stem = character.file.rsplit_once('.').unwrap().0.to_string();
-            let bake: Handle<Bake> = assets.load(format!("{stem}.skinlet"));
-            let scene = assets.load(GltfAssetLabel::Scene(0).from_asset(character.file.clone()));
-            let z = [4.4, 0.0, -2.2, -4.4][c];
-            for k in 0..6 {
-                let at = Transform::from_xyz(1.4 * k as f32 - 3.5, 0.0, z)
-                    .with_rotation(Quat::from_rotation_y(0.9 * (k + c) as f32))
-                    .with_scale(Vec3::splat(scale));
-                roots.push((world.spawn((WorldAssetRoot(scene.clone()), SkinletBounds(bake.clone()), at)).id(), c));
-            }
-        }
-        let at = Transform::from_xyz(0.0, 1.0, 3.4).looking_at(Vec3::new(0.0, 0.7, -4.0), Vec3::Y);
-        common::readback_camera(world, WIDTH, HEIGHT, at);
-    }
+    // A crowd in rows, one character per row; the camera stands between the first row
+    // (behind it) and the others, so instances are behind it, beside the frustum, cut by its
+    // sides and in full view.
+    let roots = common::spawn_rows(app.world_mut(), &characters, &[4.4, 0.0, -2.2, -4.4], 6);
+    let at = Transform::from_xyz(0.0, 1.0, 3.4).looking_at(Vec3::new(0.0, 0.7, -4.0), Vec3::Y);
+    common::readback_camera(app.world_mut(), WIDTH, HEIGHT, at);
     update_until(&mut app, 3000, "every instance bound", |w| {
         roots.iter().all(|&(e, _)| w.get::<SkinletInstance>(e).is_some())
     });

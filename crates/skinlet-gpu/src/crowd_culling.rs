@@ -70,7 +70,8 @@ use skinlet_runtime::meshlet_cull::{CullSlot, MeshletCuller, Tests};
 pub const CULL_WGSL: &str = include_str!("shaders/cull_common.wgsl");
 
 /// The screen-space occlusion test the meshlet and triangle passes share.
-pub(crate) const OCCLUSION_TEST_WGSL: &str = include_str!("shaders/occlusion_test.wgsl");
+pub(crate) const OCCLUSION_TEST_WGSL: &str =
+    concat!(include_str!("shaders/pyramid_layout.wgsl"), include_str!("shaders/occlusion_test.wgsl"));
 
 /// WGSL for a vertex shader drawn by [`CrowdCulling::draw_pulled`]:
 /// `survivor_corner(instance_index, vertex_index)` gives the survivor's instance, the place in
@@ -424,7 +425,7 @@ impl CullPipelines {
             let (pyramid, pyramid_layout) = pipeline(
                 device,
                 "skinlet depth pyramid",
-                include_str!("shaders/pyramid.wgsl").into(),
+                concat!(include_str!("shaders/pyramid_layout.wgsl"), include_str!("shaders/pyramid.wgsl")).into(),
                 "reduce",
                 &[dynamic_uniform(0), depth, layout_entry(2, write)],
             );

@@ -119,6 +119,28 @@ pub fn start(app: &mut App) {
     }
 }
 
+/// Spawns `characters` in rows, row `c` (character `c`, each scaled to about 1.6 units across)
+/// at depth `z[c]`, `per_row` instances 1.4 apart centered on x = 0, each turned its own way,
+/// every one with its bake (`NAME.skinlet` beside the file); returns (scene root, character).
+pub fn spawn_rows(world: &mut World, characters: &[Character], z: &[f32], per_row: usize) -> Vec<(Entity, usize)> {
+    let assets = world.resource::<AssetServer>().clone();
+    let mut roots = Vec::new();
+    for (c, (character, &z)) in characters.iter().zip(z).enumerate() {
+        let scale = 1.6 / rest_size(character);
+        let stem = character.file.rsplit_once('.').unwrap().0.to_string();
+        let bake: Handle<bevy_skinlet::Bake> = assets.load(format!("{stem}.skinlet"));
+        let scene = assets.load(GltfAssetLabel::Scene(0).from_asset(character.file.clone()));
+        for k in 0..per_row {
+            let at = Transform::from_xyz(1.4 * k as f32 - 0.7 * (per_row - 1) as f32, 0.0, z)
+                .with_rotation(Quat::from_rotation_y(0.9 * (k + c) as f32))
+                .with_scale(Vec3::splat(scale));
+            let root = world.spawn((WorldAssetRoot(scene.clone()), bevy_skinlet::SkinletBounds(bake.clone()), at));
+            roots.push((root.id(), c));
+        }
+    }
+    roots
+}
+
 /// The images read back from [`readback_camera`]'s target, every frame.
 #[derive(Resource, Clone, Default)]
 pub struct Frames(pub Arc<Mutex<Vec<Vec<u8>>>>);

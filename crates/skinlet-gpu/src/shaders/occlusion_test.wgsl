@@ -1,5 +1,6 @@
-// The screen-space half of occlusion culling, shared by the meshlet test (crowd_cull.wgsl:
-// a bounding box projected) and the triangle test (triangle_cull.wgsl: a triangle's corners):
+// The screen-space half of occlusion culling (after pyramid_layout.wgsl), shared by the
+// meshlet test (crowd_cull.wgsl: a bounding box projected) and the triangle test
+// (triangle_cull.wgsl: a triangle's corners):
 // which pixel centers a rectangle in normalized device coordinates can cover, and whether
 // something at its nearest depth is behind the depth pyramid (pyramid.wgsl) over them. The
 // including shader declares `occlusion: Occlusion` and `state: array<u32>` (the pyramid from
@@ -46,21 +47,8 @@ fn block_level(x0: u32, y0: u32, x1: u32, y1: u32) -> u32 {
     return level;
 }
 
-// A level of the pyramid: where it starts in `state`, its width and height.
-struct PyramidLevel {
-    offset: u32,
-    width: u32,
-    height: u32,
-}
-
 fn pyramid_level(level: u32) -> PyramidLevel {
-    var l = PyramidLevel(occlusion.pyramid_base, occlusion.width, occlusion.height);
-    for (var k = 0u; k < level; k++) {
-        l.offset += l.width * l.height;
-        l.width = (l.width + 1u) / 2u;
-        l.height = (l.height + 1u) / 2u;
-    }
-    return l;
+    return pyramid_level_at(occlusion.pyramid_base, occlusion.width, occlusion.height, level);
 }
 
 // The farthest depth over the pixels of texel (x, y) of level `l`.

@@ -23,21 +23,8 @@ struct Pyramid {
 @group(0) @binding(1) var depth: texture_depth_2d;
 @group(0) @binding(2) var<storage, read_write> state: array<f32>;
 
-// Level `k`'s size and where it starts.
-struct Level {
-    width: u32,
-    height: u32,
-    offset: u32,
-}
-
-fn level_of(k: u32) -> Level {
-    var l = Level(pyramid.width, pyramid.height, pyramid.pyramid_base);
-    for (var i = 0u; i < k; i++) {
-        l.offset += l.width * l.height;
-        l.width = (l.width + 1u) / 2u;
-        l.height = (l.height + 1u) / 2u;
-    }
-    return l;
+fn level_of(k: u32) -> PyramidLevel {
+    return pyramid_level_at(pyramid.pyramid_base, pyramid.width, pyramid.height, k);
 }
 
 fn farthest(a: f32, b: f32) -> f32 {

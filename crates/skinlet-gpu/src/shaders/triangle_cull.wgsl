@@ -196,9 +196,10 @@ fn test_triangle(c: array<Corner, 3>) -> u32 {
                     return SEEN;
                 }
                 covered = true;
-                if !behind(texel_far(pyramid, tx, ty), lo.z, hi.z) {
+                let far = texel_far(pyramid, tx, ty);
+                if !behind(far, lo.z, hi.z) {
                     drawn = true;
-                    if level > 0u || looks_visible(mid, z, low, bx.x, by.x) {
+                    if level > 0u || looks_visible(mid, z, low, far) {
                         return SEEN;
                     }
                 }
@@ -209,9 +210,9 @@ fn test_triangle(c: array<Corner, 3>) -> u32 {
 }
 
 // Whether the triangle as this pass computed it (corners at mid, NDC depths z) covers the
-// pixel center p (pixel x, y) and is there at most a few ulps behind the depth buffer: the
+// pixel center p and is there at most a few ulps behind `buffer`, the depth buffer's: the
 // visibility bit's test (what the first phase of the next frame draws), not a bound.
-fn looks_visible(mid: array<vec2<f32>, 3>, z: vec3<f32>, p: vec2<f32>, x: u32, y: u32) -> bool {
+fn looks_visible(mid: array<vec2<f32>, 3>, z: vec3<f32>, p: vec2<f32>, buffer: f32) -> bool {
     var w: vec3<f32>;
     for (var i = 0u; i < 3u; i++) {
         let e = mid[(i + 2u) % 3u] - mid[(i + 1u) % 3u];
@@ -223,7 +224,6 @@ fn looks_visible(mid: array<vec2<f32>, 3>, z: vec3<f32>, p: vec2<f32>, x: u32, y
         return false;
     }
     let depth = dot(w, z) / sum;
-    let buffer = bitcast<f32>(state[occlusion.pyramid_base + y * occlusion.width + x]);
     let tolerance = 1e-5 * max(abs(depth), abs(buffer));
     if occlusion.reverse != 0u {
         return depth >= buffer - tolerance;
