@@ -19,7 +19,9 @@
 //!
 //! Not yet: base colour, metallic-roughness and normal textures (the factors are used),
 //! morph targets' normal deltas (positions morph), the depth prepass and shadow views (the
-//! characters receive shadows, cast none), occlusion culling, more than one camera.
+//! characters receive shadows, cast none), occlusion culling, culling for more than one
+//! camera (with several, every triangle is drawn), materials other than `StandardMaterial`
+//! (such a part stays Bevy's too, with a warning).
 
 use crate::SkinletBounds;
 use crate::bake_asset::Bake;
@@ -163,18 +165,27 @@ struct BakeDraw {
 
 /// Moves the `StandardMaterial` of every part of a bound, marked instance into
 /// [`SkinletDrawnPart`].
+/// A part with another kind of material stays Bevy's to draw too (skinlet draws it with
+/// `StandardMaterial`'s defaults): a warning names it, once.
 fn take_over_parts(
     mut commands: Commands,
     roots: Query<&SkinletInstance, With<SkinletMeshlets>>,
-    materials: Query<&MeshMaterial3d<StandardMaterial>, Without<SkinletDrawnPart>>,
+    materials: Query<Option<&MeshMaterial3d<StandardMaterial>>, Without<SkinletDrawnPart>>,
+    mut warned: Local<bevy::platform::collections::HashSet<Entity>>,
 ) {
     for instance in &roots {
         for &e in instance.part_entities() {
-            if let Ok(m) = materials.get(e) {
-                commands
-                    .entity(e)
-                    .insert(SkinletDrawnPart { material: m.0.clone() })
-                    .remove::<MeshMaterial3d<StandardMaterial>>();
+            match materials.get(e) {
+                Ok(Some(m)) => {
+                    commands
+                        .entity(e)
+                        .insert(SkinletDrawnPart { material: m.0.clone() })
+                        .remove::<MeshMaterial3d<StandardMaterial>>();
+                }
+                Ok(None) if warned.insert(e) => {
+                    warn!("skinlet meshlets: part entity {e} has no StandardMaterial: Bevy keeps drawing it too");
+                }
+                _ => {}
             }
         }
     }
@@ -312,12 +323,11 @@ fn extract_frames(
         });
         if frame.instances.is_empty() {
             frame.draw = draw.clone();
-            frame.materials = (instance.part_entities().iter())
-                .map(|&e| {
-                    let m = parts.get(e).ok().and_then(|p| materials.get(&p.material));
-                    m.map(|m| m.as_bind_group_shader_type(&images)).unwrap_or_default()
-                })
-                .collect();
+            frame.materials.clear();
+            frame.materials.extend(instance.part_entities().iter().map(|&e| {
+                let m = parts.get(e).ok().and_then(|p| materials.get(&p.material));
+                m.map(|m| m.as_bind_group_shader_type(&images)).unwrap_or_default()
+            }));
         }
         for (&e, inverse_bind) in instance.drivers().iter().zip(&draw.inverse_bind) {
             let global = globals.get(e).map_or(Mat4::NAN, |g| g.to_matrix());
@@ -486,8 +496,16 @@ fn prepare_gpu(
     cache: Res<PipelineCache>,
     settings: Res<SkinletMeshletSettings>,
     views: Query<(&ExtractedView, &Msaa), With<ExtractedCamera>>,
+    mut warned: Local<bool>,
 ) {
     let Some((view, msaa)) = views.iter().next() else { return };
+    // Culled for one camera, the list would be wrong in another: with several, every triangle
+    // is drawn.
+    let several = views.iter().count() > 1;
+    if several && !*warned {
+        warn!("skinlet meshlets: several cameras: culling is for one camera, drawing unculled");
+        *warned = true;
+    }
     let raster = Raster {
         width: view.viewport.z.max(1),
         height: view.viewport.w.max(1),
@@ -524,7 +542,7 @@ fn prepare_gpu(
         }
         let b = gpu.bakes.get_mut(&id).unwrap();
         b.instances = n;
-        b.unculled = !settings.culling;
+        b.unculled = !settings.culling || several;
         queue.write_buffer(&b.params, 0, bytemuck::cast_slice(&[b.id_bits, b.unculled as u32]));
         queue.write_buffer(&b.palette, 0, bytemuck::cast_slice(&frame.palette));
         queue.write_buffer(&b.instance_buffer, 0, bytemuck::cast_slice(&frame.instances));
