@@ -20,8 +20,6 @@
 #[path = "../tests/common/mod.rs"]
 mod common;
 
-use bevy::animation::graph::{AnimationGraph, AnimationGraphHandle, AnimationNodeIndex};
-use bevy::animation::transition::AnimationTransitions;
 use bevy::camera::primitives::{Aabb, Frustum, MeshAabb, Sphere};
 use bevy::ecs::system::SystemState;
 use bevy::math::{Affine3A, Vec3A};
@@ -74,11 +72,6 @@ struct Instance {
     root: Entity,
     character: usize,
     nodes: Vec<Option<Entity>>,
-    player: Entity,
-    clips: Vec<AnimationNodeIndex>,
-    /// Seconds between clip changes, and when the next is due.
-    period: f32,
-    next: f32,
 }
 
 /// Per frame and entity, what each method decided.
@@ -131,23 +124,11 @@ fn main() {
     order = (0..total).map(|i| order[(i * stride) % total]).collect();
     let mut roots = Vec::with_capacity(total);
     let camera;
-    // One animation graph per file, made first: the graphs hold the clips, so Bevy keeps them
-    // loaded (a clip asked for after its handles were dropped reloads the whole file, and the
-    // scenes spawned from it are spawned again).
-    let graphs: Vec<(Handle<AnimationGraph>, Vec<AnimationNodeIndex>)>;
+    // One animation graph per file, made first (it keeps the clips loaded).
+    let graphs = common::clip_graphs(app.world_mut(), &characters);
     {
         let world = app.world_mut();
         let assets = world.resource::<AssetServer>().clone();
-        graphs = characters
-            .iter()
-            .map(|c| {
-                let clips = (0..c.asset.clips.len())
-                    .map(|k| assets.load(GltfAssetLabel::Animation(k).from_asset(c.file.clone())));
-                let (graph, nodes) = AnimationGraph::from_clips(clips);
-                (world.resource_mut::<Assets<AnimationGraph>>().add(graph), nodes)
-            })
-            .collect();
-
         let handles: Vec<(Handle<WorldAsset>, Handle<Bake>, f32)> = characters
             .iter()
             .zip(heights)
@@ -182,24 +163,10 @@ fn main() {
     }
 
     // Every instance starts a clip at its own phase.
-    let mut instances = Vec::with_capacity(total);
-    {
-        let world = app.world_mut();
-        let mut players = world.query_filtered::<Entity, With<AnimationPlayer>>();
-        for (i, &(root, c)) in roots.iter().enumerate() {
-            let nodes = common::node_entities(world, root);
-            let descendants: Vec<Entity> = world.query::<&Children>().query(world).iter_descendants(root).collect();
-            let player = descendants.into_iter().find(|&d| players.get(world, d).is_ok()).expect("an animation player");
-            let (graph, clips) = graphs[c].clone();
-            let mut transitions = AnimationTransitions::new();
-            let mut p = world.get_mut::<AnimationPlayer>(player).unwrap();
-            let first = clips[i % clips.len()];
-            transitions.play(&mut p, first, Duration::ZERO).repeat().seek_to(0.37 * i as f32 % 1.0);
-            world.entity_mut(player).insert((AnimationGraphHandle(graph), transitions));
-            let period = 1.5 + (i % 7) as f32 * 0.4;
-            instances.push(Instance { root, character: c, nodes, player, clips, period, next: period });
-        }
-    }
+    let mut crossfades = common::Crossfades::start(app.world_mut(), &roots, &graphs);
+    let instances: Vec<Instance> = (roots.iter())
+        .map(|&(root, character)| Instance { root, character, nodes: common::node_entities(app.world_mut(), root) })
+        .collect();
 
     let mut state: SystemState<Measured> = SystemState::new(app.world_mut());
     // Bevy computes an unskinned mesh's box once, when the mesh is added: so does the
@@ -221,25 +188,9 @@ fn main() {
     let (mut entities, mut parts): (Vec<Entity>, Vec<usize>) = (Vec::new(), Vec::new());
     // Instance frames per kind of bounds skinlet used: any pose, clips, clip windows, envelope.
     let mut poses = [0usize; 4];
-    let mut time = 0.0f32;
     for frame in 0..args.frames {
         // Crossfade to the next clip (0.6 s) when an instance's period is up.
-        time += 1.0 / 30.0;
-        for inst in &mut instances {
-            if time >= inst.next && inst.clips.len() > 1 {
-                inst.next += inst.period;
-                let world = app.world_mut();
-                let mut entity = world.entity_mut(inst.player);
-                let mut transitions = entity.take::<AnimationTransitions>().unwrap();
-                let mut player = entity.get_mut::<AnimationPlayer>().unwrap();
-                let current = transitions.get_main_animation().unwrap();
-                let k = inst.clips.iter().position(|&n| n == current).unwrap();
-                transitions
-                    .play(&mut player, inst.clips[(k + 1) % inst.clips.len()], Duration::from_millis(600))
-                    .repeat();
-                entity.insert(transitions);
-            }
-        }
+        crossfades.advance(app.world_mut(), 1.0 / 30.0);
         // The camera walks through the crowd at eye height, turning slowly.
         let t = frame as f32 / args.frames.max(1) as f32;
         let extent = side as f32 * spacing;

@@ -49,7 +49,9 @@ pub mod meshlet_draw;
 pub use bake_asset::{Bake, BakeLoader, BakeSettings};
 pub use instance::{PoseEdited, SkinletBounds, SkinletError, SkinletInstance};
 #[cfg(feature = "meshlets")]
-pub use meshlet_draw::{SkinletDrawnPart, SkinletMeshletPlugin, SkinletMeshletSettings, SkinletMeshlets};
+pub use meshlet_draw::{
+    MeshletStats, SkinletDrawnPart, SkinletMeshletPlugin, SkinletMeshletSettings, SkinletMeshletStats, SkinletMeshlets,
+};
 pub use skinlet_gpu;
 pub use skinlet_runtime;
 

@@ -26,7 +26,6 @@
 use crate::SkinletBounds;
 use crate::bake_asset::Bake;
 use crate::instance::{SkinletError, SkinletInstance};
-use bevy::camera::primitives::Aabb;
 use bevy::camera::visibility::{self, NoFrustumCulling, VisibilityClass};
 use bevy::core_pipeline::core_3d::{CORE_3D_DEPTH_FORMAT, Opaque3d, Opaque3dBatchSetKey, Opaque3dBinKey};
 use bevy::core_pipeline::schedule::camera_driver;
@@ -61,7 +60,9 @@ use bevy::render::texture::GpuImage;
 use bevy::render::view::{ExtractedView, RenderVisibleEntities};
 use bevy::render::{Extract, ExtractSchedule, Render, RenderApp, RenderStartup, RenderSystems};
 use bevy::shader::ShaderDefVal;
-use skinlet_gpu::crowd_culling::{CrowdCulling, CullInstance, CullMode, CullPipelines, GpuCharacter, subpixel_bits};
+use skinlet_gpu::crowd_culling::{
+    CrowdCulling, CullInstance, CullMode, CullPipelines, GpuCharacter, SurvivorHeader, subpixel_bits,
+};
 use skinlet_gpu::crowd_skinning::{CROWD_SKIN_WGSL, CrowdMesh, layout_entries};
 use skinlet_gpu::triangle_culling::{
     Entries, Raster, TRIANGLES_WGSL, TriangleCulling, TriangleHeader, TriangleSkinning,
@@ -70,7 +71,8 @@ use skinlet_runtime::camera::{Camera as CullCamera, Projection};
 use skinlet_runtime::meshlet_cull::Tests;
 use skinlet_runtime::part_bounds::PoseBounds;
 use skinlet_runtime::source_corners::{PartSource, source_corners};
-use std::sync::Arc;
+use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::{Arc, Mutex};
 
 /// Put beside [`crate::SkinletBounds`] on a scene root: skinlet draws the scene's parts by
 /// meshlet (culled on the GPU) instead of Bevy's mesh pipeline.
@@ -106,6 +108,45 @@ impl Default for SkinletMeshletSettings {
     }
 }
 
+/// What the meshlet draw drew, per bake: a main-world resource the render world fills in as
+/// the GPU's counts are read back (a frame or two after they were drawn; nothing waits).
+#[derive(Resource, Clone, Default)]
+pub struct SkinletMeshletStats(Arc<Mutex<HashMap<AssetId<Bake>, MeshletStats>>>);
+
+impl SkinletMeshletStats {
+    /// The latest counts read back for each bake drawn.
+    pub fn latest(&self) -> HashMap<AssetId<Bake>, MeshletStats> {
+        self.0.lock().map(|m| m.clone()).unwrap_or_default()
+    }
+
+    fn set(&self, bake: AssetId<Bake>, stats: MeshletStats) {
+        if let Ok(mut m) = self.0.lock() {
+            m.insert(bake, stats);
+        }
+    }
+}
+
+/// One bake's counts in one frame (every instance of the bake is in one draw).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MeshletStats {
+    /// The render frame counted (the plugin counts frames from 1).
+    pub frame: u64,
+    /// Whether the frame was culled ([`SkinletMeshletSettings::culling`], one camera).
+    pub culled: bool,
+    pub instances: u32,
+    /// Meshlets of every instance.
+    pub meshlets_total: u64,
+    /// Meshlets that passed the meshlet tests (frustum and normal cone).
+    pub meshlets_tested_visible: u64,
+    /// Meshlets with at least one triangle drawn.
+    pub meshlets_drawn: u64,
+    /// Triangles of every instance.
+    pub triangles_total: u64,
+    pub triangles_drawn: u64,
+    /// Triangles kept that the list had no room for (not drawn; 0 unless the list overflowed).
+    pub triangles_dropped: u64,
+}
+
 /// Draws the parts of scene instances marked [`SkinletMeshlets`] by meshlet (see the module
 /// documentation). Needs [`crate::SkinletPlugin`] and Bevy's renderer.
 #[derive(Default)]
@@ -118,16 +159,22 @@ impl Plugin for SkinletMeshletPlugin {
                 [CROWD_SKIN_WGSL.replace("@group(1)", "@group(2)").as_str(), TRIANGLES_WGSL, DRAW_WGSL].concat();
             app.world_mut().resource_mut::<Assets<Shader>>().add(Shader::from_wgsl(source, "skinlet/meshlet_draw.wgsl"))
         };
+        let stats = SkinletMeshletStats::default();
         app.init_resource::<BakeDraws>()
             .init_resource::<SkinletMeshletSettings>()
+            .insert_resource(stats.clone())
             .add_plugins((
                 ExtractComponentPlugin::<SkinletMeshletDraw>::default(),
                 ExtractResourcePlugin::<SkinletMeshletSettings>::default(),
             ))
-            .add_systems(PostUpdate, (take_over_parts, build_bake_draws).chain().after(crate::SkinletSystems::Bind));
+            .add_systems(
+                PostUpdate,
+                (give_back_parts, take_over_parts, build_bake_draws).chain().after(crate::SkinletSystems::Bind),
+            );
         let Some(render_app) = app.get_sub_app_mut(RenderApp) else { return };
         render_app
             .insert_resource(DrawShader(shader))
+            .insert_resource(stats)
             .init_resource::<MeshletFrames>()
             .init_resource::<MeshletGpu>()
             .init_resource::<PendingMeshletQueues>()
@@ -137,6 +184,7 @@ impl Plugin for SkinletMeshletPlugin {
             .add_systems(ExtractSchedule, extract_frames)
             .add_systems(Render, prepare_gpu.in_set(RenderSystems::PrepareResources))
             .add_systems(Render, queue_draws.in_set(RenderSystems::Queue))
+            .add_systems(Render, read_back_stats.in_set(RenderSystems::Cleanup))
             .add_systems(RenderGraph, cull.before(camera_driver));
     }
 }
@@ -191,6 +239,24 @@ fn take_over_parts(
     }
 }
 
+/// Gives the parts of instances no longer marked [`SkinletMeshlets`] back to Bevy's pipeline
+/// (their `MeshMaterial3d<StandardMaterial>` again).
+fn give_back_parts(
+    mut commands: Commands,
+    mut unmarked: RemovedComponents<SkinletMeshlets>,
+    roots: Query<&SkinletInstance, Without<SkinletMeshlets>>,
+    parts: Query<&SkinletDrawnPart>,
+) {
+    for root in unmarked.read() {
+        let Ok(instance) = roots.get(root) else { continue };
+        for &e in instance.part_entities() {
+            if let Ok(part) = parts.get(e) {
+                commands.entity(e).insert(MeshMaterial3d(part.material.clone())).remove::<SkinletDrawnPart>();
+            }
+        }
+    }
+}
+
 /// Marked scene roots not in error.
 type Marked = (With<SkinletMeshlets>, Without<SkinletError>);
 
@@ -220,7 +286,6 @@ fn build_bake_draws(
                     Transform::default(),
                     Visibility::default(),
                     NoFrustumCulling,
-                    Aabb::default(),
                 ));
                 let draw = BakeDraw {
                     words: bake.words().to_vec(),
@@ -448,6 +513,8 @@ impl SpecializedRenderPipeline for MeshletDrawPipeline {
 /// Per bake, its GPU culling and buffers.
 #[derive(Resource, Default)]
 struct MeshletGpu {
+    /// Frames prepared (the frame [`MeshletStats`] name).
+    frame: u64,
     pipelines: Option<CullPipelines>,
     bakes: HashMap<AssetId<Bake>, BakeGpu>,
 }
@@ -471,7 +538,18 @@ struct BakeGpu {
     /// Corner ids (MLET's triangle bytes).
     corners: u32,
     unculled: bool,
+    /// Per instance: meshlets, triangles.
+    meshlets: u32,
+    mesh_triangles: u32,
+    /// The counts' copy (the survivors' header, then list A's header) and where it is:
+    /// [`IDLE`], [`COPIED`] (encoded this frame) or [`MAPPING`].
+    readback: wgpu::Buffer,
+    readback_state: Arc<AtomicU8>,
 }
+
+const IDLE: u8 = 0;
+const COPIED: u8 = 1;
+const MAPPING: u8 = 2;
 
 /// The camera the culling runs for this frame: the first active 3D camera's view.
 fn cull_camera(view: &ExtractedView) -> Option<CullCamera> {
@@ -495,9 +573,11 @@ fn prepare_gpu(
     queue: Res<RenderQueue>,
     cache: Res<PipelineCache>,
     settings: Res<SkinletMeshletSettings>,
+    stats: Res<SkinletMeshletStats>,
     views: Query<(&ExtractedView, &Msaa), With<ExtractedCamera>>,
     mut warned: Local<bool>,
 ) {
+    gpu.frame += 1;
     let Some((view, msaa)) = views.iter().next() else { return };
     // Culled for one camera, the list would be wrong in another: with several, every triangle
     // is drawn.
@@ -543,6 +623,23 @@ fn prepare_gpu(
         let b = gpu.bakes.get_mut(&id).unwrap();
         b.instances = n;
         b.unculled = !settings.culling || several;
+        if b.unculled {
+            let (meshlets, triangles) = (n as u64 * b.meshlets as u64, n as u64 * b.mesh_triangles as u64);
+            stats.set(
+                id,
+                MeshletStats {
+                    frame: gpu.frame,
+                    culled: false,
+                    instances: n,
+                    meshlets_total: meshlets,
+                    meshlets_tested_visible: meshlets,
+                    meshlets_drawn: meshlets,
+                    triangles_total: triangles,
+                    triangles_drawn: triangles,
+                    triangles_dropped: 0,
+                },
+            );
+        }
         queue.write_buffer(&b.params, 0, bytemuck::cast_slice(&[b.id_bits, b.unculled as u32]));
         queue.write_buffer(&b.palette, 0, bytemuck::cast_slice(&frame.palette));
         queue.write_buffer(&b.instance_buffer, 0, bytemuck::cast_slice(&frame.instances));
@@ -647,7 +744,17 @@ fn bake_gpu(
         entries: &entries,
     }));
     let culling_id_bits = culling.id_bits();
+    let readback = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("skinlet meshlet counts"),
+        size: SurvivorHeader::SIZE + TriangleHeader::SIZE,
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+        mapped_at_creation: false,
+    });
     Ok(BakeGpu {
+        meshlets: character.meshlets(),
+        mesh_triangles: view.triangles().len() as u32,
+        readback,
+        readback_state: Arc::new(AtomicU8::new(IDLE)),
         triangles: Buffer::from(culling.triangles().clone()),
         culling,
         capacity,
@@ -681,7 +788,58 @@ fn cull(
         let encoder = ctx.command_encoder();
         if let Err(e) = b.culling.encode(&queue, encoder, &camera, Tests::Both, b.instances, &b.skinning, None) {
             error!("skinlet meshlets: {e}");
+            continue;
         }
+        // The counts, unless the last copy is still being read.
+        if b.readback_state.compare_exchange(IDLE, COPIED, Ordering::AcqRel, Ordering::Relaxed).is_ok() {
+            let survivors = b.culling.crowd().survivors();
+            encoder.copy_buffer_to_buffer(survivors, 0, &b.readback, 0, SurvivorHeader::SIZE);
+            encoder.copy_buffer_to_buffer(
+                b.culling.triangles(),
+                0,
+                &b.readback,
+                SurvivorHeader::SIZE,
+                TriangleHeader::SIZE,
+            );
+        }
+    }
+}
+
+/// After the frame's commands are submitted: maps the counts copied this frame; when the GPU
+/// is done with them, they go to [`SkinletMeshletStats`].
+fn read_back_stats(gpu: Res<MeshletGpu>, stats: Res<SkinletMeshletStats>) {
+    for (&id, b) in &gpu.bakes {
+        if b.readback_state.compare_exchange(COPIED, MAPPING, Ordering::AcqRel, Ordering::Relaxed).is_err() {
+            continue;
+        }
+        let (buffer, state, stats) = (b.readback.clone(), b.readback_state.clone(), stats.clone());
+        let (frame, n, meshlets, triangles) =
+            (gpu.frame, b.instances as u64, b.meshlets as u64, b.mesh_triangles as u64);
+        b.readback.slice(..).map_async(wgpu::MapMode::Read, move |mapped| {
+            if mapped.is_ok() {
+                let (survivors, list): (SurvivorHeader, TriangleHeader) = {
+                    let bytes = buffer.slice(..).get_mapped_range();
+                    let (s, t) = bytes.split_at(SurvivorHeader::SIZE as usize);
+                    (bytemuck::pod_read_unaligned(s), bytemuck::pod_read_unaligned(t))
+                };
+                buffer.unmap();
+                stats.set(
+                    id,
+                    MeshletStats {
+                        frame,
+                        culled: true,
+                        instances: n as u32,
+                        meshlets_total: n * meshlets,
+                        meshlets_tested_visible: survivors.found as u64,
+                        meshlets_drawn: list.meshlets as u64,
+                        triangles_total: n * triangles,
+                        triangles_drawn: list.index_count as u64 / 3,
+                        triangles_dropped: list.found.saturating_sub(list.index_count / 3) as u64,
+                    },
+                );
+            }
+            state.store(IDLE, Ordering::Release);
+        });
     }
 }
 

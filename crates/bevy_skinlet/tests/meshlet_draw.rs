@@ -10,23 +10,14 @@
 mod common;
 
 use bevy::prelude::*;
-use bevy_skinlet::{SkinletDrawnPart, SkinletInstance, SkinletMeshletPlugin, SkinletMeshletSettings, SkinletMeshlets};
+use bevy_skinlet::{
+    SkinletDrawnPart, SkinletInstance, SkinletMeshletPlugin, SkinletMeshletSettings, SkinletMeshletStats,
+    SkinletMeshlets,
+};
 use common::{app, asset_folder, settled_image, update_until};
 
 const WIDTH: u32 = 256;
 const HEIGHT: u32 = 160;
-
-fn write_png(path: &std::path::Path, rgba: &[u8]) {
-    write_png_sized(path, rgba, WIDTH);
-}
-
-fn write_png_sized(path: &std::path::Path, rgba: &[u8], width: u32) {
-    let height = (rgba.len() / 4) as u32 / width;
-    let mut encoder = png::Encoder::new(std::io::BufWriter::new(std::fs::File::create(path).unwrap()), width, height);
-    encoder.set_color(png::ColorType::Rgba);
-    encoder.set_depth(png::BitDepth::Eight);
-    encoder.write_header().unwrap().write_image_data(rgba).unwrap();
-}
 
 #[test]
 fn skinlets_meshlet_draw_looks_like_bevys_own() {
@@ -59,33 +50,42 @@ fn skinlets_meshlet_draw_looks_like_bevys_own() {
         app.world_mut().entity_mut(root).insert(SkinletMeshlets);
     }
     let skinlet = settled_image(&mut app);
+    // The counts read back: every bake drawn in one draw, culled, no list overflow.
+    let stats = app.world().resource::<SkinletMeshletStats>().latest();
+    assert_eq!(stats.len(), characters.len());
+    for s in stats.values() {
+        eprintln!("{s:?}");
+        assert!(s.culled && s.instances == 5 && s.triangles_dropped == 0, "{s:?}");
+        assert!(0 < s.meshlets_drawn && s.meshlets_drawn <= s.meshlets_tested_visible, "{s:?}");
+        assert!(s.meshlets_tested_visible <= s.meshlets_total && s.triangles_drawn < s.triangles_total, "{s:?}");
+    }
+    let tested: u64 = stats.values().map(|s| s.meshlets_tested_visible).sum();
+    assert!(tested < stats.values().map(|s| s.meshlets_total).sum(), "no meshlet culled");
     app.world_mut().resource_mut::<SkinletMeshletSettings>().culling = false;
     let unculled = settled_image(&mut app);
     let taken = {
         let world = app.world_mut();
         world.query::<&SkinletDrawnPart>().iter(world).count()
     };
+    // Unmarked, the instances are Bevy's again: its own frame, exactly.
+    for &(root, _) in &roots {
+        app.world_mut().entity_mut(root).remove::<SkinletMeshlets>();
+    }
+    let given_back = settled_image(&mut app);
+    let left = app.world_mut().query::<&SkinletDrawnPart>().iter(app.world()).count();
+    assert_eq!(left, 0, "parts still taken over after the marker was removed");
+    assert!(given_back == bevy, "Bevy's frame after the instances were given back differs from its first");
     let out = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
-    write_png(&out.join("meshlet_draw_bevy.png"), &bevy);
-    write_png(&out.join("meshlet_draw_skinlet.png"), &skinlet);
-    write_png(&out.join("meshlet_draw_skinlet_unculled.png"), &unculled);
+    common::write_png(&out.join("meshlet_draw_bevy.png"), &bevy, WIDTH);
+    common::write_png(&out.join("meshlet_draw_skinlet.png"), &skinlet, WIDTH);
+    common::write_png(&out.join("meshlet_draw_skinlet_unculled.png"), &unculled, WIDTH);
     let culled_away = skinlet.chunks(4).zip(unculled.chunks(4)).filter(|(a, b)| a != b).count();
-    let diff: Vec<u8> = (bevy.chunks(4).zip(skinlet.chunks(4)))
-        .flat_map(|(a, b)| {
-            let d = (0..3).map(|k| a[k].abs_diff(b[k])).max().unwrap();
-            [d.saturating_mul(8), d.saturating_mul(8), d.saturating_mul(8), 255]
-        })
-        .collect();
-    write_png(&out.join("meshlet_draw_diff.png"), &diff);
+    let per_pixel = common::pixel_differences(&bevy, &skinlet);
+    let diff = common::difference_image(&per_pixel);
+    common::write_png(&out.join("meshlet_draw_diff.png"), &diff, WIDTH);
     // Bevy's frame, skinlet's, and their difference (× 8) side by side.
-    let row = 4 * WIDTH as usize;
-    let side: Vec<u8> = (0..HEIGHT as usize)
-        .flat_map(|y| [&bevy, &skinlet, &diff].map(|img| img[y * row..(y + 1) * row].to_vec()).concat())
-        .collect();
-    write_png_sized(&out.join("meshlet_draw_side_by_side.png"), &side, 3 * WIDTH);
-    let per_pixel: Vec<u8> = (bevy.chunks(4).zip(skinlet.chunks(4)))
-        .map(|(a, b)| (0..3).map(|k| a[k].abs_diff(b[k])).max().unwrap())
-        .collect();
+    let side = common::side_by_side(&[&bevy, &skinlet, &diff], WIDTH);
+    common::write_png(&out.join("meshlet_draw_side_by_side.png"), &side, 3 * WIDTH);
     let drawn = bevy.chunks(4).filter(|p| p[..3] != bevy[..3]).count();
     let differing = per_pixel.iter().filter(|&&d| d > 0).count();
     let large = per_pixel.iter().filter(|&&d| d > 2).count();

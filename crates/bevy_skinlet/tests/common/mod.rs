@@ -214,7 +214,13 @@ pub fn settled_image(app: &mut App) -> Vec<u8> {
             return c.clone();
         }
     }
-    panic!("the image did not settle");
+    let got = frames.0.lock().unwrap();
+    let n = got.len();
+    let equal = n >= 2 && got[n - 1] == got[n - 2];
+    let drawn = got.last().is_some_and(|c| c.chunks(4).any(|p| p != &c[..4]));
+    panic!(
+        "the image did not settle: {n} images read back, the last two equal: {equal}, the last drawn: {drawn}, pipelines ready for {ready_updates} updates"
+    );
 }
 
 /// Plays on the animation player under `root` the clips `pick` chooses (node and weight, each
@@ -246,6 +252,119 @@ pub fn play_clips(
         p.play(node).repeat().set_weight(weight);
     }
     world.entity_mut(player).insert(AnimationGraphHandle(graph));
+}
+
+/// One animation graph per character holding every clip of its file (made before the scenes
+/// are spawned: the graphs keep the clips loaded; a clip asked for after its handles were
+/// dropped reloads the whole file, and its scenes are spawned again).
+pub fn clip_graphs(
+    world: &mut World,
+    characters: &[Character],
+) -> Vec<(Handle<bevy::animation::graph::AnimationGraph>, Vec<bevy::animation::graph::AnimationNodeIndex>)> {
+    use bevy::animation::graph::AnimationGraph;
+    let assets = world.resource::<AssetServer>().clone();
+    (characters.iter())
+        .map(|c| {
+            let clips =
+                (0..c.asset.clips.len()).map(|k| assets.load(GltfAssetLabel::Animation(k).from_asset(c.file.clone())));
+            let (graph, nodes) = AnimationGraph::from_clips(clips);
+            (world.resource_mut::<Assets<AnimationGraph>>().add(graph), nodes)
+        })
+        .collect()
+}
+
+/// Scene instances playing their file's clips: instance `i` starts clip `i` (mod the clips)
+/// at its own phase and crossfades (0.6 s) to the next clip every 1.5–3.9 s.
+pub struct Crossfades {
+    /// Per instance: its animation player, its clips, seconds between changes, the next change.
+    players: Vec<(Entity, Vec<bevy::animation::graph::AnimationNodeIndex>, f32, f32)>,
+    time: f32,
+}
+
+impl Crossfades {
+    /// Starts the clips of `graphs[c]` (from [`clip_graphs`]) under each bound root `(root, c)`.
+    pub fn start(
+        world: &mut World,
+        roots: &[(Entity, usize)],
+        graphs: &[(Handle<bevy::animation::graph::AnimationGraph>, Vec<bevy::animation::graph::AnimationNodeIndex>)],
+    ) -> Crossfades {
+        use bevy::animation::graph::AnimationGraphHandle;
+        use bevy::animation::transition::AnimationTransitions;
+        let mut players = world.query_filtered::<Entity, With<AnimationPlayer>>();
+        let mut out = Vec::with_capacity(roots.len());
+        for (i, &(root, c)) in roots.iter().enumerate() {
+            let (graph, clips) = graphs[c].clone();
+            if clips.is_empty() {
+                continue;
+            }
+            let descendants: Vec<Entity> = world.query::<&Children>().query(world).iter_descendants(root).collect();
+            let player = descendants.into_iter().find(|&d| players.get(world, d).is_ok()).expect("an animation player");
+            let mut transitions = AnimationTransitions::new();
+            let mut p = world.get_mut::<AnimationPlayer>(player).unwrap();
+            let first = clips[i % clips.len()];
+            transitions.play(&mut p, first, std::time::Duration::ZERO).repeat().seek_to(0.37 * i as f32 % 1.0);
+            world.entity_mut(player).insert((AnimationGraphHandle(graph), transitions));
+            let period = 1.5 + (i % 7) as f32 * 0.4;
+            out.push((player, clips, period, period));
+        }
+        Crossfades { players: out, time: 0.0 }
+    }
+
+    /// Moves on by `seconds`: the instances whose period is up start crossfading.
+    pub fn advance(&mut self, world: &mut World, seconds: f32) {
+        use bevy::animation::transition::AnimationTransitions;
+        self.time += seconds;
+        for (player, clips, period, next) in &mut self.players {
+            if self.time < *next || clips.len() < 2 {
+                continue;
+            }
+            *next += *period;
+            let mut entity = world.entity_mut(*player);
+            let mut transitions = entity.take::<AnimationTransitions>().unwrap();
+            let mut p = entity.get_mut::<AnimationPlayer>().unwrap();
+            let current = transitions.get_main_animation().unwrap();
+            let k = clips.iter().position(|&n| n == current).unwrap();
+            let to = clips[(k + 1) % clips.len()];
+            transitions.play(&mut p, to, std::time::Duration::from_millis(600)).repeat();
+            entity.insert(transitions);
+        }
+    }
+}
+
+/// Writes an RGBA8 image `width` pixels wide as a PNG.
+pub fn write_png(path: &Path, rgba: &[u8], width: u32) {
+    let height = (rgba.len() / 4) as u32 / width;
+    let mut encoder = png::Encoder::new(std::io::BufWriter::new(std::fs::File::create(path).unwrap()), width, height);
+    encoder.set_color(png::ColorType::Rgba);
+    encoder.set_depth(png::BitDepth::Eight);
+    encoder.write_header().unwrap().write_image_data(rgba).unwrap();
+}
+
+/// Per pixel of two RGBA8 images of one size, the largest difference of a color channel.
+pub fn pixel_differences(a: &[u8], b: &[u8]) -> Vec<u8> {
+    (a.chunks(4).zip(b.chunks(4))).map(|(a, b)| (0..3).map(|k| a[k].abs_diff(b[k])).max().unwrap()).collect()
+}
+
+/// Pixel differences as a gray RGBA8 image, × 8.
+pub fn difference_image(differences: &[u8]) -> Vec<u8> {
+    differences.iter().flat_map(|&d| [d.saturating_mul(8), d.saturating_mul(8), d.saturating_mul(8), 255]).collect()
+}
+
+/// RGBA8 images `width` pixels wide, side by side in one image.
+pub fn side_by_side(images: &[&[u8]], width: u32) -> Vec<u8> {
+    let row = 4 * width as usize;
+    let height = images.first().map_or(0, |i| i.len() / row);
+    (0..height).flat_map(|y| images.iter().flat_map(move |img| img[y * row..(y + 1) * row].iter().copied())).collect()
+}
+
+/// Pixels of an RGBA8 image that are not its most common color (the clear color, where the
+/// scene leaves most of the frame empty).
+pub fn drawn_pixels(rgba: &[u8]) -> usize {
+    let mut counts = std::collections::HashMap::<&[u8], usize>::new();
+    for p in rgba.chunks(4) {
+        *counts.entry(p).or_default() += 1;
+    }
+    rgba.len() / 4 - counts.values().max().copied().unwrap_or(0)
 }
 
 /// Updates `app` until `done` holds (at most `limit` updates; panics past it with `what`).
