@@ -50,13 +50,13 @@ use bevy::render::render_phase::{
 use bevy::render::render_resource::{
     AsBindGroupShaderType, BindGroup, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer, ColorTargetState,
     ColorWrites, CompareFunction, DepthStencilState, Face, FragmentState, IndexFormat, MultisampleState, PipelineCache,
-    PrimitiveState, RenderPipelineDescriptor, ShaderStages, ShaderType, SpecializedMeshPipeline,
-    SpecializedRenderPipeline, SpecializedRenderPipelines, VertexState,
-    binding_types::{storage_buffer_read_only_sized, uniform_buffer_sized},
+    PrimitiveState, RenderPipelineDescriptor, SamplerBindingType, ShaderStages, ShaderType, SpecializedMeshPipeline,
+    SpecializedRenderPipeline, SpecializedRenderPipelines, TextureSampleType, VertexState,
+    binding_types::{sampler, storage_buffer_read_only_sized, texture_2d, uniform_buffer_sized},
     encase,
 };
 use bevy::render::renderer::{RenderAdapter, RenderContext, RenderDevice, RenderGraph, RenderQueue};
-use bevy::render::texture::GpuImage;
+use bevy::render::texture::{FallbackImage, GpuImage};
 use bevy::render::view::{ExtractedView, RenderVisibleEntities};
 use bevy::render::{Extract, ExtractSchedule, Render, RenderApp, RenderStartup, RenderSystems};
 use bevy::shader::ShaderDefVal;
@@ -203,8 +203,10 @@ struct BakeDraw {
     mesh: CrowdMesh,
     /// Per corner id: bake vertex, attribute vertex, part, 0.
     corners: Vec<[u32; 4]>,
-    /// Per attribute vertex (the parts' source vertices one part after another): its normal.
+    /// Per attribute vertex (the parts' source vertices one part after another): its normal
+    /// and its texture coordinates (zero where the part has none).
     normals: Vec<[f32; 4]>,
+    uvs: Vec<[f32; 2]>,
     /// Per driver, its inverse bind matrix.
     inverse_bind: Vec<Mat4>,
     /// Whether the bake has any-pose boxes (its envelope section).
@@ -280,24 +282,13 @@ fn build_bake_draws(
             instance.part_entities().iter().map(|&e| parts.get(e).ok().and_then(|m| meshes.get(&m.0))).collect();
         let Some(loaded) = loaded else { continue };
         match bake_draw(bake, &loaded) {
-            Ok((mesh, corners, normals)) => {
+            Ok(draw) => {
                 commands.spawn((
                     SkinletMeshletDraw { bake: id },
                     Transform::default(),
                     Visibility::default(),
                     NoFrustumCulling,
                 ));
-                let draw = BakeDraw {
-                    words: bake.words().to_vec(),
-                    len: bake.bytes().len(),
-                    mesh,
-                    corners,
-                    normals,
-                    inverse_bind: bake
-                        .view()
-                        .map_or(Vec::new(), |v| v.inverse_bind().iter().map(Mat4::from_cols_array).collect()),
-                    has_boxes: bake.has_envelope(),
-                };
                 draws.0.insert(id, Arc::new(draw));
             }
             Err(message) => {
@@ -308,14 +299,13 @@ fn build_bake_draws(
     }
 }
 
-type Drawn = (CrowdMesh, Vec<[u32; 4]>, Vec<[f32; 4]>);
-
-/// The crowd skinning's mesh, the corner table and the normals of a bake drawn with `meshes`
-/// (one per part, Bevy's meshes of the parts' glTF primitives).
-fn bake_draw(bake: &Bake, meshes: &[&Mesh]) -> Result<Drawn, String> {
+/// A bake's draw data with `meshes` (one per part, Bevy's meshes of the parts' glTF
+/// primitives).
+fn bake_draw(bake: &Bake, meshes: &[&Mesh]) -> Result<BakeDraw, String> {
     let view = bake.view().map_err(|e| e.to_string())?;
     let mut sources = Vec::with_capacity(meshes.len());
     let mut normals = Vec::new();
+    let mut uvs = Vec::new();
     let mut offsets = Vec::with_capacity(meshes.len());
     let mut indices = Vec::with_capacity(meshes.len());
     let mut positions = Vec::with_capacity(meshes.len());
@@ -331,6 +321,11 @@ fn bake_draw(bake: &Bake, meshes: &[&Mesh]) -> Result<Drawn, String> {
         };
         offsets.push(normals.len() as u32);
         normals.extend(nor.iter().map(|n| [n[0], n[1], n[2], 0.0]));
+        match mesh.attribute(Mesh::ATTRIBUTE_UV_0) {
+            Some(VertexAttributeValues::Float32x2(uv)) if uv.len() == nor.len() => uvs.extend_from_slice(uv),
+            Some(_) => return Err(format!("part {p}: texture coordinates not f32 pairs, one per vertex")),
+            None => uvs.resize(normals.len(), [0.0; 2]),
+        }
         indices.push(match mesh.indices() {
             Some(Indices::U16(i)) => Some(i.iter().map(|&x| x as u32).collect::<Vec<u32>>()),
             Some(Indices::U32(i)) => Some(i.clone()),
@@ -346,7 +341,16 @@ fn bake_draw(bake: &Bake, meshes: &[&Mesh]) -> Result<Drawn, String> {
         .map(|c| if c.part == u32::MAX { [0; 4] } else { [c.vertex, offsets[c.part as usize] + c.source, c.part, 0] })
         .collect();
     let mesh = CrowdMesh::pack(&view.mesh_data(), view.joint_count() as u32).map_err(|e| e.to_string())?;
-    Ok((mesh, corners, normals))
+    Ok(BakeDraw {
+        words: bake.words().to_vec(),
+        len: bake.bytes().len(),
+        mesh,
+        corners,
+        normals,
+        uvs,
+        inverse_bind: view.inverse_bind().iter().map(Mat4::from_cols_array).collect(),
+        has_boxes: bake.has_envelope(),
+    })
 }
 
 /// This frame's instances of each bake, as the render world uploads them.
@@ -359,6 +363,8 @@ struct BakeFrame {
     instances: Vec<CullInstance>,
     weights: Vec<f32>,
     materials: Vec<StandardMaterialUniform>,
+    /// Per part: its base colour, metallic-roughness, emissive and occlusion textures.
+    textures: Vec<[Option<AssetId<Image>>; 4]>,
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -385,14 +391,20 @@ fn extract_frames(
             instances: Vec::new(),
             weights: Vec::new(),
             materials: Vec::new(),
+            textures: Vec::new(),
         });
         if frame.instances.is_empty() {
             frame.draw = draw.clone();
             frame.materials.clear();
-            frame.materials.extend(instance.part_entities().iter().map(|&e| {
+            frame.textures.clear();
+            for &e in instance.part_entities() {
                 let m = parts.get(e).ok().and_then(|p| materials.get(&p.material));
-                m.map(|m| m.as_bind_group_shader_type(&images)).unwrap_or_default()
-            }));
+                frame.materials.push(m.map(|m| m.as_bind_group_shader_type(&images)).unwrap_or_default());
+                frame.textures.push(m.map_or([None; 4], |m| {
+                    [&m.base_color_texture, &m.metallic_roughness_texture, &m.emissive_texture, &m.occlusion_texture]
+                        .map(|t| t.as_ref().map(|h| h.id()))
+                }));
+            }
         }
         for (&e, inverse_bind) in instance.drivers().iter().zip(&draw.inverse_bind) {
             let global = globals.get(e).map_or(Mat4::NAN, |g| g.to_matrix());
@@ -419,8 +431,13 @@ struct DrawShader(Handle<Shader>);
 struct MeshletDrawPipeline {
     mesh_pipeline: MeshPipeline,
     group2: BindGroupLayoutDescriptor,
+    /// The parts' textures, where the device can index binding arrays per fragment.
+    group3: Option<BindGroupLayoutDescriptor>,
     shader: Handle<Shader>,
 }
+
+/// Texture slots per bake (slot 0 is Bevy's white fallback image).
+const TEXTURE_SLOTS: u32 = 16;
 
 fn draw_layout() -> BindGroupLayoutDescriptor {
     let storage = || storage_buffer_read_only_sized(false, None);
@@ -437,15 +454,50 @@ fn draw_layout() -> BindGroupLayoutDescriptor {
                 storage(),
                 storage(),
                 uniform_buffer_sized(false, None),
+                storage(),
             ),
         ),
     )
 }
 
-fn init_pipeline(mut commands: Commands, mesh_pipeline: Res<MeshPipeline>, shader: Res<DrawShader>) {
+/// Group 3: the bake's textures and samplers, and per part its textures' slots.
+fn texture_layout() -> BindGroupLayoutDescriptor {
+    let slots = std::num::NonZeroU32::new(TEXTURE_SLOTS).unwrap();
+    BindGroupLayoutDescriptor::new(
+        "skinlet meshlet textures",
+        &BindGroupLayoutEntries::sequential(
+            ShaderStages::FRAGMENT,
+            (
+                texture_2d(TextureSampleType::Float { filterable: true }).count(slots),
+                sampler(SamplerBindingType::Filtering).count(slots),
+                storage_buffer_read_only_sized(false, None),
+            ),
+        ),
+    )
+}
+
+/// Whether `device` can index binding arrays of textures per fragment, with room for the
+/// draw's slots beside what Bevy's own view bindings use.
+fn textures_usable(device: &RenderDevice) -> bool {
+    let limits = device.limits();
+    let room = 4 * TEXTURE_SLOTS;
+    device.features().contains(
+        wgpu::Features::TEXTURE_BINDING_ARRAY
+            | wgpu::Features::SAMPLED_TEXTURE_AND_STORAGE_BUFFER_ARRAY_NON_UNIFORM_INDEXING,
+    ) && limits.max_binding_array_elements_per_shader_stage >= room
+        && limits.max_binding_array_sampler_elements_per_shader_stage >= room
+}
+
+fn init_pipeline(
+    mut commands: Commands,
+    mesh_pipeline: Res<MeshPipeline>,
+    shader: Res<DrawShader>,
+    device: Res<RenderDevice>,
+) {
     commands.insert_resource(MeshletDrawPipeline {
         mesh_pipeline: mesh_pipeline.clone(),
         group2: draw_layout(),
+        group3: textures_usable(&device).then(texture_layout),
         shader: shader.0.clone(),
     });
 }
@@ -464,10 +516,15 @@ impl SpecializedRenderPipeline for MeshletDrawPipeline {
         let vertex_layout = layout_mesh.get_mesh_vertex_buffer_layout(&mut layouts);
         let (layout, shader_defs): (Vec<BindGroupLayoutDescriptor>, Vec<ShaderDefVal>) =
             match <MeshPipeline as SpecializedMeshPipeline>::specialize(&self.mesh_pipeline, key, &vertex_layout) {
-                Ok(bevy) => (
-                    vec![bevy.layout[0].clone(), bevy.layout[1].clone(), self.group2.clone()],
-                    bevy.fragment.map(|f| f.shader_defs).unwrap_or_default(),
-                ),
+                Ok(bevy) => {
+                    let mut layout = vec![bevy.layout[0].clone(), bevy.layout[1].clone(), self.group2.clone()];
+                    let mut defs = bevy.fragment.map(|f| f.shader_defs).unwrap_or_default();
+                    if let Some(group3) = &self.group3 {
+                        layout.push(group3.clone());
+                        defs.push("SKINLET_TEXTURES".into());
+                    }
+                    (layout, defs)
+                }
                 Err(e) => {
                     error!("skinlet meshlets: Bevy's mesh pipeline does not specialize for this view: {e}");
                     (Vec::new(), Vec::new())
@@ -545,6 +602,12 @@ struct BakeGpu {
     /// [`IDLE`], [`COPIED`] (encoded this frame) or [`MAPPING`].
     readback: wgpu::Buffer,
     readback_state: Arc<AtomicU8>,
+    /// Per part its texture slots (group 3), the parts' textures the group was made for, and
+    /// whether an image was still loading then (in a slot of Bevy's white fallback image).
+    texture_slots: wgpu::Buffer,
+    texture_group: Option<BindGroup>,
+    texture_parts: Vec<[Option<AssetId<Image>>; 4]>,
+    textures_pending: bool,
 }
 
 const IDLE: u8 = 0;
@@ -575,16 +638,17 @@ fn prepare_gpu(
     settings: Res<SkinletMeshletSettings>,
     stats: Res<SkinletMeshletStats>,
     views: Query<(&ExtractedView, &Msaa), With<ExtractedCamera>>,
-    mut warned: Local<bool>,
+    textures: (Option<Res<MeshletDrawPipeline>>, Res<RenderAssets<GpuImage>>, Res<FallbackImage>),
+    mut warned: Local<[bool; 2]>,
 ) {
     gpu.frame += 1;
     let Some((view, msaa)) = views.iter().next() else { return };
     // Culled for one camera, the list would be wrong in another: with several, every triangle
     // is drawn.
     let several = views.iter().count() > 1;
-    if several && !*warned {
+    if several && !warned[0] {
         warn!("skinlet meshlets: several cameras: culling is for one camera, drawing unculled");
-        *warned = true;
+        warned[0] = true;
     }
     let raster = Raster {
         width: view.viewport.z.max(1),
@@ -650,7 +714,72 @@ fn prepare_gpu(
         if bytes.write(&frame.materials).is_ok() {
             queue.write_buffer(&b.materials, 0, bytes.as_ref());
         }
+        let (pipeline, images, fallback) = (&textures.0, &textures.1, &textures.2);
+        match pipeline.as_ref().and_then(|p| p.group3.as_ref()) {
+            Some(layout) if b.texture_group.is_none() || b.textures_pending || b.texture_parts != frame.textures => {
+                let layout = cache.get_bind_group_layout(layout);
+                texture_group(wgpu_device, &queue, &layout, b, &frame.textures, images, fallback);
+            }
+            None if !warned[1] && frame.textures.iter().flatten().any(Option::is_some) => {
+                warn!("skinlet meshlets: this device cannot index texture arrays per fragment: textures are not drawn");
+                warned[1] = true;
+            }
+            _ => {}
+        }
     }
+}
+
+/// Makes a bake's group 3: each distinct texture of its parts in a slot (slot 0, and the slot
+/// of an image still loading, is Bevy's white fallback image: multiplying by it changes
+/// nothing), and per part its base colour, metallic-roughness, emissive and occlusion slots.
+fn texture_group(
+    device: &wgpu::Device,
+    queue: &RenderQueue,
+    layout: &wgpu::BindGroupLayout,
+    b: &mut BakeGpu,
+    parts: &[[Option<AssetId<Image>>; 4]],
+    images: &RenderAssets<GpuImage>,
+    fallback: &FallbackImage,
+) {
+    let mut distinct: Vec<AssetId<Image>> = Vec::new();
+    let mut over = false;
+    let slots: Vec<[u32; 4]> = (parts.iter())
+        .map(|textures| {
+            textures.map(|t| {
+                let Some(id) = t else { return 0 };
+                match distinct.iter().position(|&d| d == id) {
+                    Some(k) => k as u32 + 1,
+                    None if distinct.len() + 1 < TEXTURE_SLOTS as usize => {
+                        distinct.push(id);
+                        distinct.len() as u32
+                    }
+                    None => {
+                        over = true;
+                        0
+                    }
+                }
+            })
+        })
+        .collect();
+    if over {
+        warn!("skinlet meshlets: a bake's parts use more than {} textures: the rest are not drawn", TEXTURE_SLOTS - 1);
+    }
+    let uploaded: Vec<Option<&GpuImage>> = distinct.iter().map(|&id| images.get(id)).collect();
+    let image = |k: usize| k.checked_sub(1).and_then(|k| uploaded.get(k).copied().flatten()).unwrap_or(&fallback.d2);
+    let views: Vec<&wgpu::TextureView> = (0..TEXTURE_SLOTS as usize).map(|k| &*image(k).texture_view).collect();
+    let samplers: Vec<&wgpu::Sampler> = (0..TEXTURE_SLOTS as usize).map(|k| &*image(k).sampler).collect();
+    queue.write_buffer(&b.texture_slots, 0, bytemuck::cast_slice(&slots));
+    b.texture_group = Some(BindGroup::from(device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("skinlet meshlet textures"),
+        layout,
+        entries: &[
+            wgpu::BindGroupEntry { binding: 0, resource: wgpu::BindingResource::TextureViewArray(&views) },
+            wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::SamplerArray(&samplers) },
+            wgpu::BindGroupEntry { binding: 2, resource: b.texture_slots.as_entire_binding() },
+        ],
+    })));
+    b.texture_parts = parts.to_vec();
+    b.textures_pending = uploaded.iter().any(Option::is_none);
 }
 
 /// A bake's culling and buffers for `capacity` instances drawn as `raster` says.
@@ -679,6 +808,8 @@ fn bake_gpu(
     let words = init("skinlet mesh", bytemuck::cast_slice(&draw.mesh.words), wgpu::BufferUsages::STORAGE);
     let corners = init("skinlet corners", bytemuck::cast_slice(&draw.corners), wgpu::BufferUsages::STORAGE);
     let normals = init("skinlet normals", bytemuck::cast_slice(&draw.normals), wgpu::BufferUsages::STORAGE);
+    let uvs = init("skinlet uvs", bytemuck::cast_slice(&draw.uvs), wgpu::BufferUsages::STORAGE);
+    let texture_slots = zeros("skinlet texture slots", 16 * frame.materials.len().max(1) as u64, storage);
     let material_size = StandardMaterialUniform::min_size().get();
     let materials = zeros("skinlet materials", material_size * frame.materials.len().max(1) as u64, storage);
     let bytes = &bytemuck::cast_slice::<u32, u8>(&draw.words)[..draw.len];
@@ -733,7 +864,7 @@ fn bake_gpu(
     );
     let draw_layout = cache.get_bind_group_layout(&draw_layout());
     let entries: Vec<wgpu::BindGroupEntry> =
-        [&skin_uniform, &palette, &words, &weights, &corners, &normals, &materials, &params]
+        [&skin_uniform, &palette, &words, &weights, &corners, &normals, &materials, &params, &uvs]
             .iter()
             .enumerate()
             .map(|(b, buffer)| bind(b as u32, buffer))
@@ -755,6 +886,10 @@ fn bake_gpu(
         mesh_triangles: view.triangles().len() as u32,
         readback,
         readback_state: Arc::new(AtomicU8::new(IDLE)),
+        texture_slots,
+        texture_group: None,
+        texture_parts: Vec::new(),
+        textures_pending: false,
         triangles: Buffer::from(culling.triangles().clone()),
         culling,
         capacity,
@@ -913,6 +1048,9 @@ impl<P: PhaseItem> RenderCommand<P> for DrawMeshlets {
             return RenderCommandResult::Skip;
         }
         pass.set_bind_group(2, &b.draw_group, &[]);
+        if let Some(textures) = &b.texture_group {
+            pass.set_bind_group(3, textures, &[]);
+        }
         if b.unculled {
             // Every corner of every instance: the vertex and instance indices name them.
             pass.draw(0..b.corners, 0..b.instances);

@@ -2,7 +2,9 @@
 // culling wrote names (instance, corner); the corner's bake vertex is skinned by the crowd
 // skinning the culling tested with (crowd_skin.wgsl, here in group 2), its normal comes from
 // the source primitive's vertex (welding merged hard edges away in the bake's vertices) and is
-// skinned as Bevy skins normals; the fragment shades like Bevy's StandardMaterial.
+// skinned as Bevy skins normals; the fragment shades like Bevy's StandardMaterial (its factors,
+// and its base colour, metallic-roughness, emissive and occlusion textures where the device
+// can index texture arrays per fragment: SKINLET_TEXTURES).
 
 #import bevy_pbr::{
     mesh_view_bindings::view,
@@ -28,12 +30,28 @@ struct DrawParams {
 // Per part: its material as Bevy uploads a StandardMaterial.
 @group(2) @binding(6) var<storage, read> materials: array<StandardMaterial>;
 @group(2) @binding(7) var<uniform> draw: DrawParams;
+// Per source attribute vertex: its first texture coordinates.
+@group(2) @binding(8) var<storage, read> uvs: array<vec2<f32>>;
+
+#ifdef SKINLET_TEXTURES
+// The bake's distinct textures (slot 0: white) and, per part, the slots of its base colour,
+// metallic-roughness, emissive and occlusion textures (0 where it has none: multiplying by
+// white changes nothing, so every texture is sampled unconditionally).
+@group(3) @binding(0) var textures: binding_array<texture_2d<f32>, 16>;
+@group(3) @binding(1) var samplers: binding_array<sampler, 16>;
+@group(3) @binding(2) var<storage, read> texture_slots: array<vec4<u32>>;
+
+fn sample_slot(slot: u32, uv: vec2<f32>) -> vec4<f32> {
+    return textureSampleBias(textures[slot], samplers[slot], uv, view.mip_bias);
+}
+#endif
 
 struct VertexOut {
     @builtin(position) position: vec4<f32>,
     @location(0) world_position: vec4<f32>,
     @location(1) world_normal: vec3<f32>,
     @location(2) @interpolate(flat) part: u32,
+    @location(3) uv: vec2<f32>,
 }
 
 // The inverse transpose of m's 3 × 3 part, as Bevy's `inverse_transpose_3x3` skins normals.
@@ -58,6 +76,7 @@ fn vertex(@builtin(vertex_index) index: u32, @builtin(instance_index) instance: 
     out.position = position_world_to_clip(out.world_position.xyz);
     out.world_normal = normalize(inverse_transpose_3x3(skin) * normals[corner.y].xyz);
     out.part = corner.z;
+    out.uv = uvs[corner.y];
     return out;
 }
 
@@ -74,6 +93,17 @@ fn fragment(in: VertexOut, @builtin(front_facing) is_front: bool) -> @location(0
     p.world_normal = pbr_functions::prepare_world_normal(in.world_normal, double_sided, is_front);
     p.N = normalize(p.world_normal);
     p.clearcoat_N = p.N;
+#ifdef SKINLET_TEXTURES
+    // As Bevy's pbr_input_from_standard_material applies them.
+    let uv = (p.material.uv_transform * vec3(in.uv, 1.0)).xy;
+    let slots = texture_slots[in.part];
+    p.material.base_color *= sample_slot(slots.x, uv);
+    let metallic_roughness = sample_slot(slots.y, uv);
+    p.material.metallic *= metallic_roughness.b;
+    p.material.perceptual_roughness *= metallic_roughness.g;
+    p.material.emissive = vec4(p.material.emissive.rgb * sample_slot(slots.z, uv).rgb, p.material.emissive.a);
+    p.diffuse_occlusion = vec3(sample_slot(slots.w, uv).r);
+#endif
     p.material.base_color = pbr_functions::alpha_discard(p.material, p.material.base_color);
     var color = p.material.base_color;
     if (p.material.flags & STANDARD_MATERIAL_FLAGS_UNLIT_BIT) == 0u {

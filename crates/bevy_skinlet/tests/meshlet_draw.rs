@@ -24,14 +24,14 @@ fn skinlets_meshlet_draw_looks_like_bevys_own() {
     if !common::vulkan_available() {
         return;
     }
-    let files = ["skinned/Xbot.glb", "skinned/BrainStem.glb", "@demo"];
+    let files = ["skinned/Fox.glb", "skinned/Xbot.glb", "skinned/BrainStem.glb", "@demo"];
     let Some((dir, characters)) = asset_folder("meshlet_draw", &files) else { return };
     let mut app = app(&dir, true);
     app.add_plugins(SkinletMeshletPlugin);
     common::watch_pipelines(&mut app);
-    // Three rows, one character each; the camera sees part of each row, the others are
-    // beside or behind it (culled).
-    let roots = common::spawn_rows(app.world_mut(), &characters, &[0.0, -2.2, -4.4], 5);
+    // Four rows, one character each (the Fox is textured); the camera sees part of each row,
+    // the others are beside or behind it (culled).
+    let roots = common::spawn_rows(app.world_mut(), &characters, &[1.2, 0.0, -2.2, -4.4], 5);
     let at = Transform::from_xyz(0.0, 1.2, 4.0).looking_at(Vec3::new(0.0, 0.8, -1.0), Vec3::Y);
     common::readback_camera(app.world_mut(), WIDTH, HEIGHT, at);
     update_until(&mut app, 3000, "every instance bound", |w| {
