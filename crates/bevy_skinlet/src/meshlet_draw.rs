@@ -1,27 +1,30 @@
-//! Skinned characters drawn by meshlet in Bevy's own opaque pass, culled on the GPU by skinlet.
+//! Skinned characters drawn by meshlet in Bevy's own passes, culled on the GPU by skinlet.
 //!
 //! Put [`SkinletMeshlets`] beside [`crate::SkinletBounds`] on a scene root and add
 //! [`SkinletMeshletPlugin`]: once the instance is bound to its bake, Bevy stops drawing its
-//! parts (their `MeshMaterial3d<StandardMaterial>` moves into [`SkinletDrawnPart`]) and skinlet
-//! draws them instead, every instance of a bake in one indexed indirect draw:
+//! parts (they are hidden, their visibility kept in [`SkinletDrawnPart`]) and skinlet draws
+//! them instead, every instance of a bake in one indexed indirect draw:
 //! - per frame, each instance's palette comes from the drivers' `GlobalTransform`s (the joints
 //!   Bevy animated) times the bake's inverse bind matrices, its morph weights and its pose
 //!   guard's answer from the bounds plugin ([`crate::SkinletInstance::pose`]);
 //! - before the cameras render (a system in Bevy's `RenderGraph` schedule), skinlet's crowd
 //!   culling and triangle pass (`skinlet_gpu::crowd_culling`, `triangle_culling`) run for the
 //!   first camera on Bevy's own device and encoder, writing one compacted list of triangle
-//!   corners;
+//!   corners; the counts are read back into [`SkinletMeshletStats`];
 //! - a phase item in `Opaque3d` draws that list with Bevy's view bindings (groups 0 and 1),
 //!   skinning each corner's bake vertex with the function the culling tested (so the culling
-//!   is conservative for this draw) and its source vertex's normal (the bake's `SRCT`
-//!   section, `skinlet_runtime::source_corners`), shaded by Bevy's PBR functions with the
-//!   part's `StandardMaterial` as Bevy uploads it.
+//!   is conservative for this draw) and its source vertex's normal and texture coordinates
+//!   (the bake's `SRCT` section, `skinlet_runtime::source_corners`), shaded by Bevy's PBR
+//!   functions with the part's `StandardMaterial` as Bevy uploads it and its textures
+//!   (group 3, where the device indexes texture arrays per fragment);
+//! - a phase item in each shadow view (`Shadow`) draws every triangle of every instance, depth
+//!   only, with Bevy's prepass view bindings.
 //!
-//! Not yet: base colour, metallic-roughness and normal textures (the factors are used),
-//! morph targets' normal deltas (positions morph), the depth prepass and shadow views (the
-//! characters receive shadows, cast none), occlusion culling, culling for more than one
-//! camera (with several, every triangle is drawn), materials other than `StandardMaterial`
-//! (such a part stays Bevy's too, with a warning).
+//! Not yet: normal maps, morph targets' normal deltas (positions morph), the depth prepass,
+//! culling in shadow views, occlusion culling, culling for more than one camera (with
+//! several, every triangle is drawn), materials other than `StandardMaterial` (such a part
+//! stays Bevy's too, with a warning), a part's own visibility (every part of a marked
+//! instance is drawn).
 
 use crate::SkinletBounds;
 use crate::bake_asset::Bake;
@@ -33,8 +36,9 @@ use bevy::ecs::query::ROQueryItem;
 use bevy::ecs::system::{SystemParamItem, lifetimeless::SRes};
 use bevy::mesh::{Indices, MeshVertexBufferLayouts, PrimitiveTopology, VertexAttributeValues};
 use bevy::pbr::{
-    MeshPipeline, MeshPipelineKey, MeshPipelineSystems, SetMeshViewBindGroup, SetMeshViewBindingArrayBindGroup,
-    StandardMaterialUniform, ViewKeyCache,
+    LightEntity, MeshPipeline, MeshPipelineKey, MeshPipelineSystems, PrepassPipeline, SetMeshViewBindGroup,
+    SetMeshViewBindingArrayBindGroup, SetPrepassViewBindGroup, SetPrepassViewEmptyBindGroup, Shadow, ShadowBatchSetKey,
+    ShadowBinKey, StandardMaterialUniform, ViewKeyCache,
 };
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
@@ -48,15 +52,18 @@ use bevy::render::render_phase::{
     RenderCommandResult, SetItemPipeline, TrackedRenderPass, ViewBinnedRenderPhases,
 };
 use bevy::render::render_resource::{
-    AsBindGroupShaderType, BindGroup, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer, ColorTargetState,
-    ColorWrites, CompareFunction, DepthStencilState, Face, FragmentState, IndexFormat, MultisampleState, PipelineCache,
-    PrimitiveState, RenderPipelineDescriptor, SamplerBindingType, ShaderStages, ShaderType, SpecializedMeshPipeline,
-    SpecializedRenderPipeline, SpecializedRenderPipelines, TextureSampleType, VertexState,
+    AsBindGroupShaderType, BindGroup, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer,
+    CachedRenderPipelineId, ColorTargetState, ColorWrites, CompareFunction, DepthStencilState, Face, FragmentState,
+    IndexFormat, MultisampleState, PipelineCache, PrimitiveState, RenderPipelineDescriptor, SamplerBindingType,
+    ShaderStages, ShaderType, SpecializedMeshPipeline, SpecializedRenderPipeline, SpecializedRenderPipelines,
+    TextureSampleType, VertexState,
     binding_types::{sampler, storage_buffer_read_only_sized, texture_2d, uniform_buffer_sized},
     encase,
 };
 use bevy::render::renderer::{RenderAdapter, RenderContext, RenderDevice, RenderGraph, RenderQueue};
+use bevy::render::sync_world::MainEntity;
 use bevy::render::texture::{FallbackImage, GpuImage};
+use bevy::render::view::RetainedViewEntity;
 use bevy::render::view::{ExtractedView, RenderVisibleEntities};
 use bevy::render::{Extract, ExtractSchedule, Render, RenderApp, RenderStartup, RenderSystems};
 use bevy::shader::ShaderDefVal;
@@ -79,11 +86,12 @@ use std::sync::{Arc, Mutex};
 #[derive(Component, Clone, Copy, Debug, Default)]
 pub struct SkinletMeshlets;
 
-/// On a part entity skinlet draws: the material Bevy drew it with (no longer on the entity,
-/// so Bevy's pipeline skips it).
-#[derive(Component, Clone, Debug)]
+/// On a part entity skinlet draws: the visibility it had. While skinlet draws it, it is
+/// `Visibility::Hidden`, so Bevy's pipeline draws neither it nor its shadow (skinlet draws
+/// both); removing [`SkinletMeshlets`] from the root puts the visibility back.
+#[derive(Component, Clone, Copy, Debug)]
 pub struct SkinletDrawnPart {
-    pub material: Handle<StandardMaterial>,
+    pub visibility: Visibility,
 }
 
 /// The entity whose phase item draws every instance of one bake (spawned by the plugin).
@@ -159,6 +167,12 @@ impl Plugin for SkinletMeshletPlugin {
                 [CROWD_SKIN_WGSL.replace("@group(1)", "@group(2)").as_str(), TRIANGLES_WGSL, DRAW_WGSL].concat();
             app.world_mut().resource_mut::<Assets<Shader>>().add(Shader::from_wgsl(source, "skinlet/meshlet_draw.wgsl"))
         };
+        let shadow_shader = {
+            let source = [CROWD_SKIN_WGSL.replace("@group(1)", "@group(2)").as_str(), SHADOW_WGSL].concat();
+            app.world_mut()
+                .resource_mut::<Assets<Shader>>()
+                .add(Shader::from_wgsl(source, "skinlet/meshlet_shadow.wgsl"))
+        };
         let stats = SkinletMeshletStats::default();
         app.init_resource::<BakeDraws>()
             .init_resource::<SkinletMeshletSettings>()
@@ -174,22 +188,26 @@ impl Plugin for SkinletMeshletPlugin {
         let Some(render_app) = app.get_sub_app_mut(RenderApp) else { return };
         render_app
             .insert_resource(DrawShader(shader))
+            .insert_resource(ShadowShader(shadow_shader))
             .insert_resource(stats)
             .init_resource::<MeshletFrames>()
             .init_resource::<MeshletGpu>()
             .init_resource::<PendingMeshletQueues>()
             .init_resource::<SpecializedRenderPipelines<MeshletDrawPipeline>>()
+            .init_resource::<SpecializedRenderPipelines<MeshletShadowPipeline>>()
             .add_render_command::<Opaque3d, DrawMeshletCommands>()
+            .add_render_command::<Shadow, DrawMeshletShadowCommands>()
             .add_systems(RenderStartup, init_pipeline.after(MeshPipelineSystems))
             .add_systems(ExtractSchedule, extract_frames)
             .add_systems(Render, prepare_gpu.in_set(RenderSystems::PrepareResources))
-            .add_systems(Render, queue_draws.in_set(RenderSystems::Queue))
+            .add_systems(Render, (queue_draws, queue_shadows).in_set(RenderSystems::Queue))
             .add_systems(Render, read_back_stats.in_set(RenderSystems::Cleanup))
             .add_systems(RenderGraph, cull.before(camera_driver));
     }
 }
 
 const DRAW_WGSL: &str = include_str!("meshlet_draw.wgsl");
+const SHADOW_WGSL: &str = include_str!("meshlet_shadow.wgsl");
 
 /// Per bake drawn by meshlet: what the render world uploads once.
 #[derive(Resource, Default)]
@@ -213,26 +231,24 @@ struct BakeDraw {
     has_boxes: bool,
 }
 
-/// Moves the `StandardMaterial` of every part of a bound, marked instance into
-/// [`SkinletDrawnPart`].
-/// A part with another kind of material stays Bevy's to draw too (skinlet draws it with
-/// `StandardMaterial`'s defaults): a warning names it, once.
+/// Hides from Bevy's pipeline every part of a bound, marked instance that has a
+/// `StandardMaterial` (its visibility kept in [`SkinletDrawnPart`]). A part with another kind
+/// of material stays Bevy's to draw too (skinlet draws it with `StandardMaterial`'s defaults):
+/// a warning names it, once.
 fn take_over_parts(
     mut commands: Commands,
     roots: Query<&SkinletInstance, With<SkinletMeshlets>>,
-    materials: Query<Option<&MeshMaterial3d<StandardMaterial>>, Without<SkinletDrawnPart>>,
+    parts: Query<(Has<MeshMaterial3d<StandardMaterial>>, Option<&Visibility>), Without<SkinletDrawnPart>>,
     mut warned: Local<bevy::platform::collections::HashSet<Entity>>,
 ) {
     for instance in &roots {
         for &e in instance.part_entities() {
-            match materials.get(e) {
-                Ok(Some(m)) => {
-                    commands
-                        .entity(e)
-                        .insert(SkinletDrawnPart { material: m.0.clone() })
-                        .remove::<MeshMaterial3d<StandardMaterial>>();
+            match parts.get(e) {
+                Ok((true, visibility)) => {
+                    let visibility = visibility.copied().unwrap_or_default();
+                    commands.entity(e).insert((SkinletDrawnPart { visibility }, Visibility::Hidden));
                 }
-                Ok(None) if warned.insert(e) => {
+                Ok((false, _)) if warned.insert(e) => {
                     warn!("skinlet meshlets: part entity {e} has no StandardMaterial: Bevy keeps drawing it too");
                 }
                 _ => {}
@@ -242,7 +258,7 @@ fn take_over_parts(
 }
 
 /// Gives the parts of instances no longer marked [`SkinletMeshlets`] back to Bevy's pipeline
-/// (their `MeshMaterial3d<StandardMaterial>` again).
+/// (their visibility again).
 fn give_back_parts(
     mut commands: Commands,
     mut unmarked: RemovedComponents<SkinletMeshlets>,
@@ -253,7 +269,7 @@ fn give_back_parts(
         let Ok(instance) = roots.get(root) else { continue };
         for &e in instance.part_entities() {
             if let Ok(part) = parts.get(e) {
-                commands.entity(e).insert(MeshMaterial3d(part.material.clone())).remove::<SkinletDrawnPart>();
+                commands.entity(e).insert(part.visibility).remove::<SkinletDrawnPart>();
             }
         }
     }
@@ -373,7 +389,7 @@ fn extract_frames(
     draws: Extract<Res<BakeDraws>>,
     roots: Extract<Query<(&SkinletInstance, &SkinletBounds), With<SkinletMeshlets>>>,
     globals: Extract<Query<&GlobalTransform>>,
-    parts: Extract<Query<&SkinletDrawnPart>>,
+    parts: Extract<Query<&MeshMaterial3d<StandardMaterial>>>,
     materials: Extract<Res<Assets<StandardMaterial>>>,
     images: Res<RenderAssets<GpuImage>>,
 ) {
@@ -398,7 +414,7 @@ fn extract_frames(
             frame.materials.clear();
             frame.textures.clear();
             for &e in instance.part_entities() {
-                let m = parts.get(e).ok().and_then(|p| materials.get(&p.material));
+                let m = parts.get(e).ok().and_then(|p| materials.get(&p.0));
                 frame.materials.push(m.map(|m| m.as_bind_group_shader_type(&images)).unwrap_or_default());
                 frame.textures.push(m.map_or([None; 4], |m| {
                     [&m.base_color_texture, &m.metallic_roughness_texture, &m.emissive_texture, &m.occlusion_texture]
@@ -1061,6 +1077,148 @@ impl<P: PhaseItem> RenderCommand<P> for DrawMeshlets {
         RenderCommandResult::Success
     }
 }
+
+/// The shadow views' pipeline: depth only, Bevy's prepass view layout (group 0), its empty
+/// group 1, skinlet's group 2.
+struct MeshletShadowPipeline {
+    view: BindGroupLayoutDescriptor,
+    empty: BindGroupLayoutDescriptor,
+    group2: BindGroupLayoutDescriptor,
+    shader: Handle<Shader>,
+    depth_clip_control: bool,
+}
+
+/// The shadow draw's shader (made in the main world).
+#[derive(Resource)]
+struct ShadowShader(Handle<Shader>);
+
+impl SpecializedRenderPipeline for MeshletShadowPipeline {
+    /// Whether the view is a directional light's (its casters in front of the near plane are
+    /// clamped to it, as Bevy's shadow pipeline does).
+    type Key = bool;
+
+    fn specialize(&self, directional: bool) -> RenderPipelineDescriptor {
+        let emulate = directional && !self.depth_clip_control;
+        let shader_defs: Vec<ShaderDefVal> =
+            if emulate { vec!["UNCLIPPED_DEPTH_ORTHO_EMULATION".into()] } else { Vec::new() };
+        RenderPipelineDescriptor {
+            label: Some("skinlet meshlet shadow".into()),
+            layout: vec![self.view.clone(), self.empty.clone(), self.group2.clone()],
+            vertex: VertexState {
+                shader: self.shader.clone(),
+                shader_defs: shader_defs.clone(),
+                entry_point: Some("shadow_vertex".into()),
+                buffers: vec![],
+            },
+            fragment: emulate.then(|| FragmentState {
+                shader: self.shader.clone(),
+                shader_defs,
+                entry_point: Some("shadow_fragment".into()),
+                targets: vec![],
+            }),
+            primitive: PrimitiveState {
+                topology: PrimitiveTopology::TriangleList,
+                cull_mode: Some(Face::Back),
+                unclipped_depth: directional && self.depth_clip_control,
+                ..default()
+            },
+            depth_stencil: Some(DepthStencilState {
+                format: CORE_3D_DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(CompareFunction::GreaterEqual),
+                stencil: default(),
+                bias: default(),
+            }),
+            ..default()
+        }
+    }
+}
+
+/// Puts every bake's shadow draw in every shadow view (lights that cast shadows).
+#[allow(clippy::too_many_arguments)]
+fn queue_shadows(
+    cache: Res<PipelineCache>,
+    prepass: Option<Res<PrepassPipeline>>,
+    shader: Res<ShadowShader>,
+    device: Res<RenderDevice>,
+    mut shadow_pipeline: Local<Option<MeshletShadowPipeline>>,
+    mut pipelines: ResMut<SpecializedRenderPipelines<MeshletShadowPipeline>>,
+    mut phases: ResMut<ViewBinnedRenderPhases<Shadow>>,
+    draw_functions: Res<DrawFunctions<Shadow>>,
+    lights: Query<(&ExtractedView, &LightEntity)>,
+    draws: Query<(Entity, &MainEntity, &SkinletMeshletDraw)>,
+    gpu: Res<MeshletGpu>,
+    mut queued: Local<HashMap<(RetainedViewEntity, MainEntity), CachedRenderPipelineId>>,
+) {
+    let Some(prepass) = prepass else { return };
+    let shadow_pipeline = shadow_pipeline.get_or_insert_with(|| MeshletShadowPipeline {
+        view: prepass.view_layout_no_motion_vectors.clone(),
+        empty: prepass.empty_layout.clone(),
+        group2: draw_layout(),
+        shader: shader.0.clone(),
+        depth_clip_control: device.features().contains(wgpu::Features::DEPTH_CLIP_CONTROL),
+    });
+    let draw_function = draw_functions.read().id::<DrawMeshletShadowCommands>();
+    for (view, light) in &lights {
+        let Some(phase) = phases.get_mut(&view.retained_view_entity) else { continue };
+        let directional = matches!(light, LightEntity::Directional { .. });
+        let pipeline = pipelines.specialize(&cache, shadow_pipeline, directional);
+        for (entity, &main_entity, draw) in &draws {
+            let key = (view.retained_view_entity, main_entity);
+            if !gpu.bakes.get(&draw.bake).is_some_and(|b| b.instances > 0) {
+                if queued.remove(&key).is_some() {
+                    phase.remove(main_entity);
+                }
+                continue;
+            }
+            if queued.insert(key, pipeline) == Some(pipeline) {
+                continue;
+            }
+            phase.remove(main_entity);
+            phase.add(
+                ShadowBatchSetKey {
+                    pipeline,
+                    draw_function,
+                    material_bind_group_index: None,
+                    slabs: MeshSlabs::default(),
+                },
+                ShadowBinKey { asset_id: AssetId::<Mesh>::invalid().untyped() },
+                (entity, main_entity),
+                InputUniformIndex::default(),
+                BinnedRenderPhaseType::NonMesh,
+            );
+        }
+    }
+}
+
+/// Group 2 and every corner of every instance of the bake.
+struct DrawMeshletsUnculled;
+
+impl<P: PhaseItem> RenderCommand<P> for DrawMeshletsUnculled {
+    type Param = SRes<MeshletGpu>;
+    type ViewQuery = ();
+    type ItemQuery = bevy::ecs::system::lifetimeless::Read<SkinletMeshletDraw>;
+
+    fn render<'w>(
+        _: &P,
+        _: ROQueryItem<'w, '_, Self::ViewQuery>,
+        item: Option<ROQueryItem<'w, '_, Self::ItemQuery>>,
+        gpu: SystemParamItem<'w, '_, Self::Param>,
+        pass: &mut TrackedRenderPass<'w>,
+    ) -> RenderCommandResult {
+        let gpu = gpu.into_inner();
+        let Some(b) = item.and_then(|d| gpu.bakes.get(&d.bake)) else { return RenderCommandResult::Skip };
+        if b.instances == 0 {
+            return RenderCommandResult::Skip;
+        }
+        pass.set_bind_group(2, &b.draw_group, &[]);
+        pass.draw(0..b.corners, 0..b.instances);
+        RenderCommandResult::Success
+    }
+}
+
+type DrawMeshletShadowCommands =
+    (SetItemPipeline, SetPrepassViewBindGroup<0>, SetPrepassViewEmptyBindGroup<1>, DrawMeshletsUnculled);
 
 type DrawMeshletCommands =
     (SetItemPipeline, SetMeshViewBindGroup<0>, SetMeshViewBindingArrayBindGroup<1>, DrawMeshlets);

@@ -1,11 +1,13 @@
 //! Bevy as the oracle for `SkinletMeshletPlugin` (headless, Bevy's renderer on the machine's
-//! Vulkan device: lavapipe on CPU-only machines): the same animated crowd, same frame, drawn
-//! by Bevy's own skinned mesh pipeline and by skinlet's meshlet draw (GPU culling on). The
+//! Vulkan device: lavapipe on CPU-only machines): the same animated crowd (one row textured),
+//! same frame, under a light casting shadows onto the characters and a ground plane, drawn by
+//! Bevy's own skinned mesh pipeline and by skinlet's meshlet draw (GPU culling on). The
 //! tolerance: Bevy skins in its own order (joint matrices blended after its own product with
 //! the inverse binds), so positions and normals round apart by a few ulps: interior pixels
 //! shade within 2 levels of 255, and a silhouette pixel whose center a triangle edge nearly
-//! touches may flip coverage (then any color): at most 1 in 200 drawn pixels differs by more
-//! than 2 levels. skinlet's image with culling on equals its image with culling off exactly.
+//! touches may flip coverage (then any color): at most 1 in 200 of the pixels the characters
+//! and their shadows change differs by more than 2 levels. skinlet's image with culling on
+//! equals its image with culling off exactly; given back to Bevy, the frame is Bevy's again.
 
 mod common;
 
@@ -34,6 +36,16 @@ fn skinlets_meshlet_draw_looks_like_bevys_own() {
     let roots = common::spawn_rows(app.world_mut(), &characters, &[1.2, 0.0, -2.2, -4.4], 5);
     let at = Transform::from_xyz(0.0, 1.2, 4.0).looking_at(Vec3::new(0.0, 0.8, -1.0), Vec3::Y);
     common::readback_camera(app.world_mut(), WIDTH, HEIGHT, at);
+    // The light casts shadows onto a ground plane (a Bevy mesh) and the characters.
+    {
+        let world = app.world_mut();
+        for mut light in world.query::<&mut DirectionalLight>().iter_mut(world) {
+            light.shadow_maps_enabled = true;
+        }
+        let ground = world.resource_mut::<Assets<Mesh>>().add(Plane3d::default().mesh().size(24.0, 24.0));
+        let gray = world.resource_mut::<Assets<StandardMaterial>>().add(Color::srgb(0.6, 0.6, 0.6));
+        world.spawn((Mesh3d(ground), MeshMaterial3d(gray)));
+    }
     update_until(&mut app, 3000, "every instance bound", |w| {
         roots.iter().all(|&(e, _)| w.get::<SkinletInstance>(e).is_some())
     });
@@ -75,6 +87,11 @@ fn skinlets_meshlet_draw_looks_like_bevys_own() {
     let left = app.world_mut().query::<&SkinletDrawnPart>().iter(app.world()).count();
     assert_eq!(left, 0, "parts still taken over after the marker was removed");
     assert!(given_back == bevy, "Bevy's frame after the instances were given back differs from its first");
+    // Where the characters and their shadows are: what differs from the frame without them.
+    for &(root, _) in &roots {
+        app.world_mut().entity_mut(root).insert(Visibility::Hidden);
+    }
+    let empty = settled_image(&mut app);
     let out = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
     common::write_png(&out.join("meshlet_draw_bevy.png"), &bevy, WIDTH);
     common::write_png(&out.join("meshlet_draw_skinlet.png"), &skinlet, WIDTH);
@@ -86,11 +103,11 @@ fn skinlets_meshlet_draw_looks_like_bevys_own() {
     // Bevy's frame, skinlet's, and their difference (× 8) side by side.
     let side = common::side_by_side(&[&bevy, &skinlet, &diff], WIDTH);
     common::write_png(&out.join("meshlet_draw_side_by_side.png"), &side, 3 * WIDTH);
-    let drawn = bevy.chunks(4).filter(|p| p[..3] != bevy[..3]).count();
+    let drawn = bevy.chunks(4).zip(empty.chunks(4)).filter(|(a, b)| a != b).count();
     let differing = per_pixel.iter().filter(|&&d| d > 0).count();
     let large = per_pixel.iter().filter(|&&d| d > 2).count();
     eprintln!(
-        "{taken} parts drawn by skinlet; {drawn} pixels drawn by Bevy; {differing} differ, {large} by more than 2, at most {} (images in {}); culled and unculled differ at {culled_away}",
+        "{taken} parts drawn by skinlet; {drawn} pixels show characters or their shadows; {differing} differ, {large} by more than 2, at most {} (images in {}); culled and unculled differ at {culled_away}",
         per_pixel.iter().max().unwrap(),
         out.display()
     );

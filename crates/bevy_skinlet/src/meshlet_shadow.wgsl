@@ -1,0 +1,35 @@
+// skinlet's meshlet draw in Bevy's shadow views (meshlet_draw.rs): depth only, every corner of
+// every instance (the culled list is the camera's), skinned by the crowd skinning (group 2) as
+// the main pass skins it, projected with the light view's matrix as Bevy's prepass does.
+
+#import bevy_render::view::View
+
+@group(0) @binding(0) var<uniform> view: View;
+// Per corner: bake vertex, source attribute vertex, part, 0.
+@group(2) @binding(4) var<storage, read> corners: array<vec4<u32>>;
+
+struct ShadowOut {
+    @builtin(position) position: vec4<f32>,
+#ifdef UNCLIPPED_DEPTH_ORTHO_EMULATION
+    @location(0) unclipped_depth: f32,
+#endif
+}
+
+@vertex
+fn shadow_vertex(@builtin(vertex_index) index: u32, @builtin(instance_index) instance: u32) -> ShadowOut {
+    var out: ShadowOut;
+    out.position = view.clip_from_world * vec4<f32>(skinned_position(instance, corners[index].x), 1.0);
+#ifdef UNCLIPPED_DEPTH_ORTHO_EMULATION
+    // A directional light's casters in front of its near plane, clamped to it (as Bevy does).
+    out.unclipped_depth = out.position.z;
+    out.position.z = min(out.position.z, 1.0);
+#endif
+    return out;
+}
+
+#ifdef UNCLIPPED_DEPTH_ORTHO_EMULATION
+@fragment
+fn shadow_fragment(in: ShadowOut) -> @builtin(frag_depth) f32 {
+    return in.unclipped_depth;
+}
+#endif
