@@ -8,9 +8,10 @@
 //! ```
 //!
 //! The timed frames come in blocks that alternate between the pipelines (the first frames
-//! after a switch are not timed); per frame it measures the whole update and the render
-//! world's schedule (preparation, culling, encoding and submission; on a CPU Vulkan driver
-//! such as lavapipe submission also rasterizes). At `--compare` points along the camera's path
+//! after a switch are not timed); per frame it measures the whole update, the render world's
+//! schedule, and within it the render graph (skinlet's culling, encoding and submission; on a
+//! CPU Vulkan driver such as lavapipe submission also runs the GPU's work, so the time outside
+//! the render graph is the CPU time an app spends on either path there). At `--compare` points along the camera's path
 //! the animation pauses and the same frame is drawn three times: by Bevy's pipeline, by
 //! skinlet's with culling, and by skinlet's without; the images are compared and skinlet's
 //! counts (read back from the GPU) are reported.
@@ -53,6 +54,10 @@ pub struct Args {
     pub width: u32,
     #[arg(long, default_value_t = 360)]
     pub height: u32,
+    /// Which pipeline draws: both (alternating, compared), or one of them alone (for a
+    /// profiler; nothing compared).
+    #[arg(long, value_enum, default_value_t = Pipelines::Both)]
+    pub pipeline: Pipelines,
     /// Write each compared frame (Bevy's, skinlet's and the difference × 8, side by side) as
     /// a PNG into this folder.
     #[arg(long)]
@@ -62,19 +67,47 @@ pub struct Args {
     pub json: bool,
 }
 
-/// The render world's schedule, timed per frame (the render app may run on its own thread).
+/// The render world's schedule timed per frame (the render app may run on its own thread):
+/// when it started and when its `Render` set (the render graph: encoding and submission)
+/// started, then per frame (whole schedule, `Render` set).
 #[derive(Resource, Clone, Default)]
-struct RenderSpans(Arc<Mutex<(Option<Instant>, Vec<Duration>)>>);
+struct RenderSpans(Arc<Mutex<RenderTimes>>);
+
+#[derive(Default)]
+struct RenderTimes {
+    started: Option<Instant>,
+    graph_started: Option<Instant>,
+    graph: Duration,
+    frames: Vec<(Duration, Duration)>,
+}
 
 fn render_started(spans: Res<RenderSpans>) {
-    spans.0.lock().unwrap().0 = Some(Instant::now());
+    spans.0.lock().unwrap().started = Some(Instant::now());
+}
+
+fn graph_started(spans: Res<RenderSpans>) {
+    spans.0.lock().unwrap().graph_started = Some(Instant::now());
+}
+
+fn graph_ended(spans: Res<RenderSpans>) {
+    let mut s = spans.0.lock().unwrap();
+    s.graph = s.graph_started.take().map_or(Duration::ZERO, |t| t.elapsed());
 }
 
 fn render_ended(spans: Res<RenderSpans>) {
     let mut s = spans.0.lock().unwrap();
-    if let Some(t) = s.0.take() {
-        s.1.push(t.elapsed());
+    if let Some(t) = s.started.take() {
+        let graph = s.graph;
+        s.frames.push((t.elapsed(), graph));
     }
+}
+
+/// Which pipelines the run uses.
+#[derive(clap::ValueEnum, Clone, Copy, PartialEq, Eq, Debug)]
+pub enum Pipelines {
+    Both,
+    Bevy,
+    Skinlet,
 }
 
 /// Which pipeline draws the crowd.
@@ -94,12 +127,13 @@ fn set_pipeline(world: &mut World, roots: &[(Entity, usize)], pipeline: Pipeline
     }
 }
 
-/// Per pipeline: timed frames, whole updates, render schedules.
+/// Per pipeline: timed frames, whole updates, render schedules and their `Render` sets.
 #[derive(Default)]
 struct Timing {
     frames: usize,
     update: Duration,
     render: Duration,
+    graph: Duration,
     render_frames: usize,
 }
 
@@ -218,6 +252,8 @@ pub fn run(args: &Args) -> Option<serde_json::Value> {
     app.sub_app_mut(RenderApp)
         .insert_resource(spans.clone())
         .add_systems(Render, render_started.in_set(RenderSystems::ExtractCommands))
+        .add_systems(Render, graph_started.after(RenderSystems::PrepareBindGroups).before(RenderSystems::Render))
+        .add_systems(Render, graph_ended.after(RenderSystems::Render).before(RenderSystems::Cleanup))
         .add_systems(Render, render_ended.in_set(RenderSystems::PostCleanup));
 
     // The crowd on a grid 2 units apart, the characters interleaved, each about 1.6 units
@@ -271,9 +307,10 @@ pub fn run(args: &Args) -> Option<serde_json::Value> {
         });
     }
 
-    let blocks = 2 * args.frames.div_ceil(args.block.max(1));
+    let block_frames = args.block.max(1);
+    let blocks = if args.pipeline == Pipelines::Both { 2 } else { 1 } * args.frames.div_ceil(block_frames);
     let warm = 3;
-    let steps = blocks * (args.block + warm);
+    let steps = blocks * (block_frames + warm);
     let compare_at: Vec<usize> = (0..args.compare).map(|k| (2 * k + 1) * blocks / (2 * args.compare)).collect();
     let aisle = ((side - 1) / 2) as f32 * spacing + spacing / 2.0;
     let depth = (total.div_ceil(side) - 1) as f32 * spacing;
@@ -282,13 +319,17 @@ pub fn run(args: &Args) -> Option<serde_json::Value> {
     let mut compared = Vec::new();
     let mut step = 0;
     for block in 0..blocks {
-        let pipeline = if block % 2 == 0 { Pipeline::Bevy } else { Pipeline::Skinlet };
-        if compare_at.contains(&block) {
+        let pipeline = match args.pipeline {
+            Pipelines::Both if block % 2 == 0 => Pipeline::Bevy,
+            Pipelines::Both | Pipelines::Skinlet => Pipeline::Skinlet,
+            Pipelines::Bevy => Pipeline::Bevy,
+        };
+        if args.pipeline == Pipelines::Both && compare_at.contains(&block) {
             let picture = args.pictures.as_ref().map(|d| d.join(format!("meshlet_crowd_{}.png", compared.len())));
             compared.push(compare(&mut app, &roots, (readback.0, &readback.1), pipeline, picture, args.width));
         }
         set_pipeline(app.world_mut(), &roots, pipeline);
-        for f in 0..warm + args.block {
+        for f in 0..warm + block_frames {
             // The camera walks into the crowd at eye height between two columns, from in
             // front of it to halfway through, looking ahead and swaying left and right.
             let t = step as f32 / steps as f32;
@@ -299,7 +340,7 @@ pub fn run(args: &Args) -> Option<serde_json::Value> {
             *app.world_mut().get_mut::<Transform>(camera).unwrap() =
                 Transform::from_translation(eye).looking_to(look, Vec3::Y);
             crossfades.advance(app.world_mut(), 1.0 / 30.0);
-            spans.0.lock().unwrap().1.clear();
+            spans.0.lock().unwrap().frames.clear();
             let t0 = Instant::now();
             app.update();
             let dt = t0.elapsed();
@@ -309,8 +350,9 @@ pub fn run(args: &Args) -> Option<serde_json::Value> {
             let t = &mut timing[pipeline as usize];
             t.frames += 1;
             t.update += dt;
-            let rendered = std::mem::take(&mut spans.0.lock().unwrap().1);
-            t.render += rendered.iter().sum::<Duration>();
+            let rendered = std::mem::take(&mut spans.0.lock().unwrap().frames);
+            t.render += rendered.iter().map(|r| r.0).sum::<Duration>();
+            t.graph += rendered.iter().map(|r| r.1).sum::<Duration>();
             t.render_frames += rendered.len();
             if pipeline == Pipeline::Skinlet {
                 counts.add(&stats_now(&app));
@@ -324,6 +366,11 @@ pub fn run(args: &Args) -> Option<serde_json::Value> {
             "frames": t.frames,
             "update_ms_per_frame": ms(t.update, t.frames),
             "render_schedule_ms_per_frame": ms(t.render, t.render_frames),
+            // The render graph: encoding and submission (on a CPU Vulkan driver, also the
+            // GPU's work).
+            "render_graph_ms_per_frame": ms(t.graph, t.render_frames),
+            // Everything else: the main world, extraction, preparation and queueing.
+            "outside_render_graph_ms_per_frame": ms(t.update, t.frames) - ms(t.graph, t.render_frames),
         })
     };
     let moving = counts.per_frame();

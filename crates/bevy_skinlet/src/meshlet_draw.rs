@@ -231,6 +231,9 @@ struct BakeDraw {
     has_boxes: bool,
 }
 
+/// A part entity: whether it has a `StandardMaterial`, its visibility.
+type PartShown = (Has<MeshMaterial3d<StandardMaterial>>, Option<&'static Visibility>);
+
 /// Hides from Bevy's pipeline every part of a bound, marked instance that has a
 /// `StandardMaterial` (its visibility kept in [`SkinletDrawnPart`]). A part with another kind
 /// of material stays Bevy's to draw too (skinlet draws it with `StandardMaterial`'s defaults):
@@ -238,7 +241,7 @@ struct BakeDraw {
 fn take_over_parts(
     mut commands: Commands,
     roots: Query<&SkinletInstance, With<SkinletMeshlets>>,
-    parts: Query<(Has<MeshMaterial3d<StandardMaterial>>, Option<&Visibility>), Without<SkinletDrawnPart>>,
+    parts: Query<PartShown, Without<SkinletDrawnPart>>,
     mut warned: Local<bevy::platform::collections::HashSet<Entity>>,
 ) {
     for instance in &roots {
@@ -656,6 +659,7 @@ fn prepare_gpu(
     views: Query<(&ExtractedView, &Msaa), With<ExtractedCamera>>,
     textures: (Option<Res<MeshletDrawPipeline>>, Res<RenderAssets<GpuImage>>, Res<FallbackImage>),
     mut warned: Local<[bool; 2]>,
+    mut material_bytes: Local<Vec<u8>>,
 ) {
     gpu.frame += 1;
     let Some((view, msaa)) = views.iter().next() else { return };
@@ -726,9 +730,9 @@ fn prepare_gpu(
         if !frame.weights.is_empty() {
             queue.write_buffer(&b.weights, 0, bytemuck::cast_slice(&frame.weights));
         }
-        let mut bytes = encase::StorageBuffer::new(Vec::<u8>::new());
-        if bytes.write(&frame.materials).is_ok() {
-            queue.write_buffer(&b.materials, 0, bytes.as_ref());
+        material_bytes.clear();
+        if encase::StorageBuffer::new(&mut *material_bytes).write(&frame.materials).is_ok() {
+            queue.write_buffer(&b.materials, 0, &material_bytes);
         }
         let (pipeline, images, fallback) = (&textures.0, &textures.1, &textures.2);
         match pipeline.as_ref().and_then(|p| p.group3.as_ref()) {
@@ -1165,7 +1169,8 @@ fn queue_shadows(
         let pipeline = pipelines.specialize(&cache, shadow_pipeline, directional);
         for (entity, &main_entity, draw) in &draws {
             let key = (view.retained_view_entity, main_entity);
-            if !gpu.bakes.get(&draw.bake).is_some_and(|b| b.instances > 0) {
+            let drawn = gpu.bakes.get(&draw.bake).is_some_and(|b| b.instances > 0);
+            if !drawn {
                 if queued.remove(&key).is_some() {
                     phase.remove(main_entity);
                 }

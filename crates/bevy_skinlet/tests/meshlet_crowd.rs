@@ -15,6 +15,7 @@ fn the_crowd_example_reports_and_matches_bevy() {
         compare: 2,
         width: 256,
         height: 160,
+        pipeline: meshlet_crowd::Pipelines::Both,
         pictures: Some(std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR"))),
         json: true,
     };
