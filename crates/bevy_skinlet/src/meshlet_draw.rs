@@ -24,7 +24,7 @@
 //! culling in shadow views, occlusion culling, culling for more than one camera (with
 //! several, every triangle is drawn), materials other than `StandardMaterial` (such a part
 //! stays Bevy's too, with a warning), a part's own visibility (every part of a marked
-//! instance is drawn).
+//! instance is drawn), double-sided materials (drawn back-face culled).
 
 use crate::SkinletBounds;
 use crate::bake_asset::Bake;
