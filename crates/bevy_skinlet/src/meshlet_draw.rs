@@ -18,7 +18,7 @@
 //!   functions with the part's `StandardMaterial` as Bevy uploads it and its textures
 //!   (group 3, where the device indexes texture arrays per fragment);
 //! - a phase item in each shadow view (`Shadow`) draws every triangle of every instance, depth
-//!   only, with Bevy's prepass view bindings.
+//!   only, with Bevy's prepass view bindings (but a part marked `NotShadowCaster`).
 //!
 //! Not yet: normal maps, morph targets' normal deltas (positions morph), the depth prepass,
 //! culling in shadow views, occlusion culling, culling for more than one camera (with
@@ -34,6 +34,7 @@ use bevy::core_pipeline::core_3d::{CORE_3D_DEPTH_FORMAT, Opaque3d, Opaque3dBatch
 use bevy::core_pipeline::schedule::camera_driver;
 use bevy::ecs::query::ROQueryItem;
 use bevy::ecs::system::{SystemParamItem, lifetimeless::SRes};
+use bevy::light::NotShadowCaster;
 use bevy::mesh::{Indices, MeshVertexBufferLayouts, PrimitiveTopology, VertexAttributeValues};
 use bevy::pbr::{
     LightEntity, MeshPipeline, MeshPipelineKey, MeshPipelineSystems, PrepassPipeline, SetMeshViewBindGroup,
@@ -384,6 +385,14 @@ struct BakeFrame {
     materials: Vec<StandardMaterialUniform>,
     /// Per part: its base colour, metallic-roughness, emissive and occlusion textures.
     textures: Vec<[Option<AssetId<Image>>; 4]>,
+    /// Per instance, [`shadow_words`] words: bit `p % 32` of word `p / 32` set where part `p`
+    /// casts no shadow.
+    no_shadow: Vec<u32>,
+}
+
+/// Words of shadow bits per instance of a bake with `parts` parts.
+fn shadow_words(parts: usize) -> usize {
+    parts.div_ceil(32).max(1)
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -393,6 +402,7 @@ fn extract_frames(
     roots: Extract<Query<(&SkinletInstance, &SkinletBounds), With<SkinletMeshlets>>>,
     globals: Extract<Query<&GlobalTransform>>,
     parts: Extract<Query<&MeshMaterial3d<StandardMaterial>>>,
+    no_shadow: Extract<Query<(), With<NotShadowCaster>>>,
     materials: Extract<Res<Assets<StandardMaterial>>>,
     images: Res<RenderAssets<GpuImage>>,
 ) {
@@ -400,6 +410,7 @@ fn extract_frames(
         frame.palette.clear();
         frame.instances.clear();
         frame.weights.clear();
+        frame.no_shadow.clear();
     }
     for (instance, bounds) in &roots {
         let id = bounds.0.id();
@@ -411,6 +422,7 @@ fn extract_frames(
             weights: Vec::new(),
             materials: Vec::new(),
             textures: Vec::new(),
+            no_shadow: Vec::new(),
         });
         if frame.instances.is_empty() {
             frame.draw = draw.clone();
@@ -436,6 +448,13 @@ fn extract_frames(
         };
         frame.instances.push(CullInstance::new(Mat4::IDENTITY, mode));
         frame.weights.extend_from_slice(instance.morph_weights());
+        // The parts marked `NotShadowCaster`, a bit each (as Bevy reads the marker: on the
+        // mesh entity).
+        let parts = instance.part_entities();
+        frame.no_shadow.extend((0..shadow_words(parts.len())).map(|w| {
+            (parts.iter().skip(32 * w).take(32).enumerate())
+                .fold(0u32, |bits, (k, &e)| bits | ((no_shadow.contains(e) as u32) << k))
+        }));
     }
     frames.0.retain(|_, f| !f.instances.is_empty());
 }
@@ -473,6 +492,7 @@ fn draw_layout() -> BindGroupLayoutDescriptor {
                 storage(),
                 storage(),
                 uniform_buffer_sized(false, None),
+                storage(),
                 storage(),
             ),
         ),
@@ -604,6 +624,8 @@ struct BakeGpu {
     palette: wgpu::Buffer,
     instance_buffer: wgpu::Buffer,
     weights: wgpu::Buffer,
+    /// Per instance, the parts that cast no shadow ([`BakeFrame::no_shadow`]).
+    no_shadow: wgpu::Buffer,
     materials: Buffer,
     skinning: wgpu::BindGroup,
     draw_group: BindGroup,
@@ -725,6 +747,7 @@ fn prepare_gpu(
             );
         }
         queue.write_buffer(&b.params, 0, bytemuck::cast_slice(&[b.id_bits, b.unculled as u32]));
+        queue.write_buffer(&b.no_shadow, 0, bytemuck::cast_slice(&frame.no_shadow));
         queue.write_buffer(&b.palette, 0, bytemuck::cast_slice(&frame.palette));
         queue.write_buffer(&b.instance_buffer, 0, bytemuck::cast_slice(&frame.instances));
         if !frame.weights.is_empty() {
@@ -824,6 +847,8 @@ fn bake_gpu(
     let palette = zeros("skinlet palette", 64 * joints * capacity as u64, storage);
     let instance_buffer = zeros("skinlet instances", 80 * capacity as u64, storage);
     let weights = zeros("skinlet morph weights", 4 * morphs.max(1) * capacity as u64, storage);
+    let bits_words = shadow_words(frame.materials.len()) as u64;
+    let no_shadow = zeros("skinlet shadow bits", 4 * bits_words * capacity as u64, storage);
     let skin_uniform = init("skinlet skin", bytemuck::cast_slice(&draw.mesh.uniform), wgpu::BufferUsages::UNIFORM);
     let words = init("skinlet mesh", bytemuck::cast_slice(&draw.mesh.words), wgpu::BufferUsages::STORAGE);
     let corners = init("skinlet corners", bytemuck::cast_slice(&draw.corners), wgpu::BufferUsages::STORAGE);
@@ -879,12 +904,12 @@ fn bake_gpu(
     .map_err(e)?;
     let params = init(
         "skinlet draw params",
-        bytemuck::cast_slice(&[culling.id_bits(), 0, 0, 0]),
+        bytemuck::cast_slice(&[culling.id_bits(), 0, bits_words as u32, 0]),
         wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
     );
     let draw_layout = cache.get_bind_group_layout(&draw_layout());
     let entries: Vec<wgpu::BindGroupEntry> =
-        [&skin_uniform, &palette, &words, &weights, &corners, &normals, &materials, &params, &uvs]
+        [&skin_uniform, &palette, &words, &weights, &corners, &normals, &materials, &params, &uvs, &no_shadow]
             .iter()
             .enumerate()
             .map(|(b, buffer)| bind(b as u32, buffer))
@@ -918,6 +943,7 @@ fn bake_gpu(
         palette,
         instance_buffer,
         weights,
+        no_shadow,
         materials: Buffer::from(materials),
         skinning,
         draw_group,

@@ -19,8 +19,9 @@ struct DrawParams {
     id_bits: u32,
     // 1: drawn unculled (vertex index the corner, instance index the instance).
     unculled: u32,
-    pad1: u32,
-    pad2: u32,
+    // Words of shadow bits per instance (meshlet_shadow.wgsl).
+    shadow_words: u32,
+    pad: u32,
 }
 
 // Per corner: bake vertex, source attribute vertex, part, 0.

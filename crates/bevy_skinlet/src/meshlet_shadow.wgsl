@@ -7,6 +7,16 @@
 @group(0) @binding(0) var<uniform> view: View;
 // Per corner: bake vertex, source attribute vertex, part, 0.
 @group(2) @binding(4) var<storage, read> corners: array<vec4<u32>>;
+struct DrawParams {
+    id_bits: u32,
+    unculled: u32,
+    shadow_words: u32,
+    pad: u32,
+}
+@group(2) @binding(7) var<uniform> draw: DrawParams;
+// Per instance, draw.shadow_words words: bit p % 32 of word p / 32 set where part p casts no
+// shadow (Bevy's NotShadowCaster on the part's entity).
+@group(2) @binding(9) var<storage, read> no_shadow: array<u32>;
 
 struct ShadowOut {
     @builtin(position) position: vec4<f32>,
@@ -18,7 +28,14 @@ struct ShadowOut {
 @vertex
 fn shadow_vertex(@builtin(vertex_index) index: u32, @builtin(instance_index) instance: u32) -> ShadowOut {
     var out: ShadowOut;
-    out.position = view.clip_from_world * vec4<f32>(skinned_position(instance, corners[index].x), 1.0);
+    let corner = corners[index];
+    let bits = no_shadow[instance * draw.shadow_words + corner.z / 32u];
+    if ((bits >> (corner.z % 32u)) & 1u) != 0u {
+        // Every corner of the part's triangles at one point outside the view: nothing drawn.
+        out.position = vec4<f32>(2.0, 2.0, 0.5, 1.0);
+        return out;
+    }
+    out.position = view.clip_from_world * vec4<f32>(skinned_position(instance, corner.x), 1.0);
 #ifdef UNCLIPPED_DEPTH_ORTHO_EMULATION
     // A directional light's casters in front of its near plane, clamped to it (as Bevy does).
     out.unclipped_depth = out.position.z;
