@@ -163,13 +163,14 @@ pub struct SkinletMeshletPlugin;
 
 impl Plugin for SkinletMeshletPlugin {
     fn build(&self, app: &mut App) {
+        // Both shaders: the crowd skinning in group 2, then group 2's other shared bindings.
+        let group2 = [CROWD_SKIN_WGSL.replace("@group(1)", "@group(2)").as_str(), GROUP2_WGSL].concat();
         let shader = {
-            let source =
-                [CROWD_SKIN_WGSL.replace("@group(1)", "@group(2)").as_str(), TRIANGLES_WGSL, DRAW_WGSL].concat();
+            let source = [group2.as_str(), TRIANGLES_WGSL, DRAW_WGSL].concat();
             app.world_mut().resource_mut::<Assets<Shader>>().add(Shader::from_wgsl(source, "skinlet/meshlet_draw.wgsl"))
         };
         let shadow_shader = {
-            let source = [CROWD_SKIN_WGSL.replace("@group(1)", "@group(2)").as_str(), SHADOW_WGSL].concat();
+            let source = [group2.as_str(), SHADOW_WGSL].concat();
             app.world_mut()
                 .resource_mut::<Assets<Shader>>()
                 .add(Shader::from_wgsl(source, "skinlet/meshlet_shadow.wgsl"))
@@ -207,6 +208,7 @@ impl Plugin for SkinletMeshletPlugin {
     }
 }
 
+const GROUP2_WGSL: &str = include_str!("meshlet_group2.wgsl");
 const DRAW_WGSL: &str = include_str!("meshlet_draw.wgsl");
 const SHADOW_WGSL: &str = include_str!("meshlet_shadow.wgsl");
 
@@ -1073,6 +1075,17 @@ fn queue_draws(
     }
 }
 
+/// The item's bake, when it has instances this frame, with its group 2 set.
+fn drawn_bake<'w>(
+    item: Option<&SkinletMeshletDraw>,
+    gpu: &'w MeshletGpu,
+    pass: &mut TrackedRenderPass<'w>,
+) -> Option<&'w BakeGpu> {
+    let b = gpu.bakes.get(&item?.bake).filter(|b| b.instances > 0)?;
+    pass.set_bind_group(2, &b.draw_group, &[]);
+    Some(b)
+}
+
 /// Group 2 and the bake's one indexed indirect draw.
 struct DrawMeshlets;
 
@@ -1088,12 +1101,7 @@ impl<P: PhaseItem> RenderCommand<P> for DrawMeshlets {
         gpu: SystemParamItem<'w, '_, Self::Param>,
         pass: &mut TrackedRenderPass<'w>,
     ) -> RenderCommandResult {
-        let gpu = gpu.into_inner();
-        let Some(b) = item.and_then(|d| gpu.bakes.get(&d.bake)) else { return RenderCommandResult::Skip };
-        if b.instances == 0 {
-            return RenderCommandResult::Skip;
-        }
-        pass.set_bind_group(2, &b.draw_group, &[]);
+        let Some(b) = drawn_bake(item, gpu.into_inner(), pass) else { return RenderCommandResult::Skip };
         if let Some(textures) = &b.texture_group {
             pass.set_bind_group(3, textures, &[]);
         }
@@ -1237,12 +1245,7 @@ impl<P: PhaseItem> RenderCommand<P> for DrawMeshletsUnculled {
         gpu: SystemParamItem<'w, '_, Self::Param>,
         pass: &mut TrackedRenderPass<'w>,
     ) -> RenderCommandResult {
-        let gpu = gpu.into_inner();
-        let Some(b) = item.and_then(|d| gpu.bakes.get(&d.bake)) else { return RenderCommandResult::Skip };
-        if b.instances == 0 {
-            return RenderCommandResult::Skip;
-        }
-        pass.set_bind_group(2, &b.draw_group, &[]);
+        let Some(b) = drawn_bake(item, gpu.into_inner(), pass) else { return RenderCommandResult::Skip };
         pass.draw(0..b.corners, 0..b.instances);
         RenderCommandResult::Success
     }

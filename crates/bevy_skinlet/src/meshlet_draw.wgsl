@@ -15,22 +15,11 @@
     view_transformations::position_world_to_clip,
 }
 
-struct DrawParams {
-    id_bits: u32,
-    // 1: drawn unculled (vertex index the corner, instance index the instance).
-    unculled: u32,
-    // Words of shadow bits per instance (meshlet_shadow.wgsl).
-    shadow_words: u32,
-    pad: u32,
-}
-
-// Per corner: bake vertex, source attribute vertex, part, 0.
-@group(2) @binding(4) var<storage, read> corners: array<vec4<u32>>;
+// Group 2's shared bindings (corners, draw) are in meshlet_group2.wgsl.
 // Per source attribute vertex: its normal (w 0).
 @group(2) @binding(5) var<storage, read> normals: array<vec4<f32>>;
 // Per part: its material as Bevy uploads a StandardMaterial.
 @group(2) @binding(6) var<storage, read> materials: array<StandardMaterial>;
-@group(2) @binding(7) var<uniform> draw: DrawParams;
 // Per source attribute vertex: its first texture coordinates.
 @group(2) @binding(8) var<storage, read> uvs: array<vec2<f32>>;
 

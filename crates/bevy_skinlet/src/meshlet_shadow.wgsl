@@ -5,18 +5,7 @@
 #import bevy_render::view::View
 
 @group(0) @binding(0) var<uniform> view: View;
-// Per corner: bake vertex, source attribute vertex, part, 0.
-@group(2) @binding(4) var<storage, read> corners: array<vec4<u32>>;
-struct DrawParams {
-    id_bits: u32,
-    unculled: u32,
-    shadow_words: u32,
-    pad: u32,
-}
-@group(2) @binding(7) var<uniform> draw: DrawParams;
-// Per instance, draw.shadow_words words: bit p % 32 of word p / 32 set where part p casts no
-// shadow (Bevy's NotShadowCaster on the part's entity).
-@group(2) @binding(9) var<storage, read> no_shadow: array<u32>;
+// Group 2's corners, draw and no_shadow are in meshlet_group2.wgsl.
 
 struct ShadowOut {
     @builtin(position) position: vec4<f32>,
