@@ -76,6 +76,11 @@ pub struct Args {
     /// guard admits an instance's pose, and draw the others whole.
     #[arg(long, default_value = "clips", value_parser = ["clips", "blend", "additive", "ik"])]
     animation: String,
+    /// Rounds of occlusion culling's second phase: each tests a range of the instances
+    /// (nearest first) against the depth drawn so far and draws its survivors before the next
+    /// (1 to 16; a draw each).
+    #[arg(long, default_value_t = skinlet_lab::gpu_crowd::OCCLUSION_ROUNDS)]
+    occlusion_rounds: u32,
     /// Every frame the crowd's pose of frame 0 (a still crowd: occlusion culling's steady
     /// state without motion between frames).
     #[arg(long)]
@@ -291,7 +296,16 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             (palette, modes, weights)
         })
         .collect();
-    let gpu_crowd = GpuCrowd::new(&gpu, &baked, &culler, instances as u32, a.width, height)?;
+    let gpu_crowd = GpuCrowd::with_depth_range(
+        &gpu,
+        &baked,
+        &culler,
+        instances as u32,
+        a.width,
+        height,
+        false,
+        a.occlusion_rounds,
+    )?;
     let keep_all = vec![CullMode::Keep; instances];
     // Frame `f` of the GPU-driven crowd; `keep`: every instance drawn whole.
     let crowd_frame = |f: usize, tests: Tests, keep: bool| CrowdFrame {
@@ -599,7 +613,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             "meshlets_visible_last_or_this_frame": mean(&last_or_this),
             "meshlets_unhidden_pose_box": mean(&box_exact), "meshlets_unhidden_pose_box_pyramid": mean(&box_pyramid),
             "meshlets_unhidden_pose_triangles": mean(&box_triangles), "meshlets_per_frame": all_meshlets,
-            "animation": a.animation, "still": a.still, "guard_fallback_pct": fallback_pct,
+            "animation": a.animation, "still": a.still, "occlusion_rounds": a.occlusion_rounds, "guard_fallback_pct": fallback_pct,
             "instances": instances, "frames": a.frames, "repeats": a.repeats, "width": a.width, "height": height,
             "meshlets": baked.meshlets.len(), "triangles_per_instance": total_triangles,
             "builder": baked.settings.builder.name(), "ci_meshlets": ci_counts.map(|c| c.0),

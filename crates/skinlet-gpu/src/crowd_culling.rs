@@ -44,7 +44,11 @@
 //! lists the survivors whose bounds are not behind it and were not drawn yet
 //! ([`List::Second`]), setting every meshlet's visibility bit for the next frame; the caller
 //! draws those too. A meshlet with a visible fragment is drawn in one of the two phases
-//! whatever the bits say (camera cuts, teleports).
+//! whatever the bits say (camera cuts, teleports). The second phase may run in rounds
+//! ([`OcclusionDepth::rounds`]), each over a range of the instances (ordered nearest first by
+//! the caller) against a pyramid of the depth drawn so far, the caller drawing each round's
+//! survivors before the next: what became visible this frame on near characters then hides
+//! the layers behind it before they are tested.
 //!
 //! [`crate::triangle_culling`] adds a per-triangle pass over the survivors (with the
 //! visibility bits then set from the triangles).
@@ -184,7 +188,17 @@ pub struct OcclusionDepth<'a> {
     pub height: u32,
     pub reversed: bool,
     pub subpixel_bits: u32,
+    /// Rounds of the second phase (1 to [`MAX_OCCLUSION_ROUNDS`]): round `r` of `R` tests the
+    /// instances `r·n/R .. (r+1)·n/R` of the frame's `n` against a pyramid of the depth drawn
+    /// so far, and the caller draws its survivors before the next round. With the instances
+    /// ordered nearest first, the meshlets that became visible this frame on near characters
+    /// are drawn before farther ones are tested, instead of leaving holes that every layer
+    /// behind them passes.
+    pub rounds: u32,
 }
+
+/// Most rounds of occlusion culling's second phase ([`OcclusionDepth::rounds`]).
+pub const MAX_OCCLUSION_ROUNDS: u32 = 16;
 
 /// The sub-pixel precision every Vulkan rasterizer has at least (`subPixelPrecisionBits`):
 /// vertices snap to a grid of 1/16 pixel. D3D12 requires 8 bits, as desktop Vulkan drivers
@@ -234,8 +248,9 @@ pub struct CrowdCulling {
     has_boxes: bool,
     /// The device has `MULTI_DRAW_INDIRECT_COUNT`.
     count_draws: bool,
-    /// With occlusion culling: the depth size and range, and the pyramid's levels.
-    pub(crate) occlusion: Option<(u32, u32, bool, u32)>,
+    /// With occlusion culling: the depth size and range, the pyramid's levels, and the
+    /// second phase's rounds.
+    pub(crate) occlusion: Option<(u32, u32, bool, u32, u32)>,
     /// The occlusion depth's vertex snapping, in pixels.
     snap: f32,
     /// The instances of the frame being recorded (the second phase's dispatch size).
@@ -259,11 +274,14 @@ pub struct CrowdCulling {
     pyramid_pipeline: wgpu::ComputePipeline,
 }
 
-/// Where `CullCamera`, the second phase's `CullParams` and `Occlusion` start in the uniform
-/// buffer (multiples of the uniform offset alignment WebGPU guarantees).
+/// Where `CullCamera`, the second phase's `CullParams` (its first round), `Occlusion` and the
+/// other rounds' `CullParams` start in the uniform buffer (multiples of the uniform offset
+/// alignment WebGPU guarantees).
 const CAMERA_OFFSET: usize = 256;
 const SECOND_OFFSET: usize = 512;
 pub(crate) const OCCLUSION_OFFSET: usize = 768;
+const ROUNDS_OFFSET: usize = 1024;
+const ROUND_STRIDE: usize = 256;
 /// Bytes per (instance, joint) record (`RECORD` floats and 16 for occlusion) and per draw
 /// command; per instance counts.
 const RECORD_BYTES: u64 = (40 + 16) * 4;
@@ -290,6 +308,9 @@ struct Uniforms {
     view_proj: [f32; 16],
     /// width, height, pyramid base, reversed, levels, 0, 0, 0
     occlusion: [u32; 8],
+    pad5: [u32; (ROUNDS_OFFSET - OCCLUSION_OFFSET - 96) / 4],
+    /// The second phase's rounds after the first: `CullParams` each.
+    rounds: [[u32; ROUND_STRIDE / 4]; MAX_OCCLUSION_ROUNDS as usize - 1],
 }
 
 pub(crate) fn invalid(location: &'static str, message: String) -> GpuError {
@@ -576,6 +597,12 @@ impl CrowdCulling {
         if depth.width == 0 || depth.height == 0 {
             return Err(invalid("GPU occlusion culling", format!("a {}×{} depth buffer", depth.width, depth.height)));
         }
+        if !(1..=MAX_OCCLUSION_ROUNDS).contains(&depth.rounds) {
+            return Err(invalid(
+                "GPU occlusion culling",
+                format!("{} rounds (1 to {MAX_OCCLUSION_ROUNDS})", depth.rounds),
+            ));
+        }
         Self::build(device, pipelines, character, palette, instances, capacity, survivor_capacity, Some(depth))
     }
 
@@ -705,7 +732,7 @@ impl CrowdCulling {
                 corners: character.corners,
                 has_boxes: character.has_boxes,
                 count_draws: device.features().contains(wgpu::Features::MULTI_DRAW_INDIRECT_COUNT),
-                occlusion: depth.map(|d| (d.width, d.height, d.reversed, levels)),
+                occlusion: depth.map(|d| (d.width, d.height, d.reversed, levels, d.rounds)),
                 snap,
                 frame_instances: std::sync::atomic::AtomicU32::new(0),
                 uniforms,
@@ -782,23 +809,59 @@ impl CrowdCulling {
         Ok(())
     }
 
-    /// Occlusion culling's second phase, after the first list was drawn into the depth
-    /// buffer: the depth pyramid, then every meshlet of the frame `encode_first` culled tested
-    /// again with its bounding sphere (its any-pose boxes, for an instance culled by the boxes
-    /// alone) against the pyramid; the newly visible to [`List::Second`], and every meshlet's
-    /// visibility bit set for the next frame. Allocates nothing. Errors without occlusion
-    /// culling.
-    pub fn encode_second(&self, encoder: &mut wgpu::CommandEncoder) -> Result<()> {
-        self.encode_second_pass(encoder)?;
+    /// Round `round` of occlusion culling's second phase ([`OcclusionDepth::rounds`]: the
+    /// caller records rounds 0, 1, … in order, drawing [`List::Second`] into the depth buffer
+    /// after each): the depth pyramid of what is drawn so far, then every meshlet of the
+    /// round's instances that `encode_first` culled tested again with its bounding sphere (its
+    /// any-pose boxes, for an instance culled by the boxes alone) against the pyramid; the
+    /// newly visible to [`List::Second`] (this round's survivors only), and every such
+    /// meshlet's visibility bit set for the next frame. Allocates nothing. Errors without
+    /// occlusion culling or for a round past the last.
+    pub fn encode_second(&self, encoder: &mut wgpu::CommandEncoder, round: u32) -> Result<()> {
+        self.encode_second_pass(encoder, round)?;
         Ok(())
+    }
+
+    /// The second phase's rounds ([`OcclusionDepth::rounds`]; 0 without occlusion culling).
+    pub fn occlusion_rounds(&self) -> u32 {
+        self.occlusion.map_or(0, |o| o.4)
     }
 
     /// [`CrowdCulling::encode_second`], its last pass left open (for the triangle pass).
     pub(crate) fn encode_second_pass<'e>(
         &self,
         encoder: &'e mut wgpu::CommandEncoder,
+        round: u32,
     ) -> Result<wgpu::ComputePass<'e>> {
-        let (Some((width, height, _, levels)), Some(pyramid)) = (self.occlusion, &self.pyramid) else {
+        let rounds = self.occlusion_rounds();
+        if round >= rounds {
+            return Err(match rounds {
+                0 => no_occlusion(),
+                _ => invalid("GPU occlusion culling", format!("round {round} of {rounds}")),
+            });
+        }
+        self.encode_pyramid(encoder)?;
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("skinlet occlusion culling"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&self.cull_pipeline);
+        let offset = match round {
+            0 => SECOND_OFFSET,
+            r => ROUNDS_OFFSET + (r as usize - 1) * ROUND_STRIDE,
+        };
+        pass.set_bind_group(0, &self.cull, &[offset as u32]);
+        let n = self.frame_instances() as u64;
+        let first = |r: u32| (r as u64 * n / rounds as u64) as u32;
+        dispatch(&mut pass, (first(round + 1) - first(round)) * self.meshlets);
+        pass.set_pipeline(&self.finish_pipeline);
+        pass.dispatch_workgroups(1, 1, 1);
+        Ok(pass)
+    }
+
+    /// The depth pyramid of the depth buffer as it is now. Errors without occlusion culling.
+    pub(crate) fn encode_pyramid(&self, encoder: &mut wgpu::CommandEncoder) -> Result<()> {
+        let (Some((width, height, _, levels, _)), Some(pyramid)) = (self.occlusion, &self.pyramid) else {
             return Err(no_occlusion());
         };
         // Each level in its own pass: the next one reads what this one wrote.
@@ -812,16 +875,7 @@ impl CrowdCulling {
             let (w, h) = (width.div_ceil(1 << level).max(1), height.div_ceil(1 << level).max(1));
             pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
         }
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("skinlet occlusion culling"),
-            timestamp_writes: None,
-        });
-        pass.set_pipeline(&self.cull_pipeline);
-        pass.set_bind_group(0, &self.cull, &[SECOND_OFFSET as u32]);
-        dispatch(&mut pass, self.frame_instances() * self.meshlets);
-        pass.set_pipeline(&self.finish_pipeline);
-        pass.dispatch_workgroups(1, 1, 1);
-        Ok(pass)
+        Ok(())
     }
 
     /// The instance count the last `encode*` wrote.
@@ -884,13 +938,19 @@ impl CrowdCulling {
             Projection::Orthographic { dir } => (dir.extend(0.0), true),
         };
         let planes = &camera.planes;
-        let params = |phase| {
+        let (width, height, reversed, levels, rounds) = self.occlusion.unwrap_or_default();
+        // The second phase's round (and the rounds) in the padding word.
+        let params = |phase, round: usize| {
             let f = flags(tests, orthographic) | (triangles as u32) << 3;
-            [self.meshlets, self.joints, instances, f, 0, self.survivor_capacity, self.corners, phase]
+            let round = round as u32 | rounds << 8;
+            [self.meshlets, self.joints, instances, f, round, self.survivor_capacity, self.corners, phase]
         };
-        let (width, height, reversed, levels) = self.occlusion.unwrap_or_default();
+        let mut round_params = [[0; ROUND_STRIDE / 4]; MAX_OCCLUSION_ROUNDS as usize - 1];
+        for (r, block) in round_params.iter_mut().enumerate() {
+            block[..8].copy_from_slice(&params(2, r + 1));
+        }
         let uniforms = Uniforms {
-            params: params(phase),
+            params: params(phase, 0),
             pad: [0; (CAMERA_OFFSET - 32) / 4],
             planes: planes.map(|p| p.to_array()),
             view: view.to_array(),
@@ -899,7 +959,7 @@ impl CrowdCulling {
             has_boxes: self.has_boxes as u32,
             pad2: 0,
             pad3: [0; (SECOND_OFFSET - CAMERA_OFFSET - 128) / 4],
-            second: params(2),
+            second: params(2, 0),
             pad4: [0; (OCCLUSION_OFFSET - SECOND_OFFSET - 32) / 4],
             view_proj: camera.view_proj.to_cols_array(),
             occlusion: [
@@ -912,6 +972,8 @@ impl CrowdCulling {
                 0,
                 0,
             ],
+            pad5: [0; (ROUNDS_OFFSET - OCCLUSION_OFFSET - 96) / 4],
+            rounds: round_params,
         };
         queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&uniforms));
         self.frame_instances.store(instances, std::sync::atomic::Ordering::Relaxed);

@@ -322,12 +322,18 @@ impl TriangleCulling {
         self.encode_phase(queue, encoder, camera, tests, instances, skinning, timestamps, 1)
     }
 
-    /// Occlusion culling's second phase: [`CrowdCulling::encode_second`]'s pyramid and
-    /// meshlet tests, then every survivor's triangles against the pyramid: its visibility bit
-    /// from them, and where the first phase did not draw it, its triangles not behind the
-    /// pyramid to [`List::Second`]. Errors without occlusion culling.
-    pub fn encode_second(&self, encoder: &mut wgpu::CommandEncoder, skinning: &wgpu::BindGroup) -> Result<()> {
-        let mut pass = self.crowd.encode_second_pass(encoder)?;
+    /// Round `round` of occlusion culling's second phase: [`CrowdCulling::encode_second`]'s
+    /// pyramid and meshlet tests, then every survivor's triangles against the pyramid: its
+    /// visibility bit from them, and where the first phase did not draw it, its triangles not
+    /// behind the pyramid to [`List::Second`] (this round's only). Errors without occlusion
+    /// culling or for a round past the last.
+    pub fn encode_second(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        skinning: &wgpu::BindGroup,
+        round: u32,
+    ) -> Result<()> {
+        let mut pass = self.crowd.encode_second_pass(encoder, round)?;
         self.triangle_pass(&mut pass, skinning, List::Second);
         Ok(())
     }

@@ -158,6 +158,8 @@ pub fn posed_crowd(
 /// Lays out the scene for a character whose vertices (in scene space, posed) are `positions`:
 /// a camera at the origin looking down −z, three quarters of the instances on a grid that
 /// fills the view and spills past its sides, one quarter centered on the four side planes.
+/// The instances are ordered nearest first (by the depth of their centers), as occlusion
+/// culling's rounds want them.
 pub fn crowd(positions: &[Vec3], clips: usize, params: &CrowdParams) -> Result<Crowd> {
     let (lo, hi) = positions
         .iter()
@@ -196,8 +198,12 @@ pub fn crowd(positions: &[Vec3], clips: usize, params: &CrowdParams) -> Result<C
         }
     };
     let mut rng = Rng(params.seed ^ 0x5EED_C0DE);
+    let nearest_first = |mut placements: Vec<Placement>| {
+        placements.sort_by(|a, b| b.model.transform_point3(center).z.total_cmp(&a.model.transform_point3(center).z));
+        placements
+    };
     if params.layout == Layout::Dense {
-        return Ok(Crowd { camera, placements: dense(params, clips, center, size, &mut rng) });
+        return Ok(Crowd { camera, placements: nearest_first(dense(params, clips, center, size, &mut rng)) });
     }
     let on_planes = params.instances / 4;
     let grid = params.instances - on_planes;
@@ -229,7 +235,7 @@ pub fn crowd(positions: &[Vec3], clips: usize, params: &CrowdParams) -> Result<C
         let clip = if clips == 0 { 0 } else { (rng.next() * clips as f64) as usize % clips };
         placements.push(Placement { model, clip, offset: rng.next() as f32 });
     }
-    Ok(Crowd { camera, placements })
+    Ok(Crowd { camera, placements: nearest_first(placements) })
 }
 
 /// [`Layout::Dense`]: a square grid centered on the view axis, 0.8 `size` apart across and

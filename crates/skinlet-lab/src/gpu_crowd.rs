@@ -132,6 +132,9 @@ pub struct GpuCrowd {
 
 const IDS: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
 
+/// The second phase's rounds of [`GpuCrowd::new`]'s occlusion culling.
+pub const OCCLUSION_ROUNDS: u32 = 16;
+
 fn invalid(message: String) -> GpuError {
     GpuError::Invalid { location: "GPU crowd", message }
 }
@@ -148,12 +151,14 @@ impl GpuCrowd {
         width: u32,
         height: u32,
     ) -> Result<GpuCrowd> {
-        GpuCrowd::with_depth_range(gpu, baked, culler, capacity, width, height, false)
+        GpuCrowd::with_depth_range(gpu, baked, culler, capacity, width, height, false, OCCLUSION_ROUNDS)
     }
 
     /// [`GpuCrowd::new`] with a reversed depth range where `reversed` (near 1, far 0: Bevy's
     /// infinite reverse-Z; the frames' cameras must project so): depth cleared to 0, nearer
-    /// fragments the greater, occlusion culling's pyramid of the nearest.
+    /// fragments the greater, occlusion culling's pyramid of the nearest; occlusion culling's
+    /// second phase in `rounds` rounds ([`skinlet_gpu::crowd_culling::OcclusionDepth::rounds`]:
+    /// the frames' instances are best ordered nearest first).
     #[allow(clippy::too_many_arguments)]
     pub fn with_depth_range(
         gpu: &Gpu,
@@ -163,6 +168,7 @@ impl GpuCrowd {
         width: u32,
         height: u32,
         reversed: bool,
+        rounds: u32,
     ) -> Result<GpuCrowd> {
         let mesh = &baked.mesh;
         let headers = baked.meshlets.headers();
@@ -191,7 +197,7 @@ impl GpuCrowd {
         );
         let depth_view = depth.create_view(&Default::default());
         let subpixel_bits = gpu.subpixel_bits;
-        let occlusion = OcclusionDepth { view: &depth_view, width, height, reversed, subpixel_bits };
+        let occlusion = OcclusionDepth { view: &depth_view, width, height, reversed, subpixel_bits, rounds };
         let culling = CrowdCulling::with_occlusion(
             device, &pipelines, &character, &palette, &instances, capacity, survivors, occlusion,
         )?;
@@ -338,6 +344,11 @@ impl GpuCrowd {
         self.meshlets
     }
 
+    /// Rounds of occlusion culling's second phase.
+    pub fn occlusion_rounds(&self) -> u32 {
+        self.culling.crowd().occlusion_rounds()
+    }
+
     /// Triangles per instance.
     pub fn triangles(&self) -> u32 {
         self.index_count / 3
@@ -374,14 +385,18 @@ impl GpuCrowd {
         // The render passes: (pipeline, what it draws, whether it clears); the ID view draws
         // twice (nearer fragments win, then nearer or equal ones: pixels whose ids differ are
         // depth ties between meshlets), occlusion culling's phases draw into one image.
-        let passes: &[(usize, Option<List>, bool)] = match view {
-            CrowdView::Unculled => &[(0, None, true)],
-            CrowdView::Indexed => &[(0, Some(List::First), true)],
-            CrowdView::Pulled => &[(1, Some(List::First), true)],
-            CrowdView::Occluded => &[(1, Some(List::First), true), (1, Some(List::Second), false)],
-            CrowdView::Triangles => &[(4, Some(List::First), true)],
-            CrowdView::OccludedTriangles => &[(4, Some(List::First), true), (4, Some(List::Second), false)],
-            CrowdView::Ids => &[(2, None, true), (3, None, true)],
+        let rounds = self.culling.crowd().occlusion_rounds();
+        let occluded = |p| {
+            [(p, Some(List::First), true)].into_iter().chain((0..rounds).map(move |_| (p, Some(List::Second), false)))
+        };
+        let passes: Vec<(usize, Option<List>, bool)> = match view {
+            CrowdView::Unculled => vec![(0, None, true)],
+            CrowdView::Indexed => vec![(0, Some(List::First), true)],
+            CrowdView::Pulled => vec![(1, Some(List::First), true)],
+            CrowdView::Occluded => occluded(1).collect(),
+            CrowdView::Triangles => vec![(4, Some(List::First), true)],
+            CrowdView::OccludedTriangles => occluded(4).collect(),
+            CrowdView::Ids => vec![(2, None, true), (3, None, true)],
         };
         let triangles = matches!(view, CrowdView::Triangles | CrowdView::OccludedTriangles);
         let (culling, skinning) = (&self.culling, &self.groups[1]);
@@ -420,9 +435,11 @@ impl GpuCrowd {
             let target_view = target.create_view(&Default::default());
             let mut readbacks = Vec::new();
             for (k, &(p, list, clear)) in passes.iter().enumerate() {
+                // Passes 1, 2, … draw the second phase's rounds 0, 1, ….
+                let round = (k as u32).saturating_sub(1);
                 match (list, triangles) {
-                    (Some(List::Second), false) => culling.crowd().encode_second(&mut encoder)?,
-                    (Some(List::Second), true) => culling.encode_second(&mut encoder, skinning)?,
+                    (Some(List::Second), false) => culling.crowd().encode_second(&mut encoder, round)?,
+                    (Some(List::Second), true) => culling.encode_second(&mut encoder, skinning, round)?,
                     _ => {}
                 }
                 let last = k + 1 == passes.len();
@@ -519,7 +536,7 @@ impl GpuCrowd {
         } else {
             image = Some(Image { width: self.width, height, rgba: images.swap_remove(0) });
         }
-        let lists = passes.iter().filter(|p| p.1.is_some()).count();
+        let lists = passes.iter().filter(|p| p.1.is_some()).count().min(2);
         let headers = match lists {
             0 => Vec::new(),
             _ => {
@@ -590,9 +607,10 @@ impl GpuCrowd {
         let all = bytemuck::pod_collect_to_vec::<u8, u32>(&gpu.read(crowd.commands(), 40 * places)?);
         let meshlet = |first: u32| self.firsts.binary_search(&first).unwrap_or(usize::MAX) as u32;
         let mut out = Vec::new();
+        // Every round's survivors (the second list's header counts its last round).
         for (k, h) in headers.iter().enumerate() {
             let list = &all[5 * (k as u64 * places) as usize..];
-            out.extend(list.chunks_exact(5).take(h.instance_count as usize).map(|c| [c[4], meshlet(c[2])]));
+            out.extend(list.chunks_exact(5).take(h.found.min(places as u32) as usize).map(|c| [c[4], meshlet(c[2])]));
         }
         Ok(out)
     }
@@ -609,7 +627,7 @@ impl GpuCrowd {
         let (bits, mut out) = (culling.id_bits(), Vec::new());
         for (k, h) in headers.iter().enumerate() {
             let start = 16 + 3 * k * culling.capacity() as usize;
-            for t in all[start..start + h.index_count as usize].chunks_exact(3) {
+            for t in all[start..start + 3 * h.found.min(culling.capacity()) as usize].chunks_exact(3) {
                 let mut vertices = [t[0], t[1], t[2]].map(|i| i & ((1u64 << bits) - 1) as u32);
                 vertices.sort_unstable();
                 let &triangle = self.triangle_by_vertices.get(&vertices).ok_or_else(|| {

@@ -65,11 +65,10 @@ fn check_frame(gpu: &Gpu, crowd: &GpuCrowd, frame: &CrowdFrame, what: &str) -> [
             .entry(same_way == CrowdView::Indexed)
             .or_insert_with(|| crowd.draw(gpu, &unculled, same_way, LIGHT).unwrap().image.unwrap());
         let drawn = crowd.draw(gpu, frame, view, LIGHT).unwrap();
-        for h in &drawn.headers {
-            assert_eq!(h.found, h.instance_count, "{what} {view:?}: the list overflowed");
-        }
-        let listed: u32 = drawn.headers.iter().map(|h| h.instance_count).sum();
-        assert_eq!(drawn.draw_calls as usize, drawn.headers.len());
+        let listed: u32 = drawn.headers.iter().map(|h| h.found).sum();
+        // One draw per list, the second's once per round.
+        let draws = if drawn.headers.len() == 2 { 1 + crowd.occlusion_rounds() } else { 1 };
+        assert_eq!(drawn.draw_calls, draws, "{what} {view:?}");
         let (a, b) = (&reference.rgba, &drawn.image.as_ref().unwrap().rgba);
         // Where two meshlets' nearest fragments tie in depth, draw order picks the color (and
         // the survivors' order is not the unculled draw's); elsewhere every pixel is equal.
@@ -87,7 +86,7 @@ fn check_frame(gpu: &Gpu, crowd: &GpuCrowd, frame: &CrowdFrame, what: &str) -> [
             true => {
                 let list: HashSet<u32> =
                     crowd.survivors(gpu).unwrap().iter().map(|&[i, m]| i * crowd.meshlets() + m).collect();
-                assert_eq!(list.len(), listed as usize, "{what} {view:?}: survivors listed twice");
+                assert_eq!(list.len(), listed as usize, "{what} {view:?}: survivors listed twice or past the capacity");
                 list
             }
             false => {
@@ -104,15 +103,12 @@ fn check_frame(gpu: &Gpu, crowd: &GpuCrowd, frame: &CrowdFrame, what: &str) -> [
                     );
                 }
                 let headers = &drawn.triangle_headers;
-                for h in headers {
-                    assert_eq!(3 * h.found, h.index_count, "{what} {view:?}: the triangle list overflowed");
-                }
                 let meshlets: u32 = headers.iter().map(|h| h.meshlets).sum();
                 assert_eq!(list.len(), meshlets as usize, "{what} {view:?}: meshlets with triangles, counted");
                 assert_eq!(
                     drawn_triangles.len() as u32,
                     headers.iter().map(|h| h.found).sum::<u32>(),
-                    "{what} {view:?}"
+                    "{what} {view:?}: triangles listed past the capacity"
                 );
                 list
             }
@@ -251,8 +247,9 @@ fn occlusion_culling_misses_nothing_when_the_camera_cuts_or_the_crowd_teleports(
     // walks up to the first row, through it (what it hid is visible at once), cuts back and to
     // the side; then the crowd's instances swap places. Every frame: the image equals the
     // unculled one and every visible meshlet is drawn (check_frame), whatever the visibility
-    // bits of the frame before. With a forward depth range and with Bevy's infinite reverse-Z
-    // (the pyramid then keeps the nearest depth).
+    // bits of the frame before. With a forward depth range and the second phase in one round,
+    // and with Bevy's infinite reverse-Z (the pyramid then keeps the nearest depth) and 5 rounds
+    // (the other tests: GpuCrowd::new's).
     let Some(gpu) = gpu() else { return };
     let demo =
         skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams { triangles: 4000, ..Default::default() });
@@ -268,8 +265,8 @@ fn occlusion_culling_misses_nothing_when_the_camera_cuts_or_the_crowd_teleports(
     let modes = vec![CullMode::Bounds; scene.placements.len()];
     let pose = |f: usize, order: &[usize]| clip_pose(&demo, &baked, &scene, params.fps, f, order);
     let in_place: Vec<usize> = (0..scene.placements.len()).collect();
-    for reversed in [false, true] {
-        let crowd = GpuCrowd::with_depth_range(&gpu, &baked, &culler, 64, 320, 180, reversed).unwrap();
+    for (reversed, rounds) in [(false, 1), (true, 5)] {
+        let crowd = GpuCrowd::with_depth_range(&gpu, &baked, &culler, 64, 320, 180, reversed, rounds).unwrap();
         let camera = |eye: Vec3, forward: Vec3| {
             let (fov, aspect) = (50f32.to_radians(), 16.0 / 9.0);
             if reversed {

@@ -9,6 +9,9 @@
 // set to whether it is visible now). Phase 2 tests every meshlet against depth this frame's
 // geometry wrote, so a meshlet with a visible fragment is drawn in phase 1 or 2 whatever
 // last frame's bits say (a camera cut or a teleport costs work, never a missing meshlet).
+// Phase 2 may run in rounds (cull_params.round), each over a consecutive range of instances
+// against the depth drawn so far; list B then holds the round's survivors, placed after the
+// earlier rounds' (its header's first instance says where they start).
 //
 // With the triangle pass after it (cull_params.flags bit 3, triangle_cull.wgsl), an entry's
 // instance count holds the meshlet's index instead (the lists are that pass's input, not
@@ -33,8 +36,8 @@
 @group(0) @binding(7) var<storage, read> any_pose_boxes: array<u32>;
 // The lists' headers, 8 words each (A at 0, B at 8): DrawIndirectArgs of the pulled draw
 // (vertex count = the largest meshlet's corners, instance count = survivors drawn, first
-// vertex 0, first instance = where the list starts), the survivors found, and the triangle
-// pass's workgroup counts (x, y, z).
+// vertex 0, first instance = where they start in `commands`), the survivors found, and the
+// triangle pass's workgroup counts (x, y, z).
 @group(0) @binding(8) var<storage, read_write> survivors: array<atomic<u32>>;
 
 @group(0) @binding(9) var<uniform> occlusion: Occlusion;
@@ -156,13 +159,22 @@ fn occluded(s: Slot, instance: u32) -> bool {
 // (phases 0 and 2), the visibility bits (phase 2), and the survivor's place in its list.
 @compute @workgroup_size(64)
 fn cull_draws(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
-    let index = invocation(gid);
     let phase = cull_params.phase;
+    // This round's instances.
+    var first = 0u;
+    var end = cull_params.instances;
+    if phase == 2u {
+        let round = cull_params.round & 0xffu;
+        let rounds = max(cull_params.round >> 8u, 1u);
+        first = round * cull_params.instances / rounds;
+        end = (round + 1u) * cull_params.instances / rounds;
+    }
+    let index = invocation(gid) + first * cull_params.slots;
     let triangles = (cull_params.flags & 8u) != 0u;
     var instance = 0u;
     var id = 0u;
     var place = 0xffffffffu;
-    if index < cull_params.slots * cull_params.instances {
+    if index < cull_params.slots * end {
         instance = index / cull_params.slots;
         let s = slots[index % cull_params.slots];
         id = s.id;
@@ -212,18 +224,26 @@ fn cull_draws(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invo
     }
 }
 
-// After `cull_draws`: this phase's pulled draw arguments, the count (also that of the indexed
-// draws) clamped to the list's capacity, so a frame draws only entries it wrote, and the
+// After `cull_draws`: this phase's (round's) pulled draw arguments: its survivors, past the
+// earlier rounds' (a first instance still 0 in list B: none), the count (also that of the
+// indexed draws) clamped to the list's capacity, so a frame draws only entries it wrote; the
 // triangle pass's workgroups (one per survivor, rows of at most 65535).
 @compute @workgroup_size(1)
 fn finish_draws() {
-    let header = select(0u, 8u, cull_params.phase == 2u);
-    let count = min(atomicLoad(&survivors[header + 4u]), cull_params.capacity);
+    let second = cull_params.phase == 2u;
+    let header = select(0u, 8u, second);
+    let base = select(0u, cull_params.capacity, second);
+    let end = min(atomicLoad(&survivors[header + 4u]), cull_params.capacity);
+    var start = 0u;
+    let previous = atomicLoad(&survivors[header + 3u]);
+    if second && previous != 0u {
+        start = previous - base + atomicLoad(&survivors[header + 1u]);
+    }
     atomicStore(&survivors[header], cull_params.corners);
-    atomicStore(&survivors[header + 1u], count);
+    atomicStore(&survivors[header + 1u], end - start);
     atomicStore(&survivors[header + 2u], 0u);
-    atomicStore(&survivors[header + 3u], select(0u, cull_params.capacity, cull_params.phase == 2u));
-    atomicStore(&survivors[header + 5u], min(count, 65535u));
-    atomicStore(&survivors[header + 6u], (count + 65534u) / 65535u);
+    atomicStore(&survivors[header + 3u], base + start);
+    atomicStore(&survivors[header + 5u], min(end - start, 65535u));
+    atomicStore(&survivors[header + 6u], (end - start + 65534u) / 65535u);
     atomicStore(&survivors[header + 7u], 1u);
 }

@@ -10,7 +10,9 @@ struct CullParams {
     // bit 0: frustum test, bit 1: backface test, bit 2: orthographic camera; crowd culling:
     // bit 3, the triangle pass follows (crowd_cull.wgsl).
     flags: u32,
-    pad: u32,
+    // Crowd culling's second phase: its round (low byte) and rounds (the next byte); round r of
+    // R tests the instances r·n/R .. (r+1)·n/R.
+    round: u32,
     // Crowd culling: how many survivors the compacted list holds, and the corners (indices)
     // of the largest meshlet (the vertex count of the pulled draw).
     capacity: u32,

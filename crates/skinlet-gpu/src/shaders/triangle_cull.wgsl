@@ -49,7 +49,8 @@ struct TriangleParams {
 @group(0) @binding(1) var<uniform> occlusion: Occlusion;
 // crowd_cull.wgsl's survivors: index count, meshlet, first index, 0, instance.
 @group(0) @binding(2) var<storage, read> commands: array<u32>;
-// crowd_cull.wgsl's list headers (8 words each; word 1: survivors listed).
+// crowd_cull.wgsl's list headers (8 words each; word 1: survivors listed, word 3: where they
+// start in `commands`).
 @group(0) @binding(3) var<storage, read> survivors: array<u32>;
 // Visibility bits, then the depth pyramid (crowd_cull.wgsl, pyramid.wgsl).
 @group(0) @binding(4) var<storage, read_write> state: array<u32>;
@@ -58,8 +59,9 @@ struct TriangleParams {
 // triangle_base in MLET's order, the triangles (local vertex indices in the low three bytes).
 @group(0) @binding(5) var<storage, read> meshlet_words: array<u32>;
 // Two headers of 8 words (lists A and B): DrawIndexedIndirectArgs (index count, 1, first
-// index, 0, 0), triangles found, meshlets with a triangle listed, 0; then list A's indices,
-// then list B's from 3 × capacity.
+// index, 0, 0: this phase's or round's triangles, past the earlier rounds'), triangles found,
+// meshlets with a triangle listed (both over every round), 0; then list A's indices, then list
+// B's from 3 × capacity.
 @group(0) @binding(6) var<storage, read_write> triangles: array<atomic<u32>>;
 
 var<workgroup> group_kept: atomic<u32>;
@@ -178,7 +180,8 @@ fn test_triangle(c: array<Corner, 3>) -> u32 {
     let x1 = u32(rect.z);
     let y1 = u32(rect.w);
     var level = block_level(x0, y0, x1, y1);
-    if tri.phase == 2u {
+    let occluding = tri.phase == 2u;
+    if occluding {
         level = min(level, occlusion.levels - 1u);
     }
     let pyramid = pyramid_level(level);
@@ -192,7 +195,7 @@ fn test_triangle(c: array<Corner, 3>) -> u32 {
             let low = vec2<f32>(f32(bx.x) + 0.5 - 0.5 * size.x, 0.5 * size.y - f32(by.y) - 0.5);
             let high = vec2<f32>(f32(bx.y) + 0.5 - 0.5 * size.x, 0.5 * size.y - f32(by.x) - 0.5);
             if may_cover(mid, half, orient, low, high) {
-                if tri.phase != 2u {
+                if !occluding {
                     return SEEN;
                 }
                 covered = true;
@@ -282,17 +285,18 @@ fn cull_triangles(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocati
     let survivor = wid.y * 65535u + wid.x;
     let phase = tri.phase;
     let list = select(0u, 1u, phase == 2u);
+    // This phase's (round's) survivors.
     if survivor >= survivors[8u * list + 1u] {
         return;
     }
-    let c = 5u * (list * tri.survivor_capacity + survivor);
+    let c = 5u * (survivors[8u * list + 3u] + survivor);
     let meshlet = commands[c + 1u];
     let instance = commands[c + 4u];
     let m = 4u * meshlet;
     let first_vertex = meshlet_words[m];
     let vertices = meshlet_words[m + 1u];
     let first_triangle = meshlet_words[m + 2u];
-    let count = meshlet_words[m + 3u];
+    let triangle_count = meshlet_words[m + 3u];
     let bit = instance * tri.meshlets + meshlet;
     for (var k = lane; k < vertices; k += 64u) {
         let q = corner(instance, meshlet_words[first_vertex + k]);
@@ -306,11 +310,11 @@ fn cull_triangles(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocati
     let header = 8u * list;
     let out = 16u + 3u * list * tri.capacity;
     var listed = false;
-    for (var t0 = 0u; t0 < count; t0 += 64u) {
+    for (var t0 = 0u; t0 < triangle_count; t0 += 64u) {
         let t = t0 + lane;
         var keep = false;
         var v: array<u32, 3>;
-        if t < count {
+        if t < triangle_count {
             let local = meshlet_words[first_triangle + t];
             var k: array<Corner, 3>;
             let corners = (tri.flags & 2u) != 0u;
@@ -356,14 +360,21 @@ fn cull_triangles(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocati
     }
 }
 
-// After `cull_triangles`: this phase's indexed draw, its count clamped to the list's capacity.
+// After `cull_triangles`: this phase's (round's) indexed draw, its triangles past the earlier
+// rounds' (a first index still 0 in list B: none), clamped to the list's capacity.
 @compute @workgroup_size(1)
 fn finish_triangles() {
     let list = select(0u, 1u, tri.phase == 2u);
     let header = 8u * list;
-    atomicStore(&triangles[header], 3u * min(atomicLoad(&triangles[header + 5u]), tri.capacity));
+    let end = min(atomicLoad(&triangles[header + 5u]), tri.capacity);
+    var start = 0u;
+    let previous = atomicLoad(&triangles[header + 2u]);
+    if list == 1u && previous != 0u {
+        start = previous / 3u - tri.capacity + atomicLoad(&triangles[header]) / 3u;
+    }
+    atomicStore(&triangles[header], 3u * (end - start));
     atomicStore(&triangles[header + 1u], 1u);
-    atomicStore(&triangles[header + 2u], 3u * list * tri.capacity);
+    atomicStore(&triangles[header + 2u], 3u * (list * tri.capacity + start));
     atomicStore(&triangles[header + 3u], 0u);
     atomicStore(&triangles[header + 4u], 0u);
 }
