@@ -1111,10 +1111,11 @@ fn flags(tests: Tests, orthographic: bool) -> u32 {
 #[cfg(test)]
 mod tests {
     //! A frame of GPU crowd culling costs the CPU no allocation of skinlet's own: after setup,
-    //! `encode` and `encode_prepare` allocate exactly as often as their own wgpu calls made by
-    //! hand on the same pipelines, bind groups and buffers (wgpu's command recording; the
-    //! fewest of a few calls on each side), whatever the instance count. Allocations are counted per thread (wgpu records on the
-    //! calling thread).
+    //! `encode`, `encode_prepare`, occlusion culling's `encode_first` and `encode_second` (every
+    //! round), and `TriangleCulling`'s, allocate exactly as often as their own wgpu calls made
+    //! by hand on the same pipelines, bind groups and buffers (wgpu's command recording; the
+    //! fewest of a few calls on each side), whatever the instance count. Allocations are
+    //! counted per thread (wgpu records on the calling thread).
     use super::*;
     use glam::Vec3;
     use std::alloc::{GlobalAlloc, Layout, System};
@@ -1160,24 +1161,32 @@ mod tests {
         during
     }
 
-    #[test]
-    fn encode_allocates_only_what_its_wgpu_calls_allocate() {
-        // Any adapter, as a caller's would be (skinlet-lab's headless device is another copy
-        // of this crate, so a unit test makes its own).
+    /// A device on any adapter, as a caller's would be (skinlet-lab's headless device is
+    /// another copy of this crate, so a unit test makes its own).
+    fn test_gpu() -> Option<crate::Gpu> {
         let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle());
         let adapter = match pollster::block_on(instance.request_adapter(&Default::default())) {
             Ok(adapter) => adapter,
             Err(e) if std::env::var("SKINLET_REQUIRE_GPU").is_ok_and(|v| v == "1") => panic!("{e}"),
-            Err(e) => return eprintln!("skipping: {e}"),
+            Err(e) => {
+                eprintln!("skipping: {e}");
+                return None;
+            }
         };
         let desc = wgpu::DeviceDescriptor {
             required_features: adapter.features() & wgpu::Features::INDIRECT_FIRST_INSTANCE,
             ..Default::default()
         };
         let (device, queue) = pollster::block_on(adapter.request_device(&desc)).unwrap();
-        let gpu = crate::Gpu::from_device(device, queue, adapter.get_info());
-        let device = &gpu.device;
-        // A small character: 12 joints, 4 meshlets each.
+        Some(crate::Gpu::from_device(device, queue, adapter.get_info()))
+    }
+
+    /// A small character (12 joints, 4 meshlets each, a triangle of 3 vertices each): its
+    /// pipelines, its upload, and palette and instances buffers for `capacity` instances.
+    fn small_character(
+        device: &wgpu::Device,
+        capacity: u32,
+    ) -> (CullPipelines, GpuCharacter, wgpu::Buffer, wgpu::Buffer) {
         let joints = 12;
         let bounds: Vec<_> = (0..4 * joints)
             .map(|i| skinlet_runtime::meshlet_bounds::MeshletBounds {
@@ -1192,73 +1201,260 @@ mod tests {
             .collect();
         let classes = vec![skinlet_runtime::meshlet_bounds::Class::Both; bounds.len()];
         let culler = MeshletCuller::new(&bounds, &classes, joints).unwrap();
-        let draws: Vec<[u32; 2]> = (0..bounds.len() as u32).map(|i| [30, 30 * i]).collect();
+        let draws: Vec<[u32; 2]> = (0..bounds.len() as u32).map(|i| [3, 3 * i]).collect();
         let pipelines = CullPipelines::new(device).unwrap();
         let character = GpuCharacter::new(device, &culler, &vec![Mat4::IDENTITY; joints], &draws).unwrap();
-        let capacity = 1000u32;
         let storage = |size: u64| {
             let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
             device.create_buffer(&wgpu::BufferDescriptor { label: None, size, usage, mapped_at_creation: false })
         };
         let (palette, instances) = (storage(64 * joints as u64 * capacity as u64), storage(80 * capacity as u64));
+        (pipelines, character, palette, instances)
+    }
+
+    /// What a frame records into an encoder.
+    type Recording<'a> = Box<dyn Fn(&mut wgpu::CommandEncoder) + 'a>;
+
+    /// Asserts that `ours` allocates as often as `hand` (the same wgpu calls made by hand) for
+    /// every instance count, the fewest of a few calls each: an allocation of skinlet's own
+    /// would come with every call (wgpu's bookkeeping grows a vector now and then, on either
+    /// side).
+    fn same_allocations<'a>(
+        gpu: &crate::Gpu,
+        capacity: u32,
+        what: &str,
+        ours: &dyn Fn(u32) -> Recording<'a>,
+        hand: &dyn Fn(u32) -> Recording<'a>,
+    ) {
+        for _ in 0..3 {
+            counted(gpu, hand(capacity));
+            counted(gpu, ours(capacity));
+        }
+        let mut seen = Vec::new();
+        // (At least 3 instances: every round of a 3-round second phase has one; a round without
+        // any records no dispatch, here as by hand.)
+        for frame in 0..12 {
+            let n = [3, 17, 250, capacity][frame % 4];
+            let fewest = |record: &dyn Fn() -> usize| (0..4).map(|_| record()).min().unwrap();
+            let by_hand = fewest(&|| counted(gpu, hand(n)));
+            seen.push((n, by_hand, fewest(&|| counted(gpu, ours(n)))));
+        }
+        for &(n, by_hand, ours) in &seen {
+            assert_eq!(ours, by_hand, "{what}, {n} instances: {ours} allocations, its wgpu calls by hand {by_hand}");
+        }
+        let counts: std::collections::BTreeSet<usize> = seen.iter().map(|s| s.2).collect();
+        assert_eq!(counts.len(), 1, "{what}: allocations vary with the instance count: {seen:?}");
+    }
+
+    #[test]
+    fn encode_allocates_only_what_its_wgpu_calls_allocate() {
+        let Some(gpu) = test_gpu() else { return };
+        let device = &gpu.device;
+        let capacity = 1000u32;
+        let (pipelines, character, palette, instances) = small_character(device, capacity);
         let survivors = capacity * character.meshlets();
         let crowd =
             CrowdCulling::new(device, &pipelines, &character, &palette, &instances, capacity, survivors).unwrap();
-        let camera = Camera::perspective(Vec3::new(0.0, 1.0, 6.0), Vec3::ZERO, Vec3::Y, 1.0, 1.5, 0.1, 100.0).unwrap();
-        // Whole culling, or the preparation alone (`prepare_only`).
-        let encode = |n: u32, prepare_only: bool| {
-            let (crowd, camera, queue) = (&crowd, &camera, &gpu.queue);
-            move |encoder: &mut wgpu::CommandEncoder| match prepare_only {
-                true => crowd.encode_prepare(queue, encoder, camera, Tests::Both, n).unwrap(),
-                false => crowd.encode(queue, encoder, camera, Tests::Both, n, None).unwrap(),
-            }
-        };
-        // The same wgpu calls, with the same arguments, made here.
-        let by_hand = |n: u32, prepare_only: bool| {
-            let (crowd, queue) = (&crowd, &gpu.queue);
-            move |encoder: &mut wgpu::CommandEncoder| {
-                queue.write_buffer(&crowd.uniforms, 0, &[0; std::mem::size_of::<Uniforms>()]);
-                encoder.clear_buffer(&crowd.counts, 0, None);
-                encoder.clear_buffer(&crowd.survivors, 0, None);
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("skinlet crowd culling"),
-                    timestamp_writes: None,
-                });
-                pass.set_pipeline(&crowd.prepare_pipeline);
-                pass.set_bind_group(0, &crowd.prepare, &[]);
-                dispatch(&mut pass, n * crowd.joints);
-                if prepare_only {
-                    return;
-                }
-                pass.set_pipeline(&crowd.cull_pipeline);
-                pass.set_bind_group(0, &crowd.cull, &[0]);
-                dispatch(&mut pass, n * crowd.meshlets);
-                pass.set_pipeline(&crowd.finish_pipeline);
-                pass.dispatch_workgroups(1, 1, 1);
-            }
-        };
+        let camera = test_camera();
         for prepare_only in [false, true] {
-            for _ in 0..3 {
-                counted(&gpu, by_hand(capacity, prepare_only));
-                counted(&gpu, encode(capacity, prepare_only));
-            }
-            // An allocation of skinlet's own would come with every call: the fewest over a few
-            // calls each (wgpu's bookkeeping grows a vector now and then, on either side).
-            let mut seen = Vec::new();
-            for frame in 0..12 {
-                let n = [1, 17, 250, capacity][frame % 4];
-                let fewest = |record: &dyn Fn() -> usize| (0..4).map(|_| record()).min().unwrap();
-                let hand = fewest(&|| counted(&gpu, by_hand(n, prepare_only)));
-                seen.push((n, hand, fewest(&|| counted(&gpu, encode(n, prepare_only)))));
-            }
-            for &(n, hand, ours) in &seen {
-                assert_eq!(
-                    ours, hand,
-                    "{n} instances, prepare only {prepare_only}: {ours} allocations, its wgpu calls by hand {hand}"
-                );
-            }
-            let counts: std::collections::BTreeSet<usize> = seen.iter().map(|s| s.2).collect();
-            assert_eq!(counts.len(), 1, "allocations vary with the instance count: {seen:?}");
+            let (crowd, camera, queue) = (&crowd, &camera, &gpu.queue);
+            let ours = |n: u32| -> Recording<'_> {
+                Box::new(move |encoder| match prepare_only {
+                    true => crowd.encode_prepare(queue, encoder, camera, Tests::Both, n).unwrap(),
+                    false => crowd.encode(queue, encoder, camera, Tests::Both, n, None).unwrap(),
+                })
+            };
+            let hand = |n: u32| -> Recording<'_> {
+                Box::new(move |encoder| drop(by_hand(crowd, queue, encoder, n, prepare_only)))
+            };
+            same_allocations(&gpu, capacity, &format!("prepare only {prepare_only}"), &ours, &hand);
+        }
+    }
+
+    fn test_camera() -> Camera {
+        Camera::perspective(Vec3::new(0.0, 1.0, 6.0), Vec3::ZERO, Vec3::Y, 1.0, 1.5, 0.1, 100.0).unwrap()
+    }
+
+    /// The wgpu calls of `encode` (`encode_prepare` where `prepare_only`) with the same
+    /// arguments, made here; the pass left open.
+    fn by_hand<'e>(
+        crowd: &CrowdCulling,
+        queue: &wgpu::Queue,
+        encoder: &'e mut wgpu::CommandEncoder,
+        n: u32,
+        prepare_only: bool,
+    ) -> wgpu::ComputePass<'e> {
+        queue.write_buffer(&crowd.uniforms, 0, &[0; std::mem::size_of::<Uniforms>()]);
+        encoder.clear_buffer(&crowd.counts, 0, None);
+        encoder.clear_buffer(&crowd.survivors, 0, None);
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("skinlet crowd culling"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&crowd.prepare_pipeline);
+        pass.set_bind_group(0, &crowd.prepare, &[]);
+        dispatch(&mut pass, n * crowd.joints);
+        if !prepare_only {
+            pass.set_pipeline(&crowd.cull_pipeline);
+            pass.set_bind_group(0, &crowd.cull, &[0]);
+            dispatch(&mut pass, n * crowd.meshlets);
+            pass.set_pipeline(&crowd.finish_pipeline);
+            pass.dispatch_workgroups(1, 1, 1);
+        }
+        pass
+    }
+
+    /// The wgpu calls of the second phase's round `round` of `rounds` (pyramid, tests), made
+    /// here; the pass left open.
+    fn second_by_hand<'e>(
+        crowd: &CrowdCulling,
+        encoder: &'e mut wgpu::CommandEncoder,
+        n: u32,
+        round: u32,
+        rounds: u32,
+    ) -> wgpu::ComputePass<'e> {
+        let (width, height, _, levels, _) = crowd.occlusion.unwrap();
+        for level in 0..levels {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("skinlet depth pyramid"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&crowd.pyramid_pipeline);
+            pass.set_bind_group(0, crowd.pyramid.as_ref().unwrap(), &[level * LEVEL_STRIDE as u32]);
+            let (w, h) = (width.div_ceil(1 << level).max(1), height.div_ceil(1 << level).max(1));
+            pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
+        }
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("skinlet occlusion culling"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&crowd.cull_pipeline);
+        let offset = if round == 0 { SECOND_OFFSET } else { ROUNDS_OFFSET + (round as usize - 1) * ROUND_STRIDE };
+        pass.set_bind_group(0, &crowd.cull, &[offset as u32]);
+        let first = |r: u32| (r as u64 * n as u64 / rounds as u64) as u32;
+        dispatch(&mut pass, (first(round + 1) - first(round)) * crowd.meshlets);
+        pass.set_pipeline(&crowd.finish_pipeline);
+        pass.dispatch_workgroups(1, 1, 1);
+        pass
+    }
+
+    #[test]
+    fn occlusion_and_triangle_culling_allocate_only_what_their_wgpu_calls_allocate() {
+        // Occlusion culling's first phase and every round of its second (3 rounds), without and
+        // with the triangle pass.
+        use crate::triangle_culling::{Entries, Raster, TriangleCulling, TriangleSkinning};
+        let Some(gpu) = test_gpu() else { return };
+        let (device, queue) = (&gpu.device, &gpu.queue);
+        let capacity = 1000u32;
+        let (pipelines, character, palette, instances) = small_character(device, capacity);
+        let survivors = capacity * character.meshlets();
+        let (width, height, rounds) = (64, 36, 3);
+        let depth = device.create_texture(&wgpu::TextureDescriptor {
+            label: None,
+            size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Depth32Float,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::RENDER_ATTACHMENT,
+            view_formats: &[],
+        });
+        let view = depth.create_view(&Default::default());
+        let occlusion = || OcclusionDepth { view: &view, width, height, reversed: false, subpixel_bits: 8, rounds };
+        let occluding = |crowd_capacity| {
+            CrowdCulling::with_occlusion(
+                device,
+                &pipelines,
+                &character,
+                &palette,
+                &instances,
+                crowd_capacity,
+                survivors,
+                occlusion(),
+            )
+            .unwrap()
+        };
+        let crowd = occluding(capacity);
+        // The triangle pass's skinning: the bind pose (one storage binding of positions).
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: None,
+            entries: &[layout_entry(0, wgpu::BufferBindingType::Storage { read_only: true })],
+        });
+        let positions = crate::context::buffer(device, "positions", &[0f32; 4 * 144], wgpu::BufferUsages::STORAGE);
+        let skinning = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: None,
+            layout: &layout,
+            entries: &[bind(0, whole(&positions))],
+        });
+        let wgsl = "@group(1) @binding(0) var<storage, read> test_positions: array<vec4<f32>>;
+            fn skinned_position(instance: u32, vertex: u32) -> vec3<f32> { return test_positions[vertex].xyz; }";
+        let headers: Vec<[u32; 4]> = (0..48).map(|i| [3 * i, 3 * i, 0, 3 | 1 << 9]).collect();
+        let (vertices, triangles): (Vec<u32>, Vec<u8>) = ((0..144).collect(), [0, 1, 2].repeat(48));
+        let meshlets = skinlet_runtime::bake_view::MeshletView {
+            headers: &headers,
+            vertices: &vertices,
+            triangles: &triangles,
+            joints: &[],
+        };
+        let triangle_culling = TriangleCulling::new(
+            device,
+            occluding(capacity),
+            TriangleSkinning { wgsl, layout: &layout, margin: 0.0, relative: 0.0 },
+            &meshlets,
+            144,
+            1000,
+            Raster { width, height, subpixel_bits: 8, cull_back_faces: true, multisampled: false },
+            Entries::Vertices,
+        )
+        .unwrap();
+        let camera = test_camera();
+        let camera = &camera;
+        // What the triangle pass adds to a phase: its calls, made here.
+        let triangle_pass = |pass: &mut wgpu::ComputePass<'_>, second: bool| {
+            let (offset, header) = if second { (256, SurvivorHeader::SIZE) } else { (0, 0) };
+            pass.set_pipeline(&triangle_culling.cull);
+            pass.set_bind_group(0, &triangle_culling.group, &[offset]);
+            pass.set_bind_group(1, &skinning, &[]);
+            pass.dispatch_workgroups_indirect(&triangle_culling.crowd().survivors, header + 20);
+            pass.set_pipeline(&triangle_culling.finish);
+            pass.dispatch_workgroups(1, 1, 1);
+        };
+        let (crowd, triangle_culling, skinning) = (&crowd, &triangle_culling, &skinning);
+        for triangles in [false, true] {
+            let what = format!("occlusion culling, triangle pass {triangles}");
+            let culling = if triangles { triangle_culling.crowd() } else { crowd };
+            let ours = |n: u32| -> Recording<'_> {
+                Box::new(move |encoder| {
+                    if triangles {
+                        triangle_culling.encode_first(queue, encoder, camera, Tests::Both, n, skinning, None).unwrap();
+                        (0..rounds).for_each(|r| triangle_culling.encode_second(encoder, skinning, r).unwrap());
+                    } else {
+                        crowd.encode_first(queue, encoder, camera, Tests::Both, n, None).unwrap();
+                        (0..rounds).for_each(|r| crowd.encode_second(encoder, r).unwrap());
+                    }
+                })
+            };
+            let hand = |n: u32| -> Recording<'_> {
+                Box::new(move |encoder| {
+                    if triangles {
+                        queue.write_buffer(&triangle_culling.uniforms, 0, &[0; 48]);
+                        queue.write_buffer(&triangle_culling.uniforms, 256, &[0; 48]);
+                        encoder.clear_buffer(&triangle_culling.triangles, 0, Some(64));
+                    }
+                    let mut pass = by_hand(culling, queue, encoder, n, false);
+                    if triangles {
+                        triangle_pass(&mut pass, false);
+                    }
+                    drop(pass);
+                    for r in 0..rounds {
+                        let mut pass = second_by_hand(culling, encoder, n, r, rounds);
+                        if triangles {
+                            triangle_pass(&mut pass, true);
+                        }
+                    }
+                })
+            };
+            same_allocations(&gpu, capacity, &what, &ours, &hand);
         }
     }
 }

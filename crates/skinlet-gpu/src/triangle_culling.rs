@@ -116,12 +116,12 @@ pub struct TriangleCulling {
     capacity: u32,
     id_bits: u32,
     /// `TriangleParams` for phases 0 and 1 at 0, for phase 2 at 256.
-    uniforms: wgpu::Buffer,
+    pub(crate) uniforms: wgpu::Buffer,
     params: [u32; 12],
-    triangles: wgpu::Buffer,
-    group: wgpu::BindGroup,
-    cull: wgpu::ComputePipeline,
-    finish: wgpu::ComputePipeline,
+    pub(crate) triangles: wgpu::Buffer,
+    pub(crate) group: wgpu::BindGroup,
+    pub(crate) cull: wgpu::ComputePipeline,
+    pub(crate) finish: wgpu::ComputePipeline,
 }
 
 const SECOND: u64 = 256;
