@@ -18,19 +18,24 @@
 //!   functions with the part's `StandardMaterial` as Bevy uploads it and its textures
 //!   (group 3, where the device indexes texture arrays per fragment);
 //! - a phase item in each shadow view (`Shadow`) draws every triangle of every instance, depth
-//!   only, with Bevy's prepass view bindings (but a part marked `NotShadowCaster`).
+//!   only, with Bevy's prepass view bindings (but a part marked `NotShadowCaster`);
+//! - a phase item in a camera's prepass (`Opaque3dPrepass`, with `DepthPrepass` or
+//!   `NormalPrepass`) draws the camera's culled list: depth, and the world normals as Bevy's
+//!   prepass writes them.
 //!
-//! Not yet: normal maps, morph targets' normal deltas (positions morph), the depth prepass,
-//! culling in shadow views, occlusion culling, culling for more than one camera (with
-//! several, every triangle is drawn), materials other than `StandardMaterial` (such a part
-//! stays Bevy's too, with a warning), a part's own visibility (every part of a marked
-//! instance is drawn), double-sided materials (drawn back-face culled).
+//! Not yet: normal maps, morph targets' normal deltas (positions morph), motion vectors (the
+//! characters are drawn into a motion vector prepass as if still, with a warning), culling in
+//! shadow views, occlusion culling, culling for more than one camera (with several, every
+//! triangle is drawn), materials other than `StandardMaterial` (such a part stays Bevy's too,
+//! with a warning), a part's own visibility (every part of a marked instance is drawn),
+//! double-sided materials (drawn back-face culled).
 
 use crate::SkinletBounds;
 use crate::bake_asset::Bake;
 use crate::instance::{SkinletError, SkinletInstance};
 use bevy::camera::visibility::{self, NoFrustumCulling, VisibilityClass};
 use bevy::core_pipeline::core_3d::{CORE_3D_DEPTH_FORMAT, Opaque3d, Opaque3dBatchSetKey, Opaque3dBinKey};
+use bevy::core_pipeline::prepass::{Opaque3dPrepass, OpaqueNoLightmap3dBatchSetKey, OpaqueNoLightmap3dBinKey};
 use bevy::core_pipeline::schedule::camera_driver;
 use bevy::ecs::query::ROQueryItem;
 use bevy::ecs::system::{SystemParamItem, lifetimeless::SRes};
@@ -169,11 +174,11 @@ impl Plugin for SkinletMeshletPlugin {
             let source = [group2.as_str(), TRIANGLES_WGSL, DRAW_WGSL].concat();
             app.world_mut().resource_mut::<Assets<Shader>>().add(Shader::from_wgsl(source, "skinlet/meshlet_draw.wgsl"))
         };
-        let shadow_shader = {
-            let source = [group2.as_str(), SHADOW_WGSL].concat();
+        let depth_shader = {
+            let source = [group2.as_str(), TRIANGLES_WGSL, DEPTH_WGSL].concat();
             app.world_mut()
                 .resource_mut::<Assets<Shader>>()
-                .add(Shader::from_wgsl(source, "skinlet/meshlet_shadow.wgsl"))
+                .add(Shader::from_wgsl(source, "skinlet/meshlet_depth.wgsl"))
         };
         let stats = SkinletMeshletStats::default();
         app.init_resource::<BakeDraws>()
@@ -190,19 +195,20 @@ impl Plugin for SkinletMeshletPlugin {
         let Some(render_app) = app.get_sub_app_mut(RenderApp) else { return };
         render_app
             .insert_resource(DrawShader(shader))
-            .insert_resource(ShadowShader(shadow_shader))
+            .insert_resource(DepthShader(depth_shader))
             .insert_resource(stats)
             .init_resource::<MeshletFrames>()
             .init_resource::<MeshletGpu>()
             .init_resource::<PendingMeshletQueues>()
             .init_resource::<SpecializedRenderPipelines<MeshletDrawPipeline>>()
-            .init_resource::<SpecializedRenderPipelines<MeshletShadowPipeline>>()
+            .init_resource::<SpecializedRenderPipelines<MeshletDepthPipeline>>()
             .add_render_command::<Opaque3d, DrawMeshletCommands>()
+            .add_render_command::<Opaque3dPrepass, DrawMeshletPrepassCommands>()
             .add_render_command::<Shadow, DrawMeshletShadowCommands>()
             .add_systems(RenderStartup, init_pipeline.after(MeshPipelineSystems))
             .add_systems(ExtractSchedule, extract_frames)
             .add_systems(Render, prepare_gpu.in_set(RenderSystems::PrepareResources))
-            .add_systems(Render, (queue_draws, queue_shadows).in_set(RenderSystems::Queue))
+            .add_systems(Render, (queue_draws, queue_shadows, queue_prepass).in_set(RenderSystems::Queue))
             .add_systems(Render, read_back_stats.in_set(RenderSystems::Cleanup))
             .add_systems(RenderGraph, cull.before(camera_driver));
     }
@@ -210,7 +216,7 @@ impl Plugin for SkinletMeshletPlugin {
 
 const GROUP2_WGSL: &str = include_str!("meshlet_group2.wgsl");
 const DRAW_WGSL: &str = include_str!("meshlet_draw.wgsl");
-const SHADOW_WGSL: &str = include_str!("meshlet_shadow.wgsl");
+const DEPTH_WGSL: &str = include_str!("meshlet_depth.wgsl");
 
 /// Per bake drawn by meshlet: what the render world uploads once.
 #[derive(Resource, Default)]
@@ -1087,9 +1093,9 @@ fn drawn_bake<'w>(
 }
 
 /// Group 2 and the bake's one indexed indirect draw.
-struct DrawMeshlets;
+struct DrawMeshlets<const TEXTURES: bool>;
 
-impl<P: PhaseItem> RenderCommand<P> for DrawMeshlets {
+impl<P: PhaseItem, const TEXTURES: bool> RenderCommand<P> for DrawMeshlets<TEXTURES> {
     type Param = SRes<MeshletGpu>;
     type ViewQuery = ();
     type ItemQuery = bevy::ecs::system::lifetimeless::Read<SkinletMeshletDraw>;
@@ -1102,7 +1108,7 @@ impl<P: PhaseItem> RenderCommand<P> for DrawMeshlets {
         pass: &mut TrackedRenderPass<'w>,
     ) -> RenderCommandResult {
         let Some(b) = drawn_bake(item, gpu.into_inner(), pass) else { return RenderCommandResult::Skip };
-        if let Some(textures) = &b.texture_group {
+        if let Some(textures) = b.texture_group.as_ref().filter(|_| TEXTURES) {
             pass.set_bind_group(3, textures, &[]);
         }
         if b.unculled {
@@ -1116,43 +1122,81 @@ impl<P: PhaseItem> RenderCommand<P> for DrawMeshlets {
     }
 }
 
-/// The shadow views' pipeline: depth only, Bevy's prepass view layout (group 0), its empty
-/// group 1, skinlet's group 2.
-struct MeshletShadowPipeline {
+/// The depth-only views' pipeline (shadow views, the camera's prepass): Bevy's prepass view
+/// layout (group 0), its empty group 1, skinlet's group 2.
+struct MeshletDepthPipeline {
     view: BindGroupLayoutDescriptor,
+    view_motion_vectors: BindGroupLayoutDescriptor,
     empty: BindGroupLayoutDescriptor,
     group2: BindGroupLayoutDescriptor,
     shader: Handle<Shader>,
     depth_clip_control: bool,
 }
 
-/// The shadow draw's shader (made in the main world).
+/// The depth draws' shader (made in the main world).
 #[derive(Resource)]
-struct ShadowShader(Handle<Shader>);
+struct DepthShader(Handle<Shader>);
 
-impl SpecializedRenderPipeline for MeshletShadowPipeline {
-    /// Whether the view is a directional light's (its casters in front of the near plane are
-    /// clamped to it, as Bevy's shadow pipeline does).
-    type Key = bool;
+/// A depth-only view: a shadow view (`directional`: a directional light's, whose casters in
+/// front of the near plane are clamped to it, as Bevy's shadow pipeline does), or a camera's
+/// prepass (its mesh pipeline key: the prepass textures it writes and its samples).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+enum DepthView {
+    Shadow { directional: bool },
+    Prepass(MeshPipelineKey),
+}
 
-    fn specialize(&self, directional: bool) -> RenderPipelineDescriptor {
+impl SpecializedRenderPipeline for MeshletDepthPipeline {
+    type Key = DepthView;
+
+    fn specialize(&self, key: DepthView) -> RenderPipelineDescriptor {
+        let (directional, view_key) = match key {
+            DepthView::Shadow { directional } => (directional, MeshPipelineKey::NONE),
+            DepthView::Prepass(view_key) => (false, view_key),
+        };
         let emulate = directional && !self.depth_clip_control;
-        let shader_defs: Vec<ShaderDefVal> =
-            if emulate { vec!["UNCLIPPED_DEPTH_ORTHO_EMULATION".into()] } else { Vec::new() };
+        let normal = view_key.contains(MeshPipelineKey::NORMAL_PREPASS);
+        let motion_vectors = view_key.contains(MeshPipelineKey::MOTION_VECTOR_PREPASS);
+        let mut shader_defs: Vec<ShaderDefVal> = Vec::new();
+        if emulate {
+            shader_defs.push("UNCLIPPED_DEPTH_ORTHO_EMULATION".into());
+        }
+        if normal {
+            shader_defs.push("NORMAL_PREPASS".into());
+        }
+        if normal || emulate {
+            shader_defs.push("DEPTH_FRAGMENT_OUTPUT".into());
+        }
+        // The prepass's targets as Bevy's prepass pipeline has them; skinlet writes the normals
+        // only (no motion vectors: it keeps no previous palettes; the deferred targets are for
+        // Bevy's deferred materials).
+        let mut targets = bevy::core_pipeline::prepass::prepass_target_descriptors(
+            normal,
+            motion_vectors,
+            view_key.contains(MeshPipelineKey::DEFERRED_PREPASS),
+        );
+        for target in targets.iter_mut().skip(1).flatten() {
+            target.write_mask = ColorWrites::empty();
+        }
+        if targets.iter().all(Option::is_none) {
+            targets.clear();
+        }
+        let view = if motion_vectors { &self.view_motion_vectors } else { &self.view };
+        let entry_point = if matches!(key, DepthView::Shadow { .. }) { "shadow_vertex" } else { "prepass_vertex" };
         RenderPipelineDescriptor {
-            label: Some("skinlet meshlet shadow".into()),
-            layout: vec![self.view.clone(), self.empty.clone(), self.group2.clone()],
+            label: Some("skinlet meshlet depth".into()),
+            layout: vec![view.clone(), self.empty.clone(), self.group2.clone()],
             vertex: VertexState {
                 shader: self.shader.clone(),
                 shader_defs: shader_defs.clone(),
-                entry_point: Some("shadow_vertex".into()),
+                entry_point: Some(entry_point.into()),
                 buffers: vec![],
             },
-            fragment: emulate.then(|| FragmentState {
+            fragment: (emulate || !targets.is_empty()).then(|| FragmentState {
                 shader: self.shader.clone(),
                 shader_defs,
-                entry_point: Some("shadow_fragment".into()),
-                targets: vec![],
+                entry_point: Some("depth_fragment".into()),
+                targets,
             }),
             primitive: PrimitiveState {
                 topology: PrimitiveTopology::TriangleList,
@@ -1167,8 +1211,46 @@ impl SpecializedRenderPipeline for MeshletShadowPipeline {
                 stencil: default(),
                 bias: default(),
             }),
+            multisample: MultisampleState {
+                count: view_key.msaa_samples(),
+                mask: !0,
+                alpha_to_coverage_enabled: false,
+            },
             ..default()
         }
+    }
+}
+
+impl MeshletDepthPipeline {
+    fn new(prepass: &PrepassPipeline, shader: &DepthShader, device: &RenderDevice) -> MeshletDepthPipeline {
+        MeshletDepthPipeline {
+            view: prepass.view_layout_no_motion_vectors.clone(),
+            view_motion_vectors: prepass.view_layout_motion_vectors.clone(),
+            empty: prepass.empty_layout.clone(),
+            group2: draw_layout(),
+            shader: shader.0.clone(),
+            depth_clip_control: device.features().contains(wgpu::Features::DEPTH_CLIP_CONTROL),
+        }
+    }
+}
+
+/// The depth draws queued, per (view, draw entity): their pipeline.
+type DepthQueued = HashMap<(RetainedViewEntity, MainEntity), CachedRenderPipelineId>;
+
+/// Whether a depth draw must be removed from its view's phase (`remove`) and added again
+/// (`add`): removed when its bake draws no instance, re-added when its pipeline changed.
+fn requeue(
+    queued: &mut DepthQueued,
+    key: (RetainedViewEntity, MainEntity),
+    pipeline: CachedRenderPipelineId,
+    drawn: bool,
+) -> (bool, bool) {
+    if !drawn {
+        return (queued.remove(&key).is_some(), false);
+    }
+    match queued.insert(key, pipeline) {
+        Some(old) if old == pipeline => (false, false),
+        _ => (true, true),
     }
 }
 
@@ -1177,55 +1259,97 @@ impl SpecializedRenderPipeline for MeshletShadowPipeline {
 fn queue_shadows(
     cache: Res<PipelineCache>,
     prepass: Option<Res<PrepassPipeline>>,
-    shader: Res<ShadowShader>,
+    shader: Res<DepthShader>,
     device: Res<RenderDevice>,
-    mut shadow_pipeline: Local<Option<MeshletShadowPipeline>>,
-    mut pipelines: ResMut<SpecializedRenderPipelines<MeshletShadowPipeline>>,
+    mut depth_pipeline: Local<Option<MeshletDepthPipeline>>,
+    mut pipelines: ResMut<SpecializedRenderPipelines<MeshletDepthPipeline>>,
     mut phases: ResMut<ViewBinnedRenderPhases<Shadow>>,
     draw_functions: Res<DrawFunctions<Shadow>>,
     lights: Query<(&ExtractedView, &LightEntity)>,
     draws: Query<(Entity, &MainEntity, &SkinletMeshletDraw)>,
     gpu: Res<MeshletGpu>,
-    mut queued: Local<HashMap<(RetainedViewEntity, MainEntity), CachedRenderPipelineId>>,
+    mut queued: Local<DepthQueued>,
 ) {
     let Some(prepass) = prepass else { return };
-    let shadow_pipeline = shadow_pipeline.get_or_insert_with(|| MeshletShadowPipeline {
-        view: prepass.view_layout_no_motion_vectors.clone(),
-        empty: prepass.empty_layout.clone(),
-        group2: draw_layout(),
-        shader: shader.0.clone(),
-        depth_clip_control: device.features().contains(wgpu::Features::DEPTH_CLIP_CONTROL),
-    });
+    let depth_pipeline = depth_pipeline.get_or_insert_with(|| MeshletDepthPipeline::new(&prepass, &shader, &device));
     let draw_function = draw_functions.read().id::<DrawMeshletShadowCommands>();
     for (view, light) in &lights {
         let Some(phase) = phases.get_mut(&view.retained_view_entity) else { continue };
         let directional = matches!(light, LightEntity::Directional { .. });
-        let pipeline = pipelines.specialize(&cache, shadow_pipeline, directional);
+        let pipeline = pipelines.specialize(&cache, depth_pipeline, DepthView::Shadow { directional });
         for (entity, &main_entity, draw) in &draws {
-            let key = (view.retained_view_entity, main_entity);
             let drawn = gpu.bakes.get(&draw.bake).is_some_and(|b| b.instances > 0);
-            if !drawn {
-                if queued.remove(&key).is_some() {
-                    phase.remove(main_entity);
-                }
-                continue;
+            let (remove, add) = requeue(&mut queued, (view.retained_view_entity, main_entity), pipeline, drawn);
+            if remove {
+                phase.remove(main_entity);
             }
-            if queued.insert(key, pipeline) == Some(pipeline) {
-                continue;
+            if add {
+                phase.add(
+                    ShadowBatchSetKey {
+                        pipeline,
+                        draw_function,
+                        material_bind_group_index: None,
+                        slabs: MeshSlabs::default(),
+                    },
+                    ShadowBinKey { asset_id: AssetId::<Mesh>::invalid().untyped() },
+                    (entity, main_entity),
+                    InputUniformIndex::default(),
+                    BinnedRenderPhaseType::NonMesh,
+                );
             }
-            phase.remove(main_entity);
-            phase.add(
-                ShadowBatchSetKey {
-                    pipeline,
-                    draw_function,
-                    material_bind_group_index: None,
-                    slabs: MeshSlabs::default(),
-                },
-                ShadowBinKey { asset_id: AssetId::<Mesh>::invalid().untyped() },
-                (entity, main_entity),
-                InputUniformIndex::default(),
-                BinnedRenderPhaseType::NonMesh,
-            );
+        }
+    }
+}
+
+/// Puts every bake's prepass draw in every camera's opaque prepass (cameras with a depth or
+/// normal prepass): depth, and normals where the camera writes them.
+#[allow(clippy::too_many_arguments)]
+fn queue_prepass(
+    cache: Res<PipelineCache>,
+    prepass: Option<Res<PrepassPipeline>>,
+    shader: Res<DepthShader>,
+    device: Res<RenderDevice>,
+    view_keys: Res<ViewKeyCache>,
+    mut depth_pipeline: Local<Option<MeshletDepthPipeline>>,
+    mut pipelines: ResMut<SpecializedRenderPipelines<MeshletDepthPipeline>>,
+    mut phases: ResMut<ViewBinnedRenderPhases<Opaque3dPrepass>>,
+    draw_functions: Res<DrawFunctions<Opaque3dPrepass>>,
+    views: Query<&ExtractedView, With<ExtractedCamera>>,
+    draws: Query<(Entity, &MainEntity, &SkinletMeshletDraw)>,
+    gpu: Res<MeshletGpu>,
+    mut queued: Local<DepthQueued>,
+    mut warned: Local<bool>,
+) {
+    let Some(prepass) = prepass else { return };
+    let depth_pipeline = depth_pipeline.get_or_insert_with(|| MeshletDepthPipeline::new(&prepass, &shader, &device));
+    let draw_function = draw_functions.read().id::<DrawMeshletPrepassCommands>();
+    for view in &views {
+        let Some(phase) = phases.get_mut(&view.retained_view_entity) else { continue };
+        let Some(&view_key) = view_keys.get(&view.retained_view_entity) else { continue };
+        if view_key.contains(MeshPipelineKey::MOTION_VECTOR_PREPASS) && !std::mem::replace(&mut *warned, true) {
+            warn!("skinlet meshlets: characters drawn by skinlet write no motion vectors (drawn as if still)");
+        }
+        let pipeline = pipelines.specialize(&cache, depth_pipeline, DepthView::Prepass(view_key));
+        for (entity, &main_entity, draw) in &draws {
+            let drawn = gpu.bakes.get(&draw.bake).is_some_and(|b| b.instances > 0);
+            let (remove, add) = requeue(&mut queued, (view.retained_view_entity, main_entity), pipeline, drawn);
+            if remove {
+                phase.remove(main_entity);
+            }
+            if add {
+                phase.add(
+                    OpaqueNoLightmap3dBatchSetKey {
+                        pipeline,
+                        draw_function,
+                        material_bind_group_index: None,
+                        slabs: MeshSlabs::default(),
+                    },
+                    OpaqueNoLightmap3dBinKey { asset_id: AssetId::<Mesh>::invalid().untyped() },
+                    (entity, main_entity),
+                    InputUniformIndex::default(),
+                    BinnedRenderPhaseType::NonMesh,
+                );
+            }
         }
     }
 }
@@ -1254,5 +1378,8 @@ impl<P: PhaseItem> RenderCommand<P> for DrawMeshletsUnculled {
 type DrawMeshletShadowCommands =
     (SetItemPipeline, SetPrepassViewBindGroup<0>, SetPrepassViewEmptyBindGroup<1>, DrawMeshletsUnculled);
 
+type DrawMeshletPrepassCommands =
+    (SetItemPipeline, SetPrepassViewBindGroup<0>, SetPrepassViewEmptyBindGroup<1>, DrawMeshlets<false>);
+
 type DrawMeshletCommands =
-    (SetItemPipeline, SetMeshViewBindGroup<0>, SetMeshViewBindingArrayBindGroup<1>, DrawMeshlets);
+    (SetItemPipeline, SetMeshViewBindGroup<0>, SetMeshViewBindingArrayBindGroup<1>, DrawMeshlets<true>);

@@ -15,9 +15,7 @@
     view_transformations::position_world_to_clip,
 }
 
-// Group 2's shared bindings (corners, draw) are in meshlet_group2.wgsl.
-// Per source attribute vertex: its normal (w 0).
-@group(2) @binding(5) var<storage, read> normals: array<vec4<f32>>;
+// Group 2's shared bindings (corners, draw, normals) are in meshlet_group2.wgsl.
 // Per part: its material as Bevy uploads a StandardMaterial.
 @group(2) @binding(6) var<storage, read> materials: array<StandardMaterial>;
 // Per source attribute vertex: its first texture coordinates.
@@ -44,15 +42,6 @@ struct VertexOut {
     @location(3) uv: vec2<f32>,
 }
 
-// The inverse transpose of m's 3 × 3 part, as Bevy's `inverse_transpose_3x3` skins normals.
-fn inverse_transpose_3x3(m: mat4x4<f32>) -> mat3x3<f32> {
-    let a = m[0].xyz;
-    let b = m[1].xyz;
-    let c = m[2].xyz;
-    let cof = mat3x3<f32>(cross(b, c), cross(c, a), cross(a, b));
-    return cof * (1.0 / dot(a, cross(b, c)));
-}
-
 @vertex
 fn vertex(@builtin(vertex_index) index: u32, @builtin(instance_index) instance: u32) -> VertexOut {
     var entry = triangle_entry(index, draw.id_bits);
@@ -60,11 +49,10 @@ fn vertex(@builtin(vertex_index) index: u32, @builtin(instance_index) instance: 
         entry = vec2<u32>(instance, index);
     }
     let corner = corners[entry.y];
-    let skin = skin_matrix(entry.x, corner.x);
     var out: VertexOut;
     out.world_position = vec4<f32>(skinned_position(entry.x, corner.x), 1.0);
     out.position = position_world_to_clip(out.world_position.xyz);
-    out.world_normal = normalize(inverse_transpose_3x3(skin) * normals[corner.y].xyz);
+    out.world_normal = skinned_normal(entry.x, corner);
     out.part = corner.z;
     out.uv = uvs[corner.y];
     return out;

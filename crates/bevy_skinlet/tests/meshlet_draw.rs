@@ -8,7 +8,9 @@
 //! silhouette pixel whose center a triangle edge nearly touches may flip coverage (then any
 //! color): at most 1 in 200 of the pixels the characters and their shadows change differs by
 //! more than 2 levels. skinlet's image with culling on equals its image with culling off
-//! exactly; given back to Bevy, the frame is Bevy's again.
+//! exactly; given back to Bevy, the frame is Bevy's again. With a depth and normal prepass on
+//! the camera, a quad in front of it showing the prepass textures (Bevy's `prepass_utils`)
+//! shows the same for both, within the same tolerance.
 
 mod common;
 
@@ -18,6 +20,34 @@ use bevy_skinlet::{
     SkinletMeshlets,
 };
 use common::{app, asset_folder, settled_image, update_until};
+
+/// Shows the camera's prepass: world normal (x, y) and depth (× `depth_scale.x`) as colors.
+#[derive(Asset, TypePath, bevy::render::render_resource::AsBindGroup, Clone)]
+struct ShowPrepass {
+    #[uniform(0)]
+    depth_scale: Vec4,
+}
+
+impl Material for ShowPrepass {
+    fn fragment_shader() -> bevy::shader::ShaderRef {
+        "show_prepass.wgsl".into()
+    }
+
+    fn enable_prepass() -> bool {
+        false
+    }
+}
+
+const SHOW_PREPASS_WGSL: &str = "
+#import bevy_pbr::{prepass_utils, forward_io::VertexOutput}
+@group(#{MATERIAL_BIND_GROUP}) @binding(0) var<uniform> depth_scale: vec4<f32>;
+@fragment
+fn fragment(mesh: VertexOutput) -> @location(0) vec4<f32> {
+    let n = prepass_utils::prepass_normal(mesh.position, 0u);
+    let d = prepass_utils::prepass_depth(mesh.position, 0u);
+    return vec4(n.xy * 0.5 + vec2(0.5), d * depth_scale.x, 1.0);
+}
+";
 
 const WIDTH: u32 = 256;
 const HEIGHT: u32 = 160;
@@ -29,14 +59,15 @@ fn skinlets_meshlet_draw_looks_like_bevys_own() {
     }
     let files = ["skinned/Fox.glb", "skinned/Xbot.glb", "skinned/BrainStem.glb", "@demo"];
     let Some((dir, characters)) = asset_folder("meshlet_draw", &files) else { return };
+    std::fs::write(dir.join("show_prepass.wgsl"), SHOW_PREPASS_WGSL).unwrap();
     let mut app = app(&dir, true);
-    app.add_plugins(SkinletMeshletPlugin);
+    app.add_plugins((SkinletMeshletPlugin, MaterialPlugin::<ShowPrepass>::default()));
     common::watch_pipelines(&mut app);
     // Four rows, one character each (the Fox is textured); the camera sees part of each row,
     // the others are beside or behind it (culled).
     let roots = common::spawn_rows(app.world_mut(), &characters, &[1.2, 0.0, -2.2, -4.4], 5);
     let at = Transform::from_xyz(0.0, 1.2, 4.0).looking_at(Vec3::new(0.0, 0.8, -1.0), Vec3::Y);
-    common::readback_camera(app.world_mut(), WIDTH, HEIGHT, at);
+    let camera = common::readback_camera(app.world_mut(), WIDTH, HEIGHT, at);
     // The light casts shadows onto a ground plane (a Bevy mesh) and the characters.
     {
         let world = app.world_mut();
@@ -123,4 +154,35 @@ fn skinlets_meshlet_draw_looks_like_bevys_own() {
     assert!(taken > 0 && drawn > (WIDTH * HEIGHT / 20) as usize);
     assert_eq!(culled_away, 0, "skinlet's culling changed {culled_away} pixels");
     assert!(large * 200 < drawn, "{large} of {drawn} pixels differ by more than 2 levels");
+
+    // The prepass: a depth and normal prepass on the camera, shown by a quad just in front of
+    // it (not in the prepass itself); without the characters, with Bevy's, with skinlet's.
+    let quad = {
+        let world = app.world_mut();
+        // (Motion vectors too: skinlet writes none, but its pipeline must fit the pass.)
+        use bevy::core_pipeline::prepass::{DepthPrepass, MotionVectorPrepass, NormalPrepass};
+        world.entity_mut(camera).insert((DepthPrepass, NormalPrepass, MotionVectorPrepass));
+        let mesh = world.resource_mut::<Assets<Mesh>>().add(Rectangle::new(4.0, 4.0));
+        let material = world.resource_mut::<Assets<ShowPrepass>>().add(ShowPrepass { depth_scale: Vec4::splat(8.0) });
+        let quad = (Mesh3d(mesh), MeshMaterial3d(material), Transform::from_xyz(0.0, 0.0, -0.5));
+        world.spawn((quad, bevy::light::NotShadowCaster, ChildOf(camera))).id()
+    };
+    let empty_prepass = settled_image(&mut app);
+    for &(root, _) in &roots {
+        app.world_mut().entity_mut(root).insert(Visibility::Inherited);
+    }
+    let bevy_prepass = settled_image(&mut app);
+    for &(root, _) in &roots {
+        app.world_mut().entity_mut(root).insert(SkinletMeshlets);
+    }
+    let skinlet_prepass = settled_image(&mut app);
+    assert!(app.world().get_entity(quad).is_ok());
+    let per_pixel = common::pixel_differences(&bevy_prepass, &skinlet_prepass);
+    let side = common::side_by_side(&[&bevy_prepass, &skinlet_prepass, &common::difference_image(&per_pixel)], WIDTH);
+    common::write_png(&out.join("meshlet_draw_prepass_side_by_side.png"), &side, 3 * WIDTH);
+    let drawn = bevy_prepass.chunks(4).zip(empty_prepass.chunks(4)).filter(|(a, b)| a != b).count();
+    let large = per_pixel.iter().filter(|&&d| d > 2).count();
+    eprintln!("prepass: {drawn} pixels show characters; {large} differ by more than 2 levels");
+    assert!(drawn > (WIDTH * HEIGHT / 20) as usize, "the prepass shows no characters: {drawn} pixels");
+    assert!(large * 200 < drawn, "prepass: {large} of {drawn} pixels differ by more than 2 levels");
 }

@@ -1,0 +1,83 @@
+// skinlet's meshlet draw in Bevy's depth-only views (meshlet_draw.rs), with Bevy's prepass view
+// bindings: the shadow views (every corner of every instance: the culled list is the camera's)
+// and the camera's prepass (the culled list, as the main pass draws it; the normals where the
+// camera has a normal prepass, written as Bevy's prepass writes them; no motion vectors). Both
+// skin with the crowd skinning (group 2) as the main pass does.
+
+#import bevy_render::view::View
+
+@group(0) @binding(0) var<uniform> view: View;
+// Group 2's corners, draw, normals and no_shadow are in meshlet_group2.wgsl.
+
+struct DepthOut {
+    @builtin(position) position: vec4<f32>,
+#ifdef UNCLIPPED_DEPTH_ORTHO_EMULATION
+    @location(0) unclipped_depth: f32,
+#endif
+#ifdef NORMAL_PREPASS
+    @location(1) world_normal: vec3<f32>,
+#endif
+}
+
+@vertex
+fn shadow_vertex(@builtin(vertex_index) index: u32, @builtin(instance_index) instance: u32) -> DepthOut {
+    var out: DepthOut;
+    let corner = corners[index];
+    let bits = no_shadow[instance * draw.shadow_words + corner.z / 32u];
+    if ((bits >> (corner.z % 32u)) & 1u) != 0u {
+        // Every corner of the part's triangles at one point outside the view: nothing drawn.
+        out.position = vec4<f32>(2.0, 2.0, 0.5, 1.0);
+        return out;
+    }
+    out.position = view.clip_from_world * vec4<f32>(skinned_position(instance, corner.x), 1.0);
+#ifdef UNCLIPPED_DEPTH_ORTHO_EMULATION
+    // A directional light's casters in front of its near plane, clamped to it (as Bevy does).
+    out.unclipped_depth = out.position.z;
+    out.position.z = min(out.position.z, 1.0);
+#endif
+    return out;
+}
+
+@vertex
+fn prepass_vertex(@builtin(vertex_index) index: u32, @builtin(instance_index) instance: u32) -> DepthOut {
+    var entry = triangle_entry(index, draw.id_bits);
+    if draw.unculled != 0u {
+        entry = vec2<u32>(instance, index);
+    }
+    let corner = corners[entry.y];
+    var out: DepthOut;
+    out.position = view.clip_from_world * vec4<f32>(skinned_position(entry.x, corner.x), 1.0);
+#ifdef NORMAL_PREPASS
+    out.world_normal = skinned_normal(entry.x, corner);
+#endif
+    return out;
+}
+
+// (DEPTH_FRAGMENT_OUTPUT: the normal or the depth written; else nothing.)
+#ifdef DEPTH_FRAGMENT_OUTPUT
+struct DepthFragment {
+#ifdef NORMAL_PREPASS
+    @location(0) normal: vec4<f32>,
+#endif
+#ifdef UNCLIPPED_DEPTH_ORTHO_EMULATION
+    @builtin(frag_depth) depth: f32,
+#endif
+}
+
+@fragment
+fn depth_fragment(in: DepthOut) -> DepthFragment {
+    var out: DepthFragment;
+#ifdef NORMAL_PREPASS
+    // As Bevy's prepass writes a lit, single-sided material's world normal (interpolated, not
+    // normalized again): into 0..1.
+    out.normal = vec4<f32>(in.world_normal * 0.5 + vec3<f32>(0.5), 1.0);
+#endif
+#ifdef UNCLIPPED_DEPTH_ORTHO_EMULATION
+    out.depth = in.unclipped_depth;
+#endif
+    return out;
+}
+#else
+@fragment
+fn depth_fragment(in: DepthOut) {}
+#endif
