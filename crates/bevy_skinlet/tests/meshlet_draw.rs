@@ -102,7 +102,13 @@ fn skinlets_meshlet_draw_looks_like_bevys_own() {
         app.world_mut().entity_mut(root).insert(SkinletMeshlets);
     }
     let skinlet = settled_image(&mut app);
-    // The counts read back: every bake drawn in one draw, culled, no list overflow.
+    // The counts read back: every bake drawn in one draw, culled, no list overflow; of a frame
+    // after the image settled (they are read back when the GPU is done, not every frame).
+    let settled = app.world().resource::<SkinletMeshletStats>().latest().values().map(|s| s.frame).max();
+    update_until(&mut app, 300, "counts of a frame after the image settled", |w| {
+        let stats = w.resource::<SkinletMeshletStats>().latest();
+        stats.len() == characters.len() && stats.values().all(|s| Some(s.frame) > settled)
+    });
     let stats = app.world().resource::<SkinletMeshletStats>().latest();
     assert_eq!(stats.len(), characters.len());
     for s in stats.values() {
