@@ -78,7 +78,7 @@ pub struct Args {
     animation: String,
     /// Rounds of occlusion culling's second phase: each tests a range of the instances
     /// (nearest first) against the depth drawn so far and draws its survivors before the next
-    /// (1 to 16; a draw each).
+    /// (1 to 64; a draw each).
     #[arg(long, default_value_t = skinlet_lab::gpu_crowd::OCCLUSION_ROUNDS)]
     occlusion_rounds: u32,
     /// Every frame the crowd's pose of frame 0 (a still crowd: occlusion culling's steady

@@ -198,7 +198,7 @@ pub struct OcclusionDepth<'a> {
 }
 
 /// Most rounds of occlusion culling's second phase ([`OcclusionDepth::rounds`]).
-pub const MAX_OCCLUSION_ROUNDS: u32 = 16;
+pub const MAX_OCCLUSION_ROUNDS: u32 = 64;
 
 /// The sub-pixel precision every Vulkan rasterizer has at least (`subPixelPrecisionBits`):
 /// vertices snap to a grid of 1/16 pixel. D3D12 requires 8 bits, as desktop Vulkan drivers
