@@ -308,10 +308,10 @@ struct Uniforms {
     view_proj: [f32; 16],
     /// width, height, pyramid base, reversed, levels, 0, 0, 0
     occlusion: [u32; 8],
-    pad5: [u32; (ROUNDS_OFFSET - OCCLUSION_OFFSET - 96) / 4],
-    /// The second phase's rounds after the first: `CullParams` each.
-    rounds: [[u32; ROUND_STRIDE / 4]; MAX_OCCLUSION_ROUNDS as usize - 1],
 }
+
+/// The second phase's rounds after the first, from [`ROUNDS_OFFSET`]: `CullParams` each.
+type RoundParams = [[u32; ROUND_STRIDE / 4]; MAX_OCCLUSION_ROUNDS as usize - 1];
 
 pub(crate) fn invalid(location: &'static str, message: String) -> GpuError {
     GpuError::Invalid { location, message }
@@ -664,8 +664,9 @@ impl CrowdCulling {
         };
         use wgpu::BufferUsages as U;
         crate::context::checked(device, location, || {
-            let uniforms =
-                make("skinlet cull uniforms", std::mem::size_of::<Uniforms>() as u64, U::UNIFORM | U::COPY_DST);
+            let rounds = depth.map_or(1, |d| d.rounds) as usize;
+            let uniforms_size = ROUNDS_OFFSET + (rounds - 1) * ROUND_STRIDE;
+            let uniforms = make("skinlet cull uniforms", uniforms_size as u64, U::UNIFORM | U::COPY_DST);
             let records = make("skinlet joint records", records_size, U::STORAGE);
             let counts = make("skinlet cull counts", cap * COUNT_BYTES, U::STORAGE | U::COPY_SRC | U::COPY_DST);
             let commands = make("skinlet draw commands", commands_size, U::STORAGE | U::INDIRECT | U::COPY_SRC);
@@ -840,7 +841,20 @@ impl CrowdCulling {
                 _ => invalid("GPU occlusion culling", format!("round {round} of {rounds}")),
             });
         }
-        self.encode_pyramid(encoder)?;
+        let (Some((width, height, _, levels, _)), Some(pyramid)) = (self.occlusion, &self.pyramid) else {
+            return Err(no_occlusion());
+        };
+        // Each level in its own pass: the next one reads what this one wrote.
+        for level in 0..levels {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("skinlet depth pyramid"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&self.pyramid_pipeline);
+            pass.set_bind_group(0, pyramid, &[level * LEVEL_STRIDE as u32]);
+            let (w, h) = (width.div_ceil(1 << level).max(1), height.div_ceil(1 << level).max(1));
+            pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
+        }
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("skinlet occlusion culling"),
             timestamp_writes: None,
@@ -857,25 +871,6 @@ impl CrowdCulling {
         pass.set_pipeline(&self.finish_pipeline);
         pass.dispatch_workgroups(1, 1, 1);
         Ok(pass)
-    }
-
-    /// The depth pyramid of the depth buffer as it is now. Errors without occlusion culling.
-    pub(crate) fn encode_pyramid(&self, encoder: &mut wgpu::CommandEncoder) -> Result<()> {
-        let (Some((width, height, _, levels, _)), Some(pyramid)) = (self.occlusion, &self.pyramid) else {
-            return Err(no_occlusion());
-        };
-        // Each level in its own pass: the next one reads what this one wrote.
-        for level in 0..levels {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("skinlet depth pyramid"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(&self.pyramid_pipeline);
-            pass.set_bind_group(0, pyramid, &[level * LEVEL_STRIDE as u32]);
-            let (w, h) = (width.div_ceil(1 << level).max(1), height.div_ceil(1 << level).max(1));
-            pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
-        }
-        Ok(())
     }
 
     /// The instance count the last `encode*` wrote.
@@ -945,10 +940,6 @@ impl CrowdCulling {
             let round = round as u32 | rounds << 8;
             [self.meshlets, self.joints, instances, f, round, self.survivor_capacity, self.corners, phase]
         };
-        let mut round_params = [[0; ROUND_STRIDE / 4]; MAX_OCCLUSION_ROUNDS as usize - 1];
-        for (r, block) in round_params.iter_mut().enumerate() {
-            block[..8].copy_from_slice(&params(2, r + 1));
-        }
         let uniforms = Uniforms {
             params: params(phase, 0),
             pad: [0; (CAMERA_OFFSET - 32) / 4],
@@ -972,10 +963,16 @@ impl CrowdCulling {
                 0,
                 0,
             ],
-            pad5: [0; (ROUNDS_OFFSET - OCCLUSION_OFFSET - 96) / 4],
-            rounds: round_params,
         };
         queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&uniforms));
+        if rounds > 1 {
+            let mut round_params: RoundParams = [[0; ROUND_STRIDE / 4]; MAX_OCCLUSION_ROUNDS as usize - 1];
+            for (r, block) in round_params.iter_mut().enumerate() {
+                block[..8].copy_from_slice(&params(2, r + 1));
+            }
+            let used = bytemuck::cast_slice(&round_params[..rounds as usize - 1]);
+            queue.write_buffer(&self.uniforms, ROUNDS_OFFSET as u64, used);
+        }
         self.frame_instances.store(instances, std::sync::atomic::Ordering::Relaxed);
         encoder.clear_buffer(&self.counts, 0, None);
         encoder.clear_buffer(&self.survivors, 0, None);
@@ -1285,6 +1282,11 @@ mod tests {
         prepare_only: bool,
     ) -> wgpu::ComputePass<'e> {
         queue.write_buffer(&crowd.uniforms, 0, &[0; std::mem::size_of::<Uniforms>()]);
+        let rounds = crowd.occlusion_rounds() as usize;
+        if rounds > 1 {
+            let bytes = [0; std::mem::size_of::<RoundParams>()];
+            queue.write_buffer(&crowd.uniforms, ROUNDS_OFFSET as u64, &bytes[..(rounds - 1) * ROUND_STRIDE]);
+        }
         encoder.clear_buffer(&crowd.counts, 0, None);
         encoder.clear_buffer(&crowd.survivors, 0, None);
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {

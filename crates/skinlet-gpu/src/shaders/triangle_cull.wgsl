@@ -180,8 +180,7 @@ fn test_triangle(c: array<Corner, 3>) -> u32 {
     let x1 = u32(rect.z);
     let y1 = u32(rect.w);
     var level = block_level(x0, y0, x1, y1);
-    let occluding = tri.phase == 2u;
-    if occluding {
+    if tri.phase == 2u {
         level = min(level, occlusion.levels - 1u);
     }
     let pyramid = pyramid_level(level);
@@ -195,7 +194,7 @@ fn test_triangle(c: array<Corner, 3>) -> u32 {
             let low = vec2<f32>(f32(bx.x) + 0.5 - 0.5 * size.x, 0.5 * size.y - f32(by.y) - 0.5);
             let high = vec2<f32>(f32(bx.y) + 0.5 - 0.5 * size.x, 0.5 * size.y - f32(by.x) - 0.5);
             if may_cover(mid, half, orient, low, high) {
-                if !occluding {
+                if tri.phase != 2u {
                     return SEEN;
                 }
                 covered = true;
@@ -296,7 +295,7 @@ fn cull_triangles(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocati
     let first_vertex = meshlet_words[m];
     let vertices = meshlet_words[m + 1u];
     let first_triangle = meshlet_words[m + 2u];
-    let triangle_count = meshlet_words[m + 3u];
+    let count = meshlet_words[m + 3u];
     let bit = instance * tri.meshlets + meshlet;
     for (var k = lane; k < vertices; k += 64u) {
         let q = corner(instance, meshlet_words[first_vertex + k]);
@@ -310,11 +309,11 @@ fn cull_triangles(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocati
     let header = 8u * list;
     let out = 16u + 3u * list * tri.capacity;
     var listed = false;
-    for (var t0 = 0u; t0 < triangle_count; t0 += 64u) {
+    for (var t0 = 0u; t0 < count; t0 += 64u) {
         let t = t0 + lane;
         var keep = false;
         var v: array<u32, 3>;
-        if t < triangle_count {
+        if t < count {
             let local = meshlet_words[first_triangle + t];
             var k: array<Corner, 3>;
             let corners = (tri.flags & 2u) != 0u;
