@@ -1273,6 +1273,8 @@ fn queue_shadows(
     let Some(prepass) = prepass else { return };
     let depth_pipeline = depth_pipeline.get_or_insert_with(|| MeshletDepthPipeline::new(&prepass, &shader, &device));
     let draw_function = draw_functions.read().id::<DrawMeshletShadowCommands>();
+    // A view whose phase went away (and may come back empty) has nothing queued.
+    queued.retain(|(view, _), _| phases.contains_key(view));
     for (view, light) in &lights {
         let Some(phase) = phases.get_mut(&view.retained_view_entity) else { continue };
         let directional = matches!(light, LightEntity::Directional { .. });
@@ -1323,6 +1325,8 @@ fn queue_prepass(
     let Some(prepass) = prepass else { return };
     let depth_pipeline = depth_pipeline.get_or_insert_with(|| MeshletDepthPipeline::new(&prepass, &shader, &device));
     let draw_function = draw_functions.read().id::<DrawMeshletPrepassCommands>();
+    // A camera whose prepass went away (and may come back empty) has nothing queued.
+    queued.retain(|(view, _), _| phases.contains_key(view));
     for view in &views {
         let Some(phase) = phases.get_mut(&view.retained_view_entity) else { continue };
         let Some(&view_key) = view_keys.get(&view.retained_view_entity) else { continue };
