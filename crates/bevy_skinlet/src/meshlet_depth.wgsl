@@ -40,10 +40,7 @@ fn shadow_vertex(@builtin(vertex_index) index: u32, @builtin(instance_index) ins
 
 @vertex
 fn prepass_vertex(@builtin(vertex_index) index: u32, @builtin(instance_index) instance: u32) -> DepthOut {
-    var entry = triangle_entry(index, draw.id_bits);
-    if draw.unculled != 0u {
-        entry = vec2<u32>(instance, index);
-    }
+    let entry = drawn_entry(index, instance);
     let corner = corners[entry.y];
     var out: DepthOut;
     out.position = view.clip_from_world * vec4<f32>(skinned_position(entry.x, corner.x), 1.0);

@@ -54,8 +54,8 @@ use bevy::render::extract_resource::{ExtractResource, ExtractResourcePlugin};
 use bevy::render::mesh::allocator::MeshSlabs;
 use bevy::render::render_asset::RenderAssets;
 use bevy::render::render_phase::{
-    AddRenderCommand, BinnedRenderPhaseType, DrawFunctions, InputUniformIndex, PhaseItem, RenderCommand,
-    RenderCommandResult, SetItemPipeline, TrackedRenderPass, ViewBinnedRenderPhases,
+    AddRenderCommand, BinnedPhaseItem, BinnedRenderPhase, BinnedRenderPhaseType, DrawFunctions, InputUniformIndex,
+    PhaseItem, RenderCommand, RenderCommandResult, SetItemPipeline, TrackedRenderPass, ViewBinnedRenderPhases,
 };
 use bevy::render::render_resource::{
     AsBindGroupShaderType, BindGroup, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer,
@@ -1237,20 +1237,34 @@ impl MeshletDepthPipeline {
 /// The depth draws queued, per (view, draw entity): their pipeline.
 type DepthQueued = HashMap<(RetainedViewEntity, MainEntity), CachedRenderPipelineId>;
 
-/// Whether a depth draw must be removed from its view's phase (`remove`) and added again
-/// (`add`): removed when its bake draws no instance, re-added when its pipeline changed.
-fn requeue(
-    queued: &mut DepthQueued,
-    key: (RetainedViewEntity, MainEntity),
+/// Keeps every bake's depth draw in `view`'s `phase` with `pipeline` (the batch set and bin
+/// keys from `keys`): removed while its bake draws no instance, added again when its pipeline
+/// changed.
+fn queue_depth_draws<P: BinnedPhaseItem>(
+    phase: &mut BinnedRenderPhase<P>,
+    view: RetainedViewEntity,
     pipeline: CachedRenderPipelineId,
-    drawn: bool,
-) -> (bool, bool) {
-    if !drawn {
-        return (queued.remove(&key).is_some(), false);
-    }
-    match queued.insert(key, pipeline) {
-        Some(old) if old == pipeline => (false, false),
-        _ => (true, true),
+    draws: &Query<(Entity, &MainEntity, &SkinletMeshletDraw)>,
+    gpu: &MeshletGpu,
+    queued: &mut DepthQueued,
+    keys: impl Fn() -> (P::BatchSetKey, P::BinKey),
+) {
+    for (entity, &main_entity, draw) in draws {
+        let key = (view, main_entity);
+        let drawn = gpu.bakes.get(&draw.bake).is_some_and(|b| b.instances > 0);
+        if !drawn {
+            if queued.remove(&key).is_some() {
+                phase.remove(main_entity);
+            }
+            continue;
+        }
+        if queued.insert(key, pipeline) == Some(pipeline) {
+            continue;
+        }
+        phase.remove(main_entity);
+        let (batch_set, bin) = keys();
+        let (input, phase_type) = (InputUniformIndex::default(), BinnedRenderPhaseType::NonMesh);
+        phase.add(batch_set, bin, (entity, main_entity), input, phase_type);
     }
 }
 
@@ -1279,27 +1293,11 @@ fn queue_shadows(
         let Some(phase) = phases.get_mut(&view.retained_view_entity) else { continue };
         let directional = matches!(light, LightEntity::Directional { .. });
         let pipeline = pipelines.specialize(&cache, depth_pipeline, DepthView::Shadow { directional });
-        for (entity, &main_entity, draw) in &draws {
-            let drawn = gpu.bakes.get(&draw.bake).is_some_and(|b| b.instances > 0);
-            let (remove, add) = requeue(&mut queued, (view.retained_view_entity, main_entity), pipeline, drawn);
-            if remove {
-                phase.remove(main_entity);
-            }
-            if add {
-                phase.add(
-                    ShadowBatchSetKey {
-                        pipeline,
-                        draw_function,
-                        material_bind_group_index: None,
-                        slabs: MeshSlabs::default(),
-                    },
-                    ShadowBinKey { asset_id: AssetId::<Mesh>::invalid().untyped() },
-                    (entity, main_entity),
-                    InputUniformIndex::default(),
-                    BinnedRenderPhaseType::NonMesh,
-                );
-            }
-        }
+        queue_depth_draws(phase, view.retained_view_entity, pipeline, &draws, &gpu, &mut queued, || {
+            let slabs = MeshSlabs::default();
+            let batch_set = ShadowBatchSetKey { pipeline, draw_function, material_bind_group_index: None, slabs };
+            (batch_set, ShadowBinKey { asset_id: AssetId::<Mesh>::invalid().untyped() })
+        });
     }
 }
 
@@ -1334,27 +1332,12 @@ fn queue_prepass(
             warn!("skinlet meshlets: characters drawn by skinlet write no motion vectors (drawn as if still)");
         }
         let pipeline = pipelines.specialize(&cache, depth_pipeline, DepthView::Prepass(view_key));
-        for (entity, &main_entity, draw) in &draws {
-            let drawn = gpu.bakes.get(&draw.bake).is_some_and(|b| b.instances > 0);
-            let (remove, add) = requeue(&mut queued, (view.retained_view_entity, main_entity), pipeline, drawn);
-            if remove {
-                phase.remove(main_entity);
-            }
-            if add {
-                phase.add(
-                    OpaqueNoLightmap3dBatchSetKey {
-                        pipeline,
-                        draw_function,
-                        material_bind_group_index: None,
-                        slabs: MeshSlabs::default(),
-                    },
-                    OpaqueNoLightmap3dBinKey { asset_id: AssetId::<Mesh>::invalid().untyped() },
-                    (entity, main_entity),
-                    InputUniformIndex::default(),
-                    BinnedRenderPhaseType::NonMesh,
-                );
-            }
-        }
+        queue_depth_draws(phase, view.retained_view_entity, pipeline, &draws, &gpu, &mut queued, || {
+            let slabs = MeshSlabs::default();
+            let batch_set =
+                OpaqueNoLightmap3dBatchSetKey { pipeline, draw_function, material_bind_group_index: None, slabs };
+            (batch_set, OpaqueNoLightmap3dBinKey { asset_id: AssetId::<Mesh>::invalid().untyped() })
+        });
     }
 }
 

@@ -44,10 +44,7 @@ struct VertexOut {
 
 @vertex
 fn vertex(@builtin(vertex_index) index: u32, @builtin(instance_index) instance: u32) -> VertexOut {
-    var entry = triangle_entry(index, draw.id_bits);
-    if draw.unculled != 0u {
-        entry = vec2<u32>(instance, index);
-    }
+    let entry = drawn_entry(index, instance);
     let corner = corners[entry.y];
     var out: VertexOut;
     out.world_position = vec4<f32>(skinned_position(entry.x, corner.x), 1.0);

@@ -28,6 +28,15 @@ fn inverse_transpose_3x3(m: mat4x4<f32>) -> mat3x3<f32> {
     return cof * (1.0 / dot(a, cross(b, c)));
 }
 
+// The instance and corner a vertex of the camera's draw names: the culled list's entry
+// (TRIANGLES_WGSL's `triangle_entry`), or unculled, the instance and vertex indices.
+fn drawn_entry(index: u32, instance: u32) -> vec2<u32> {
+    if draw.unculled != 0u {
+        return vec2<u32>(instance, index);
+    }
+    return triangle_entry(index, draw.id_bits);
+}
+
 // The world normal of `corner` (bake vertex, source vertex, part) of `instance`: its source
 // vertex's normal skinned as Bevy skins normals.
 fn skinned_normal(instance: u32, corner: vec4<u32>) -> vec3<f32> {
