@@ -76,9 +76,9 @@ pub struct Args {
     /// guard admits an instance's pose, and draw the others whole.
     #[arg(long, default_value = "clips", value_parser = ["clips", "blend", "additive", "ik"])]
     animation: String,
-    /// Rounds of occlusion culling's second phase: each tests a range of the instances
-    /// (nearest first) against the depth drawn so far and draws its survivors before the next
-    /// (1 to 64; a draw each).
+    /// Rounds of occlusion culling: each tests a range of the instances (nearest first)
+    /// against the depth drawn so far, in both phases, and draws each phase's survivors before
+    /// the next step (1 to 64; two draws each).
     #[arg(long, default_value_t = skinlet_lab::gpu_crowd::OCCLUSION_ROUNDS)]
     occlusion_rounds: u32,
     /// Every frame the crowd's pose of frame 0 (a still crowd: occlusion culling's steady
@@ -406,6 +406,9 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 (meshlets, triangles, vertex_refs) =
                     (survivors.len() as u64, sum(&meshlet_triangles), Some(sum(&meshlet_vertices)));
                 if !d.triangle_headers.is_empty() {
+                    if std::env::var_os("SKINLET_DEBUG_PHASES").is_some() {
+                        eprintln!("phases: {:?}", d.triangle_headers.iter().map(|h| h.meshlets).collect::<Vec<_>>());
+                    }
                     // The pass skinned the survivors' vertices; the draw skins each distinct
                     // (instance, vertex) of the triangles it kept at least once.
                     pass_vertices = vertex_refs;

@@ -188,16 +188,19 @@ pub struct OcclusionDepth<'a> {
     pub height: u32,
     pub reversed: bool,
     pub subpixel_bits: u32,
-    /// Rounds of the second phase (1 to [`MAX_OCCLUSION_ROUNDS`]): round `r` of `R` tests the
-    /// instances `r·n/R .. (r+1)·n/R` of the frame's `n` against a pyramid of the depth drawn
-    /// so far, and the caller draws its survivors before the next round. With the instances
-    /// ordered nearest first, the meshlets that became visible this frame on near characters
-    /// are drawn before farther ones are tested, instead of leaving holes that every layer
-    /// behind them passes.
+    /// Rounds of occlusion culling (1 to [`MAX_OCCLUSION_ROUNDS`]): round `r` of `R` culls the
+    /// instances `r·n/R .. (r+1)·n/R` of the frame's `n` in both phases, each against a
+    /// pyramid of the depth drawn so far (but round 0's first phase, before anything is
+    /// drawn), and the caller draws each phase's survivors before the next step. With the
+    /// instances ordered nearest first, a far character's meshlets are tested against the
+    /// near characters as they are now: what the near ones hide this frame is not drawn
+    /// because it was visible last frame, and what they no longer hide is drawn before the
+    /// characters behind it are tested (instead of leaving holes that every layer behind
+    /// passes).
     pub rounds: u32,
 }
 
-/// Most rounds of occlusion culling's second phase ([`OcclusionDepth::rounds`]).
+/// Most rounds of occlusion culling ([`OcclusionDepth::rounds`]).
 pub const MAX_OCCLUSION_ROUNDS: u32 = 64;
 
 /// The sub-pixel precision every Vulkan rasterizer has at least (`subPixelPrecisionBits`):
@@ -249,7 +252,7 @@ pub struct CrowdCulling {
     /// The device has `MULTI_DRAW_INDIRECT_COUNT`.
     count_draws: bool,
     /// With occlusion culling: the depth size and range, the pyramid's levels, and the
-    /// second phase's rounds.
+    /// rounds.
     pub(crate) occlusion: Option<(u32, u32, bool, u32, u32)>,
     /// The occlusion depth's vertex snapping, in pixels.
     snap: f32,
@@ -274,9 +277,9 @@ pub struct CrowdCulling {
     pyramid_pipeline: wgpu::ComputePipeline,
 }
 
-/// Where `CullCamera`, the second phase's `CullParams` (its first round), `Occlusion` and the
-/// other rounds' `CullParams` start in the uniform buffer (multiples of the uniform offset
-/// alignment WebGPU guarantees).
+/// Where `CullCamera`, the second phase's `CullParams` (round 0), `Occlusion` and the other
+/// rounds' `CullParams` (first and second phase of round 1, of round 2, …) start in the
+/// uniform buffer (multiples of the uniform offset alignment WebGPU guarantees).
 const CAMERA_OFFSET: usize = 256;
 const SECOND_OFFSET: usize = 512;
 pub(crate) const OCCLUSION_OFFSET: usize = 768;
@@ -310,8 +313,17 @@ struct Uniforms {
     occlusion: [u32; 8],
 }
 
-/// The second phase's rounds after the first, from [`ROUNDS_OFFSET`]: `CullParams` each.
-type RoundParams = [[u32; ROUND_STRIDE / 4]; MAX_OCCLUSION_ROUNDS as usize - 1];
+/// The rounds after the first, from [`ROUNDS_OFFSET`]: `CullParams` of each phase.
+type RoundParams = [[u32; ROUND_STRIDE / 4]; 2 * (MAX_OCCLUSION_ROUNDS as usize - 1)];
+
+/// Where phase `phase` (1 or 2) of round `round` finds its `CullParams` in the uniforms.
+fn round_offset(round: u32, phase: u32) -> u32 {
+    match (round, phase) {
+        (0, 1) => 0,
+        (0, _) => SECOND_OFFSET as u32,
+        (r, p) => (ROUNDS_OFFSET + (2 * (r as usize - 1) + p as usize - 1) * ROUND_STRIDE) as u32,
+    }
+}
 
 pub(crate) fn invalid(location: &'static str, message: String) -> GpuError {
     GpuError::Invalid { location, message }
@@ -665,7 +677,7 @@ impl CrowdCulling {
         use wgpu::BufferUsages as U;
         crate::context::checked(device, location, || {
             let rounds = depth.map_or(1, |d| d.rounds) as usize;
-            let uniforms_size = ROUNDS_OFFSET + (rounds - 1) * ROUND_STRIDE;
+            let uniforms_size = ROUNDS_OFFSET + 2 * (rounds - 1) * ROUND_STRIDE;
             let uniforms = make("skinlet cull uniforms", uniforms_size as u64, U::UNIFORM | U::COPY_DST);
             let records = make("skinlet joint records", records_size, U::STORAGE);
             let counts = make("skinlet cull counts", cap * COUNT_BYTES, U::STORAGE | U::COPY_SRC | U::COPY_DST);
@@ -790,10 +802,12 @@ impl CrowdCulling {
         Ok(())
     }
 
-    /// Occlusion culling's first phase: as [`CrowdCulling::encode`], the survivors that were
-    /// visible last frame (by the second phase's bits) to [`List::First`]. The caller draws
-    /// them into the depth buffer given at construction, then records
-    /// [`CrowdCulling::encode_second`]. Errors also without occlusion culling.
+    /// Occlusion culling's first phase of round 0 ([`OcclusionDepth::rounds`]): as
+    /// [`CrowdCulling::encode`], the survivors of the round's instances that were visible last
+    /// frame (by the second phase's bits) to [`List::First`]. The caller draws them into the
+    /// depth buffer given at construction, then records [`CrowdCulling::encode_second`] for
+    /// round 0, draws, and for each later round [`CrowdCulling::encode_first_phase`] and
+    /// `encode_second`, drawing after each. Errors also without occlusion culling.
     pub fn encode_first(
         &self,
         queue: &wgpu::Queue,
@@ -810,29 +824,44 @@ impl CrowdCulling {
         Ok(())
     }
 
-    /// Round `round` of occlusion culling's second phase ([`OcclusionDepth::rounds`]: the
-    /// caller records rounds 0, 1, … in order, drawing [`List::Second`] into the depth buffer
-    /// after each): the depth pyramid of what is drawn so far, then every meshlet of the
-    /// round's instances that `encode_first` culled tested again with its bounding sphere (its
-    /// any-pose boxes, for an instance culled by the boxes alone) against the pyramid; the
-    /// newly visible to [`List::Second`] (this round's survivors only), and every such
-    /// meshlet's visibility bit set for the next frame. Allocates nothing. Errors without
-    /// occlusion culling or for a round past the last.
-    pub fn encode_second(&self, encoder: &mut wgpu::CommandEncoder, round: u32) -> Result<()> {
-        self.encode_second_pass(encoder, round)?;
+    /// The first phase of round `round` (1 or later: [`CrowdCulling::encode_first`] records
+    /// round 0's): the depth pyramid of what is drawn so far, then the round's instances'
+    /// survivors that were visible last frame and are not behind the pyramid (their bounding
+    /// spheres; any-pose boxes as in the second phase) to [`List::First`] (this round's
+    /// only). Allocates nothing. Errors without occlusion culling or for a round out of range.
+    pub fn encode_first_phase(&self, encoder: &mut wgpu::CommandEncoder, round: u32) -> Result<()> {
+        if round == 0 {
+            return Err(invalid("GPU occlusion culling", "round 0's first phase is encode_first's".into()));
+        }
+        self.encode_round(encoder, round, 1)?;
         Ok(())
     }
 
-    /// The second phase's rounds ([`OcclusionDepth::rounds`]; 0 without occlusion culling).
+    /// The second phase of round `round` ([`OcclusionDepth::rounds`]; the caller records the
+    /// rounds in order, each phase drawn into the depth buffer before the next step): the
+    /// depth pyramid of what is drawn so far, then every meshlet of the round's instances that
+    /// the first phase did not draw tested again with its bounding sphere (its any-pose boxes,
+    /// for an instance culled by the boxes alone) against the pyramid; the newly visible to
+    /// [`List::Second`] (this round's survivors only), and every meshlet's visibility bit set
+    /// for the next frame. Allocates nothing. Errors without occlusion culling or for a round
+    /// past the last.
+    pub fn encode_second(&self, encoder: &mut wgpu::CommandEncoder, round: u32) -> Result<()> {
+        self.encode_round(encoder, round, 2)?;
+        Ok(())
+    }
+
+    /// Occlusion culling's rounds ([`OcclusionDepth::rounds`]; 0 without occlusion culling).
     pub fn occlusion_rounds(&self) -> u32 {
         self.occlusion.map_or(0, |o| o.4)
     }
 
-    /// [`CrowdCulling::encode_second`], its last pass left open (for the triangle pass).
-    pub(crate) fn encode_second_pass<'e>(
+    /// Phase `phase` (1 or 2) of round `round` after the pyramid of the depth drawn so far,
+    /// its last pass left open (for the triangle pass).
+    pub(crate) fn encode_round<'e>(
         &self,
         encoder: &'e mut wgpu::CommandEncoder,
         round: u32,
+        phase: u32,
     ) -> Result<wgpu::ComputePass<'e>> {
         let rounds = self.occlusion_rounds();
         if round >= rounds {
@@ -860,22 +889,20 @@ impl CrowdCulling {
             timestamp_writes: None,
         });
         pass.set_pipeline(&self.cull_pipeline);
-        let offset = match round {
-            0 => SECOND_OFFSET,
-            r => ROUNDS_OFFSET + (r as usize - 1) * ROUND_STRIDE,
-        };
-        pass.set_bind_group(0, &self.cull, &[offset as u32]);
-        let n = self.frame_instances() as u64;
-        let first = |r: u32| (r as u64 * n / rounds as u64) as u32;
-        dispatch(&mut pass, (first(round + 1) - first(round)) * self.meshlets);
+        pass.set_bind_group(0, &self.cull, &[round_offset(round, phase)]);
+        dispatch(&mut pass, self.round_instances(round) * self.meshlets);
         pass.set_pipeline(&self.finish_pipeline);
         pass.dispatch_workgroups(1, 1, 1);
         Ok(pass)
     }
 
-    /// The instance count the last `encode*` wrote.
-    fn frame_instances(&self) -> u32 {
-        self.frame_instances.load(std::sync::atomic::Ordering::Relaxed)
+    /// How many instances occlusion culling's round `round` culls in the frame the last
+    /// `encode*` began (crowd_cull.wgsl's ranges).
+    fn round_instances(&self, round: u32) -> u32 {
+        let n = self.frame_instances.load(std::sync::atomic::Ordering::Relaxed) as u64;
+        let rounds = self.occlusion_rounds().max(1) as u64;
+        let first = |r: u32| r as u64 * n / rounds;
+        (first(round + 1) - first(round)) as u32
     }
 
     /// Phase `phase`'s culling, its pass left open; `triangles`: the triangle pass follows
@@ -896,7 +923,9 @@ impl CrowdCulling {
         self.prepare_pass(&mut pass, instances);
         pass.set_pipeline(&self.cull_pipeline);
         pass.set_bind_group(0, &self.cull, &[0]);
-        dispatch(&mut pass, instances * self.meshlets);
+        // Phase 1: round 0's instances.
+        let culled = if phase == 1 { self.round_instances(0) } else { instances };
+        dispatch(&mut pass, culled * self.meshlets);
         pass.set_pipeline(&self.finish_pipeline);
         pass.dispatch_workgroups(1, 1, 1);
         Ok(pass)
@@ -934,7 +963,7 @@ impl CrowdCulling {
         };
         let planes = &camera.planes;
         let (width, height, reversed, levels, rounds) = self.occlusion.unwrap_or_default();
-        // The second phase's round (and the rounds) in the padding word.
+        // The round (and the rounds) in the padding word.
         let params = |phase, round: usize| {
             let f = flags(tests, orthographic) | (triangles as u32) << 3;
             let round = round as u32 | rounds << 8;
@@ -966,11 +995,11 @@ impl CrowdCulling {
         };
         queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&uniforms));
         if rounds > 1 {
-            let mut round_params: RoundParams = [[0; ROUND_STRIDE / 4]; MAX_OCCLUSION_ROUNDS as usize - 1];
-            for (r, block) in round_params.iter_mut().enumerate() {
-                block[..8].copy_from_slice(&params(2, r + 1));
+            let mut round_params: RoundParams = [[0; ROUND_STRIDE / 4]; 2 * (MAX_OCCLUSION_ROUNDS as usize - 1)];
+            for (k, block) in round_params.iter_mut().enumerate() {
+                block[..8].copy_from_slice(&params(1 + k as u32 % 2, 1 + k / 2));
             }
-            let used = bytemuck::cast_slice(&round_params[..rounds as usize - 1]);
+            let used = bytemuck::cast_slice(&round_params[..2 * (rounds as usize - 1)]);
             queue.write_buffer(&self.uniforms, ROUNDS_OFFSET as u64, used);
         }
         self.frame_instances.store(instances, std::sync::atomic::Ordering::Relaxed);
@@ -1272,8 +1301,8 @@ mod tests {
         Camera::perspective(Vec3::new(0.0, 1.0, 6.0), Vec3::ZERO, Vec3::Y, 1.0, 1.5, 0.1, 100.0).unwrap()
     }
 
-    /// The wgpu calls of `encode` (`encode_prepare` where `prepare_only`) with the same
-    /// arguments, made here; the pass left open.
+    /// The wgpu calls of `encode` (`encode_prepare` where `prepare_only`; `encode_first` with
+    /// occlusion culling) with the same arguments, made here; the pass left open.
     fn by_hand<'e>(
         crowd: &CrowdCulling,
         queue: &wgpu::Queue,
@@ -1285,7 +1314,7 @@ mod tests {
         let rounds = crowd.occlusion_rounds() as usize;
         if rounds > 1 {
             let bytes = [0; std::mem::size_of::<RoundParams>()];
-            queue.write_buffer(&crowd.uniforms, ROUNDS_OFFSET as u64, &bytes[..(rounds - 1) * ROUND_STRIDE]);
+            queue.write_buffer(&crowd.uniforms, ROUNDS_OFFSET as u64, &bytes[..2 * (rounds - 1) * ROUND_STRIDE]);
         }
         encoder.clear_buffer(&crowd.counts, 0, None);
         encoder.clear_buffer(&crowd.survivors, 0, None);
@@ -1299,20 +1328,21 @@ mod tests {
         if !prepare_only {
             pass.set_pipeline(&crowd.cull_pipeline);
             pass.set_bind_group(0, &crowd.cull, &[0]);
-            dispatch(&mut pass, n * crowd.meshlets);
+            // (Occlusion culling's first phase: round 0's instances.)
+            dispatch(&mut pass, n / rounds.max(1) as u32 * crowd.meshlets);
             pass.set_pipeline(&crowd.finish_pipeline);
             pass.dispatch_workgroups(1, 1, 1);
         }
         pass
     }
 
-    /// The wgpu calls of the second phase's round `round` of `rounds` (pyramid, tests), made
+    /// The wgpu calls of phase `phase` of round `round` of `rounds` (pyramid, tests), made
     /// here; the pass left open.
-    fn second_by_hand<'e>(
+    fn round_by_hand<'e>(
         crowd: &CrowdCulling,
         encoder: &'e mut wgpu::CommandEncoder,
         n: u32,
-        round: u32,
+        (round, phase): (u32, u32),
         rounds: u32,
     ) -> wgpu::ComputePass<'e> {
         let (width, height, _, levels, _) = crowd.occlusion.unwrap();
@@ -1331,7 +1361,10 @@ mod tests {
             timestamp_writes: None,
         });
         pass.set_pipeline(&crowd.cull_pipeline);
-        let offset = if round == 0 { SECOND_OFFSET } else { ROUNDS_OFFSET + (round as usize - 1) * ROUND_STRIDE };
+        let offset = match (round, phase) {
+            (0, _) => SECOND_OFFSET,
+            (r, p) => ROUNDS_OFFSET + (2 * (r as usize - 1) + p as usize - 1) * ROUND_STRIDE,
+        };
         pass.set_bind_group(0, &crowd.cull, &[offset as u32]);
         let first = |r: u32| (r as u64 * n as u64 / rounds as u64) as u32;
         dispatch(&mut pass, (first(round + 1) - first(round)) * crowd.meshlets);
@@ -1342,8 +1375,8 @@ mod tests {
 
     #[test]
     fn occlusion_and_triangle_culling_allocate_only_what_their_wgpu_calls_allocate() {
-        // Occlusion culling's first phase and every round of its second (3 rounds), without and
-        // with the triangle pass.
+        // Occlusion culling's phases in every round (3 rounds), without and with the triangle
+        // pass.
         use crate::triangle_culling::{Entries, Raster, TriangleCulling, TriangleSkinning};
         let Some(gpu) = test_gpu() else { return };
         let (device, queue) = (&gpu.device, &gpu.queue);
@@ -1412,8 +1445,9 @@ mod tests {
         let camera = test_camera();
         let camera = &camera;
         // What the triangle pass adds to a phase: its calls, made here.
-        let triangle_pass = |pass: &mut wgpu::ComputePass<'_>, second: bool| {
-            let (offset, header) = if second { (256, SurvivorHeader::SIZE) } else { (0, 0) };
+        // Its uniform block by phase: 0 (round 0's first), 512 (a later round's first), 256.
+        let triangle_pass = |pass: &mut wgpu::ComputePass<'_>, offset: u32| {
+            let header = if offset == 256 { SurvivorHeader::SIZE } else { 0 };
             pass.set_pipeline(&triangle_culling.cull);
             pass.set_bind_group(0, &triangle_culling.group, &[offset]);
             pass.set_bind_group(1, &skinning, &[]);
@@ -1428,30 +1462,40 @@ mod tests {
             let ours = |n: u32| -> Recording<'_> {
                 Box::new(move |encoder| {
                     if triangles {
-                        triangle_culling.encode_first(queue, encoder, camera, Tests::Both, n, skinning, None).unwrap();
-                        (0..rounds).for_each(|r| triangle_culling.encode_second(encoder, skinning, r).unwrap());
+                        let t = triangle_culling;
+                        t.encode_first(queue, encoder, camera, Tests::Both, n, skinning, None).unwrap();
+                        t.encode_second(encoder, skinning, 0).unwrap();
+                        for r in 1..rounds {
+                            t.encode_first_phase(encoder, skinning, r).unwrap();
+                            t.encode_second(encoder, skinning, r).unwrap();
+                        }
                     } else {
                         crowd.encode_first(queue, encoder, camera, Tests::Both, n, None).unwrap();
-                        (0..rounds).for_each(|r| crowd.encode_second(encoder, r).unwrap());
+                        crowd.encode_second(encoder, 0).unwrap();
+                        for r in 1..rounds {
+                            crowd.encode_first_phase(encoder, r).unwrap();
+                            crowd.encode_second(encoder, r).unwrap();
+                        }
                     }
                 })
             };
             let hand = |n: u32| -> Recording<'_> {
                 Box::new(move |encoder| {
                     if triangles {
-                        queue.write_buffer(&triangle_culling.uniforms, 0, &[0; 48]);
-                        queue.write_buffer(&triangle_culling.uniforms, 256, &[0; 48]);
+                        for offset in [0, 256, 512] {
+                            queue.write_buffer(&triangle_culling.uniforms, offset, &[0; 48]);
+                        }
                         encoder.clear_buffer(&triangle_culling.triangles, 0, Some(64));
                     }
                     let mut pass = by_hand(culling, queue, encoder, n, false);
                     if triangles {
-                        triangle_pass(&mut pass, false);
+                        triangle_pass(&mut pass, 0);
                     }
                     drop(pass);
-                    for r in 0..rounds {
-                        let mut pass = second_by_hand(culling, encoder, n, r, rounds);
+                    for (r, phase) in (0..rounds).flat_map(|r| [(r, 1), (r, 2)]).skip(1) {
+                        let mut pass = round_by_hand(culling, encoder, n, (r, phase), rounds);
                         if triangles {
-                            triangle_pass(&mut pass, true);
+                            triangle_pass(&mut pass, if phase == 2 { 256 } else { 512 });
                         }
                     }
                 })

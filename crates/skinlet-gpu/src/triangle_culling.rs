@@ -2,8 +2,9 @@
 //! per-triangle stage after meshlet culling): a compute pass, one workgroup per surviving
 //! (instance, meshlet), skins the meshlet's vertices once with the caller's own skinning
 //! function and drops the triangles that are certainly outside a side of the view, back-facing, between
-//! pixel centers, or (occlusion culling's second phase) behind the depth pyramid; the rest go
-//! to one compacted index list, drawn with one `draw_indexed_indirect`.
+//! pixel centers, or (occlusion culling, but for round 0's first phase) behind the depth
+//! pyramid; the rest go to one compacted index list, drawn with one `draw_indexed_indirect`
+//! per phase and round.
 //!
 //! Conservative: a triangle dropped here draws no fragment in the caller's draw. The caller's
 //! vertex shader skins with the same WGSL function, which the two pipelines may round
@@ -115,7 +116,8 @@ pub struct TriangleCulling {
     /// Triangles per list.
     capacity: u32,
     id_bits: u32,
-    /// `TriangleParams` for phases 0 and 1 at 0, for phase 2 at 256.
+    /// `TriangleParams` for phase 0 and round 0's phase 1 at 0, phase 2 at 256, a later
+    /// round's phase 1 (tested against the pyramid) at 512.
     pub(crate) uniforms: wgpu::Buffer,
     params: [u32; 12],
     pub(crate) triangles: wgpu::Buffer,
@@ -125,6 +127,7 @@ pub struct TriangleCulling {
 }
 
 const SECOND: u64 = 256;
+const FIRST_TESTED: u64 = 512;
 
 /// Most vertices a meshlet may have (the pass skins them into workgroup memory).
 pub const MAX_MESHLET_VERTICES: usize = 128;
@@ -245,7 +248,7 @@ impl TriangleCulling {
                 |entry| crate::context::compute_pipeline_layouts(device, location, source.clone(), entry, &layouts);
             let uniforms = device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("skinlet triangle params"),
-                size: SECOND + 48,
+                size: FIRST_TESTED + 48,
                 usage: U::UNIFORM | U::COPY_DST,
                 mapped_at_creation: false,
             });
@@ -301,10 +304,11 @@ impl TriangleCulling {
         self.encode_phase(queue, encoder, camera, tests, instances, skinning, timestamps, 0)
     }
 
-    /// Occlusion culling's first phase: the survivors visible last frame (by their
-    /// triangles), their triangles to [`List::First`]; the caller draws them into the depth
-    /// buffer, then records [`TriangleCulling::encode_second`]. Errors also without occlusion
-    /// culling.
+    /// Occlusion culling's first phase of round 0: the survivors visible last frame (by
+    /// their triangles), their triangles to [`List::First`]; the caller draws them into the
+    /// depth buffer, then records [`TriangleCulling::encode_second`] for round 0, and for each
+    /// later round [`TriangleCulling::encode_first_phase`] and `encode_second`, drawing after
+    /// each (as [`CrowdCulling::encode_first`]). Errors also without occlusion culling.
     #[allow(clippy::too_many_arguments)]
     pub fn encode_first(
         &self,
@@ -322,19 +326,37 @@ impl TriangleCulling {
         self.encode_phase(queue, encoder, camera, tests, instances, skinning, timestamps, 1)
     }
 
-    /// Round `round` of occlusion culling's second phase: [`CrowdCulling::encode_second`]'s
-    /// pyramid and meshlet tests, then every survivor's triangles against the pyramid: its
-    /// visibility bit from them, and where the first phase did not draw it, its triangles not
-    /// behind the pyramid to [`List::Second`] (this round's only). Errors without occlusion
-    /// culling or for a round past the last.
+    /// The first phase of round `round` (1 or later): [`CrowdCulling::encode_first_phase`]'s
+    /// pyramid and meshlet tests, then the survivors' triangles not behind the pyramid to
+    /// [`List::First`] (this round's only). Errors without occlusion culling or for a round
+    /// out of range.
+    pub fn encode_first_phase(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        skinning: &wgpu::BindGroup,
+        round: u32,
+    ) -> Result<()> {
+        if round == 0 {
+            return Err(invalid("GPU triangle culling", "round 0's first phase is encode_first's".into()));
+        }
+        let mut pass = self.crowd.encode_round(encoder, round, 1)?;
+        self.triangle_pass(&mut pass, skinning, FIRST_TESTED as u32, List::First);
+        Ok(())
+    }
+
+    /// The second phase of round `round`: [`CrowdCulling::encode_second`]'s pyramid and
+    /// meshlet tests, then every survivor's triangles against the pyramid: its visibility bit
+    /// from them, and where the first phase did not draw it, its triangles not behind the
+    /// pyramid to [`List::Second`] (this round's only). Errors without occlusion culling or
+    /// for a round past the last.
     pub fn encode_second(
         &self,
         encoder: &mut wgpu::CommandEncoder,
         skinning: &wgpu::BindGroup,
         round: u32,
     ) -> Result<()> {
-        let mut pass = self.crowd.encode_second_pass(encoder, round)?;
-        self.triangle_pass(&mut pass, skinning, List::Second);
+        let mut pass = self.crowd.encode_round(encoder, round, 2)?;
+        self.triangle_pass(&mut pass, skinning, SECOND as u32, List::Second);
         Ok(())
     }
 
@@ -350,22 +372,23 @@ impl TriangleCulling {
         timestamps: Option<wgpu::ComputePassTimestampWrites<'_>>,
         phase: u32,
     ) -> Result<()> {
-        let mut first = self.params;
-        first[0] = phase;
-        let mut second = self.params;
-        second[0] = 2;
-        queue.write_buffer(&self.uniforms, 0, bytemuck::cast_slice(&first));
-        queue.write_buffer(&self.uniforms, SECOND, bytemuck::cast_slice(&second));
+        // (Flags bit 2: tested against the pyramid.)
+        for (offset, phase, tested) in [(0, phase, 0), (SECOND, 2, 0), (FIRST_TESTED, 1, 4)] {
+            let mut params = self.params;
+            (params[0], params[3]) = (phase, params[3] | tested);
+            queue.write_buffer(&self.uniforms, offset, bytemuck::cast_slice(&params));
+        }
         encoder.clear_buffer(&self.triangles, 0, Some(2 * TriangleHeader::SIZE));
         let mut pass = self.crowd.encode_phase(queue, encoder, camera, tests, instances, timestamps, phase, true)?;
-        self.triangle_pass(&mut pass, skinning, List::First);
+        self.triangle_pass(&mut pass, skinning, 0, List::First);
         Ok(())
     }
 
-    fn triangle_pass(&self, pass: &mut wgpu::ComputePass<'_>, skinning: &wgpu::BindGroup, list: List) {
-        let (offset, header) = match list {
-            List::First => (0, 0),
-            List::Second => (SECOND as u32, crate::crowd_culling::SurvivorHeader::SIZE),
+    /// The triangle pass over `list`'s survivors with the `TriangleParams` at `offset`.
+    fn triangle_pass(&self, pass: &mut wgpu::ComputePass<'_>, skinning: &wgpu::BindGroup, offset: u32, list: List) {
+        let header = match list {
+            List::First => 0,
+            List::Second => crate::crowd_culling::SurvivorHeader::SIZE,
         };
         pass.set_pipeline(&self.cull);
         pass.set_bind_group(0, &self.group, &[offset]);

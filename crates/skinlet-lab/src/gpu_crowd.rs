@@ -132,7 +132,7 @@ pub struct GpuCrowd {
 
 const IDS: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
 
-/// The second phase's rounds of [`GpuCrowd::new`]'s occlusion culling.
+/// The rounds of [`GpuCrowd::new`]'s occlusion culling.
 pub const OCCLUSION_ROUNDS: u32 = 16;
 
 fn invalid(message: String) -> GpuError {
@@ -156,9 +156,9 @@ impl GpuCrowd {
 
     /// [`GpuCrowd::new`] with a reversed depth range where `reversed` (near 1, far 0: Bevy's
     /// infinite reverse-Z; the frames' cameras must project so): depth cleared to 0, nearer
-    /// fragments the greater, occlusion culling's pyramid of the nearest; occlusion culling's
-    /// second phase in `rounds` rounds ([`skinlet_gpu::crowd_culling::OcclusionDepth::rounds`]:
-    /// the frames' instances are best ordered nearest first).
+    /// fragments the greater, occlusion culling's pyramid of the nearest; occlusion culling in
+    /// `rounds` rounds ([`skinlet_gpu::crowd_culling::OcclusionDepth::rounds`]: the frames'
+    /// instances are best ordered nearest first).
     #[allow(clippy::too_many_arguments)]
     pub fn with_depth_range(
         gpu: &Gpu,
@@ -387,7 +387,7 @@ impl GpuCrowd {
         // depth ties between meshlets), occlusion culling's phases draw into one image.
         let rounds = self.culling.crowd().occlusion_rounds();
         let occluded = |p| {
-            [(p, Some(List::First), true)].into_iter().chain((0..rounds).map(move |_| (p, Some(List::Second), false)))
+            (0..rounds).flat_map(move |r| [(p, Some(List::First), r == 0), (p, Some(List::Second), false)])
         };
         let passes: Vec<(usize, Option<List>, bool)> = match view {
             CrowdView::Unculled => vec![(0, None, true)],
@@ -435,9 +435,16 @@ impl GpuCrowd {
             let target_view = target.create_view(&Default::default());
             let mut readbacks = Vec::new();
             for (k, &(p, list, clear)) in passes.iter().enumerate() {
-                // Passes 1, 2, … draw the second phase's rounds 0, 1, ….
-                let round = (k as u32).saturating_sub(1);
+                // Occlusion culling's passes 0, 1, 2, … draw round 0's first and second phase,
+                // round 1's, … (round 0's first phase recorded above).
+                let round = k as u32 / 2;
                 match (list, triangles) {
+                    (Some(List::First), false) if round > 0 => {
+                        culling.crowd().encode_first_phase(&mut encoder, round)?
+                    }
+                    (Some(List::First), true) if round > 0 => {
+                        culling.encode_first_phase(&mut encoder, skinning, round)?
+                    }
                     (Some(List::Second), false) => culling.crowd().encode_second(&mut encoder, round)?,
                     (Some(List::Second), true) => culling.encode_second(&mut encoder, skinning, round)?,
                     _ => {}

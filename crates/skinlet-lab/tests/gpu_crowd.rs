@@ -67,7 +67,7 @@ fn check_frame(gpu: &Gpu, crowd: &GpuCrowd, frame: &CrowdFrame, what: &str) -> [
         let drawn = crowd.draw(gpu, frame, view, LIGHT).unwrap();
         let listed: u32 = drawn.headers.iter().map(|h| h.found).sum();
         // One draw per list, the second's once per round.
-        let draws = if drawn.headers.len() == 2 { 1 + crowd.occlusion_rounds() } else { 1 };
+        let draws = if drawn.headers.len() == 2 { 2 * crowd.occlusion_rounds() } else { 1 };
         assert_eq!(drawn.draw_calls, draws, "{what} {view:?}");
         let (a, b) = (&reference.rgba, &drawn.image.as_ref().unwrap().rgba);
         // Where two meshlets' nearest fragments tie in depth, draw order picks the color (and

@@ -5,13 +5,17 @@
 //
 // Phases (cull_params.phase): 0, frustum and backface; with occlusion, 1: the survivors that
 // were visible last frame (list A), 2: every survivor tested against the depth pyramid of what
-// phase 1 drew (list B: those visible now and not drawn in phase 1; each one's visibility bit
-// set to whether it is visible now). Phase 2 tests every meshlet against depth this frame's
-// geometry wrote, so a meshlet with a visible fragment is drawn in phase 1 or 2 whatever
-// last frame's bits say (a camera cut or a teleport costs work, never a missing meshlet).
-// Phase 2 may run in rounds (cull_params.round), each over a consecutive range of instances
-// against the depth drawn so far; list B then holds the round's survivors, placed after the
-// earlier rounds' (its header's first instance says where they start).
+// was drawn so far (list B: those visible now and not drawn in phase 1; each one's visibility
+// bit set to whether it is visible now). Phase 2 tests every meshlet against depth this
+// frame's geometry wrote, so a meshlet with a visible fragment is drawn in phase 1 or 2
+// whatever last frame's bits say (a camera cut or a teleport costs work, never a missing
+// meshlet). Occlusion culling runs in rounds (cull_params.round), each over a consecutive
+// range of instances (nearest first): phase 1 then phase 2 of the round, each drawn before the
+// next step; past round 0, phase 1 also tests against the pyramid of the depth drawn so far.
+// A phase's list then holds the round's survivors, placed after the earlier rounds' (its
+// header's first instance says where they start). Depth only comes nearer within a frame, so
+// a meshlet phase 1 finds behind the pyramid phase 2 finds behind it too (same test, nearer
+// depth): phase 2's bit still says whether phase 1 drew it.
 //
 // With the triangle pass after it (cull_params.flags bit 3, triangle_cull.wgsl), an entry's
 // instance count holds the meshlet's index instead (the lists are that pass's input, not
@@ -160,15 +164,11 @@ fn occluded(s: Slot, instance: u32) -> bool {
 @compute @workgroup_size(64)
 fn cull_draws(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
     let phase = cull_params.phase;
-    // This round's instances.
-    var first = 0u;
-    var end = cull_params.instances;
-    if phase == 2u {
-        let round = cull_params.round & 0xffu;
-        let rounds = max(cull_params.round >> 8u, 1u);
-        first = round * cull_params.instances / rounds;
-        end = (round + 1u) * cull_params.instances / rounds;
-    }
+    // This round's instances (all of them in one round or one phase).
+    let round = cull_params.round & 0xffu;
+    let rounds = select(max(cull_params.round >> 8u, 1u), 1u, phase == 0u);
+    let first = round * cull_params.instances / rounds;
+    let end = (round + 1u) * cull_params.instances / rounds;
     let index = invocation(gid) + first * cull_params.slots;
     let triangles = (cull_params.flags & 8u) != 0u;
     var instance = 0u;
@@ -183,7 +183,8 @@ fn cull_draws(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invo
         let bit = instance * cull_params.slots + id;
         var survives = category == 0u;
         if phase == 1u {
-            survives = survives && state[bit] != 0u;
+            // Past round 0, against the pyramid of the depth drawn so far.
+            survives = survives && state[bit] != 0u && !(round > 0u && occluded(s, instance));
         } else if phase == 2u {
             if survives && occluded(s, instance) {
                 category = 3u;
@@ -225,7 +226,7 @@ fn cull_draws(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invo
 }
 
 // After `cull_draws`: this phase's (round's) pulled draw arguments: its survivors, past the
-// earlier rounds' (a first instance still 0 in list B: none), the count (also that of the
+// earlier rounds' (a first instance and count both 0: none yet), the count (also that of the
 // indexed draws) clamped to the list's capacity, so a frame draws only entries it wrote; the
 // triangle pass's workgroups (one per survivor, rows of at most 65535).
 @compute @workgroup_size(1)
@@ -236,8 +237,9 @@ fn finish_draws() {
     let end = min(atomicLoad(&survivors[header + 4u]), cull_params.capacity);
     var start = 0u;
     let previous = atomicLoad(&survivors[header + 3u]);
-    if second && previous != 0u {
-        start = previous - base + atomicLoad(&survivors[header + 1u]);
+    let count = atomicLoad(&survivors[header + 1u]);
+    if previous != 0u || count != 0u {
+        start = previous - base + count;
     }
     atomicStore(&survivors[header], cull_params.corners);
     atomicStore(&survivors[header + 1u], end - start);

@@ -7,8 +7,9 @@
 // - outside one side plane of the clip volume (all three corners beyond it),
 // - back-facing where the draw culls back faces (counter-clockwise front),
 // - covering no pixel center (its box, then block by block of pixels by its edges),
-// - or, in occlusion culling's phase 2, behind the depth pyramid at every block of pixels
-//   where it may cover a center (single pixels for a triangle a few pixels wide);
+// - or, in occlusion culling's phase 2 and in phase 1 past round 0, behind the depth pyramid
+//   at every block of pixels where it may cover a center (single pixels for a triangle a few
+//   pixels wide);
 // kept triangles go to a list of indices (instance << id_bits | id, the id the mesh vertex or
 // the corner 3·i + k of MLET's triangle i) a workgroup's chunk at a time (one atomic per chunk), drawn with one indexed indirect draw.
 //
@@ -29,7 +30,8 @@ struct TriangleParams {
     // Triangles each list holds.
     capacity: u32,
     id_bits: u32,
-    // bit 0: the draw culls back faces; bit 1: the lists name corners (else vertices).
+    // bit 0: the draw culls back faces; bit 1: the lists name corners (else vertices); bit 2:
+    // tested against the pyramid (phase 2 always).
     flags: u32,
     width: u32,
     height: u32,
@@ -105,12 +107,17 @@ fn beyond(c: array<Corner, 3>, rows: mat4x4<f32>, k: u32, s: f32) -> bool {
 
 // What the tests make of one triangle.
 const CULLED: u32 = 0u;
-// Behind the pyramid (phase 2 only).
+// Behind the pyramid (when tested against it).
 const BEHIND: u32 = 1u;
-// Drawn, and (phase 2) no pixel where it looks visible.
+// Drawn, and (tested) no pixel where it looks visible.
 const UNSEEN: u32 = 2u;
-// Drawn, and (phase 2) a pixel where it looks visible, or too big to look at pixel by pixel.
+// Drawn, and (tested) a pixel where it looks visible, or too big to look at pixel by pixel.
 const SEEN: u32 = 3u;
+
+// Whether this pass tests against the depth pyramid.
+fn tested() -> bool {
+    return tri.phase == 2u || (tri.flags & 4u) != 0u;
+}
 
 fn test_triangle(c: array<Corner, 3>) -> u32 {
     // The projection's rows.
@@ -174,13 +181,13 @@ fn test_triangle(c: array<Corner, 3>) -> u32 {
     let orient = select(select(select(0.0, -1.0, area + slack < 0.0), 1.0, area - slack > 0.0), 1.0, cull_back);
     // Which pixel centers the drawn triangle may cover, block by block of the level where its
     // rectangle spans at most 8 × 8 blocks (single pixels for a triangle a few pixels wide),
-    // and (phase 2) whether one of them is not behind the depth pyramid's texel there.
+    // and (tested) whether one of them is not behind the depth pyramid's texel there.
     let x0 = u32(rect.x);
     let y0 = u32(rect.y);
     let x1 = u32(rect.z);
     let y1 = u32(rect.w);
     var level = block_level(x0, y0, x1, y1);
-    if tri.phase == 2u {
+    if tested() {
         level = min(level, occlusion.levels - 1u);
     }
     let pyramid = pyramid_level(level);
@@ -194,7 +201,7 @@ fn test_triangle(c: array<Corner, 3>) -> u32 {
             let low = vec2<f32>(f32(bx.x) + 0.5 - 0.5 * size.x, 0.5 * size.y - f32(by.y) - 0.5);
             let high = vec2<f32>(f32(bx.y) + 0.5 - 0.5 * size.x, 0.5 * size.y - f32(by.x) - 0.5);
             if may_cover(mid, half, orient, low, high) {
-                if tri.phase != 2u {
+                if !tested() {
                     return SEEN;
                 }
                 covered = true;
@@ -326,7 +333,7 @@ fn cull_triangles(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocati
             if result == SEEN {
                 atomicStore(&group_seen, 1u);
             }
-            keep = select(result != CULLED, result >= UNSEEN && !drawn, phase == 2u);
+            keep = result >= UNSEEN && !drawn;
         }
         var place = 0u;
         if keep {
@@ -360,7 +367,7 @@ fn cull_triangles(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocati
 }
 
 // After `cull_triangles`: this phase's (round's) indexed draw, its triangles past the earlier
-// rounds' (a first index still 0 in list B: none), clamped to the list's capacity.
+// rounds' (a first index and count both 0: none yet), clamped to the list's capacity.
 @compute @workgroup_size(1)
 fn finish_triangles() {
     let list = select(0u, 1u, tri.phase == 2u);
@@ -368,8 +375,9 @@ fn finish_triangles() {
     let end = min(atomicLoad(&triangles[header + 5u]), tri.capacity);
     var start = 0u;
     let previous = atomicLoad(&triangles[header + 2u]);
-    if list == 1u && previous != 0u {
-        start = previous / 3u - tri.capacity + atomicLoad(&triangles[header]) / 3u;
+    let count = atomicLoad(&triangles[header]);
+    if previous != 0u || count != 0u {
+        start = previous / 3u - list * tri.capacity + count / 3u;
     }
     atomicStore(&triangles[header], 3u * (end - start));
     atomicStore(&triangles[header + 1u], 1u);
