@@ -386,9 +386,8 @@ impl GpuCrowd {
         // twice (nearer fragments win, then nearer or equal ones: pixels whose ids differ are
         // depth ties between meshlets), occlusion culling's phases draw into one image.
         let rounds = self.culling.crowd().occlusion_rounds();
-        let occluded = |p| {
-            (0..rounds).flat_map(move |r| [(p, Some(List::First), r == 0), (p, Some(List::Second), false)])
-        };
+        let occluded =
+            |p| (0..rounds).flat_map(move |r| [(p, Some(List::First), r == 0), (p, Some(List::Second), false)]);
         let passes: Vec<(usize, Option<List>, bool)> = match view {
             CrowdView::Unculled => vec![(0, None, true)],
             CrowdView::Indexed => vec![(0, Some(List::First), true)],
