@@ -406,9 +406,6 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 (meshlets, triangles, vertex_refs) =
                     (survivors.len() as u64, sum(&meshlet_triangles), Some(sum(&meshlet_vertices)));
                 if !d.triangle_headers.is_empty() {
-                    if std::env::var_os("SKINLET_DEBUG_PHASES").is_some() {
-                        eprintln!("phases: {:?}", d.triangle_headers.iter().map(|h| h.meshlets).collect::<Vec<_>>());
-                    }
                     // The pass skinned the survivors' vertices; the draw skins each distinct
                     // (instance, vertex) of the triangles it kept at least once.
                     pass_vertices = vertex_refs;
