@@ -11,10 +11,11 @@
 //! after a switch are not timed); per frame it measures the whole update, the render world's
 //! schedule, and within it the render graph (skinlet's culling, encoding and submission; on a
 //! CPU Vulkan driver such as lavapipe submission also runs the GPU's work, so the time outside
-//! the render graph is the CPU time an app spends on either path there). At `--compare` points along the camera's path
-//! the animation pauses and the same frame is drawn three times: by Bevy's pipeline, by
-//! skinlet's with culling, and by skinlet's without; the images are compared and skinlet's
-//! counts (read back from the GPU) are reported.
+//! the render graph is the CPU time an app spends on either path there). At `--compare`
+//! points along the camera's path the animation pauses and the same frame is drawn three
+//! times: by Bevy's pipeline, by skinlet's with culling (occlusion culling among the
+//! characters in `--occlusion-rounds` rounds), and by skinlet's without; the images are
+//! compared and skinlet's counts (read back from the GPU) are reported.
 
 #[path = "../tests/common/mod.rs"]
 mod common;
@@ -54,6 +55,10 @@ pub struct Args {
     pub width: u32,
     #[arg(long, default_value_t = 360)]
     pub height: u32,
+    /// Occlusion culling among the characters in this many rounds
+    /// (`SkinletMeshletSettings::occlusion_rounds`; 0: none).
+    #[arg(long, default_value_t = 16)]
+    pub occlusion_rounds: u32,
     /// Which pipeline draws: both (alternating, compared), or one of them alone (for a
     /// profiler; nothing compared).
     #[arg(long, value_enum, default_value_t = Pipelines::Both)]
@@ -284,6 +289,7 @@ pub fn run(args: &Args) -> Option<serde_json::Value> {
         }
     }
     let camera = common::readback_camera(app.world_mut(), args.width, args.height, Transform::default());
+    app.world_mut().resource_mut::<SkinletMeshletSettings>().occlusion_rounds = args.occlusion_rounds;
     common::update_until(&mut app, 100_000, "every instance bound", |w| {
         roots.iter().all(|&(e, _)| w.get::<SkinletInstance>(e).is_some())
     });
@@ -382,7 +388,11 @@ pub fn run(args: &Args) -> Option<serde_json::Value> {
         "image": [args.width, args.height],
         "meshlets_total": moving["meshlets_total"],
         "meshlets_drawn": moving["meshlets_drawn"],
-        "draws_issued": counts.sums.len(),
+        // Bevy's opaque pass: one draw per bake, two with occlusion culling (its two lists);
+        // before it, skinlet's own depth pass draws each round's two lists.
+        "draws_issued": counts.sums.len() * if args.occlusion_rounds > 0 { 2 } else { 1 },
+        "occlusion_rounds": args.occlusion_rounds,
+        "occlusion_depth_draws": counts.sums.len() * 2 * args.occlusion_rounds as usize,
         "max_pixel_diff_vs_bevy": max_diff,
         "equal_to_unculled": equal,
         "cpu": { "bevy": cpu(&timing[0]), "skinlet": cpu(&timing[1]) },

@@ -74,7 +74,8 @@ use bevy::render::view::{ExtractedView, RenderVisibleEntities};
 use bevy::render::{Extract, ExtractSchedule, Render, RenderApp, RenderStartup, RenderSystems};
 use bevy::shader::ShaderDefVal;
 use skinlet_gpu::crowd_culling::{
-    CrowdCulling, CullInstance, CullMode, CullPipelines, GpuCharacter, SurvivorHeader, subpixel_bits,
+    CrowdCulling, CullInstance, CullMode, CullPipelines, GpuCharacter, List, MAX_OCCLUSION_ROUNDS, OcclusionDepth,
+    SurvivorHeader, subpixel_bits,
 };
 use skinlet_gpu::crowd_skinning::{CROWD_SKIN_WGSL, CrowdMesh, layout_entries};
 use skinlet_gpu::triangle_culling::{
@@ -114,11 +115,19 @@ pub struct SkinletMeshletSettings {
     /// Cull on the GPU (meshlets, then triangles); `false` draws every triangle of every
     /// instance (the reference the culled image must equal).
     pub culling: bool,
+    /// Occlusion culling among the characters in this many rounds (0: none; at most
+    /// [`skinlet_gpu::crowd_culling::MAX_OCCLUSION_ROUNDS`]): before Bevy's passes, skinlet
+    /// draws the characters' depth into a depth buffer of its own, round by round (instances
+    /// nearest the camera first), testing each round's meshlets and triangles against what
+    /// the earlier rounds drew; Bevy's passes then draw the survivors of every round.
+    /// Characters are not tested against Bevy's other meshes. Single-sample cameras only
+    /// (with MSAA, no occlusion culling, with a warning).
+    pub occlusion_rounds: u32,
 }
 
 impl Default for SkinletMeshletSettings {
     fn default() -> Self {
-        SkinletMeshletSettings { culling: true }
+        SkinletMeshletSettings { culling: true, occlusion_rounds: 0 }
     }
 }
 
@@ -147,10 +156,13 @@ pub struct MeshletStats {
     pub frame: u64,
     /// Whether the frame was culled ([`SkinletMeshletSettings::culling`], one camera).
     pub culled: bool,
+    /// Occlusion culling's rounds (0: none).
+    pub occlusion_rounds: u32,
     pub instances: u32,
     /// Meshlets of every instance.
     pub meshlets_total: u64,
-    /// Meshlets that passed the meshlet tests (frustum and normal cone).
+    /// Meshlets that passed the meshlet tests (frustum and normal cone, and with occlusion
+    /// culling the depth pyramid).
     pub meshlets_tested_visible: u64,
     /// Meshlets with at least one triangle drawn.
     pub meshlets_drawn: u64,
@@ -396,6 +408,51 @@ struct BakeFrame {
     /// Per instance, [`shadow_words`] words: bit `p % 32` of word `p / 32` set where part `p`
     /// casts no shadow.
     no_shadow: Vec<u32>,
+    /// Per instance, where its scene root is (occlusion culling's order, nearest first).
+    positions: Vec<Vec3>,
+}
+
+/// A frame's per-instance arrays, as uploaded.
+struct InstanceData<'a> {
+    palette: &'a [Mat4],
+    instances: &'a [CullInstance],
+    weights: &'a [f32],
+    no_shadow: &'a [u32],
+}
+
+/// A frame's per-instance arrays reordered nearest the camera first (occlusion culling's
+/// rounds take the instances in order); the vectors are kept from frame to frame.
+#[derive(Default)]
+struct NearestFirst {
+    order: Vec<usize>,
+    palette: Vec<Mat4>,
+    instances: Vec<CullInstance>,
+    weights: Vec<f32>,
+    no_shadow: Vec<u32>,
+}
+
+impl NearestFirst {
+    fn sort<'a>(&'a mut self, frame: &BakeFrame, eye: Vec3) -> InstanceData<'a> {
+        let distance = |&i: &usize| frame.positions[i].distance_squared(eye);
+        self.order.clear();
+        self.order.extend(0..frame.instances.len());
+        self.order.sort_by(|a, b| distance(a).total_cmp(&distance(b)));
+        fn gather<T: Copy>(out: &mut Vec<T>, all: &[T], order: &[usize]) {
+            let per = all.len() / order.len().max(1);
+            out.clear();
+            out.extend(order.iter().flat_map(|&i| &all[i * per..(i + 1) * per]));
+        }
+        gather(&mut self.palette, &frame.palette, &self.order);
+        gather(&mut self.instances, &frame.instances, &self.order);
+        gather(&mut self.weights, &frame.weights, &self.order);
+        gather(&mut self.no_shadow, &frame.no_shadow, &self.order);
+        InstanceData {
+            palette: &self.palette,
+            instances: &self.instances,
+            weights: &self.weights,
+            no_shadow: &self.no_shadow,
+        }
+    }
 }
 
 /// Words of shadow bits per instance of a bake with `parts` parts.
@@ -407,7 +464,7 @@ fn shadow_words(parts: usize) -> usize {
 fn extract_frames(
     mut frames: ResMut<MeshletFrames>,
     draws: Extract<Res<BakeDraws>>,
-    roots: Extract<Query<(&SkinletInstance, &SkinletBounds), With<SkinletMeshlets>>>,
+    roots: Extract<Query<(Entity, &SkinletInstance, &SkinletBounds), With<SkinletMeshlets>>>,
     globals: Extract<Query<&GlobalTransform>>,
     parts: Extract<Query<&MeshMaterial3d<StandardMaterial>>>,
     no_shadow: Extract<Query<(), With<NotShadowCaster>>>,
@@ -419,8 +476,9 @@ fn extract_frames(
         frame.instances.clear();
         frame.weights.clear();
         frame.no_shadow.clear();
+        frame.positions.clear();
     }
-    for (instance, bounds) in &roots {
+    for (root, instance, bounds) in &roots {
         let id = bounds.0.id();
         let Some(draw) = draws.0.get(&id) else { continue };
         let frame = frames.0.entry(id).or_insert_with(|| BakeFrame {
@@ -431,6 +489,7 @@ fn extract_frames(
             materials: Vec::new(),
             textures: Vec::new(),
             no_shadow: Vec::new(),
+            positions: Vec::new(),
         });
         if frame.instances.is_empty() {
             frame.draw = draw.clone();
@@ -455,6 +514,7 @@ fn extract_frames(
             _ => CullMode::Keep,
         };
         frame.instances.push(CullInstance::new(Mat4::IDENTITY, mode));
+        frame.positions.push(globals.get(root).map_or(Vec3::ZERO, |g| g.translation()));
         frame.weights.extend_from_slice(instance.morph_weights());
         // The parts marked `NotShadowCaster`, a bit each (as Bevy reads the marker: on the
         // mesh entity).
@@ -621,13 +681,25 @@ struct MeshletGpu {
     frame: u64,
     pipelines: Option<CullPipelines>,
     bakes: HashMap<AssetId<Bake>, BakeGpu>,
+    /// Occlusion culling's depth buffer (every bake's rounds draw into it), and its size.
+    depth: Option<(wgpu::Texture, wgpu::TextureView)>,
+}
+
+/// skinlet's own depth pass of a bake's occlusion culling rounds.
+struct OcclusionDraw {
+    pipeline: wgpu::RenderPipeline,
+    /// The view's clip_from_world and the lists' id bits; the corners.
+    uniform: wgpu::Buffer,
+    group: wgpu::BindGroup,
 }
 
 struct BakeGpu {
     culling: TriangleCulling,
     capacity: u32,
-    /// The raster the triangle pass was made for.
+    /// The raster the triangle pass was made for, and its occlusion culling's rounds (0: none).
     raster: Raster,
+    rounds: u32,
+    occlusion: Option<OcclusionDraw>,
     instances: u32,
     palette: wgpu::Buffer,
     instance_buffer: wgpu::Buffer,
@@ -647,8 +719,8 @@ struct BakeGpu {
     /// Per instance: meshlets, triangles.
     meshlets: u32,
     mesh_triangles: u32,
-    /// The counts' copy (the survivors' header, then list A's header) and where it is:
-    /// [`IDLE`], [`COPIED`] (encoded this frame) or [`MAPPING`].
+    /// The counts' copy (the survivors' two headers, then the triangle lists' two) and where
+    /// it is: [`IDLE`], [`COPIED`] (encoded this frame) or [`MAPPING`].
     readback: wgpu::Buffer,
     readback_state: Arc<AtomicU8>,
     /// Per part its texture slots (group 3), the parts' textures the group was made for, and
@@ -663,10 +735,15 @@ const IDLE: u8 = 0;
 const COPIED: u8 = 1;
 const MAPPING: u8 = 2;
 
+/// The view's projection as Bevy's view uniform has it (`prepare_view_uniforms`, unjittered).
+fn clip_from_world(view: &ExtractedView) -> Mat4 {
+    let view_from_world = view.world_from_view.to_matrix().inverse();
+    view.clip_from_world.unwrap_or(view.clip_from_view * view_from_world)
+}
+
 /// The camera the culling runs for this frame: the first active 3D camera's view.
 fn cull_camera(view: &ExtractedView) -> Option<CullCamera> {
-    let view_from_world = view.world_from_view.to_matrix().inverse();
-    let clip_from_world = view.clip_from_world.unwrap_or(view.clip_from_view * view_from_world);
+    let clip_from_world = clip_from_world(view);
     let eye = view.world_from_view.translation();
     let projection = if view.clip_from_view.w_axis.w == 1.0 {
         Projection::Orthographic { dir: view.world_from_view.forward().into() }
@@ -688,8 +765,9 @@ fn prepare_gpu(
     stats: Res<SkinletMeshletStats>,
     views: Query<(&ExtractedView, &Msaa), With<ExtractedCamera>>,
     textures: (Option<Res<MeshletDrawPipeline>>, Res<RenderAssets<GpuImage>>, Res<FallbackImage>),
-    mut warned: Local<[bool; 2]>,
+    mut warned: Local<[bool; 3]>,
     mut material_bytes: Local<Vec<u8>>,
+    mut sorted: Local<NearestFirst>,
 ) {
     gpu.frame += 1;
     let Some((view, msaa)) = views.iter().next() else { return };
@@ -707,8 +785,32 @@ fn prepare_gpu(
         cull_back_faces: true,
         multisampled: msaa.samples() > 1,
     };
+    let mut rounds = settings.occlusion_rounds.min(MAX_OCCLUSION_ROUNDS);
+    if !settings.culling || several {
+        rounds = 0;
+    } else if rounds > 0 && raster.multisampled {
+        if !std::mem::replace(&mut warned[2], true) {
+            warn!("skinlet meshlets: no occlusion culling on a multisampled camera (Msaa::Off for it)");
+        }
+        rounds = 0;
+    }
     let wgpu_device = device.wgpu_device();
     let gpu = &mut *gpu;
+    let size = |t: &wgpu::Texture| (t.width(), t.height());
+    if rounds > 0 && gpu.depth.as_ref().is_none_or(|(t, _)| size(t) != (raster.width, raster.height)) {
+        let texture = wgpu_device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("skinlet occlusion depth"),
+            size: wgpu::Extent3d { width: raster.width, height: raster.height, depth_or_array_layers: 1 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: OCCLUSION_DEPTH,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        });
+        let view = texture.create_view(&Default::default());
+        gpu.depth = Some((texture, view));
+    }
     if gpu.pipelines.is_none() {
         match CullPipelines::new(wgpu_device) {
             Ok(p) => gpu.pipelines = Some(p),
@@ -721,10 +823,12 @@ fn prepare_gpu(
     gpu.bakes.retain(|id, _| frames.0.contains_key(id));
     for (&id, frame) in &frames.0 {
         let n = frame.instances.len() as u32;
-        let fits = gpu.bakes.get(&id).is_some_and(|b| b.capacity >= n && b.raster == raster);
+        let fits = gpu.bakes.get(&id).is_some_and(|b| b.capacity >= n && b.raster == raster && b.rounds == rounds);
         if !fits {
             let capacity = n.next_power_of_two().max(4);
-            match bake_gpu(wgpu_device, gpu.pipelines.as_ref().unwrap(), &cache, frame, capacity, raster) {
+            let occlusion = gpu.depth.as_ref().filter(|_| rounds > 0).map(|(_, view)| (view, rounds));
+            let pipelines = gpu.pipelines.as_ref().unwrap();
+            match bake_gpu(wgpu_device, pipelines, &cache, frame, capacity, raster, occlusion) {
                 Ok(b) => {
                     gpu.bakes.insert(id, b);
                 }
@@ -744,6 +848,7 @@ fn prepare_gpu(
                 MeshletStats {
                     frame: gpu.frame,
                     culled: false,
+                    occlusion_rounds: 0,
                     instances: n,
                     meshlets_total: meshlets,
                     meshlets_tested_visible: meshlets,
@@ -755,11 +860,26 @@ fn prepare_gpu(
             );
         }
         queue.write_buffer(&b.params, 0, bytemuck::cast_slice(&[b.id_bits, b.unculled as u32]));
-        queue.write_buffer(&b.no_shadow, 0, bytemuck::cast_slice(&frame.no_shadow));
-        queue.write_buffer(&b.palette, 0, bytemuck::cast_slice(&frame.palette));
-        queue.write_buffer(&b.instance_buffer, 0, bytemuck::cast_slice(&frame.instances));
-        if !frame.weights.is_empty() {
-            queue.write_buffer(&b.weights, 0, bytemuck::cast_slice(&frame.weights));
+        // With occlusion culling, the instances nearest the camera first (the rounds' order).
+        let data = match &b.occlusion {
+            Some(occlusion) => {
+                let mut words = clip_from_world(view).to_cols_array().map(f32::to_bits).to_vec();
+                words.extend([b.id_bits, 0, 0, 0]);
+                queue.write_buffer(&occlusion.uniform, 0, bytemuck::cast_slice(&words));
+                sorted.sort(frame, view.world_from_view.translation())
+            }
+            None => InstanceData {
+                palette: &frame.palette,
+                instances: &frame.instances,
+                weights: &frame.weights,
+                no_shadow: &frame.no_shadow,
+            },
+        };
+        queue.write_buffer(&b.no_shadow, 0, bytemuck::cast_slice(data.no_shadow));
+        queue.write_buffer(&b.palette, 0, bytemuck::cast_slice(data.palette));
+        queue.write_buffer(&b.instance_buffer, 0, bytemuck::cast_slice(data.instances));
+        if !data.weights.is_empty() {
+            queue.write_buffer(&b.weights, 0, bytemuck::cast_slice(data.weights));
         }
         material_bytes.clear();
         if encase::StorageBuffer::new(&mut *material_bytes).write(&frame.materials).is_ok() {
@@ -833,7 +953,8 @@ fn texture_group(
     b.textures_pending = uploaded.iter().any(Option::is_none);
 }
 
-/// A bake's culling and buffers for `capacity` instances drawn as `raster` says.
+/// A bake's culling and buffers for `capacity` instances drawn as `raster` says, with
+/// occlusion culling in `occlusion`'s rounds against its depth buffer where given.
 fn bake_gpu(
     device: &wgpu::Device,
     pipelines: &CullPipelines,
@@ -841,6 +962,7 @@ fn bake_gpu(
     frame: &BakeFrame,
     capacity: u32,
     raster: Raster,
+    occlusion: Option<(&wgpu::TextureView, u32)>,
 ) -> Result<BakeGpu, String> {
     use wgpu::util::DeviceExt;
     let draw = &frame.draw;
@@ -872,19 +994,29 @@ fn bake_gpu(
     let vertices = view.vertices().positions.len();
     let (_, draws) = skinlet_gpu::mesh::meshlet_index_buffer(&meshlets, vertices).map_err(e)?;
     let character = GpuCharacter::new(device, &culler, &draw.inverse_bind, &draws).map_err(e)?;
-    let crowd = CrowdCulling::new(
-        device,
-        pipelines,
-        &character,
-        &palette,
-        &instance_buffer,
-        capacity,
-        capacity * character.meshlets(),
-    )
+    let survivors = capacity * character.meshlets();
+    let crowd = match occlusion {
+        Some((view, rounds)) => {
+            let (width, height, reversed, subpixel_bits) = (raster.width, raster.height, true, raster.subpixel_bits);
+            let depth = OcclusionDepth { view, width, height, reversed, subpixel_bits, rounds };
+            CrowdCulling::with_occlusion(
+                device,
+                pipelines,
+                &character,
+                &palette,
+                &instance_buffer,
+                capacity,
+                survivors,
+                depth,
+            )
+        }
+        None => CrowdCulling::new(device, pipelines, &character, &palette, &instance_buffer, capacity, survivors),
+    }
     .map_err(e)?;
+    // (The culling's compute passes and skinlet's own depth pass skin with it.)
     let skin_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("skinlet skinning"),
-        entries: &layout_entries(wgpu::ShaderStages::COMPUTE),
+        entries: &layout_entries(wgpu::ShaderStages::COMPUTE | wgpu::ShaderStages::VERTEX),
     });
     fn bind(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
         wgpu::BindGroupEntry { binding, resource: buffer.as_entire_binding() }
@@ -930,11 +1062,14 @@ fn bake_gpu(
     let culling_id_bits = culling.id_bits();
     let readback = device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("skinlet meshlet counts"),
-        size: SurvivorHeader::SIZE + TriangleHeader::SIZE,
+        size: 2 * (SurvivorHeader::SIZE + TriangleHeader::SIZE),
         usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
         mapped_at_creation: false,
     });
+    let occlusion = occlusion.map(|_| occlusion_draw(device, &skin_layout, &corners));
     Ok(BakeGpu {
+        rounds: occlusion.as_ref().map_or(0, |_| culling.crowd().occlusion_rounds()),
+        occlusion,
         meshlets: character.meshlets(),
         mesh_triangles: view.triangles().len() as u32,
         readback,
@@ -962,6 +1097,74 @@ fn bake_gpu(
     })
 }
 
+/// Occlusion culling's depth format (Bevy's main pass depth: reversed, near 1).
+const OCCLUSION_DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+/// skinlet's own depth pass over a bake's triangle lists (`meshlet_occlusion.wgsl`: the
+/// crowd skinning in group 1, its `skinning` bind group).
+fn occlusion_draw(device: &wgpu::Device, skin_layout: &wgpu::BindGroupLayout, corners: &wgpu::Buffer) -> OcclusionDraw {
+    let source = [CROWD_SKIN_WGSL, TRIANGLES_WGSL, include_str!("meshlet_occlusion.wgsl")].concat();
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("skinlet occlusion depth"),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::VERTEX,
+        ty: wgpu::BindingType::Buffer { ty, has_dynamic_offset: false, min_binding_size: None },
+        count: None,
+    };
+    let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("skinlet occlusion depth"),
+        entries: &[
+            entry(0, wgpu::BufferBindingType::Uniform),
+            entry(1, wgpu::BufferBindingType::Storage { read_only: true }),
+        ],
+    });
+    let uniform = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("skinlet occlusion view"),
+        size: 80,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("skinlet occlusion depth"),
+        layout: &layout,
+        entries: &[
+            wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 1, resource: corners.as_entire_binding() },
+        ],
+    });
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("skinlet occlusion depth"),
+        bind_group_layouts: &[Some(&layout), Some(skin_layout)],
+        immediate_size: 0,
+    });
+    let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("skinlet occlusion depth"),
+        layout: Some(&pipeline_layout),
+        vertex: wgpu::VertexState {
+            module: &module,
+            entry_point: Some("vertex"),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: wgpu::PrimitiveState { cull_mode: Some(wgpu::Face::Back), ..Default::default() },
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: OCCLUSION_DEPTH,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::GreaterEqual),
+            stencil: Default::default(),
+            bias: Default::default(),
+        }),
+        multisample: Default::default(),
+        fragment: None,
+        multiview_mask: None,
+        cache: None,
+    });
+    OcclusionDraw { pipeline, uniform, group }
+}
+
 /// Before the cameras render: each bake's culling for the first camera.
 fn cull(
     mut ctx: RenderContext,
@@ -970,28 +1173,74 @@ fn cull(
     views: Query<&ExtractedView, With<ExtractedCamera>>,
 ) {
     let Some(camera) = views.iter().next().and_then(cull_camera) else { return };
+    // The occlusion depth is cleared by the first pass that draws into it this frame.
+    let mut clear = true;
     for b in gpu.bakes.values() {
         if b.instances == 0 || b.unculled {
             continue;
         }
         let encoder = ctx.command_encoder();
-        if let Err(e) = b.culling.encode(&queue, encoder, &camera, Tests::Both, b.instances, &b.skinning, None) {
+        let (c, skinning, n) = (&b.culling, &b.skinning, b.instances);
+        let culled = match (&b.occlusion, &gpu.depth) {
+            (Some(draw), Some((_, depth))) => occlusion_rounds(encoder, b, draw, depth, &queue, &camera, &mut clear),
+            _ => c.encode(&queue, encoder, &camera, Tests::Both, n, skinning, None),
+        };
+        if let Err(e) = culled {
             error!("skinlet meshlets: {e}");
             continue;
         }
         // The counts, unless the last copy is still being read.
         if b.readback_state.compare_exchange(IDLE, COPIED, Ordering::AcqRel, Ordering::Relaxed).is_ok() {
-            let survivors = b.culling.crowd().survivors();
-            encoder.copy_buffer_to_buffer(survivors, 0, &b.readback, 0, SurvivorHeader::SIZE);
-            encoder.copy_buffer_to_buffer(
-                b.culling.triangles(),
-                0,
-                &b.readback,
-                SurvivorHeader::SIZE,
-                TriangleHeader::SIZE,
-            );
+            let headers = 2 * SurvivorHeader::SIZE;
+            encoder.copy_buffer_to_buffer(c.crowd().survivors(), 0, &b.readback, 0, headers);
+            encoder.copy_buffer_to_buffer(c.triangles(), 0, &b.readback, headers, 2 * TriangleHeader::SIZE);
         }
     }
+}
+
+/// A bake's occlusion culling: each round's two phases, each phase's triangles drawn into
+/// skinlet's depth buffer before the next step, then the lists made whole for Bevy's passes.
+#[allow(clippy::too_many_arguments)]
+fn occlusion_rounds(
+    encoder: &mut wgpu::CommandEncoder,
+    b: &BakeGpu,
+    draw: &OcclusionDraw,
+    depth: &wgpu::TextureView,
+    queue: &RenderQueue,
+    camera: &CullCamera,
+    clear: &mut bool,
+) -> skinlet_gpu::Result<()> {
+    let c = &b.culling;
+    c.encode_first(queue, encoder, camera, Tests::Both, b.instances, &b.skinning, None)?;
+    for round in 0..b.rounds {
+        for list in [List::First, List::Second] {
+            match list {
+                List::First if round > 0 => c.encode_first_phase(encoder, &b.skinning, round)?,
+                List::First => {}
+                List::Second => c.encode_second(encoder, &b.skinning, round)?,
+            }
+            let load = match std::mem::replace(clear, false) {
+                true => wgpu::LoadOp::Clear(0.0),
+                false => wgpu::LoadOp::Load,
+            };
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("skinlet occlusion depth"),
+                color_attachments: &[],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: depth,
+                    depth_ops: Some(wgpu::Operations { load, store: wgpu::StoreOp::Store }),
+                    stencil_ops: None,
+                }),
+                ..Default::default()
+            });
+            pass.set_pipeline(&draw.pipeline);
+            pass.set_bind_group(0, &draw.group, &[]);
+            pass.set_bind_group(1, &b.skinning, &[]);
+            c.draw(&mut pass, list);
+        }
+    }
+    c.encode_whole_lists(encoder);
+    Ok(())
 }
 
 /// After the frame's commands are submitted: maps the counts copied this frame; when the GPU
@@ -1002,28 +1251,32 @@ fn read_back_stats(gpu: Res<MeshletGpu>, stats: Res<SkinletMeshletStats>) {
             continue;
         }
         let (buffer, state, stats) = (b.readback.clone(), b.readback_state.clone(), stats.clone());
-        let (frame, n, meshlets, triangles) =
-            (gpu.frame, b.instances as u64, b.meshlets as u64, b.mesh_triangles as u64);
+        let (frame, n, meshlets, triangles, rounds) =
+            (gpu.frame, b.instances as u64, b.meshlets as u64, b.mesh_triangles as u64, b.rounds);
         b.readback.slice(..).map_async(wgpu::MapMode::Read, move |mapped| {
             if mapped.is_ok() {
-                let (survivors, list): (SurvivorHeader, TriangleHeader) = {
+                let (survivors, lists): ([SurvivorHeader; 2], [TriangleHeader; 2]) = {
                     let bytes = buffer.slice(..).get_mapped_range();
-                    let (s, t) = bytes.split_at(SurvivorHeader::SIZE as usize);
+                    let (s, t) = bytes.split_at(2 * SurvivorHeader::SIZE as usize);
                     (bytemuck::pod_read_unaligned(s), bytemuck::pod_read_unaligned(t))
                 };
                 buffer.unmap();
+                // With occlusion culling, the second list's survivors are every meshlet its
+                // tests kept, and both lists draw.
+                let sum = |f: fn(&TriangleHeader) -> u32| lists.iter().map(|l| f(l) as u64).sum::<u64>();
                 stats.set(
                     id,
                     MeshletStats {
                         frame,
                         culled: true,
+                        occlusion_rounds: rounds,
                         instances: n as u32,
                         meshlets_total: n * meshlets,
-                        meshlets_tested_visible: survivors.found as u64,
-                        meshlets_drawn: list.meshlets as u64,
+                        meshlets_tested_visible: survivors[(rounds > 0) as usize].found as u64,
+                        meshlets_drawn: sum(|l| l.meshlets),
                         triangles_total: n * triangles,
-                        triangles_drawn: list.index_count as u64 / 3,
-                        triangles_dropped: list.found.saturating_sub(list.index_count / 3) as u64,
+                        triangles_drawn: sum(|l| l.index_count / 3),
+                        triangles_dropped: sum(|l| l.found.saturating_sub(l.index_count / 3)),
                     },
                 );
             }
@@ -1117,6 +1370,10 @@ impl<P: PhaseItem, const TEXTURES: bool> RenderCommand<P> for DrawMeshlets<TEXTU
         } else {
             pass.set_index_buffer(b.triangles.slice(2 * TriangleHeader::SIZE..), IndexFormat::Uint32);
             pass.draw_indexed_indirect(&b.triangles, 0);
+            if b.rounds > 0 {
+                // Occlusion culling's second list (every round's, as the first).
+                pass.draw_indexed_indirect(&b.triangles, TriangleHeader::SIZE);
+            }
         }
         RenderCommandResult::Success
     }

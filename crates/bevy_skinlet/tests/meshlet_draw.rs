@@ -49,6 +49,20 @@ fn fragment(mesh: VertexOutput) -> @location(0) vec4<f32> {
 }
 ";
 
+/// The counts of a frame after the image settled, for each of `bakes` (they are read back
+/// when the GPU is done, not every frame).
+fn latest_stats_after(
+    app: &mut App,
+    bakes: usize,
+) -> bevy::platform::collections::HashMap<AssetId<bevy_skinlet::Bake>, bevy_skinlet::MeshletStats> {
+    let settled = app.world().resource::<SkinletMeshletStats>().latest().values().map(|s| s.frame).max();
+    update_until(app, 300, "counts of a frame after the image settled", |w| {
+        let stats = w.resource::<SkinletMeshletStats>().latest();
+        stats.len() == bakes && stats.values().all(|s| Some(s.frame) > settled)
+    });
+    app.world().resource::<SkinletMeshletStats>().latest()
+}
+
 const WIDTH: u32 = 256;
 const HEIGHT: u32 = 160;
 
@@ -102,14 +116,8 @@ fn skinlets_meshlet_draw_looks_like_bevys_own() {
         app.world_mut().entity_mut(root).insert(SkinletMeshlets);
     }
     let skinlet = settled_image(&mut app);
-    // The counts read back: every bake drawn in one draw, culled, no list overflow; of a frame
-    // after the image settled (they are read back when the GPU is done, not every frame).
-    let settled = app.world().resource::<SkinletMeshletStats>().latest().values().map(|s| s.frame).max();
-    update_until(&mut app, 300, "counts of a frame after the image settled", |w| {
-        let stats = w.resource::<SkinletMeshletStats>().latest();
-        stats.len() == characters.len() && stats.values().all(|s| Some(s.frame) > settled)
-    });
-    let stats = app.world().resource::<SkinletMeshletStats>().latest();
+    // The counts read back: every bake drawn in one draw, culled, no list overflow.
+    let stats = latest_stats_after(&mut app, characters.len());
     assert_eq!(stats.len(), characters.len());
     for s in stats.values() {
         eprintln!("{s:?}");
@@ -119,6 +127,23 @@ fn skinlets_meshlet_draw_looks_like_bevys_own() {
     }
     let tested: u64 = stats.values().map(|s| s.meshlets_tested_visible).sum();
     assert!(tested < stats.values().map(|s| s.meshlets_total).sum(), "no meshlet culled");
+    let drawn_without_occlusion: u64 = stats.values().map(|s| s.meshlets_drawn).sum();
+    // Occlusion culling among the characters (3 rounds over each bake's 5 instances): the
+    // rows behind are partly hidden by the rows in front.
+    app.world_mut().resource_mut::<SkinletMeshletSettings>().occlusion_rounds = 3;
+    let occluded = settled_image(&mut app);
+    let stats = latest_stats_after(&mut app, characters.len());
+    for s in stats.values() {
+        eprintln!("occlusion culling: {s:?}");
+        assert!(s.culled && s.occlusion_rounds == 3 && s.triangles_dropped == 0, "{s:?}");
+        assert!(s.meshlets_drawn <= s.meshlets_tested_visible, "{s:?}");
+    }
+    let drawn_with_occlusion: u64 = stats.values().map(|s| s.meshlets_drawn).sum();
+    assert!(
+        drawn_with_occlusion < drawn_without_occlusion,
+        "occlusion culling drew {drawn_with_occlusion} meshlets, {drawn_without_occlusion} without it"
+    );
+    app.world_mut().resource_mut::<SkinletMeshletSettings>().occlusion_rounds = 0;
     app.world_mut().resource_mut::<SkinletMeshletSettings>().culling = false;
     let unculled = settled_image(&mut app);
     let taken = {
@@ -143,6 +168,7 @@ fn skinlets_meshlet_draw_looks_like_bevys_own() {
     common::write_png(&out.join("meshlet_draw_skinlet.png"), &skinlet, WIDTH);
     common::write_png(&out.join("meshlet_draw_skinlet_unculled.png"), &unculled, WIDTH);
     let culled_away = skinlet.chunks(4).zip(unculled.chunks(4)).filter(|(a, b)| a != b).count();
+    let occluded_away = occluded.chunks(4).zip(unculled.chunks(4)).filter(|(a, b)| a != b).count();
     let per_pixel = common::pixel_differences(&bevy, &skinlet);
     let diff = common::difference_image(&per_pixel);
     common::write_png(&out.join("meshlet_draw_diff.png"), &diff, WIDTH);
@@ -159,6 +185,7 @@ fn skinlets_meshlet_draw_looks_like_bevys_own() {
     );
     assert!(taken > 0 && drawn > (WIDTH * HEIGHT / 20) as usize);
     assert_eq!(culled_away, 0, "skinlet's culling changed {culled_away} pixels");
+    assert_eq!(occluded_away, 0, "skinlet's occlusion culling changed {occluded_away} pixels");
     assert!(large * 200 < drawn, "{large} of {drawn} pixels differ by more than 2 levels");
 
     // The prepass: a depth and normal prepass on the camera, shown by a quad just in front of

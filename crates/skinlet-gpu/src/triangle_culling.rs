@@ -124,6 +124,7 @@ pub struct TriangleCulling {
     pub(crate) group: wgpu::BindGroup,
     pub(crate) cull: wgpu::ComputePipeline,
     pub(crate) finish: wgpu::ComputePipeline,
+    whole: wgpu::ComputePipeline,
 }
 
 const SECOND: u64 = 256;
@@ -274,6 +275,14 @@ impl TriangleCulling {
             TriangleCulling {
                 cull: pipeline("cull_triangles"),
                 finish: pipeline("finish_triangles"),
+                // (Group 0 only: the caller's skinning is not bound then.)
+                whole: crate::context::compute_pipeline_layouts(
+                    device,
+                    location,
+                    source.clone(),
+                    "whole_lists",
+                    &[Some(&layout)],
+                ),
                 crowd,
                 capacity,
                 id_bits,
@@ -382,6 +391,19 @@ impl TriangleCulling {
         let mut pass = self.crowd.encode_phase(queue, encoder, camera, tests, instances, timestamps, phase, true)?;
         self.triangle_pass(&mut pass, skinning, 0, List::First);
         Ok(())
+    }
+
+    /// After occlusion culling's last round: each list's header becomes the draw of its
+    /// triangles of every round, so that a later pass (the shaded pass after a depth pass that
+    /// drew the rounds) draws the frame's survivors with one draw per list. Allocates nothing.
+    pub fn encode_whole_lists(&self, encoder: &mut wgpu::CommandEncoder) {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("skinlet whole triangle lists"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&self.whole);
+        pass.set_bind_group(0, &self.group, &[0]);
+        pass.dispatch_workgroups(1, 1, 1);
     }
 
     /// The triangle pass over `list`'s survivors with the `TriangleParams` at `offset`.

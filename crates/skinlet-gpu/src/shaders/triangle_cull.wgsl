@@ -385,3 +385,17 @@ fn finish_triangles() {
     atomicStore(&triangles[header + 3u], 0u);
     atomicStore(&triangles[header + 4u], 0u);
 }
+
+// After the last round: each list's draw over its triangles of every round (from the list's
+// start, clamped to its capacity), for draws of the whole frame's survivors.
+@compute @workgroup_size(1)
+fn whole_lists() {
+    for (var list = 0u; list < 2u; list++) {
+        let header = 8u * list;
+        atomicStore(&triangles[header], 3u * min(atomicLoad(&triangles[header + 5u]), tri.capacity));
+        atomicStore(&triangles[header + 1u], 1u);
+        atomicStore(&triangles[header + 2u], 3u * list * tri.capacity);
+        atomicStore(&triangles[header + 3u], 0u);
+        atomicStore(&triangles[header + 4u], 0u);
+    }
+}

@@ -1,0 +1,21 @@
+// skinlet's own depth pass for occlusion culling among the characters (meshlet_draw.rs): each
+// round's culled triangle lists drawn depth only, before Bevy's passes, into the depth the
+// next round's tests read. The position is computed as the opaque pass computes it (the same
+// crowd skinning, then the view's clip_from_world), so the depth is what that pass's
+// characters write.
+
+struct OcclusionView {
+    clip_from_world: mat4x4<f32>,
+    id_bits: u32,
+}
+
+@group(0) @binding(0) var<uniform> occlusion_view: OcclusionView;
+// Per corner: bake vertex, source attribute vertex, part, 0.
+@group(0) @binding(1) var<storage, read> corners: array<vec4<u32>>;
+
+@vertex
+fn vertex(@builtin(vertex_index) index: u32) -> @builtin(position) vec4<f32> {
+    let entry = triangle_entry(index, occlusion_view.id_bits);
+    let world = skinned_position(entry.x, corners[entry.y].x);
+    return occlusion_view.clip_from_world * vec4<f32>(world, 1.0);
+}
