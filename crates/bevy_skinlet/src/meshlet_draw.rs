@@ -10,12 +10,15 @@
 //! - before the cameras render (a system in Bevy's `RenderGraph` schedule), skinlet's crowd
 //!   culling and triangle pass (`skinlet_gpu::crowd_culling`, `triangle_culling`) run for the
 //!   first camera on Bevy's own device and encoder, writing one compacted list of triangle
-//!   corners; the counts are read back into [`SkinletMeshletStats`];
-//! - a phase item in `Opaque3d` draws that list with Bevy's view bindings (groups 0 and 1),
-//!   skinning each corner's bake vertex with the function the culling tested (so the culling
-//!   is conservative for this draw) and its source vertex's normal and texture coordinates
-//!   (the bake's `SRCT` section, `skinlet_runtime::source_corners`), shaded by Bevy's PBR
-//!   functions with the part's `StandardMaterial` as Bevy uploads it and its textures
+//!   corners; the counts are read back into [`SkinletMeshletStats`]; with occlusion culling
+//!   ([`SkinletMeshletSettings::occlusion_rounds`]) in rounds over the instances nearest
+//!   first, each round's lists drawn depth only into a depth buffer of skinlet's own
+//!   (`meshlet_occlusion.wgsl`) that the next round's tests read;
+//! - a phase item in `Opaque3d` draws that list (both lists with occlusion culling) with
+//!   Bevy's view bindings (groups 0 and 1), skinning each corner's bake vertex with the
+//!   function the culling tested (so the culling is conservative for this draw) and its
+//!   source vertex's normal and texture coordinates (the bake's `SRCT` section,
+//!   `skinlet_runtime::source_corners`), shaded by Bevy's PBR functions with the part's `StandardMaterial` as Bevy uploads it and its textures
 //!   (group 3, where the device indexes texture arrays per fragment);
 //! - a phase item in each shadow view (`Shadow`) draws every triangle of every instance, depth
 //!   only, with Bevy's prepass view bindings (but a part marked `NotShadowCaster`);
@@ -25,7 +28,8 @@
 //!
 //! Not yet: normal maps, morph targets' normal deltas (positions morph), motion vectors (the
 //! characters are drawn into a motion vector prepass as if still, with a warning), culling in
-//! shadow views, occlusion culling, culling for more than one camera (with several, every
+//! shadow views, occlusion culling against Bevy's meshes or on a multisampled camera,
+//! culling for more than one camera (with several, every
 //! triangle is drawn), materials other than `StandardMaterial` (such a part stays Bevy's too,
 //! with a warning), a part's own visibility (every part of a marked instance is drawn),
 //! double-sided materials (drawn back-face culled).
