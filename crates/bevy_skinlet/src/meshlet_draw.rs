@@ -700,9 +700,11 @@ struct OcclusionDraw {
 struct BakeGpu {
     culling: TriangleCulling,
     capacity: u32,
-    /// The raster the triangle pass was made for, and its occlusion culling's rounds (0: none).
+    /// The raster the triangle pass was made for, its occlusion culling's rounds (0: none) and
+    /// the samples of the depth buffer that reads.
     raster: Raster,
     rounds: u32,
+    samples: u32,
     occlusion: Option<OcclusionDraw>,
     instances: u32,
     palette: wgpu::Buffer,
@@ -769,7 +771,7 @@ fn prepare_gpu(
     stats: Res<SkinletMeshletStats>,
     views: Query<(&ExtractedView, &Msaa), With<ExtractedCamera>>,
     textures: (Option<Res<MeshletDrawPipeline>>, Res<RenderAssets<GpuImage>>, Res<FallbackImage>),
-    mut warned: Local<[bool; 3]>,
+    mut warned: Local<[bool; 2]>,
     mut material_bytes: Local<Vec<u8>>,
     mut sorted: Local<NearestFirst>,
 ) {
@@ -789,24 +791,17 @@ fn prepare_gpu(
         cull_back_faces: true,
         multisampled: msaa.samples() > 1,
     };
-    let mut rounds = settings.occlusion_rounds.min(MAX_OCCLUSION_ROUNDS);
-    if !settings.culling || several {
-        rounds = 0;
-    } else if rounds > 0 && raster.multisampled {
-        if !std::mem::replace(&mut warned[2], true) {
-            warn!("skinlet meshlets: no occlusion culling on a multisampled camera (Msaa::Off for it)");
-        }
-        rounds = 0;
-    }
+    let rounds = if settings.culling && !several { settings.occlusion_rounds.min(MAX_OCCLUSION_ROUNDS) } else { 0 };
     let wgpu_device = device.wgpu_device();
     let gpu = &mut *gpu;
-    let size = |t: &wgpu::Texture| (t.width(), t.height());
-    if rounds > 0 && gpu.depth.as_ref().is_none_or(|(t, _)| size(t) != (raster.width, raster.height)) {
+    let samples = msaa.samples();
+    let size = |t: &wgpu::Texture| (t.width(), t.height(), t.sample_count());
+    if rounds > 0 && gpu.depth.as_ref().is_none_or(|(t, _)| size(t) != (raster.width, raster.height, samples)) {
         let texture = wgpu_device.create_texture(&wgpu::TextureDescriptor {
             label: Some("skinlet occlusion depth"),
             size: wgpu::Extent3d { width: raster.width, height: raster.height, depth_or_array_layers: 1 },
             mip_level_count: 1,
-            sample_count: 1,
+            sample_count: samples,
             dimension: wgpu::TextureDimension::D2,
             format: OCCLUSION_DEPTH,
             usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
@@ -827,12 +822,14 @@ fn prepare_gpu(
     gpu.bakes.retain(|id, _| frames.0.contains_key(id));
     for (&id, frame) in &frames.0 {
         let n = frame.instances.len() as u32;
-        let fits = gpu.bakes.get(&id).is_some_and(|b| b.capacity >= n && b.raster == raster && b.rounds == rounds);
+        let fits = gpu.bakes.get(&id).is_some_and(|b| {
+            b.capacity >= n && b.raster == raster && b.rounds == rounds && (rounds == 0 || b.samples == samples)
+        });
         if !fits {
             let capacity = n.next_power_of_two().max(4);
             let occlusion = gpu.depth.as_ref().filter(|_| rounds > 0).map(|(_, view)| (view, rounds));
             let pipelines = gpu.pipelines.as_ref().unwrap();
-            match bake_gpu(wgpu_device, pipelines, &cache, frame, capacity, raster, occlusion) {
+            match bake_gpu(wgpu_device, pipelines, &cache, frame, capacity, raster, occlusion, samples) {
                 Ok(b) => {
                     gpu.bakes.insert(id, b);
                 }
@@ -958,7 +955,9 @@ fn texture_group(
 }
 
 /// A bake's culling and buffers for `capacity` instances drawn as `raster` says, with
-/// occlusion culling in `occlusion`'s rounds against its depth buffer where given.
+/// occlusion culling in `occlusion`'s rounds against its depth buffer (of `samples` samples)
+/// where given.
+#[allow(clippy::too_many_arguments)]
 fn bake_gpu(
     device: &wgpu::Device,
     pipelines: &CullPipelines,
@@ -967,6 +966,7 @@ fn bake_gpu(
     capacity: u32,
     raster: Raster,
     occlusion: Option<(&wgpu::TextureView, u32)>,
+    samples: u32,
 ) -> Result<BakeGpu, String> {
     use wgpu::util::DeviceExt;
     let draw = &frame.draw;
@@ -1001,8 +1001,8 @@ fn bake_gpu(
     let survivors = capacity * character.meshlets();
     let crowd = match occlusion {
         Some((view, rounds)) => {
-            let (width, height, reversed, subpixel_bits) = (raster.width, raster.height, true, raster.subpixel_bits);
-            let depth = OcclusionDepth { view, width, height, reversed, subpixel_bits, rounds };
+            let Raster { width, height, subpixel_bits, multisampled, .. } = raster;
+            let depth = OcclusionDepth { view, width, height, reversed: true, subpixel_bits, multisampled, rounds };
             CrowdCulling::with_occlusion(
                 device,
                 pipelines,
@@ -1070,8 +1070,9 @@ fn bake_gpu(
         usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
         mapped_at_creation: false,
     });
-    let occlusion = occlusion.map(|_| occlusion_draw(device, &skin_layout, &corners));
+    let occlusion = occlusion.map(|_| occlusion_draw(device, &skin_layout, &corners, samples));
     Ok(BakeGpu {
+        samples,
         rounds: occlusion.as_ref().map_or(0, |_| culling.crowd().occlusion_rounds()),
         occlusion,
         meshlets: character.meshlets(),
@@ -1105,8 +1106,13 @@ fn bake_gpu(
 const OCCLUSION_DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
 /// skinlet's own depth pass over a bake's triangle lists (`meshlet_occlusion.wgsl`: the
-/// crowd skinning in group 1, its `skinning` bind group).
-fn occlusion_draw(device: &wgpu::Device, skin_layout: &wgpu::BindGroupLayout, corners: &wgpu::Buffer) -> OcclusionDraw {
+/// crowd skinning in group 1, its `skinning` bind group), with the camera's `samples`.
+fn occlusion_draw(
+    device: &wgpu::Device,
+    skin_layout: &wgpu::BindGroupLayout,
+    corners: &wgpu::Buffer,
+    samples: u32,
+) -> OcclusionDraw {
     let source = [CROWD_SKIN_WGSL, TRIANGLES_WGSL, include_str!("meshlet_occlusion.wgsl")].concat();
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("skinlet occlusion depth"),
@@ -1161,7 +1167,7 @@ fn occlusion_draw(device: &wgpu::Device, skin_layout: &wgpu::BindGroupLayout, co
             stencil: Default::default(),
             bias: Default::default(),
         }),
-        multisample: Default::default(),
+        multisample: wgpu::MultisampleState { count: samples, ..Default::default() },
         fragment: None,
         multiview_mask: None,
         cache: None,

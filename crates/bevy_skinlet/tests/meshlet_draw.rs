@@ -143,8 +143,26 @@ fn skinlets_meshlet_draw_looks_like_bevys_own() {
         drawn_with_occlusion < drawn_without_occlusion,
         "occlusion culling drew {drawn_with_occlusion} meshlets, {drawn_without_occlusion} without it"
     );
-    app.world_mut().resource_mut::<SkinletMeshletSettings>().occlusion_rounds = 0;
+    // The same on a camera with 4× MSAA (occlusion culling tests any point of a pixel against
+    // its farthest sample): equal to its own unculled image.
+    app.world_mut().entity_mut(camera).insert(Msaa::Sample4);
+    let drawn_msaa = [0, 3].map(|rounds| {
+        app.world_mut().resource_mut::<SkinletMeshletSettings>().occlusion_rounds = rounds;
+        settled_image(&mut app);
+        let stats = latest_stats_after(&mut app, characters.len());
+        assert!(stats.values().all(|s| s.culled && s.occlusion_rounds == rounds), "{stats:?}");
+        stats.values().map(|s| s.meshlets_drawn).sum::<u64>()
+    });
+    let occluded_msaa = settled_image(&mut app);
     app.world_mut().resource_mut::<SkinletMeshletSettings>().culling = false;
+    let unculled_msaa = settled_image(&mut app);
+    let differing = occluded_msaa.chunks(4).zip(unculled_msaa.chunks(4)).filter(|(a, b)| a != b).count();
+    let [without, with] = drawn_msaa;
+    eprintln!("4× MSAA: {with} meshlets drawn with occlusion culling, {without} without; {differing} pixels differ");
+    assert_eq!(differing, 0, "with 4× MSAA, occlusion culling changed {differing} pixels");
+    assert!(with < without, "with 4× MSAA, occlusion culling drew {with} meshlets, {without} without it");
+    app.world_mut().entity_mut(camera).insert(Msaa::Off);
+    app.world_mut().resource_mut::<SkinletMeshletSettings>().occlusion_rounds = 0;
     let unculled = settled_image(&mut app);
     let taken = {
         let world = app.world_mut();

@@ -154,8 +154,8 @@ pub struct CullPipelines {
     cull: wgpu::ComputePipeline,
     cull_layout: wgpu::BindGroupLayout,
     finish: wgpu::ComputePipeline,
-    pyramid: wgpu::ComputePipeline,
-    pyramid_layout: wgpu::BindGroupLayout,
+    /// The pyramid's pipeline and layout for a single-sample and a multisampled depth buffer.
+    pyramid: [(wgpu::ComputePipeline, wgpu::BindGroupLayout); 2],
 }
 
 /// A character's culling data on the GPU (uploaded once).
@@ -176,11 +176,11 @@ pub struct GpuCharacter {
 
 /// The depth buffer two-phase occlusion culling reads ([`CrowdCulling::with_occlusion`]): the
 /// caller's depth texture (`Depth32Float` or another depth format readable as
-/// `texture_depth_2d`, with `TEXTURE_BINDING` usage), its size, and whether its depth range
-/// is reversed (near 1, far 0: Bevy's infinite reverse-Z), and the sub-pixel precision of the
-/// rasterizer that draws into it ([`subpixel_bits`]). The test takes fragments at pixel
-/// centers: the depth of single-sample rendering (a multisampled frame's coverage is tested
-/// elsewhere in the pixel, which the test does not cover).
+/// `texture_depth_2d`, or `texture_depth_multisampled_2d` where `multisampled`, with
+/// `TEXTURE_BINDING` usage), its size, and whether its depth range is reversed (near 1, far 0:
+/// Bevy's infinite reverse-Z), and the sub-pixel precision of the rasterizer that draws into
+/// it ([`subpixel_bits`]). Single-sample, the test takes fragments at pixel centers;
+/// multisampled, anywhere in a pixel, against the pixel's farthest sample.
 #[derive(Clone, Copy, Debug)]
 pub struct OcclusionDepth<'a> {
     pub view: &'a wgpu::TextureView,
@@ -188,6 +188,7 @@ pub struct OcclusionDepth<'a> {
     pub height: u32,
     pub reversed: bool,
     pub subpixel_bits: u32,
+    pub multisampled: bool,
     /// Rounds of occlusion culling (1 to [`MAX_OCCLUSION_ROUNDS`]): round `r` of `R` culls the
     /// instances `r·n/R .. (r+1)·n/R` of the frame's `n` in both phases, each against a
     /// pyramid of the depth drawn so far (but round 0's first phase, before anything is
@@ -290,6 +291,23 @@ const ROUND_STRIDE: usize = 256;
 const RECORD_BYTES: u64 = (40 + 16) * 4;
 const COMMAND_BYTES: u64 = 20;
 const COUNT_BYTES: u64 = 16;
+/// The pyramid's level 0 from a single-sample depth buffer, and from a multisampled one (each
+/// pixel's farthest sample).
+const LEVEL0: &str = "
+@group(0) @binding(1) var depth: texture_depth_2d;
+fn level0(p: vec2<i32>) -> f32 { return textureLoad(depth, p, 0); }
+";
+const LEVEL0_MULTISAMPLED: &str = "
+@group(0) @binding(1) var depth: texture_depth_multisampled_2d;
+fn level0(p: vec2<i32>) -> f32 {
+    var far = textureLoad(depth, p, 0);
+    for (var s = 1; s < i32(textureNumSamples(depth)); s++) {
+        far = farthest(far, textureLoad(depth, p, s));
+    }
+    return far;
+}
+";
+
 /// Bytes per pyramid level's uniform (a dynamic offset).
 const LEVEL_STRIDE: u64 = 256;
 
@@ -445,24 +463,37 @@ impl CullPipelines {
                 "finish_draws",
                 &cull_layout,
             );
-            let depth = wgpu::BindGroupLayoutEntry {
-                binding: 1,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Texture {
-                    sample_type: wgpu::TextureSampleType::Depth,
-                    view_dimension: wgpu::TextureViewDimension::D2,
-                    multisampled: false,
-                },
-                count: None,
+            // The pyramid of a single-sample depth buffer, and of a multisampled one.
+            let pyramid = |multisampled: bool| {
+                let depth = wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Depth,
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled,
+                    },
+                    count: None,
+                };
+                let level0 = if multisampled { LEVEL0_MULTISAMPLED } else { LEVEL0 };
+                let source =
+                    [level0, include_str!("shaders/pyramid_layout.wgsl"), include_str!("shaders/pyramid.wgsl")];
+                pipeline(
+                    device,
+                    "skinlet depth pyramid",
+                    source.concat(),
+                    "reduce",
+                    &[dynamic_uniform(0), depth, layout_entry(2, write)],
+                )
             };
-            let (pyramid, pyramid_layout) = pipeline(
-                device,
-                "skinlet depth pyramid",
-                concat!(include_str!("shaders/pyramid_layout.wgsl"), include_str!("shaders/pyramid.wgsl")).into(),
-                "reduce",
-                &[dynamic_uniform(0), depth, layout_entry(2, write)],
-            );
-            CullPipelines { prepare, prepare_layout, cull, cull_layout, finish, pyramid, pyramid_layout }
+            CullPipelines {
+                prepare,
+                prepare_layout,
+                cull,
+                cull_layout,
+                finish,
+                pyramid: [pyramid(false), pyramid(true)],
+            }
         })
     }
 }
@@ -630,7 +661,11 @@ impl CrowdCulling {
         depth: Option<OcclusionDepth>,
     ) -> Result<CrowdCulling> {
         let location = "GPU crowd culling";
-        let snap = depth.map_or(Ok(1.0), |d| snap(d.subpixel_bits, location))?;
+        // Multisampled: samples anywhere in a pixel, as if its center could move half a pixel.
+        let snap = match depth {
+            Some(d) => snap(d.subpixel_bits, location)? + if d.multisampled { 0.5 } else { 0.0 },
+            None => 1.0,
+        };
         let cap = capacity as u64;
         let (joints, meshlets) = (character.joints as u64, character.meshlets as u64);
         let need = |buffer: &wgpu::Buffer, name: &str, bytes: u64| {
@@ -729,7 +764,7 @@ impl CrowdCulling {
                 let level_uniforms = crate::context::buffer(device, "skinlet pyramid levels", &words, U::UNIFORM);
                 device.create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some("skinlet depth pyramid"),
-                    layout: &pipelines.pyramid_layout,
+                    layout: &pipelines.pyramid[d.multisampled as usize].1,
                     entries: &[
                         bind(0, part(&level_uniforms, 0, 32)),
                         bind(1, wgpu::BindingResource::TextureView(d.view)),
@@ -760,7 +795,7 @@ impl CrowdCulling {
                 prepare_pipeline: pipelines.prepare.clone(),
                 cull_pipeline: pipelines.cull.clone(),
                 finish_pipeline: pipelines.finish.clone(),
-                pyramid_pipeline: pipelines.pyramid.clone(),
+                pyramid_pipeline: pipelines.pyramid[depth.is_some_and(|d| d.multisampled) as usize].0.clone(),
             }
         })
     }
@@ -1395,7 +1430,15 @@ mod tests {
             view_formats: &[],
         });
         let view = depth.create_view(&Default::default());
-        let occlusion = || OcclusionDepth { view: &view, width, height, reversed: false, subpixel_bits: 8, rounds };
+        let occlusion = || OcclusionDepth {
+            view: &view,
+            width,
+            height,
+            reversed: false,
+            subpixel_bits: 8,
+            multisampled: false,
+            rounds,
+        };
         let occluding = |crowd_capacity| {
             CrowdCulling::with_occlusion(
                 device,

@@ -197,7 +197,9 @@ impl GpuCrowd {
         );
         let depth_view = depth.create_view(&Default::default());
         let subpixel_bits = gpu.subpixel_bits;
-        let occlusion = OcclusionDepth { view: &depth_view, width, height, reversed, subpixel_bits, rounds };
+        let multisampled = false;
+        let occlusion =
+            OcclusionDepth { view: &depth_view, width, height, reversed, subpixel_bits, multisampled, rounds };
         let culling = CrowdCulling::with_occlusion(
             device, &pipelines, &character, &palette, &instances, capacity, survivors, occlusion,
         )?;

@@ -3,7 +3,9 @@
 // holds the farthest depth of the up to 2 × 2 texels of level k it covers (max; min for a
 // reversed depth range), so a texel of level k holds the farthest depth over the pixels
 // [x·2^k, (x+1)·2^k) × [y·2^k, (y+1)·2^k) of the screen. Levels are stored one after another
-// in `state`, from `pyramid_base`.
+// in `state`, from `pyramid_base`. A multisampled depth buffer's level 0 holds each pixel's
+// farthest sample. Prefixed by the declaration of `depth` and `level0` (the two variants in
+// crowd_culling.rs).
 
 struct Pyramid {
     width: u32,
@@ -20,7 +22,6 @@ struct Pyramid {
 }
 
 @group(0) @binding(0) var<uniform> pyramid: Pyramid;
-@group(0) @binding(1) var depth: texture_depth_2d;
 @group(0) @binding(2) var<storage, read_write> state: array<f32>;
 
 fn level_of(k: u32) -> PyramidLevel {
@@ -38,7 +39,7 @@ fn reduce(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     if pyramid.level == 0u {
-        state[out.offset + gid.y * out.width + gid.x] = textureLoad(depth, vec2<i32>(gid.xy), 0);
+        state[out.offset + gid.y * out.width + gid.x] = level0(vec2<i32>(gid.xy));
         return;
     }
     let src = level_of(pyramid.level - 1u);
