@@ -28,8 +28,7 @@
 //!
 //! Not yet: normal maps, morph targets' normal deltas (positions morph), motion vectors (the
 //! characters are drawn into a motion vector prepass as if still, with a warning), culling in
-//! shadow views, occlusion culling against Bevy's meshes or on a multisampled camera,
-//! culling for more than one camera (with several, every
+//! shadow views, occlusion culling against Bevy's meshes, culling for more than one camera (with several, every
 //! triangle is drawn), materials other than `StandardMaterial` (such a part stays Bevy's too,
 //! with a warning), a part's own visibility (every part of a marked instance is drawn),
 //! double-sided materials (drawn back-face culled).
@@ -124,8 +123,7 @@ pub struct SkinletMeshletSettings {
     /// draws the characters' depth into a depth buffer of its own, round by round (instances
     /// nearest the camera first), testing each round's meshlets and triangles against what
     /// the earlier rounds drew; Bevy's passes then draw the survivors of every round.
-    /// Characters are not tested against Bevy's other meshes. Single-sample cameras only
-    /// (with MSAA, no occlusion culling, with a warning).
+    /// Characters are not tested against Bevy's other meshes.
     pub occlusion_rounds: u32,
 }
 
