@@ -247,7 +247,7 @@ fn occlusion_culling_misses_nothing_when_the_camera_cuts_or_the_crowd_teleports(
     // walks up to the first row, through it (what it hid is visible at once), cuts back and to
     // the side; then the crowd's instances swap places. Every frame: the image equals the
     // unculled one and every visible meshlet is drawn (check_frame), whatever the visibility
-    // bits of the frame before. With a forward depth range and the second phase in one round,
+    // bits of the frame before. With a forward depth range in one round,
     // and with Bevy's infinite reverse-Z (the pyramid then keeps the nearest depth) and 5 rounds
     // (the other tests: GpuCrowd::new's).
     let Some(gpu) = gpu() else { return };
