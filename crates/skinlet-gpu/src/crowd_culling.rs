@@ -44,11 +44,13 @@
 //! lists the survivors whose bounds are not behind it and were not drawn yet
 //! ([`List::Second`]), setting every meshlet's visibility bit for the next frame; the caller
 //! draws those too. A meshlet with a visible fragment is drawn in one of the two phases
-//! whatever the bits say (camera cuts, teleports). The second phase may run in rounds
-//! ([`OcclusionDepth::rounds`]), each over a range of the instances (ordered nearest first by
-//! the caller) against a pyramid of the depth drawn so far, the caller drawing each round's
-//! survivors before the next: what became visible this frame on near characters then hides
-//! the layers behind it before they are tested.
+//! whatever the bits say (camera cuts, teleports). Both phases may run in rounds
+//! ([`OcclusionDepth::rounds`]), each round over a range of the instances (ordered nearest
+//! first by the caller): [`CrowdCulling::encode_first_phase`] and `encode_second` per round,
+//! each against a pyramid of the depth drawn so far, the caller drawing each step's survivors
+//! before the next. A far character is then tested against the near ones as they are now:
+//! what they hide this frame is not drawn for having been visible last frame, and what they
+//! no longer hide is drawn before the layers behind it are tested.
 //!
 //! [`crate::triangle_culling`] adds a per-triangle pass over the survivors (with the
 //! visibility bits then set from the triangles).
@@ -1396,11 +1398,7 @@ mod tests {
             timestamp_writes: None,
         });
         pass.set_pipeline(&crowd.cull_pipeline);
-        let offset = match (round, phase) {
-            (0, _) => SECOND_OFFSET,
-            (r, p) => ROUNDS_OFFSET + (2 * (r as usize - 1) + p as usize - 1) * ROUND_STRIDE,
-        };
-        pass.set_bind_group(0, &crowd.cull, &[offset as u32]);
+        pass.set_bind_group(0, &crowd.cull, &[round_offset(round, phase)]);
         let first = |r: u32| (r as u64 * n as u64 / rounds as u64) as u32;
         dispatch(&mut pass, (first(round + 1) - first(round)) * crowd.meshlets);
         pass.set_pipeline(&crowd.finish_pipeline);
