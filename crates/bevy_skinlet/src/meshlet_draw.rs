@@ -18,8 +18,9 @@
 //!   Bevy's view bindings (groups 0 and 1), skinning each corner's bake vertex with the
 //!   function the culling tested (so the culling is conservative for this draw) and its
 //!   source vertex's normal and texture coordinates (the bake's `SRCT` section,
-//!   `skinlet_runtime::source_corners`), shaded by Bevy's PBR functions with the part's `StandardMaterial` as Bevy uploads it and its textures
-//!   (group 3, where the device indexes texture arrays per fragment);
+//!   `skinlet_runtime::source_corners`), shaded by Bevy's PBR functions with the part's
+//!   `StandardMaterial` as Bevy uploads it and its textures (group 3, where the device
+//!   indexes texture arrays per fragment);
 //! - a phase item in each shadow view (`Shadow`) draws every triangle of every instance, depth
 //!   only, with Bevy's prepass view bindings (but a part marked `NotShadowCaster`);
 //! - a phase item in a camera's prepass (`Opaque3dPrepass`, with `DepthPrepass` or
@@ -28,10 +29,10 @@
 //!
 //! Not yet: normal maps, morph targets' normal deltas (positions morph), motion vectors (the
 //! characters are drawn into a motion vector prepass as if still, with a warning), culling in
-//! shadow views, occlusion culling against Bevy's meshes, culling for more than one camera (with several, every
-//! triangle is drawn), materials other than `StandardMaterial` (such a part stays Bevy's too,
-//! with a warning), a part's own visibility (every part of a marked instance is drawn),
-//! double-sided materials (drawn back-face culled).
+//! shadow views, occlusion culling against Bevy's meshes, culling for more than one camera
+//! (with several, every triangle is drawn), materials other than `StandardMaterial` (such a
+//! part stays Bevy's too, with a warning), a part's own visibility (every part of a marked
+//! instance is drawn), double-sided materials (drawn back-face culled).
 
 use crate::SkinletBounds;
 use crate::bake_asset::Bake;
@@ -683,7 +684,7 @@ struct MeshletGpu {
     frame: u64,
     pipelines: Option<CullPipelines>,
     bakes: HashMap<AssetId<Bake>, BakeGpu>,
-    /// Occlusion culling's depth buffer (every bake's rounds draw into it), and its size.
+    /// Occlusion culling's depth buffer (every bake's rounds draw into it) and its view.
     depth: Option<(wgpu::Texture, wgpu::TextureView)>,
 }
 
