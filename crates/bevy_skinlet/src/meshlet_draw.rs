@@ -1174,7 +1174,10 @@ fn occlusion_draw(
     OcclusionDraw { pipeline, uniform, group }
 }
 
-/// Before the cameras render: each bake's culling for the first camera.
+/// Before the cameras render: each bake's culling for the first camera. With occlusion
+/// culling every bake's rounds go together: round `r`'s first phase of each bake, then its
+/// second phase of each bake, so that every bake's near instances are drawn into the occlusion
+/// depth before any bake's farther ones are tested.
 fn cull(
     mut ctx: RenderContext,
     gpu: Res<MeshletGpu>,
@@ -1182,53 +1185,39 @@ fn cull(
     views: Query<&ExtractedView, With<ExtractedCamera>>,
 ) {
     let Some(camera) = views.iter().next().and_then(cull_camera) else { return };
-    // The occlusion depth is cleared by the first pass that draws into it this frame.
-    let mut clear = true;
-    for b in gpu.bakes.values() {
-        if b.instances == 0 || b.unculled {
-            continue;
-        }
-        let encoder = ctx.command_encoder();
+    let encoder = ctx.command_encoder();
+    let culled = gpu.bakes.values().filter(|b| b.instances > 0 && !b.unculled);
+    let mut occluding = Vec::new();
+    for b in culled {
         let (c, skinning, n) = (&b.culling, &b.skinning, b.instances);
-        let culled = match (&b.occlusion, &gpu.depth) {
-            (Some(draw), Some((_, depth))) => occlusion_rounds(encoder, b, draw, depth, &queue, &camera, &mut clear),
-            _ => c.encode(&queue, encoder, &camera, Tests::Both, n, skinning, None),
+        // (An occluding bake's counts are copied after its last round.)
+        let encoded = match &b.occlusion {
+            Some(draw) if gpu.depth.is_some() => c
+                .encode_first(&queue, encoder, &camera, Tests::Both, n, skinning, None)
+                .map(|_| occluding.push((b, draw))),
+            _ => c.encode(&queue, encoder, &camera, Tests::Both, n, skinning, None).map(|_| copy_counts(encoder, b)),
         };
-        if let Err(e) = culled {
+        if let Err(e) = encoded {
             error!("skinlet meshlets: {e}");
-            continue;
-        }
-        // The counts, unless the last copy is still being read.
-        if b.readback_state.compare_exchange(IDLE, COPIED, Ordering::AcqRel, Ordering::Relaxed).is_ok() {
-            let headers = 2 * SurvivorHeader::SIZE;
-            encoder.copy_buffer_to_buffer(c.crowd().survivors(), 0, &b.readback, 0, headers);
-            encoder.copy_buffer_to_buffer(c.triangles(), 0, &b.readback, headers, 2 * TriangleHeader::SIZE);
         }
     }
-}
-
-/// A bake's occlusion culling: each round's two phases, each phase's triangles drawn into
-/// skinlet's depth buffer before the next step, then the lists made whole for Bevy's passes.
-#[allow(clippy::too_many_arguments)]
-fn occlusion_rounds(
-    encoder: &mut wgpu::CommandEncoder,
-    b: &BakeGpu,
-    draw: &OcclusionDraw,
-    depth: &wgpu::TextureView,
-    queue: &RenderQueue,
-    camera: &CullCamera,
-    clear: &mut bool,
-) -> skinlet_gpu::Result<()> {
-    let c = &b.culling;
-    c.encode_first(queue, encoder, camera, Tests::Both, b.instances, &b.skinning, None)?;
-    for round in 0..b.rounds {
+    let (Some((_, depth)), Some(rounds)) = (&gpu.depth, occluding.iter().map(|(b, _)| b.rounds).max()) else {
+        return;
+    };
+    // (Round 0's first phases were recorded above; the depth is cleared by the first pass.)
+    let mut clear = true;
+    for round in 0..rounds {
         for list in [List::First, List::Second] {
-            match list {
-                List::First if round > 0 => c.encode_first_phase(encoder, &b.skinning, round)?,
-                List::First => {}
-                List::Second => c.encode_second(encoder, &b.skinning, round)?,
-            }
-            let load = match std::mem::replace(clear, false) {
+            occluding.retain(|&(b, _)| {
+                let (c, skinning) = (&b.culling, &b.skinning);
+                let encoded = match list {
+                    List::First if round > 0 => c.encode_first_phase(encoder, skinning, round),
+                    List::First => Ok(()),
+                    List::Second => c.encode_second(encoder, skinning, round),
+                };
+                encoded.map_err(|e| error!("skinlet meshlets: {e}")).is_ok()
+            });
+            let load = match std::mem::replace(&mut clear, false) {
                 true => wgpu::LoadOp::Clear(0.0),
                 false => wgpu::LoadOp::Load,
             };
@@ -1242,14 +1231,27 @@ fn occlusion_rounds(
                 }),
                 ..Default::default()
             });
-            pass.set_pipeline(&draw.pipeline);
-            pass.set_bind_group(0, &draw.group, &[]);
-            pass.set_bind_group(1, &b.skinning, &[]);
-            c.draw(&mut pass, list);
+            for &(b, draw) in &occluding {
+                pass.set_pipeline(&draw.pipeline);
+                pass.set_bind_group(0, &draw.group, &[]);
+                pass.set_bind_group(1, &b.skinning, &[]);
+                b.culling.draw(&mut pass, list);
+            }
         }
     }
-    c.encode_whole_lists(encoder);
-    Ok(())
+    for &(b, _) in &occluding {
+        b.culling.encode_whole_lists(encoder);
+        copy_counts(encoder, b);
+    }
+}
+
+/// Copies a bake's counts after its culling, unless the last copy is still being read.
+fn copy_counts(encoder: &mut wgpu::CommandEncoder, b: &BakeGpu) {
+    if b.readback_state.compare_exchange(IDLE, COPIED, Ordering::AcqRel, Ordering::Relaxed).is_ok() {
+        let headers = 2 * SurvivorHeader::SIZE;
+        encoder.copy_buffer_to_buffer(b.culling.crowd().survivors(), 0, &b.readback, 0, headers);
+        encoder.copy_buffer_to_buffer(b.culling.triangles(), 0, &b.readback, headers, 2 * TriangleHeader::SIZE);
+    }
 }
 
 /// After the frame's commands are submitted: maps the counts copied this frame; when the GPU
