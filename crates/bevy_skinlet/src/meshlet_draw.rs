@@ -463,11 +463,14 @@ fn shadow_words(parts: usize) -> usize {
     parts.div_ceil(32).max(1)
 }
 
+/// A marked scene root: its entity, instance and bounds.
+type MarkedRoot = (Entity, &'static SkinletInstance, &'static SkinletBounds);
+
 #[allow(clippy::too_many_arguments)]
 fn extract_frames(
     mut frames: ResMut<MeshletFrames>,
     draws: Extract<Res<BakeDraws>>,
-    roots: Extract<Query<(Entity, &SkinletInstance, &SkinletBounds), With<SkinletMeshlets>>>,
+    roots: Extract<Query<MarkedRoot, With<SkinletMeshlets>>>,
     globals: Extract<Query<&GlobalTransform>>,
     parts: Extract<Query<&MeshMaterial3d<StandardMaterial>>>,
     no_shadow: Extract<Query<(), With<NotShadowCaster>>>,

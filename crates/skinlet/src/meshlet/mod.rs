@@ -17,6 +17,7 @@ pub mod common_influences;
 pub mod cone_split;
 pub mod flat;
 pub mod greedy;
+pub mod lod;
 pub mod prepare;
 pub mod scan;
 pub mod skin_aware;
