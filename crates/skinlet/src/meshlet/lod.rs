@@ -5,12 +5,14 @@
 //! the group's border locked, and splits the result into new clusters (meshoptimizer's
 //! `buildMeshlets`), one level up; until one group is left, or no group simplifies further.
 //!
-//! Guarantee (tested): the group borders are locked, so a group's new clusters have exactly
-//! the border its child clusters had, and each group's error is at least its children's
-//! groups' (monotone up the hierarchy). Hence the cut [`LodHierarchy::cut`] picks for any
-//! threshold (a cluster whose own group's error is within it and whose parent group's is
-//! not) covers the surface once, without cracks: on a closed mesh every edge of the cut is
-//! shared by exactly two of its triangles.
+//! Guarantee (tested): the vertices the groups share and those on an edge not used by exactly
+//! two triangles (the part's open and non-manifold edges) are locked, so a group's new
+//! clusters have exactly the boundary its child clusters had, and each group's error is at
+//! least its children's groups' (monotone up the hierarchy). Hence the cut
+//! [`LodHierarchy::cut`] picks for any threshold (a cluster whose own group's error is within
+//! it and whose parent group's is not) covers the surface once, without cracks: its boundary
+//! (the edges an odd number of its triangles use) is the part's; on a closed mesh every edge
+//! of the cut is shared by exactly two of its triangles.
 //!
 //! The errors here are the simplifier's, in the bind pose (absolute, in the mesh's units).
 //! Not yet: skin weights as simplification attributes, errors that hold under animation,
@@ -125,12 +127,13 @@ pub fn build(
         let counts: Vec<u32> = frontier.iter().map(|&c| lod.clusters[c as usize].triangles.len() as u32).collect();
         let mut partition = vec![0u32; frontier.len()];
         let groups = meshopt::partition_clusters(&mut partition, &indices, &counts, positions.len(), params.group_size);
+        let lock = locks(&lod, &frontier, &partition, positions.len());
         let mut next = Vec::new();
         let mut simplified = false;
         for g in 0..groups as u32 {
             let children: Vec<u32> =
                 frontier.iter().zip(&partition).filter(|&(_, &p)| p == g).map(|(&c, _)| c).collect();
-            match simplify_group(&mut lod, &adapter, &children, limits, params)? {
+            match simplify_group(&mut lod, &adapter, &lock, &children, limits, params)? {
                 Some(made) => {
                     next.extend(made);
                     simplified = true;
@@ -147,23 +150,52 @@ pub fn build(
     Ok(lod)
 }
 
-/// Simplifies the group of `children` (their border locked) and splits it into new clusters:
-/// their indices, or `None` (nothing changed) when it keeps too many triangles.
+/// The vertices no simplification of this level may move: those used by clusters of two
+/// groups (`partition`: each `frontier` cluster's group), and those on an edge the level's
+/// clusters use other than twice (the part's open and non-manifold edges, and any the
+/// simplifier made): the simplifier keeps a locked vertex and every edge between two.
+fn locks(lod: &LodHierarchy, frontier: &[u32], partition: &[u32], vertices: usize) -> Vec<bool> {
+    let mut lock = vec![false; vertices];
+    let mut owner = vec![u32::MAX; vertices];
+    let mut edges: std::collections::HashMap<(u32, u32), u32> = std::collections::HashMap::new();
+    for (&c, &g) in frontier.iter().zip(partition) {
+        for t in lod.clusters[c as usize].triangles.chunks_exact(3) {
+            for k in 0..3 {
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                *edges.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+                let o = &mut owner[a as usize];
+                if *o == u32::MAX {
+                    *o = g;
+                } else if *o != g {
+                    lock[a as usize] = true;
+                }
+            }
+        }
+    }
+    for (&(a, b), _) in edges.iter().filter(|&(_, &n)| n != 2) {
+        lock[a as usize] = true;
+        lock[b as usize] = true;
+    }
+    lock
+}
+
+/// Simplifies the group of `children` (the `lock`ed vertices kept) and splits it into new
+/// clusters: their indices, or `None` (nothing changed) when it keeps too many triangles.
 fn simplify_group(
     lod: &mut LodHierarchy,
     adapter: &meshopt::VertexDataAdapter,
+    lock: &[bool],
     children: &[u32],
     limits: MeshletLimits,
     params: LodParams,
 ) -> Result<Option<Vec<u32>>> {
     let indices: Vec<u32> = children.iter().flat_map(|&c| lod.clusters[c as usize].triangles.iter().copied()).collect();
     let target = (indices.len() / 3 / 2 * 3).max(3);
-    let options = meshopt::SimplifyOptions::LockBorder
-        | meshopt::SimplifyOptions::Sparse
+    let options = meshopt::SimplifyOptions::Sparse
         | meshopt::SimplifyOptions::ErrorAbsolute
         | meshopt::SimplifyOptions::Regularize;
     let mut error = 0.0f32;
-    let kept = meshopt::simplify(&indices, adapter, target, f32::MAX, options, Some(&mut error));
+    let kept = meshopt::simplify_with_locks(&indices, adapter, lock, target, f32::MAX, options, Some(&mut error));
     if kept.is_empty() || kept.len() as f32 > params.max_kept * indices.len() as f32 {
         return Ok(None);
     }

@@ -1,0 +1,91 @@
+//! The cluster LOD hierarchy on the shared characters and the demo character, part by part:
+//! whatever the threshold, the cut's boundary is the full detail part's (the edges used by
+//! an odd number of its triangles: no cracks between groups of different detail), and
+//! errors grow up the hierarchy. (An edge's count can change: simplifying a thin part far
+//! enough pinches two sheets together along an edge, used by four triangles, or folds a
+//! triangle pair onto a locked open edge, used by three.)
+
+mod common;
+use common::assets_dir;
+
+use skinlet::meshlet::lod::{LodParams, build};
+use skinlet::meshlet::{Builder, MeshletLimits, Meshlets};
+use std::collections::{BTreeMap, BTreeSet};
+
+/// The boundary (mod 2) of the triangles: the undirected edges used by an odd number of
+/// them.
+fn boundary<'a>(triangles: impl Iterator<Item = &'a [u32]>) -> BTreeSet<(u32, u32)> {
+    let mut count = BTreeMap::new();
+    for t in triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            *count.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+        }
+    }
+    count.into_iter().filter(|&(_, n)| n % 2 == 1).map(|(e, _)| e).collect()
+}
+
+/// The meshlets whose vertices lie in `vertices` (one part's).
+fn part_meshlets(m: &Meshlets, vertices: &std::ops::Range<u32>) -> Meshlets {
+    let mut out = Meshlets::default();
+    for k in &m.meshlets {
+        let local = &m.vertices[k.vertex_offset as usize..][..k.vertex_count as usize];
+        if !vertices.contains(&local[0]) {
+            continue;
+        }
+        let triangles = &m.triangles[k.triangle_offset as usize..][..3 * k.triangle_count as usize];
+        let mut k = *k;
+        (k.vertex_offset, k.triangle_offset) = (out.vertices.len() as u32, out.triangles.len() as u32);
+        out.vertices.extend(local);
+        out.triangles.extend(triangles);
+        out.meshlets.push(k);
+    }
+    out
+}
+
+#[test]
+fn every_cut_keeps_each_parts_boundary_on_every_character() {
+    let demo = skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams::default());
+    let mut characters = vec![("demo".to_string(), demo.character().unwrap())];
+    if let Some(dir) = assets_dir() {
+        for name in ["Xbot.glb", "mannequiny.glb", "BrainStem.glb", "Fox.glb", "CesiumMan.glb"] {
+            let asset = skinlet::import::load(&dir.join("skinned").join(name)).unwrap();
+            characters.push((name.to_string(), asset.character().unwrap()));
+        }
+    }
+    let limits = MeshletLimits::NVIDIA;
+    for (name, character) in &characters {
+        let prepared = skinlet::bake::prepare_character(character).unwrap();
+        let meshlets = skinlet::meshlet::build(&prepared, Builder::SkinAware, limits).unwrap();
+        let (mut groups, mut cuts) = (0, 0);
+        for part in &prepared.parts {
+            let mine = part_meshlets(&meshlets, &part.vertices);
+            let full: Vec<u32> =
+                prepared.mesh.triangles[part.triangles.start as usize..part.triangles.end as usize].concat();
+            let lod = build(&prepared.mesh.positions, &mine, limits, LodParams::default()).unwrap();
+            let borders = boundary(full.chunks_exact(3));
+            for g in &lod.groups {
+                for &c in &g.children {
+                    assert!(lod.cluster_errors(c as usize).0 <= g.error, "{name}: errors not monotone");
+                }
+            }
+            let mut thresholds: Vec<f32> = lod.groups.iter().map(|g| g.error).collect();
+            thresholds.extend([0.0, f32::MAX]);
+            for t in thresholds {
+                let cut = lod.cut(t);
+                let triangles = cut.iter().flat_map(|&c| lod.clusters[c as usize].triangles.chunks_exact(3));
+                let found = boundary(triangles);
+                assert!(
+                    found == borders,
+                    "{name}, a part at threshold {t}: the cut's boundary differs from the part's ({} edges against {})",
+                    found.len(),
+                    borders.len()
+                );
+                cuts += 1;
+            }
+            groups += lod.groups.len();
+        }
+        eprintln!("{name}: {} parts, {groups} groups, {cuts} cuts checked", prepared.parts.len());
+        assert!(groups > 0, "{name}: nothing simplified");
+    }
+}
