@@ -153,7 +153,7 @@ pub fn build(
 /// The vertices no simplification of this level may move: those used by clusters of two
 /// groups (`partition`: each `frontier` cluster's group), and those on an edge the level's
 /// clusters use other than twice (the part's open and non-manifold edges, and any the
-/// simplifier made): the simplifier keeps a locked vertex and every edge between two.
+/// simplifier made): the simplifier removes no locked vertex.
 fn locks(lod: &LodHierarchy, frontier: &[u32], partition: &[u32], vertices: usize) -> Vec<bool> {
     let mut lock = vec![false; vertices];
     let mut owner = vec![u32::MAX; vertices];
