@@ -866,8 +866,9 @@ fn prepare_gpu(
         // With occlusion culling, the instances nearest the camera first (the rounds' order).
         let data = match &b.occlusion {
             Some(occlusion) => {
-                let mut words = clip_from_world(view).to_cols_array().map(f32::to_bits).to_vec();
-                words.extend([b.id_bits, 0, 0, 0]);
+                let mut words = [0u32; 20];
+                words[..16].copy_from_slice(&clip_from_world(view).to_cols_array().map(f32::to_bits));
+                words[16] = b.id_bits;
                 queue.write_buffer(&occlusion.uniform, 0, bytemuck::cast_slice(&words));
                 sorted.sort(frame, view.world_from_view.translation())
             }

@@ -1033,7 +1033,7 @@ impl CrowdCulling {
         queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&uniforms));
         if rounds > 1 {
             let mut round_params: RoundParams = [[0; ROUND_STRIDE / 4]; 2 * (MAX_OCCLUSION_ROUNDS as usize - 1)];
-            for (k, block) in round_params.iter_mut().enumerate() {
+            for (k, block) in round_params.iter_mut().take(2 * (rounds as usize - 1)).enumerate() {
                 block[..8].copy_from_slice(&params(1 + k as u32 % 2, 1 + k / 2));
             }
             let used = bytemuck::cast_slice(&round_params[..2 * (rounds as usize - 1)]);
