@@ -109,18 +109,24 @@ pub fn bake_asset(
     Ok(out)
 }
 
-#[allow(clippy::too_many_arguments)]
+/// The optional sections `skinlet bake` adds.
+pub struct Extras<'a> {
+    pub overdraw: bool,
+    pub contours: Option<&'a str>,
+    pub envelope: Option<&'a str>,
+    pub lod: bool,
+}
+
 pub fn run(
     file: &str,
     out: &Path,
     builder: &str,
     clips: Option<&str>,
     args: RefineArgs,
-    overdraw: bool,
-    contours: Option<&str>,
-    envelope: Option<&str>,
+    extras: Extras,
     json: bool,
 ) -> Result<()> {
+    let Extras { overdraw, contours, envelope, lod } = extras;
     let builder = Builder::from_name(builder).context("unknown builder")?;
     let (asset, character) = crate::load_character(file)?;
     let (mut baked, stats) = bake_asset(&asset, &character, clips, builder, args, json)?;
@@ -150,6 +156,13 @@ pub fn run(
     } else {
         None
     };
+    let lod_s = if lod {
+        let started = std::time::Instant::now();
+        skinlet::bake::add_lod(&mut baked, &asset, &skinlet::meshlet::lod::LodParams::default())?;
+        Some(started.elapsed().as_secs_f64())
+    } else {
+        None
+    };
     skinlet::bake::write(out, &baked)?;
     let bytes = std::fs::metadata(out).map(|m| m.len()).unwrap_or(0);
     let envelope_shares = baked.envelope.as_ref().map(|e| shares(&e.classes));
@@ -173,6 +186,10 @@ pub fn run(
             "envelope_both_pct": envelope_shares.map(|s| s.0), "envelope_frustum_only_pct": envelope_shares.map(|s| s.1),
             "envelope_none_pct": envelope_shares.map(|s| s.2),
             "any_pose_boxes": baked.envelope.as_ref().map(|e| e.any_pose.joints.len()),
+            "lod_groups": baked.lod.as_ref().map(|l| l.groups.len()),
+            "lod_clusters": baked.lod.as_ref().map(|l| l.clusters.len()),
+            "lod_levels": baked.lod.as_ref().map(|l| l.groups.iter().map(|g| g.0).max().unwrap_or(0)),
+            "lod_s": lod_s,
         });
         println!("{}", serde_json::to_string_pretty(&summary)?);
         return Ok(());
@@ -217,6 +234,15 @@ pub fn run(
             p.rigid_quads,
             p.animated_quads,
             p.patches.order.len()
+        );
+    }
+    if let (Some(l), Some(secs)) = (&baked.lod, lod_s) {
+        let levels = l.groups.iter().map(|g| g.0).max().unwrap_or(0);
+        let triangles: usize = l.meshlets.meshlets.iter().map(|m| m.triangle_count as usize).sum();
+        println!(
+            "  cluster LOD: {} groups over {levels} levels, {} clusters above the meshlets ({triangles} triangles) ({secs:.1} s)",
+            l.groups.len(),
+            l.clusters.len()
         );
     }
     if let (Some(o), Some(secs)) = (&baked.overdraw, overdraw_s) {

@@ -259,6 +259,13 @@ enum Command {
         /// the joints it names (format: docs/FORMAT.md, `ENVL`).
         #[arg(long, value_name = "clips[:MARGIN_DEG]|FILE.json")]
         envelope: Option<String>,
+        /// Also store a cluster LOD hierarchy per part (docs/FORMAT.md, `LODC`): groups of 8
+        /// adjacent clusters simplified to about half with their borders locked and the
+        /// vertices' positions at 8 poses of the clips as attributes, level by level; each
+        /// group's error bounds how far its clusters get from the full detail mesh at every
+        /// pose of the clips, and its clusters get conservative bounds like the meshlets'.
+        #[arg(long)]
+        lod: bool,
         /// Print a JSON summary: meshlets, both_pct, frustum_only_pct, none_pct, precompute_s, ...
         #[arg(long)]
         json: bool,
@@ -482,15 +489,13 @@ fn main() {
         Command::Bounds { file, builder, clips, refine, json } => {
             bounds(&file, &builder, clips.as_deref(), refine, json)
         }
-        Command::Bake { file, out, builder, clips, refine, overdraw, contours, envelope, json } => bake::run(
+        Command::Bake { file, out, builder, clips, refine, overdraw, contours, envelope, lod, json } => bake::run(
             &file,
             &out,
             &builder,
             clips.as_deref(),
             refine,
-            overdraw,
-            contours.as_deref(),
-            envelope.as_deref(),
+            bake::Extras { overdraw, contours: contours.as_deref(), envelope: envelope.as_deref(), lod },
             json,
         ),
         Command::Verify { file, baked, builder, clips, refine, samples, json } => {

@@ -12,7 +12,7 @@
 //! (`MRPH`), the pose envelope with its bounds, any-pose boxes and node names (`ENVL`) as
 //! typed slices; the parts' boxes per clip window (`PWIN`), the overdraw orders (`OVDR`) and
 //! contour patches (`CONT`, with the edges it indexes, which the file does not store) read
-//! into arrays. The baker's reader (`skinlet::bake::from_bytes`) builds its types from this
+//! into arrays; the cluster LOD hierarchy (`LODC`) as typed slices. The baker's reader (`skinlet::bake::from_bytes`) builds its types from this
 //! view.
 
 use crate::any_pose::AnyPoseBoxes;
@@ -231,6 +231,7 @@ pub struct BakeView<'a> {
     overdraw: Option<Orders>,
     contours: Option<(BakedContours, Edges)>,
     sources: Option<&'a [u32]>,
+    lod: Option<LodView<'a>>,
 }
 
 /// The little-endian `u32` at byte `at` of `b`, or `None` past its end.
@@ -275,6 +276,7 @@ impl<'a> BakeView<'a> {
             .map(|s| read_contours(s, &vertices, morphs, triangles, drivers, info.clips.len()))
             .transpose()?;
         let sources = find(b"SRCT").map(|s| read_sources(s, &meshlets)).transpose()?;
+        let lod = find(b"LODC").map(|s| read_lod(s, n, &info, parts, drivers)).transpose()?;
         Ok(BakeView {
             sections,
             info,
@@ -292,6 +294,7 @@ impl<'a> BakeView<'a> {
             overdraw,
             contours,
             sources,
+            lod,
         })
     }
 
@@ -409,6 +412,11 @@ impl<'a> BakeView<'a> {
     /// when the patches are visible-only).
     pub fn contours(&self) -> Option<(&BakedContours, &Edges)> {
         self.contours.as_ref().map(|(c, e)| (c, e))
+    }
+
+    /// The optional `LODC` section: the cluster LOD hierarchy ([`LodView`], checked).
+    pub fn lod(&self) -> Option<&LodView<'a>> {
+        self.lod.as_ref()
     }
 
     /// The optional `SRCT` section: per triangle of `MLET` (the one at triangle byte `3·i`
@@ -618,6 +626,144 @@ fn read_sources<'a>(s: &'a [u8], meshlets: &MeshletView) -> Result<&'a [u32]> {
         return Err(Error::invalid(location, format!("entry {i}: rotation 3 (at most 2)")));
     }
     Ok(sources)
+}
+
+/// One group of the cluster LOD hierarchy (`LODC`): the level of the clusters it made (≥ 1)
+/// and its error, in scene units.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[repr(C)]
+pub struct BakedLodGroup {
+    pub level: u32,
+    pub error: f32,
+}
+
+// SAFETY: `repr(C)`, a `u32` and an `f32` (8 bytes, no padding): every bit pattern is a
+// value, and zero is one; `Copy` and `'static`.
+unsafe impl bytemuck::Zeroable for BakedLodGroup {}
+unsafe impl bytemuck::Pod for BakedLodGroup {}
+
+/// No group: a root cluster's parent.
+pub const NO_GROUP: u32 = u32::MAX;
+
+/// The cluster LOD hierarchy of `LODC` (`docs/FORMAT.md`, `skinlet::meshlet::lod`): the
+/// clusters above level 0 in `MLET`'s layout with their bounds in `BNDS`'s, per cluster its
+/// own group and its parent group, per `MLET` meshlet (level 0) its parent group, per part the
+/// range of its clusters. Checked at load: indices in range, each parent group above its
+/// child's level with an error at least its child's (errors are monotone, so every threshold
+/// picks a cut), finite errors ≥ 0, each cluster inside its part's vertices.
+#[derive(Clone, Copy, Debug)]
+pub struct LodView<'a> {
+    pub groups: &'a [BakedLodGroup],
+    /// Per `MLET` meshlet, its parent group ([`NO_GROUP`]: it is a root).
+    pub base_parents: &'a [u32],
+    /// Per cluster, its own group and its parent group ([`NO_GROUP`]: a root).
+    pub clusters: &'a [[u32; 2]],
+    pub bounds: &'a [BakedBounds],
+    /// Per part, its clusters' range (parts in order, covering every cluster).
+    pub part_clusters: &'a [[u32; 2]],
+    pub meshlets: MeshletView<'a>,
+}
+
+impl LodView<'_> {
+    /// The errors of a cluster's own group (0 at level 0) and parent group (infinite for a
+    /// root): `cluster` counts `MLET`'s meshlets first, then this section's clusters.
+    pub fn cluster_errors(&self, cluster: usize) -> (f32, f32) {
+        let error = |g: u32| if g == NO_GROUP { f32::INFINITY } else { self.groups[g as usize].error };
+        match cluster.checked_sub(self.base_parents.len()) {
+            None => (0.0, error(self.base_parents[cluster])),
+            Some(c) => (self.groups[self.clusters[c][0] as usize].error, error(self.clusters[c][1])),
+        }
+    }
+
+    /// The cut at error `threshold` (the clusters whose own group's error is at most it and
+    /// whose parent group's is above it), numbered as in [`Self::cluster_errors`].
+    pub fn cut(&self, threshold: f32) -> Vec<u32> {
+        (0..self.base_parents.len() + self.clusters.len())
+            .filter(|&c| {
+                let (own, parent) = self.cluster_errors(c);
+                own <= threshold && threshold < parent
+            })
+            .map(|c| c as u32)
+            .collect()
+    }
+}
+
+/// `LODC`: counts, groups, parents, bounds, part ranges and the clusters' meshlet layout,
+/// each checked against the bake (see [`LodView`]).
+fn read_lod<'a>(
+    s: &'a [u8],
+    vertices: usize,
+    info: &InfoView,
+    parts: &[BakedPartRecord],
+    drivers: usize,
+) -> Result<LodView<'a>> {
+    let location = "bake section LODC";
+    let bad = |what: String| Error::invalid(location, what);
+    let word = |at: usize| u32_at(s, at).ok_or_else(|| bad(format!("byte {at}: truncated")));
+    let [g, c, m, p] = [word(0)?, word(4)?, word(8)?, word(12)?].map(|x| x as usize);
+    let base = parts.last().map_or(0, |p| p.meshlets[1] as usize);
+    if m != base || p != parts.len() {
+        return Err(bad(format!("byte 8: {m} meshlets and {p} parts, where the bake has {base} and {}", parts.len())));
+    }
+    // Each array's end, checked against the section's length before any cast.
+    let mut at = 16usize;
+    let mut take = |bytes: Option<usize>| -> Result<std::ops::Range<usize>> {
+        let end = bytes.and_then(|b| at.checked_add(b)).filter(|&e| e <= s.len());
+        let end = end.ok_or_else(|| bad(format!("byte {at}: the counts do not fit in the section")))?;
+        let r = at..end;
+        at = end;
+        Ok(r)
+    };
+    let groups: &[BakedLodGroup] = cast(&s[take(g.checked_mul(8))?], "LODC")?;
+    let base_parents: &[u32] = cast(&s[take(m.checked_mul(4))?], "LODC")?;
+    let clusters: &[[u32; 2]] = cast(&s[take(c.checked_mul(8))?], "LODC")?;
+    let bounds: &[BakedBounds] = cast(&s[take(c.checked_mul(48))?], "LODC")?;
+    let part_clusters: &[[u32; 2]] = cast(&s[take(p.checked_mul(8))?], "LODC")?;
+    let meshlets = MeshletView::new(&s[at..]).map_err(|e| bad(format!("clusters: {e}")))?;
+    if meshlets.len() != c {
+        return Err(bad(format!("{} clusters in the meshlet layout, where the header says {c}", meshlets.len())));
+    }
+    let limits = [info.max_vertices as usize, info.max_triangles as usize];
+    meshlets.check(vertices, limits).map_err(|e| bad(format!("clusters: {e}")))?;
+    check_bounds(bounds, drivers, location)?;
+    if let Some((i, x)) =
+        groups.iter().enumerate().find(|(_, x)| x.level == 0 || !(x.error >= 0.0 && x.error.is_finite()))
+    {
+        return Err(bad(format!("group {i}: level {} (≥ 1) and error {} (finite, ≥ 0)", x.level, x.error)));
+    }
+    let group = |k: u32| groups.get(k as usize).copied();
+    // A parent group lies above its child's level with at least its error.
+    let parent_ok = |own: BakedLodGroup, parent: u32| {
+        parent == NO_GROUP || group(parent).is_some_and(|p| p.level > own.level && p.error >= own.error)
+    };
+    let level_zero = BakedLodGroup { level: 0, error: 0.0 };
+    if let Some(i) = (0..m).find(|&i| !parent_ok(level_zero, base_parents[i])) {
+        return Err(bad(format!("meshlet {i}: parent group {} does not exist", base_parents[i])));
+    }
+    for (i, &[own, parent]) in clusters.iter().enumerate() {
+        let Some(own) = group(own) else { return Err(bad(format!("cluster {i}: group {own} does not exist"))) };
+        if !parent_ok(own, parent) {
+            return Err(bad(format!(
+                "cluster {i}: parent group {parent} is missing, not above its level or below its error"
+            )));
+        }
+    }
+    let mut end = 0u32;
+    for (i, (r, part)) in part_clusters.iter().zip(parts).enumerate() {
+        let own = |v: &u32| (part.vertices[0]..part.vertices[1]).contains(v);
+        if r[0] != end
+            || r[1] < r[0]
+            || r[1] as usize > c
+            || !(r[0]..r[1]).all(|k| meshlets.vertices_of(k as usize).iter().all(own))
+        {
+            return Err(bad(format!("part {i}: clusters {r:?} are not the next range of its own vertices")));
+        }
+        end = r[1];
+    }
+    if end as usize != c {
+        return Err(bad("the parts do not cover every cluster".into()));
+    }
+    Ok(LodView { groups, base_parents, clusters, bounds, part_clusters, meshlets })
 }
 
 /// `MLET`: the layout ([`MeshletView::new`]) and every meshlet ([`MeshletView::check`]).

@@ -22,6 +22,8 @@
 //!   force as the reference.
 //! - [`contour_patches`]: contour extraction with a bake's patches (static or skinned, per
 //!   time window), exactly brute force's edges.
+//! - [`lod_select`]: which clusters of a bake's LOD hierarchy an instance draws, from a pixel
+//!   threshold projected at its bounding sphere.
 //! - [`source_corners`]: each meshlet corner's vertex in its glTF primitive, for drawing the
 //!   meshlets with the source's own vertex attributes.
 //!
@@ -68,6 +70,7 @@ pub mod contour_edges;
 pub mod contour_patches;
 pub mod error;
 pub mod joint_boxes;
+pub mod lod_select;
 pub mod meshlet_bounds;
 pub mod meshlet_cull;
 pub mod overdraw_orders;

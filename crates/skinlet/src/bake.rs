@@ -21,6 +21,7 @@ use crate::character::{Character, PartKind};
 use crate::clip::Clip;
 use crate::contour::skinned::{SkinnedParams, skinned_edges};
 use crate::cull::any_pose::AnyPoseBoxes;
+use crate::meshlet::lod::LodParams;
 use crate::meshlet::sources::source_triangles;
 use crate::meshlet::{
     Builder, MeshletLimits, Meshlets, PartRange, PreparedMesh, build_moving, flat, motion_for, prepare_parts,
@@ -30,7 +31,7 @@ use crate::overdraw::cluster::{ClusterParams, Orders, cluster};
 use crate::overdraw::evaluate::keyframes;
 use crate::{Error, Result};
 use glam::{Mat4, Vec3};
-use skinlet_runtime::bake_view::{BakeView, bounds_and_classes};
+use skinlet_runtime::bake_view::{BakeView, NO_GROUP, bounds_and_classes};
 use skinlet_runtime::part_bounds::{PartBounds, PoseBounds};
 use std::io::Write;
 use std::ops::Range;
@@ -96,6 +97,28 @@ pub struct Baked {
     /// Per meshlet triangle, its source triangle and corner rotation
     /// ([`crate::meshlet::sources`]; section SRCT, written by [`bake`]).
     pub sources: Option<Vec<u32>>,
+    /// The cluster LOD hierarchy (optional section LODC, [`add_lod`]).
+    pub lod: Option<BakedLod>,
+}
+
+/// The cluster LOD hierarchy of a bake ([`crate::meshlet::lod`], errors from
+/// [`crate::bounds::lod_error`]): `MLET`'s meshlets are level 0; the clusters above them are
+/// meshlets of their own (same layout and limits) with conservative bounds over the bake's
+/// clips. Groups are numbered over the whole character; a part's clusters and groups are its
+/// own.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BakedLod {
+    /// Per group: the level of the clusters it made and its error (scene units).
+    pub groups: Vec<(u32, f32)>,
+    /// Per `MLET` meshlet, its parent group ([`NO_GROUP`]: a root).
+    pub base_parents: Vec<u32>,
+    /// Per cluster above level 0: its own group and its parent group ([`NO_GROUP`]: a root).
+    pub clusters: Vec<[u32; 2]>,
+    pub meshlets: Meshlets,
+    pub bounds: Vec<MeshletBounds>,
+    pub classes: Vec<Class>,
+    /// Per part, the range of its clusters.
+    pub part_clusters: Vec<Range<u32>>,
 }
 
 /// Bounds for the poses games make: a pose envelope with meshlet bounds (and their classes)
@@ -201,6 +224,7 @@ pub fn bake(
         envelope: None,
         part_windows,
         sources: Some(sources),
+        lod: None,
     };
     Ok((baked, stats))
 }
@@ -246,6 +270,53 @@ pub fn add_contours(baked: &mut Baked, asset: &Asset, params: &SkinnedParams, vi
     Ok(())
 }
 
+/// Adds a cluster LOD hierarchy to a bake, part by part ([`crate::meshlet::lod::build`] with
+/// the vertices' positions at sampled poses of the baked clips as attributes), with errors
+/// and cluster bounds that hold over those clips.
+pub fn add_lod(baked: &mut Baked, asset: &Asset, params: &LodParams) -> Result<()> {
+    let palette = baked.palette();
+    let clips = baked_clips(baked, asset)?;
+    let mesh = &baked.mesh;
+    let attributes = crate::meshlet::lod::posed_attributes(&asset.skeleton, &palette, &clips, mesh, 8)?;
+    let mut out = BakedLod {
+        groups: Vec::new(),
+        base_parents: vec![NO_GROUP; baked.meshlets.len()],
+        clusters: Vec::new(),
+        meshlets: Meshlets::default(),
+        bounds: Vec::new(),
+        classes: Vec::new(),
+        part_clusters: Vec::new(),
+    };
+    let limits = baked.settings.limits;
+    for part in &baked.parts {
+        let first = out.clusters.len() as u32;
+        let base = part.meshlets.start as usize..part.meshlets.end as usize;
+        let mine = baked.meshlets.subset(base.clone());
+        let mut lod = crate::meshlet::lod::build(&mesh.positions, &attributes, &mine, limits, *params)?;
+        crate::bounds::lod_error::bound_errors(&asset.skeleton, &palette, &clips, mesh, &mut lod)?;
+        let group_offset = out.groups.len() as u32;
+        let global = |g: Option<u32>| g.map_or(NO_GROUP, |g| g + group_offset);
+        out.groups.extend(lod.groups.iter().map(|g| (g.level, g.error)));
+        for (i, c) in lod.clusters.iter().enumerate() {
+            if i < base.len() {
+                out.base_parents[base.start + i] = global(c.parent);
+            } else {
+                out.clusters.push([global(c.group), global(c.parent)]);
+                out.meshlets.push_triangles(&c.triangles);
+            }
+        }
+        out.part_clusters.push(first..out.clusters.len() as u32);
+    }
+    let bounds = crate::bounds::sphere_cone::meshlet_bounds(&asset.skeleton, &palette, &clips, mesh, &out.meshlets)?;
+    out.classes = bounds.iter().map(|b| classify(b, baked.settings.s_r, baked.settings.alpha_t)).collect();
+    out.bounds = bounds;
+    for b in out.bounds.iter_mut().filter(|b| !b.radius.is_finite()) {
+        b.radius = f32::MAX;
+    }
+    baked.lod = Some(out);
+    Ok(())
+}
+
 /// Adds a pose envelope to a bake: meshlet bounds for every pose inside it, classified with
 /// the bake's thresholds, and the any-pose boxes for morph weights inside its ranges.
 pub fn add_envelope(baked: &mut Baked, asset: &Asset, envelope: Envelope) -> Result<()> {
@@ -279,9 +350,10 @@ fn baked_clips<'a>(baked: &Baked, asset: &'a Asset) -> Result<Vec<&'a Clip>> {
 }
 
 /// Section tags: the seven required ones, then the optional overdraw orders, contours, morph
-/// targets, pose envelope, part windows and source triangles.
-const TAGS: [&[u8; 4]; 13] = [
-    b"INFO", b"SKIN", b"VERT", b"TRIS", b"MLET", b"BNDS", b"PART", b"OVDR", b"CONT", b"MRPH", b"ENVL", b"PWIN", b"SRCT",
+/// targets, pose envelope, part windows, source triangles and cluster LOD.
+const TAGS: [&[u8; 4]; 14] = [
+    b"INFO", b"SKIN", b"VERT", b"TRIS", b"MLET", b"BNDS", b"PART", b"OVDR", b"CONT", b"MRPH", b"ENVL", b"PWIN",
+    b"SRCT", b"LODC",
 ];
 const HEADER: usize = 16;
 const ENTRY: usize = 24;
@@ -531,6 +603,26 @@ pub fn to_bytes(b: &Baked) -> Vec<u8> {
         sources.iter().for_each(|&x| st.u32(x));
         sections.push(st.0);
     }
+    if let Some(l) = &b.lod {
+        tags.push(TAGS[13]);
+        let mut lo = Out::default();
+        for x in [l.groups.len(), l.clusters.len(), l.base_parents.len(), l.part_clusters.len()] {
+            lo.u32(x as u32);
+        }
+        for &(level, error) in &l.groups {
+            lo.u32(level);
+            lo.f32(error);
+        }
+        l.base_parents.iter().for_each(|&p| lo.u32(p));
+        l.clusters.iter().flatten().for_each(|&x| lo.u32(x));
+        lo.bounds(&l.bounds, &l.classes);
+        for r in &l.part_clusters {
+            lo.u32(r.start);
+            lo.u32(r.end);
+        }
+        lo.0.extend_from_slice(&flat::to_bytes(&l.meshlets));
+        sections.push(lo.0);
+    }
     let mut out = Vec::new();
     out.extend_from_slice(&MAGIC);
     out.extend_from_slice(&VERSION.to_le_bytes());
@@ -622,6 +714,9 @@ pub fn check_consumers(b: &Baked) -> Result<()> {
         let rest: Vec<f32> = e.envelope.weights.iter().map(|w| w.0).collect();
         e.envelope.guard()?.admits(&[], &rest);
     }
+    if let Some(l) = &b.lod {
+        cull(&l.bounds, &l.classes, None)?;
+    }
     if let Some(c) = &b.contours {
         let edges = skinned_edges(&b.mesh, c.visible_only)?;
         if edges.quads.len() != c.patches.patches.order.len() {
@@ -637,7 +732,13 @@ pub fn check_consumers(b: &Baked) -> Result<()> {
     // of pose (every clip at its start and past its end).
     let bytes = to_bytes(b);
     let words = aligned_words(&bytes);
-    let parts = PartBounds::new(&BakeView::new(&bytemuck::cast_slice::<u32, u8>(&words)[..bytes.len()])?)?;
+    let view = BakeView::new(&bytemuck::cast_slice::<u32, u8>(&words)[..bytes.len()])?;
+    if let Some(l) = view.lod() {
+        for threshold in [0.0, 1e-3, f32::MAX] {
+            l.cut(threshold);
+        }
+    }
+    let parts = PartBounds::new(&view)?;
     let clips = (0..b.settings.clips.len() as u32)
         .flat_map(|clip| [0.0, f32::MAX].map(|time| PoseBounds::ClipAt { clip, time }));
     for pose in [PoseBounds::Any, PoseBounds::Clips, PoseBounds::Envelope].into_iter().chain(clips) {
@@ -733,5 +834,17 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
         envelope,
         part_windows: view.part_windows().cloned(),
         sources: view.sources().map(<[u32]>::to_vec),
+        lod: view.lod().map(|l| {
+            let (bounds, classes) = bounds_and_classes(l.bounds);
+            BakedLod {
+                groups: l.groups.iter().map(|g| (g.level, g.error)).collect(),
+                base_parents: l.base_parents.to_vec(),
+                clusters: l.clusters.to_vec(),
+                meshlets: Meshlets::from_view(&l.meshlets),
+                bounds,
+                classes,
+                part_clusters: l.part_clusters.iter().map(|r| r[0]..r[1]).collect(),
+            }
+        }),
     })
 }

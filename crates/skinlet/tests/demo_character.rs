@@ -97,6 +97,61 @@ mod bake {
     }
 
     #[test]
+    fn lod_round_trips_every_cut_keeps_the_part_boundaries_and_is_checked() {
+        let asset = demo_character(&DemoParams { triangles: 2000, ..DemoParams::default() });
+        let mut b = baked();
+        add_lod(&mut b, &asset, &skinlet::meshlet::lod::LodParams::default()).unwrap();
+        let l = b.lod.as_ref().unwrap();
+        assert!(l.groups.len() >= b.parts.len() && !l.clusters.is_empty(), "{} groups", l.groups.len());
+        let bytes = to_bytes(&b);
+        assert_eq!(from_bytes(&bytes).unwrap(), b);
+        let view = BakeView::new(&bytes).unwrap();
+        let v = view.lod().unwrap();
+        let meshlets = view.meshlets();
+        let cluster_triangles = |c: usize| -> Vec<[u32; 3]> {
+            let (m, i) = if c < meshlets.len() { (&meshlets, c) } else { (&v.meshlets, c - meshlets.len()) };
+            let (local, tc) = (m.vertices_of(i), m.counts(i).1);
+            let t = &m.triangles[m.headers[i][1] as usize..][..3 * tc];
+            t.chunks_exact(3).map(|t| [0, 1, 2].map(|k| local[t[k] as usize])).collect()
+        };
+        let boundary = |triangles: &mut dyn Iterator<Item = [u32; 3]>| {
+            let mut count = std::collections::BTreeMap::new();
+            for t in triangles {
+                for k in 0..3 {
+                    let (a, b) = (t[k], t[(k + 1) % 3]);
+                    *count.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+                }
+            }
+            count.into_iter().filter(|&(_, n)| n % 2 == 1).map(|(e, _)| e).collect::<std::collections::BTreeSet<_>>()
+        };
+        let whole = boundary(&mut b.mesh.triangles.iter().copied());
+        let mut thresholds: Vec<f32> = l.groups.iter().map(|g| g.1).collect();
+        thresholds.extend([0.0, f32::MAX]);
+        for t in thresholds {
+            let cut = v.cut(t);
+            assert!(boundary(&mut cut.iter().flat_map(|&c| cluster_triangles(c as usize))) == whole, "threshold {t}");
+        }
+        assert_eq!(v.cut(0.0).len(), meshlets.len(), "threshold 0 draws the meshlets");
+        // Damaged: counts, a group's error, a cluster's parent.
+        let lodc = section(&bytes, b"LODC");
+        let damaged = |at: usize, value: [u8; 4], want: &str| {
+            let mut bad = bytes.clone();
+            bad[lodc.start + at..lodc.start + at + 4].copy_from_slice(&value);
+            let e = from_bytes(&bad).unwrap_err().to_string();
+            assert!(e.contains("LODC") && e.contains(want), "{want}: {e}");
+        };
+        let (g, m) = (l.groups.len(), l.base_parents.len());
+        damaged(8, (m as u32 + 1).to_le_bytes(), "meshlets");
+        damaged(16 + 4, f32::NAN.to_le_bytes(), "group 0");
+        damaged(16 + 4, (-1.0f32).to_le_bytes(), "group 0");
+        let root = l.clusters.iter().position(|c| c[1] == skinlet_runtime::bake_view::NO_GROUP).unwrap();
+        let parent_at = 16 + 8 * g + 4 * m + 8 * root + 4;
+        damaged(parent_at, (g as u32).to_le_bytes(), &format!("cluster {root}: parent group"));
+        damaged(parent_at, l.clusters[root][0].to_le_bytes(), &format!("cluster {root}: parent group"));
+        assert!(from_bytes(&bytes[..lodc.end - 4]).is_err());
+    }
+
+    #[test]
     fn part_windows_round_trip_and_are_checked() {
         let b = baked();
         let w = b.part_windows.as_ref().expect("a bake with clips has part windows");
@@ -336,6 +391,7 @@ mod bake {
         let clips: Vec<_> = asset.clips.iter().collect();
         let envelope = Envelope::from_clips(&asset.skeleton, &b.palette(), &b.mesh, &clips, 0.1).unwrap();
         add_envelope(&mut b, &asset, envelope).unwrap();
+        add_lod(&mut b, &asset, &skinlet::meshlet::lod::LodParams::default()).unwrap();
         let bytes = to_bytes(&b);
         let back = from_bytes(&bytes).unwrap();
         assert_eq!(back, b, "every section round-trips");

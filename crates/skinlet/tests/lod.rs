@@ -6,10 +6,10 @@
 //! triangle pair onto a locked open edge, used by three.)
 
 mod common;
-use common::assets_dir;
+use common::{assets_dir, part_meshlets};
 
 use skinlet::meshlet::lod::{LodParams, build};
-use skinlet::meshlet::{Builder, MeshletLimits, Meshlets};
+use skinlet::meshlet::{Builder, MeshletLimits};
 use std::collections::{BTreeMap, BTreeSet};
 
 /// The boundary (mod 2) of the triangles: the undirected edges used by an odd number of
@@ -23,24 +23,6 @@ fn boundary<'a>(triangles: impl Iterator<Item = &'a [u32]>) -> BTreeSet<(u32, u3
         }
     }
     count.into_iter().filter(|&(_, n)| n % 2 == 1).map(|(e, _)| e).collect()
-}
-
-/// The meshlets whose vertices lie in `vertices` (one part's).
-fn part_meshlets(m: &Meshlets, vertices: &std::ops::Range<u32>) -> Meshlets {
-    let mut out = Meshlets::default();
-    for k in &m.meshlets {
-        let local = &m.vertices[k.vertex_offset as usize..][..k.vertex_count as usize];
-        if !vertices.contains(&local[0]) {
-            continue;
-        }
-        let triangles = &m.triangles[k.triangle_offset as usize..][..3 * k.triangle_count as usize];
-        let mut k = *k;
-        (k.vertex_offset, k.triangle_offset) = (out.vertices.len() as u32, out.triangles.len() as u32);
-        out.vertices.extend(local);
-        out.triangles.extend(triangles);
-        out.meshlets.push(k);
-    }
-    out
 }
 
 #[test]
@@ -62,7 +44,7 @@ fn every_cut_keeps_each_parts_boundary_on_every_character() {
             let mine = part_meshlets(&meshlets, &part.vertices);
             let full: Vec<u32> =
                 prepared.mesh.triangles[part.triangles.start as usize..part.triangles.end as usize].concat();
-            let lod = build(&prepared.mesh.positions, &mine, limits, LodParams::default()).unwrap();
+            let lod = build(&prepared.mesh.positions, &[], &mine, limits, LodParams::default()).unwrap();
             let borders = boundary(full.chunks_exact(3));
             for g in &lod.groups {
                 for &c in &g.children {

@@ -17,6 +17,7 @@
 
 pub mod cone;
 pub mod envelope;
+pub mod lod_error;
 pub mod motion;
 pub mod part_windows;
 pub mod refine;

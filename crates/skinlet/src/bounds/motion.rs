@@ -503,6 +503,14 @@ fn mul_box(b: &Aabb, s: &Aabb) -> Aabb {
     out
 }
 
+/// An upper bound of a matrix's largest singular value: the square root of the largest
+/// absolute row sum of `AᵀA` (Gershgorin; exact for a scaled rotation).
+pub(crate) fn spectral_bound(a: &DMat3) -> f64 {
+    let g = a.transpose() * *a;
+    let rows = (0..3).map(|i| (0..3).map(|j| g.col(j)[i].abs()).sum::<f64>());
+    rows.fold(0.0, f64::max).sqrt() * (1.0 + SAMPLING_ROUNDING)
+}
+
 fn matrix_box(m: &DMat4, b: &Aabb) -> Aabb {
     b.corners().iter().fold(Aabb::EMPTY, |mut acc, &c| {
         acc.extend(m.transform_point3(c));
@@ -511,6 +519,48 @@ fn matrix_box(m: &DMat4, b: &Aabb) -> Aabb {
 }
 
 impl Motion {
+    /// Upper bounds of how far the linear part of `L(t)` and of `L(t)⁻¹` get from their
+    /// values for the local transform `at` (the interval's start, sampled) over the interval,
+    /// in operator norm: `‖RS − R₁S₁‖ ≤ ‖R − R₁‖·‖S‖ + ‖S − S₁‖` with `‖R − R₁‖ = 2 sin(θ/2)`,
+    /// θ the largest angle between the rotations; the inverse likewise.
+    pub fn deviation(&self, at: &Trs) -> (f64, f64) {
+        let Motion::Trs { rotation, scale, .. } = self else { return (0.0, 0.0) };
+        let m = rotation.min_abs_dot(at.rotation.as_dquat().normalize()).min(1.0);
+        let turn = 2.0 * (1.0 - m * m).max(0.0).sqrt();
+        let s1 = at.scale.as_dvec3();
+        let largest = scale.min.abs().max(scale.max.abs()).max_element();
+        let forward = turn * largest + (scale.min - s1).abs().max((scale.max - s1).abs()).max_element();
+        let straddles = (0..3).any(|k| scale.min[k] <= 0.0 && scale.max[k] >= 0.0 || s1[k] == 0.0);
+        let inverse = if straddles {
+            f64::INFINITY
+        } else {
+            let gap =
+                (DVec3::ONE / scale.min - DVec3::ONE / s1).abs().max((DVec3::ONE / scale.max - DVec3::ONE / s1).abs());
+            gap.max_element() + turn / s1.abs().min_element()
+        };
+        let grow = |d: f64| d * (1.0 + SAMPLING_ROUNDING) + SAMPLING_ROUNDING;
+        (grow(forward), grow(inverse))
+    }
+
+    /// Upper bounds of the operator norm of the linear part of `L(t)` and of `L(t)⁻¹` over
+    /// the interval (rotations keep lengths; a scale range through zero gives ∞ for the
+    /// inverse).
+    pub fn stretch(&self) -> (f64, f64) {
+        match self {
+            Motion::Matrix(m) => {
+                let lin = DMat3::from_mat4(*m);
+                (spectral_bound(&lin), spectral_bound(&lin.inverse()))
+            }
+            Motion::Trs { scale, .. } => {
+                let largest = scale.min.abs().max(scale.max.abs()).max_element();
+                let straddles = (0..3).any(|k| scale.min[k] <= 0.0 && scale.max[k] >= 0.0);
+                let smallest = scale.min.abs().min(scale.max.abs()).min_element();
+                let inverse = if straddles { f64::INFINITY } else { 1.0 / smallest };
+                (largest * (1.0 + SAMPLING_ROUNDING), inverse * (1.0 + SAMPLING_ROUNDING))
+            }
+        }
+    }
+
     /// All points `L(t)·x`, x in `b`, t in the interval.
     pub fn apply(&self, b: &Aabb) -> Aabb {
         if !b.is_finite() {
@@ -613,6 +663,46 @@ mod tests {
                     let dot = q.dot(DVec4::new(c.x, c.y, c.z, c.w)).abs();
                     prop_assert!(bound <= dot + 1e-12, "bound {bound} above {dot}");
                 }
+            }
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 500, ..ProptestConfig::default() })]
+
+        /// Along an arc with a scale range, `‖L(t)‖`, `‖L(t)⁻¹‖` stay within `stretch` and
+        /// `‖L(t) − L(start)‖`, `‖L(t)⁻¹ − L(start)⁻¹‖` within `deviation` (operator norms
+        /// estimated from below by many unit vectors).
+        #[test]
+        fn stretch_and_deviation_bound_sampled_linear_parts(
+            start in (prop::array::uniform3(-1.0f64..1.0), -3.2f64..3.2),
+            axis in prop::array::uniform3(-1.0f64..1.0), angle in -1.5f64..1.5,
+            s0 in prop::array::uniform3(0.3f64..2.0), s1 in prop::array::uniform3(0.3f64..2.0),
+            picks in prop::collection::vec(0.0f64..1.0, 12),
+        ) {
+            let (start, axis) = (rotation(start.0, start.1), unit(axis));
+            let (s0, s1) = (DVec3::from(s0), DVec3::from(s1));
+            let motion = Motion::Trs {
+                translation: Aabb::point(DVec3::ZERO),
+                rotation: RotationMotion::Arc { start, axis, angle },
+                scale: Aabb { min: s0.min(s1), max: s0.max(s1) },
+            };
+            let at = Trs { translation: Vec3::ZERO, rotation: start.as_quat(), scale: s0.as_vec3() };
+            let ((d, d_inv), (n, n_inv)) = (motion.deviation(&at), motion.stretch());
+            let linear = |q: DQuat, s: DVec3| DMat3::from_quat(q) * DMat3::from_diagonal(s);
+            let l0 = linear(at.rotation.as_dquat(), at.scale.as_dvec3());
+            let dirs: Vec<DVec3> = (0..200).map(|i| {
+                let (a, b) = (i as f64 * 2.399_963, (i as f64 + 0.5) / 200.0);
+                let z = 1.0 - 2.0 * b;
+                let r = (1.0 - z * z).sqrt();
+                DVec3::new(r * a.cos(), r * a.sin(), z)
+            }).collect();
+            let norm = |m: DMat3| dirs.iter().map(|&v| (m * v).length()).fold(0.0, f64::max);
+            for &f in &picks {
+                let l = linear(DQuat::from_axis_angle(axis, angle * f) * start, s0 + (s1 - s0) * f);
+                prop_assert!(norm(l) <= n + 1e-9 && norm(l.inverse()) <= n_inv + 1e-9);
+                prop_assert!(norm(l - l0) <= d + 1e-9, "{} above {d}", norm(l - l0));
+                prop_assert!(norm(l.inverse() - l0.inverse()) <= d_inv + 1e-9);
             }
         }
     }

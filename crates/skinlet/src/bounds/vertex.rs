@@ -16,7 +16,7 @@ use super::Aabb;
 use super::motion::{Motion, node_motion, weight_range};
 use crate::Result;
 use crate::clip::Clip;
-use crate::model::{Morphs, Skeleton, Skin, SkinnedMesh};
+use crate::model::{Morphs, Skeleton, Skin, SkinnedMesh, Trs};
 use glam::DVec3;
 
 /// Motions of every node during one interval `[t1, t2]` of a clip.
@@ -94,6 +94,58 @@ impl IntervalMotions {
         }
         // Unbounded (a scale through zero): keep it unbounded rather than NaN.
         if b.is_finite() { b } else { Aabb::EVERYWHERE }
+    }
+
+    /// An upper bound of how far the linear part of `global(to)⁻¹ · global(from)` gets over
+    /// the interval from its value for the local transforms `at` (every node's, sampled at
+    /// the interval's start), in operator norm: for a product of factors `Xₙ` against `Yₙ`,
+    /// `‖ΠX − ΠY‖ ≤ Σₙ ‖Xₙ − Yₙ‖ · Πⱼ≠ₙ max(‖Xⱼ‖, ‖Yⱼ‖)`.
+    pub fn deviation(&self, skeleton: &Skeleton, from: u32, to: u32, at: &[Trs]) -> f64 {
+        let parent = |n: u32| skeleton.nodes[n as usize].parent;
+        let depth = |n: Option<u32>| n.map_or(-1, |n| self.depth[n as usize] as i64);
+        let (mut a, mut t) = (Some(from), Some(to));
+        // Σ dₙ Πⱼ≠ₙ normⱼ, accumulated factor by factor: (sum, product of norms).
+        let (mut sum, mut product) = (0.0f64, 1.0f64);
+        while a != t {
+            let (n, inverse) = if depth(a) >= depth(t) {
+                let n = a.expect("deeper side is a node");
+                a = parent(n);
+                (n, false)
+            } else {
+                let n = t.expect("deeper side is a node");
+                t = parent(n);
+                (n, true)
+            };
+            let motion = &self.motions[n as usize];
+            let (d, norm) = match (motion.deviation(&at[n as usize]), motion.stretch()) {
+                ((d, _), (norm, _)) if !inverse => (d, norm),
+                ((_, d), (_, norm)) => (d, norm),
+            };
+            sum = sum * norm + d * product;
+            product *= norm;
+        }
+        if sum.is_nan() { f64::INFINITY } else { sum }
+    }
+
+    /// An upper bound of the operator norm of the linear part of `global(to)⁻¹ · global(from)`
+    /// over the interval (`to`: `None` for the scene): the product of the nodes' stretches
+    /// on the way from `from` up to the common ancestor and of their inverses' down to `to`.
+    pub fn stretch(&self, skeleton: &Skeleton, from: u32, to: Option<u32>) -> f64 {
+        let parent = |n: u32| skeleton.nodes[n as usize].parent;
+        let depth = |n: Option<u32>| n.map_or(-1, |n| self.depth[n as usize] as i64);
+        let (mut a, mut t, mut s) = (Some(from), to, 1.0);
+        while a != t {
+            if depth(a) >= depth(t) {
+                let n = a.expect("deeper side is a node");
+                s *= self.motions[n as usize].stretch().0;
+                a = parent(n);
+            } else {
+                let n = t.expect("deeper side is a node");
+                s *= self.motions[n as usize].stretch().1;
+                t = parent(n);
+            }
+        }
+        if s.is_nan() { f64::INFINITY } else { s }
     }
 }
 

@@ -14,11 +14,15 @@
 //! (the edges an odd number of its triangles use) is the part's; on a closed mesh every edge
 //! of the cut is shared by exactly two of its triangles.
 //!
-//! The errors here are the simplifier's, in the bind pose (absolute, in the mesh's units).
-//! Not yet: skin weights as simplification attributes, errors that hold under animation,
-//! the bake section, selection on the GPU (issue 39).
+//! The errors [`build`] stores are the simplifier's, in the bind pose (absolute, in the mesh's
+//! units), each group's plus its children's groups' largest; [`crate::bounds::lod_error`]
+//! replaces them by errors that hold under animation. Skin motion enters the simplification
+//! itself through [`posed_attributes`]. Not yet: the bake section and selection on the GPU
+//! (issue 39).
 
 use super::{MeshletLimits, Meshlets};
+use crate::clip::Clip;
+use crate::model::{Skeleton, Skin, SkinnedMesh};
 use crate::{Error, Result};
 use glam::Vec3;
 
@@ -63,13 +67,19 @@ pub struct LodParams {
     /// A group whose simplification keeps more than this share of its triangles is not made
     /// (its clusters wait for the next step, grouped again).
     pub max_kept: f32,
+    /// The weight of each vertex attribute (see [`build`]) against positions in the
+    /// simplifier's error.
+    pub attribute_weight: f32,
 }
 
 impl Default for LodParams {
     fn default() -> Self {
-        LodParams { group_size: 8, max_kept: 0.85 }
+        LodParams { group_size: 8, max_kept: 0.85, attribute_weight: 1.0 }
     }
 }
+
+/// Most attributes per vertex the simplifier takes.
+pub const MAX_ATTRIBUTES: usize = 24;
 
 impl LodHierarchy {
     /// The error of a cluster's own group (0 at level 0) and of its parent group (infinite
@@ -94,18 +104,40 @@ impl LodHierarchy {
 }
 
 /// Builds the hierarchy over `meshlets` (one part's, indexing `positions`), new clusters
-/// within `limits`. Errors on bad limits or parameters, or meshlets that index past
-/// `positions`.
+/// within `limits`. `attributes` holds the same number of values (up to [`MAX_ATTRIBUTES`])
+/// for each vertex, or none: the simplifier keeps their interpolation close too (skinlet
+/// passes the vertices' positions at sampled poses, [`posed_attributes`], so that a group
+/// is simplified where it stays flat in motion, not only in the bind pose). Errors on bad
+/// limits, parameters or attribute counts, or meshlets that index past `positions`.
 pub fn build(
     positions: &[Vec3],
+    attributes: &[f32],
     meshlets: &Meshlets,
     limits: MeshletLimits,
     params: LodParams,
 ) -> Result<LodHierarchy> {
     limits.check()?;
-    if params.group_size < 2 || !(params.max_kept > 0.0 && params.max_kept < 1.0) {
-        return Err(Error::invalid("cluster LOD", format!("{params:?}: need group_size ≥ 2, 0 < max_kept < 1")));
+    if params.group_size < 2
+        || !(params.max_kept > 0.0 && params.max_kept < 1.0)
+        || !(params.attribute_weight >= 0.0 && params.attribute_weight.is_finite())
+    {
+        return Err(Error::invalid(
+            "cluster LOD",
+            format!("{params:?}: need group_size ≥ 2, 0 < max_kept < 1, attribute_weight ≥ 0"),
+        ));
     }
+    let per_vertex = if positions.is_empty() { 0 } else { attributes.len() / positions.len() };
+    if per_vertex * positions.len() != attributes.len() || per_vertex > MAX_ATTRIBUTES {
+        return Err(Error::invalid(
+            "cluster LOD",
+            format!(
+                "{} attribute values for {} vertices: need the same number for each, at most {MAX_ATTRIBUTES}",
+                attributes.len(),
+                positions.len()
+            ),
+        ));
+    }
+    let attributes = Attributes { values: attributes, weights: vec![params.attribute_weight; per_vertex] };
     let mut lod = LodHierarchy::default();
     for m in &meshlets.meshlets {
         let vertices = &meshlets.vertices[m.vertex_offset as usize..][..m.vertex_count as usize];
@@ -133,7 +165,7 @@ pub fn build(
         for g in 0..groups as u32 {
             let children: Vec<u32> =
                 frontier.iter().zip(&partition).filter(|&(_, &p)| p == g).map(|(&c, _)| c).collect();
-            match simplify_group(&mut lod, &adapter, &lock, &children, limits, params)? {
+            match simplify_group(&mut lod, &adapter, &attributes, &lock, &children, limits, params)? {
                 Some(made) => {
                     next.extend(made);
                     simplified = true;
@@ -148,6 +180,56 @@ pub fn build(
         frontier = next;
     }
     Ok(lod)
+}
+
+/// Per-vertex attribute values and their weights (one per attribute).
+struct Attributes<'a> {
+    values: &'a [f32],
+    weights: Vec<f32>,
+}
+
+/// Each vertex's positions at `poses` times spread evenly over `clips` one after the other
+/// (3 values per pose, vertex after vertex), scaled to the mesh's units: attributes for
+/// [`build`]. None without clips.
+pub fn posed_attributes(
+    skeleton: &Skeleton,
+    skin: &Skin,
+    clips: &[&Clip],
+    mesh: &SkinnedMesh,
+    poses: usize,
+) -> Result<Vec<f32>> {
+    let poses = poses.min(MAX_ATTRIBUTES / 3);
+    let total: f32 = clips.iter().map(|c| c.end - c.start).sum();
+    if clips.is_empty() || poses == 0 {
+        return Ok(Vec::new());
+    }
+    let n = mesh.positions.len();
+    let rest = crate::skinning::posed_positions(skeleton, skin, mesh, None, None)?;
+    // Scene units per mesh unit: the rest pose's extent over the bind pose's.
+    let extent = |p: &[Vec3]| {
+        let (lo, hi) = p.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &q| (a.min(q), b.max(q)));
+        (hi - lo).length()
+    };
+    let scale = extent(&rest) / extent(&mesh.positions);
+    let scale = if scale.is_finite() && scale > 0.0 { scale } else { 1.0 };
+    let mut out = vec![0.0f32; n * 3 * poses];
+    for k in 0..poses {
+        // The k-th of `poses` evenly spaced moments through the clips played in turn.
+        let mut at = total * (k as f32 + 0.5) / poses as f32;
+        let clip = clips.iter().find(|c| {
+            let inside = at <= c.end - c.start;
+            if !inside {
+                at -= c.end - c.start;
+            }
+            inside
+        });
+        let clip = clip.copied().unwrap_or(clips[clips.len() - 1]);
+        let posed = crate::skinning::posed_positions(skeleton, skin, mesh, Some(clip), Some(clip.start + at))?;
+        for (v, p) in posed.iter().enumerate() {
+            out[(v * poses + k) * 3..][..3].copy_from_slice(&(*p / scale).to_array());
+        }
+    }
+    Ok(out)
 }
 
 /// The vertices no simplification of this level may move: those used by clusters of two
@@ -184,6 +266,7 @@ fn locks(lod: &LodHierarchy, frontier: &[u32], partition: &[u32], vertices: usiz
 fn simplify_group(
     lod: &mut LodHierarchy,
     adapter: &meshopt::VertexDataAdapter,
+    attributes: &Attributes,
     lock: &[bool],
     children: &[u32],
     limits: MeshletLimits,
@@ -195,7 +278,25 @@ fn simplify_group(
         | meshopt::SimplifyOptions::ErrorAbsolute
         | meshopt::SimplifyOptions::Regularize;
     let mut error = 0.0f32;
-    let kept = meshopt::simplify_with_locks(&indices, adapter, lock, target, f32::MAX, options, Some(&mut error));
+    let kept = if attributes.weights.is_empty() {
+        meshopt::simplify_with_locks(&indices, adapter, lock, target, f32::MAX, options, Some(&mut error))
+    } else {
+        let stride = std::mem::size_of_val(attributes.weights.as_slice());
+        let (values, weights) = (attributes.values, &attributes.weights);
+        let e = Some(&mut error);
+        meshopt::simplify_with_attributes_and_locks(
+            &indices,
+            adapter,
+            values,
+            weights,
+            stride,
+            lock,
+            target,
+            f32::MAX,
+            options,
+            e,
+        )
+    };
     if kept.is_empty() || kept.len() as f32 > params.max_kept * indices.len() as f32 {
         return Ok(None);
     }
@@ -283,7 +384,7 @@ mod tests {
         let limits = MeshletLimits::NVIDIA;
         let (positions, indices) = sphere(48);
         let meshlets = meshlets_of(&positions, &indices, limits);
-        let lod = build(&positions, &meshlets, limits, LodParams::default()).unwrap();
+        let lod = build(&positions, &[], &meshlets, limits, LodParams::default()).unwrap();
         let levels = lod.clusters.iter().map(|c| c.level).max().unwrap();
         let roots = lod.clusters.iter().filter(|c| c.parent.is_none()).count();
         let top: usize = lod.clusters.iter().filter(|c| c.parent.is_none()).map(|c| c.triangles.len() / 3).sum();
@@ -328,7 +429,11 @@ mod tests {
         let (positions, indices) = sphere(8);
         let meshlets = meshlets_of(&positions, &indices, limits);
         let bad = LodParams { group_size: 1, ..Default::default() };
-        assert!(build(&positions, &meshlets, limits, bad).is_err());
-        assert!(build(&positions[..10], &meshlets, limits, LodParams::default()).is_err());
+        assert!(build(&positions, &[], &meshlets, limits, bad).is_err());
+        assert!(build(&positions[..10], &[], &meshlets, limits, LodParams::default()).is_err());
+        let uneven = vec![0.0; positions.len() * 3 + 1];
+        assert!(build(&positions, &uneven, &meshlets, limits, LodParams::default()).is_err());
+        let too_many = vec![0.0; positions.len() * (MAX_ATTRIBUTES + 1)];
+        assert!(build(&positions, &too_many, &meshlets, limits, LodParams::default()).is_err());
     }
 }

@@ -139,6 +139,31 @@ impl Meshlets {
         self.triangles.extend_from_slice(triangles);
     }
 
+    /// Appends a meshlet given its triangles as mesh vertex indices (three per triangle):
+    /// its vertices in order of first use. The caller keeps within the limits.
+    pub fn push_triangles(&mut self, triangles: &[u32]) {
+        let mut vertices: Vec<u32> = Vec::new();
+        let local: Vec<u8> = (triangles.iter())
+            .map(|&v| match vertices.iter().position(|&x| x == v) {
+                Some(i) => i as u8,
+                None => {
+                    vertices.push(v);
+                    (vertices.len() - 1) as u8
+                }
+            })
+            .collect();
+        self.push(&vertices, &local);
+    }
+
+    /// The meshlets of `range`, in order (joint sets not copied).
+    pub fn subset(&self, range: std::ops::Range<usize>) -> Meshlets {
+        let mut out = Meshlets::default();
+        for m in &self.meshlets[range] {
+            out.push(self.vertices_of(m), self.triangles_of(m));
+        }
+        out
+    }
+
     /// Appends `other`'s meshlets, whose vertex numbers start at `vertex_base` in this mesh
     /// (joint sets are not copied: [`annotate_joint_sets`] recomputes them).
     pub fn append(&mut self, other: &Meshlets, vertex_base: u32) {

@@ -69,3 +69,12 @@ impl SplitMix {
         lo + (hi - lo) * self.unit()
     }
 }
+
+/// The meshlets whose vertices lie in `vertices` (one part's).
+pub fn part_meshlets(m: &skinlet::meshlet::Meshlets, vertices: &std::ops::Range<u32>) -> skinlet::meshlet::Meshlets {
+    let mut out = skinlet::meshlet::Meshlets::default();
+    for k in m.meshlets.iter().filter(|k| vertices.contains(&m.vertices_of(k)[0])) {
+        out.push(m.vertices_of(k), m.triangles_of(k));
+    }
+    out
+}

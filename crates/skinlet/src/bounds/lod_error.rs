@@ -1,0 +1,423 @@
+//! Errors of a cluster LOD hierarchy ([`crate::meshlet::lod`]) that hold under animation.
+//! For every pose of the clips (each of their key intervals, as for the meshlet bounds), a
+//! group's own error bounds the two-sided Hausdorff distance between its simplified clusters
+//! and the clusters it simplified, both skinned; its stored error adds its children's
+//! groups' largest, so errors grow up the hierarchy and a cut whose groups all have errors
+//! within `e` is within `e` of the full detail mesh, skinned, at every such pose.
+//!
+//! How. Distances are bounded through points paired in the bind pose. Each triangle on one
+//! side is covered by sub-triangles (itself, or midpoint subdivisions where one match would
+//! be loose), each matched with one triangle of the other side, each corner with a fixed
+//! point of it (its bind-pose nearest). A skinned triangle is the affine image of its bind
+//! triangle and the distance to a triangle is convex, so any point of a skinned sub-triangle
+//! is at most its corners' largest distance to their paired points away from the other side.
+//! Such a distance `S(P) − S(Q)`, with `P − Q = Σ cᵥ v` over mesh vertices (`Σ cᵥ = 0`), is
+//! bounded in the node space of the group's principal joint `r`: per influence joint `k`,
+//! with `αᵥ = cᵥ wᵥₖ` summing to `sₖ` and `Tₖ(t) = global(r)⁻¹ global(k) IBMₖ`,
+//! `Σ αᵥ Tₖ(t) mᵥ = sₖ Tₖ(t) m₀ + Lin Tₖ(t) Σ αᵥ (mᵥ − m₀)` (`m`: morphed rest positions,
+//! `m₀` one of them): the carried box of [`super::vertex`] weighted by the weight difference
+//! `sₖ`, plus a ball of `Tₖ`'s stretch times the bind-pose vector (grown by the morph
+//! deltas' reach). The sum's length times the stretch of `global(r)` bounds the distance in
+//! scene units. Exact arithmetic: the f32 rounding of skinning (about 1e-7 of the positions'
+//! magnitude) is not included.
+//!
+//! The hierarchy's shape is the simplifier's; only the errors are replaced.
+
+use super::Aabb;
+use super::motion::spectral_bound;
+use super::sphere_cone::key_intervals;
+use super::vertex::{IntervalMotions, clip_weight_ranges, morph_box};
+use crate::clip::Clip;
+use crate::meshlet::lod::LodHierarchy;
+use crate::meshlet::stats::principal_joint;
+use crate::model::{Skeleton, Skin, SkinnedMesh, Trs};
+use crate::pose::Poser;
+use crate::{Error, Result};
+use glam::{DMat3, DMat4, DVec3};
+use rayon::prelude::*;
+use std::collections::HashMap;
+
+/// How many times a sub-triangle is split at most (4 pieces each time).
+const MAX_DEPTH: u32 = 3;
+/// A sub-triangle is split while its match is this much looser than its corners' own
+/// nearest distances.
+const LOOSE: f64 = 1.05;
+
+/// Replaces every group's error by one that holds at every pose of `clips` (none: the rest
+/// pose): its own, bounded as above, plus its children's groups' largest. `lod` is over
+/// `mesh`'s vertices (the mesh the meshlets were built on), skinned by `skin`.
+pub fn bound_errors(
+    skeleton: &Skeleton,
+    skin: &Skin,
+    clips: &[&Clip],
+    mesh: &SkinnedMesh,
+    lod: &mut LodHierarchy,
+) -> Result<()> {
+    let own = own_errors(skeleton, skin, clips, mesh, lod)?;
+    // Groups come after their children's groups: each sum sees its children's final errors.
+    for (g, own) in own.into_iter().enumerate() {
+        let below = lod.groups[g].children.iter().map(|&c| lod.cluster_errors(c as usize).0).fold(0.0f32, f32::max);
+        let sum = below as f64 + own;
+        // Rounded up to f32.
+        let error = sum as f32;
+        lod.groups[g].error = if (error as f64) < sum { error.next_up() } else { error };
+    }
+    Ok(())
+}
+
+/// Each group's own error: the bound on the two-sided distance between its clusters and its
+/// children, skinned, over every interval of `clips`.
+pub fn own_errors(
+    skeleton: &Skeleton,
+    skin: &Skin,
+    clips: &[&Clip],
+    mesh: &SkinnedMesh,
+    lod: &LodHierarchy,
+) -> Result<Vec<f64>> {
+    if mesh.influences.is_none() {
+        return Err(Error::invalid("cluster LOD errors", "the mesh has no skin weights"));
+    }
+    let intervals: Vec<(Option<&Clip>, f32, f32)> = if clips.is_empty() {
+        vec![(None, 0.0, 0.0)]
+    } else {
+        clips.iter().flat_map(|&c| key_intervals(c).into_iter().map(move |(a, b)| (Some(c), a, b))).collect()
+    };
+    let ranges = clip_weight_ranges(&mesh.morphs, clips)?;
+    let ctx = Ctx { skeleton, skin, mesh, ranges };
+    (0..lod.groups.len())
+        .into_par_iter()
+        .map(|g| {
+            let group = &lod.groups[g];
+            let triangles = |cs: &[u32]| -> Vec<u32> {
+                cs.iter().flat_map(|&c| lod.clusters[c as usize].triangles.iter().copied()).collect()
+            };
+            let (children, made) = (triangles(&group.children), triangles(&group.made));
+            let terms = ctx.terms(&children, &made)?;
+            let (mut own, mut poser, mut at) = (0.0f64, Poser::default(), Vec::new());
+            for &(clip, t1, t2) in &intervals {
+                let motions = IntervalMotions::new(skeleton, &mesh.morphs, clip, t1, t2)?;
+                match clip {
+                    Some(c) => c.sample_locals(skeleton, t1, &mut at),
+                    None => at = skeleton.nodes.iter().map(|n| n.rest).collect(),
+                }
+                let globals = poser.globals(skeleton, clip, t1);
+                own = own.max(terms.bound(&ctx, &motions, &at, globals));
+            }
+            Ok(own)
+        })
+        .collect()
+}
+
+struct Ctx<'a> {
+    skeleton: &'a Skeleton,
+    skin: &'a Skin,
+    mesh: &'a SkinnedMesh,
+    /// Each morph weight's range over the clips.
+    ranges: Vec<(f64, f64)>,
+}
+
+/// One joint `k`'s share of a paired difference: `s · Tₖ(t) m₀` (the carried box of a
+/// vertex, [`Terms::carried`]`[carried]`) plus `Lin Tₖ(t)` (joint [`Terms::joints`]`[joint]`)
+/// applied to `offset` (bind pose) and to at most `reach` more (morph deltas).
+struct Term {
+    joint: u32,
+    carried: u32,
+    s: f64,
+    offset: DVec3,
+    reach: f64,
+}
+
+/// The paired differences of one group, in the space of its principal joint.
+struct Terms {
+    principal: u16,
+    terms: Vec<Term>,
+    /// Each pair's terms: `terms[ends[i - 1]..ends[i]]`.
+    ends: Vec<u32>,
+    /// The joints the terms use, and the (vertex, joint) whose carried boxes they use.
+    joints: Vec<u16>,
+    carried: Vec<(u32, u16)>,
+}
+
+impl Ctx<'_> {
+    fn position(&self, v: u32) -> DVec3 {
+        self.mesh.positions[v as usize].as_dvec3()
+    }
+
+    /// How far vertex `v`'s morph deltas can move it within the weight ranges.
+    fn morph_reach(&self, v: u32) -> f64 {
+        let b = morph_box(self.mesh, v as usize, &self.ranges);
+        let p = self.position(v);
+        (b.min - p).abs().max((b.max - p).abs()).length()
+    }
+
+    /// The pairs between `a` and `b` (both ways) as joint terms.
+    fn terms(&self, a: &[u32], b: &[u32]) -> Result<Terms> {
+        let inf = self.mesh.influences.as_ref().expect("checked by own_errors");
+        let mut vertices: Vec<u32> = a.to_vec();
+        vertices.sort_unstable();
+        vertices.dedup();
+        let principal = principal_joint(self.mesh, &vertices)
+            .ok_or_else(|| Error::invalid("cluster LOD errors", "a group without skinned vertices"))?
+            .0;
+        let mut out = Terms { principal, terms: Vec::new(), ends: Vec::new(), joints: Vec::new(), carried: Vec::new() };
+        let (mut joint_slot, mut carried_slot) = (HashMap::new(), HashMap::new());
+        let mut pairs = Vec::new();
+        match_pairs(self, a, b, &mut pairs);
+        match_pairs(self, b, a, &mut pairs);
+        let mut joints: Vec<(u16, f64, u32, f64)> = Vec::new();
+        for coefficients in &pairs {
+            // Per joint: the sum of α, the vertex with the largest |α| and that |α|.
+            joints.clear();
+            for &(v, c) in coefficients {
+                for (k, w) in inf.of(v as usize) {
+                    let alpha = c * w as f64;
+                    match joints.iter_mut().find(|j| j.0 == k) {
+                        Some(j) => {
+                            j.1 += alpha;
+                            if alpha.abs() > j.3 {
+                                (j.2, j.3) = (v, alpha.abs());
+                            }
+                        }
+                        None => joints.push((k, alpha, v, alpha.abs())),
+                    }
+                }
+            }
+            for &(k, s, v0, _) in &joints {
+                let (p0, mut offset, mut reach) = (self.position(v0), DVec3::ZERO, 0.0);
+                for &(v, c) in coefficients {
+                    let w = inf.of(v as usize).find(|j| j.0 == k).map_or(0.0, |j| j.1 as f64);
+                    offset += c * w * (self.position(v) - p0);
+                    reach += (c * w).abs() * self.morph_reach(v);
+                }
+                let reach = reach + s.abs() * self.morph_reach(v0);
+                if s != 0.0 || offset != DVec3::ZERO || reach != 0.0 {
+                    let joint = *joint_slot.entry(k).or_insert_with(|| {
+                        out.joints.push(k);
+                        out.joints.len() as u32 - 1
+                    });
+                    let carried = if s == 0.0 {
+                        u32::MAX
+                    } else {
+                        *carried_slot.entry((v0, k)).or_insert_with(|| {
+                            out.carried.push((v0, k));
+                            out.carried.len() as u32 - 1
+                        })
+                    };
+                    out.terms.push(Term { joint, carried, s, offset, reach });
+                }
+            }
+            out.ends.push(out.terms.len() as u32);
+        }
+        Ok(out)
+    }
+}
+
+impl Terms {
+    /// The largest paired distance over one interval, in scene units. `at`: every node's
+    /// local transform at the interval's start, `globals` their global transforms: `Lin Tₖ`
+    /// is split into its value there (applied exactly) and its deviation over the interval.
+    fn bound(&self, ctx: &Ctx, motions: &IntervalMotions, at: &[Trs], globals: &[DMat4]) -> f64 {
+        let (skeleton, skin) = (ctx.skeleton, ctx.skin);
+        let r = skin.joints[self.principal as usize];
+        let to_r = globals[r as usize].inverse();
+        let boxes: Vec<Aabb> = (self.carried.iter())
+            .map(|&(v, k)| {
+                let rest =
+                    motions.rest_box(ctx.mesh, v as usize).transformed(&skin.inverse_bind[k as usize].as_dmat4());
+                motions.carry(skeleton, skin.joints[k as usize], r, rest)
+            })
+            .collect();
+        // Per joint: its linear part at the start, its deviation and its stretch.
+        let linear: Vec<(DMat3, f64, f64)> = (self.joints.iter())
+            .map(|&k| {
+                let (node, ibm) = (skin.joints[k as usize], skin.inverse_bind[k as usize].as_dmat4());
+                let ibm_norm = spectral_bound(&DMat3::from_mat4(ibm));
+                (
+                    DMat3::from_mat4(to_r * globals[node as usize] * ibm),
+                    motions.deviation(skeleton, node, r, at) * ibm_norm,
+                    motions.stretch(skeleton, node, Some(r)) * ibm_norm,
+                )
+            })
+            .collect();
+        let mut worst = 0.0f64;
+        let mut start = 0usize;
+        for &end in &self.ends {
+            let (mut lo, mut hi, mut ball) = (DVec3::ZERO, DVec3::ZERO, 0.0);
+            for t in &self.terms[start..end as usize] {
+                if t.s != 0.0 {
+                    let b = &boxes[t.carried as usize];
+                    let (a, c) = (b.min * t.s, b.max * t.s);
+                    lo += a.min(c);
+                    hi += a.max(c);
+                }
+                let (start_linear, deviation, stretch) = &linear[t.joint as usize];
+                let shift = *start_linear * t.offset;
+                lo += shift;
+                hi += shift;
+                ball += deviation * t.offset.length() + stretch * t.reach;
+            }
+            start = end as usize;
+            worst = worst.max(lo.abs().max(hi.abs()).length() + ball);
+        }
+        let scene = motions.stretch(skeleton, r, None);
+        if (worst * scene).is_nan() { f64::INFINITY } else { worst * scene }
+    }
+}
+
+/// A triangle of the side matched against, in the bind pose.
+struct Target {
+    vertices: [u32; 3],
+    corners: [DVec3; 3],
+    bounds: Aabb,
+}
+
+/// Covers every triangle of `from` by sub-triangles matched with triangles of `to` and
+/// appends each sub-triangle corner's pair as coefficients over mesh vertices (`P − Q`).
+fn match_pairs(ctx: &Ctx, from: &[u32], to: &[u32], out: &mut Vec<Vec<(u32, f64)>>) {
+    let targets: Vec<Target> = to
+        .chunks_exact(3)
+        .map(|t| {
+            let corners = [ctx.position(t[0]), ctx.position(t[1]), ctx.position(t[2])];
+            let mut bounds = Aabb::point(corners[0]);
+            bounds.extend(corners[1]);
+            bounds.extend(corners[2]);
+            Target { vertices: [t[0], t[1], t[2]], corners, bounds }
+        })
+        .collect();
+    let identity = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    for t in from.chunks_exact(3) {
+        let source = [t[0], t[1], t[2]];
+        let corners = [ctx.position(t[0]), ctx.position(t[1]), ctx.position(t[2])];
+        subdivide(&targets, &source, &corners, identity, 0, out);
+    }
+}
+
+/// Matches the sub-triangle with barycentric corners `bary` (over `source`) or splits it.
+fn subdivide(
+    targets: &[Target],
+    source: &[u32; 3],
+    corners: &[DVec3; 3],
+    bary: [[f64; 3]; 3],
+    depth: u32,
+    out: &mut Vec<Vec<(u32, f64)>>,
+) {
+    let points = bary.map(|b| b[0] * corners[0] + b[1] * corners[1] + b[2] * corners[2]);
+    // The target whose farthest corner distance is least, and each corner's own nearest.
+    let (mut best, mut best_far) = (0usize, f64::INFINITY);
+    let mut nearest = [f64::INFINITY; 3];
+    for (i, t) in targets.iter().enumerate() {
+        let gaps = points.map(|p| box_distance(&t.bounds, p));
+        if gaps.iter().zip(&nearest).all(|(g, n)| g >= n) && gaps.iter().copied().fold(0.0, f64::max) >= best_far {
+            continue;
+        }
+        let d = points.map(|p| (closest_point(&t.corners, p).0 - p).length());
+        for k in 0..3 {
+            nearest[k] = nearest[k].min(d[k]);
+        }
+        let far = d.iter().copied().fold(0.0, f64::max);
+        if far < best_far {
+            (best, best_far) = (i, far);
+        }
+    }
+    let own = nearest.iter().copied().fold(0.0, f64::max);
+    let size = (corners[1] - corners[0]).length().max((corners[2] - corners[0]).length());
+    if depth < MAX_DEPTH && best_far > own * LOOSE + 1e-9 * size {
+        let mid = |a: [f64; 3], b: [f64; 3]| [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0, (a[2] + b[2]) / 2.0];
+        let [a, b, c] = bary;
+        let (ab, bc, ca) = (mid(a, b), mid(b, c), mid(c, a));
+        for piece in [[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]] {
+            subdivide(targets, source, corners, piece, depth + 1, out);
+        }
+        return;
+    }
+    let Some(target) = targets.get(best) else { return };
+    for (p, b) in points.iter().zip(bary) {
+        let w = closest_point(&target.corners, *p).1;
+        let mut coefficients: Vec<(u32, f64)> = Vec::with_capacity(6);
+        let mut add = |v: u32, c: f64| match coefficients.iter_mut().find(|e| e.0 == v) {
+            Some(e) => e.1 += c,
+            None => coefficients.push((v, c)),
+        };
+        (0..3).for_each(|k| add(source[k], b[k]));
+        (0..3).for_each(|k| add(target.vertices[k], -w[k]));
+        coefficients.retain(|e| e.1 != 0.0);
+        // A corner paired with itself (a vertex both sides keep) is 0 at every pose.
+        if !coefficients.is_empty() {
+            out.push(coefficients);
+        }
+    }
+}
+
+/// The distance from `p` to the box (0 inside).
+fn box_distance(b: &Aabb, p: DVec3) -> f64 {
+    (b.min - p).max(p - b.max).max(DVec3::ZERO).length()
+}
+
+/// The point of triangle `t` nearest `p` and its barycentric coordinates (Ericson,
+/// "Real-Time Collision Detection", 5.1.5).
+pub(crate) fn closest_point(t: &[DVec3; 3], p: DVec3) -> (DVec3, [f64; 3]) {
+    let [a, b, c] = *t;
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return (a, [1.0, 0.0, 0.0]);
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return (b, [0.0, 1.0, 0.0]);
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = d1 / (d1 - d3);
+        return (a + v * ab, [1.0 - v, v, 0.0]);
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return (c, [0.0, 0.0, 1.0]);
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = d2 / (d2 - d6);
+        return (a + w * ac, [1.0 - w, 0.0, w]);
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return (b + w * (c - b), [0.0, 1.0 - w, w]);
+    }
+    let denom = va + vb + vc;
+    if denom.abs() < f64::MIN_POSITIVE {
+        // A degenerate triangle: its nearest corner.
+        let d = [a, b, c].map(|q| (q - p).length_squared());
+        let k = (0..3).min_by(|&i, &j| d[i].total_cmp(&d[j])).unwrap_or(0);
+        let mut w = [0.0; 3];
+        w[k] = 1.0;
+        return (t[k], w);
+    }
+    let (v, w) = (vb / denom, vc / denom);
+    (a + ab * v + ac * w, [1.0 - v - w, v, w])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn closest_point_barycentrics_reproduce_the_point() {
+        let t = [DVec3::ZERO, DVec3::X, DVec3::Y];
+        for p in [
+            DVec3::new(0.2, 0.2, 1.0),
+            DVec3::new(-1.0, -1.0, 0.0),
+            DVec3::new(2.0, 0.5, 0.0),
+            DVec3::new(0.6, 0.6, -3.0),
+        ] {
+            let (q, w) = closest_point(&t, p);
+            let back = w[0] * t[0] + w[1] * t[1] + w[2] * t[2];
+            assert!((q - back).length() < 1e-12, "{p}: {q} against {back}");
+            assert!(w.iter().all(|&x| (-1e-12..=1.0 + 1e-12).contains(&x)));
+        }
+        assert!((closest_point(&t, DVec3::new(0.6, 0.6, 0.0)).0 - DVec3::new(0.5, 0.5, 0.0)).length() < 1e-12);
+    }
+}
