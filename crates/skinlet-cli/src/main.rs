@@ -277,7 +277,10 @@ enum Command {
     /// meshlet's sphere and every triangle's normal against its cone, in the meshlet's joint
     /// space as the runtime culls. A bake's pose envelope (`bake --envelope`) is checked at
     /// --samples poses inside it, half on its boundary; the parts' boxes per clip window at
-    /// every sample time. The bounds are computed afresh, or read from a bake file (--baked; its
+    /// every sample time; a bake's cluster LOD hierarchy (`bake --lod`): its clusters' bounds like
+    /// the meshlets', its errors at up to 16 evenly spaced times per clip (every point of every
+    /// group's clusters within the group's error of the full detail mesh, the full detail mesh
+    /// within three cuts' errors of the cuts). The bounds are computed afresh, or read from a bake file (--baked; its
     /// clips are checked, and FILE must be the file it was baked from). Exits with status 1 on
     /// any violation beyond float rounding.
     Verify {
@@ -1236,7 +1239,37 @@ fn verify(
             samples.max(2),
         )
     });
-    let violations = r.violations() + envelope.map_or(0, |e| e.violations()) + part_windows.map_or(0, |w| w.1);
+    // The cluster LOD hierarchy: its clusters' bounds like the meshlets', its errors against
+    // the full detail mesh at the evenly spaced sample times.
+    let lod = match &b.lod {
+        Some(l) => {
+            let bounds = skinlet::bounds::verify::verify_bounds(
+                &asset.skeleton,
+                skin,
+                &clips,
+                &b.mesh,
+                &l.meshlets,
+                &l.bounds,
+                samples.max(2),
+            )?;
+            let hierarchies = l.hierarchies(&b.meshlets, &b.parts);
+            let parts: Vec<_> = hierarchies.iter().map(|(r, h)| (r.clone(), h)).collect();
+            let per_clip = samples.clamp(2, 16);
+            let poses: Vec<_> = (clips.iter())
+                .flat_map(|&c| {
+                    (0..per_clip).map(move |k| (Some(c), c.start + c.duration() * k as f32 / (per_clip - 1) as f32))
+                })
+                .collect();
+            let poses = if poses.is_empty() { vec![(None, 0.0)] } else { poses };
+            let errors = skinlet::bounds::lod_verify::verify_errors(&asset.skeleton, skin, &poses, &b.mesh, &parts)?;
+            Some((bounds, errors))
+        }
+        None => None,
+    };
+    let violations = r.violations()
+        + envelope.map_or(0, |e| e.violations())
+        + part_windows.map_or(0, |w| w.1)
+        + lod.as_ref().map_or(0, |(b, e)| b.violations() + e.violations);
     if json {
         let out = json!({
             "samples": r.samples, "vertex_checks": r.vertex_checks, "normal_checks": r.normal_checks,
@@ -1245,6 +1278,9 @@ fn verify(
             "envelope": envelope.map(|e| json!({"poses": e.samples, "vertex_checks": e.vertex_checks,
                 "normal_checks": e.normal_checks, "violations": e.violations(), "mean_radius_ratio": e.mean_radius_ratio})),
             "part_windows": part_windows.map(|(checks, violations)| json!({"vertex_checks": checks, "violations": violations})),
+            "lod": lod.as_ref().map(|(b, e)| json!({"cluster_vertex_checks": b.vertex_checks, "cluster_normal_checks": b.normal_checks,
+                "cluster_violations": b.violations(), "error_poses": e.poses, "error_points": e.points, "error_violations": e.violations,
+                "max_distance_per_error": e.max_ratio, "median_distance_per_error": e.median_ratio})),
         });
         println!("{}", serde_json::to_string_pretty(&out)?);
     } else {
@@ -1284,6 +1320,18 @@ fn verify(
         if let Some((checks, violations)) = part_windows {
             println!(
                 "  part boxes per clip window: {checks} vertex checks in each part's anchor space, {violations} violations"
+            );
+        }
+        if let Some((b, e)) = &lod {
+            println!(
+                "  cluster LOD: clusters' bounds {} vertex and {} normal checks, {} violations; errors at {} poses, {} points, {} violations (largest distance ÷ error {:.3})",
+                b.vertex_checks,
+                b.normal_checks,
+                b.violations(),
+                e.poses,
+                e.points,
+                e.violations,
+                e.max_ratio
             );
         }
     }

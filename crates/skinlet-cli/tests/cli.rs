@@ -372,6 +372,25 @@ fn cull_reports_table_one_columns_and_never_culls_visible_triangles() {
 }
 
 #[test]
+fn lod_bakes_and_verifies() {
+    let dir = std::env::temp_dir().join(format!("skinlet-lod-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (plain, with) = (dir.join("plain.skinlet"), dir.join("lod.skinlet"));
+    let (plain, with) = (plain.to_str().unwrap(), with.to_str().unwrap());
+    let a = json_of(&["bake", "@demo:2000", "-o", plain, "--rounds", "0", "--json"]);
+    let b = json_of(&["bake", "@demo:2000", "-o", with, "--rounds", "0", "--lod", "--json"]);
+    assert!(a["lod_groups"].is_null() && b["lod_groups"].as_u64().unwrap() > 0, "{b}");
+    assert!(b["lod_clusters"].as_u64().unwrap() > 0 && b["lod_levels"].as_u64().unwrap() >= 2, "{b}");
+    let ratio = b["bytes"].as_f64().unwrap() / a["bytes"].as_f64().unwrap();
+    assert!(ratio > 1.0 && ratio < 2.0, "the hierarchy makes the bake {ratio}× larger");
+    let v = json_of(&["verify", "@demo:2000", "--baked", with, "--samples", "4", "--json"]);
+    let l = &v["lod"];
+    assert_eq!((l["cluster_violations"].as_u64(), l["error_violations"].as_u64()), (Some(0), Some(0)), "{v}");
+    assert!(l["cluster_vertex_checks"].as_u64().unwrap() > 0 && l["error_points"].as_u64().unwrap() > 0, "{v}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
 fn envelopes_bake_and_game_poses_cull_with_the_guard() {
     let dir = std::env::temp_dir().join(format!("skinlet-envelope-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();

@@ -21,7 +21,7 @@ use crate::character::{Character, PartKind};
 use crate::clip::Clip;
 use crate::contour::skinned::{SkinnedParams, skinned_edges};
 use crate::cull::any_pose::AnyPoseBoxes;
-use crate::meshlet::lod::LodParams;
+use crate::meshlet::lod::{LodHierarchy, LodParams};
 use crate::meshlet::sources::source_triangles;
 use crate::meshlet::{
     Builder, MeshletLimits, Meshlets, PartRange, PreparedMesh, build_moving, flat, motion_for, prepare_parts,
@@ -119,6 +119,49 @@ pub struct BakedLod {
     pub classes: Vec<Class>,
     /// Per part, the range of its clusters.
     pub part_clusters: Vec<Range<u32>>,
+}
+
+impl BakedLod {
+    /// Each part's hierarchy, with the range of the part's triangles: its clusters are the
+    /// part's `MLET` meshlets (level 0), then its own clusters; its groups are numbered from 0.
+    pub fn hierarchies(&self, meshlets: &Meshlets, parts: &[BakedPart]) -> Vec<(Range<u32>, LodHierarchy)> {
+        use crate::meshlet::lod::{LodCluster, LodGroup};
+        let triangles = |m: &Meshlets, i: usize| -> Vec<u32> { m.mesh_triangles(&m.meshlets[i]).flatten().collect() };
+        let mut out = Vec::with_capacity(parts.len());
+        for (part, range) in parts.iter().zip(&self.part_clusters) {
+            let base = part.meshlets.start as usize..part.meshlets.end as usize;
+            let own = range.start as usize..range.end as usize;
+            // The part's groups: a contiguous range (add_lod numbers them part by part).
+            let used = own.clone().map(|c| self.clusters[c][0]).chain(base.clone().map(|m| self.base_parents[m]));
+            let used: Vec<u32> = used.filter(|&g| g != NO_GROUP).collect();
+            let first = used.iter().copied().min().unwrap_or(0);
+            let end = used.iter().copied().max().map_or(first, |g| g + 1);
+            let local = |g: u32| (g != NO_GROUP && (first..end).contains(&g)).then(|| g - first);
+            let mut lod = LodHierarchy::default();
+            for m in base.clone() {
+                let (triangles, parent) = (triangles(meshlets, m), local(self.base_parents[m]));
+                lod.clusters.push(LodCluster { triangles, level: 0, group: None, parent });
+            }
+            for c in own.clone() {
+                let [group, parent] = self.clusters[c];
+                let level = self.groups[group as usize].0;
+                let (triangles, group, parent) = (triangles(&self.meshlets, c), local(group), local(parent));
+                lod.clusters.push(LodCluster { triangles, level, group, parent });
+            }
+            for g in first..end {
+                let (level, error) = self.groups[g as usize];
+                let with = |f: &dyn Fn(&LodCluster) -> Option<u32>| -> Vec<u32> {
+                    (0..lod.clusters.len() as u32)
+                        .filter(|&c| f(&lod.clusters[c as usize]) == Some(g - first))
+                        .collect()
+                };
+                let (children, made) = (with(&|c| c.parent), with(&|c| c.group));
+                lod.groups.push(LodGroup { level, children, made, error });
+            }
+            out.push((part.triangles.clone(), lod));
+        }
+        out
+    }
 }
 
 /// Bounds for the poses games make: a pose envelope with meshlet bounds (and their classes)

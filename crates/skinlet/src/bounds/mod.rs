@@ -18,6 +18,7 @@
 pub mod cone;
 pub mod envelope;
 pub mod lod_error;
+pub mod lod_verify;
 pub mod motion;
 pub mod part_windows;
 pub mod refine;
