@@ -18,6 +18,7 @@ mod bench;
 mod contours;
 mod crowd;
 mod gpu_bench;
+mod lod;
 mod overdraw;
 mod render;
 
@@ -88,7 +89,7 @@ fn character_of(asset: &Asset) -> skinlet::Result<Character> {
 
 /// Refinement of conservative bounds and the classification thresholds it aims at.
 #[derive(clap::Args, Clone, Copy)]
-struct RefineArgs {
+pub(crate) struct RefineArgs {
     /// Seconds of precomputation (key intervals always run; refinement then halves the
     /// intervals where bounds are worst until the budget is spent or nothing improves).
     /// 0: no time limit (refine for --rounds rounds).
@@ -452,6 +453,20 @@ enum Command {
         #[command(flatten)]
         args: gpu_bench::Args,
     },
+    /// What cluster LOD saves on a crowd: triangles and vertex references drawn.
+    ///
+    /// Bakes the character with its cluster LOD hierarchy (`bake --lod`; a bake file keeps
+    /// its own), lays out the crowd of `gpu-bench` at the image size, poses every instance
+    /// for a few frames, and gives each the cut at the pixel threshold projected at the
+    /// nearest point of the sphere around its parts' boxes: no point moves more than that many
+    /// pixels from where full detail draws it (docs/LOD.md). Counts the cuts' triangles and
+    /// vertex references against full detail, on the CPU and before any culling.
+    Lod {
+        /// A bake file, a .glb or .gltf file, or @demo[:TRIANGLES].
+        file: String,
+        #[command(flatten)]
+        args: lod::Args,
+    },
     /// Measure skinlet's speed against a baseline, in the same run.
     Bench {
         #[command(subcommand)]
@@ -548,6 +563,7 @@ fn main() {
         Command::Bench { what } => bench::command(&what),
         Command::Render { file, args } => render::command(&file, &args),
         Command::GpuBench { file, args } => gpu_bench::command(&file, &args),
+        Command::Lod { file, args } => lod::command(&file, &args),
         Command::Demo { triangles, seed, glb, json } => demo(triangles, seed, glb.as_deref(), json),
     };
     if let Err(e) = result {

@@ -387,6 +387,25 @@ fn lod_bakes_and_verifies() {
     let l = &v["lod"];
     assert_eq!((l["cluster_violations"].as_u64(), l["error_violations"].as_u64()), (Some(0), Some(0)), "{v}");
     assert!(l["cluster_vertex_checks"].as_u64().unwrap() > 0 && l["error_points"].as_u64().unwrap() > 0, "{v}");
+    // On a crowd: fewer triangles the larger the threshold, never more than full detail.
+    let j = json_of(&[
+        "lod",
+        with,
+        "--gltf",
+        "@demo:2000",
+        "--instances",
+        "64",
+        "--frames",
+        "1",
+        "--pixels",
+        "1,16",
+        "--json",
+    ]);
+    let t = &j["thresholds"];
+    let full = t[0]["triangles_full_detail"].as_u64().unwrap();
+    let (fine, coarse) = (t[0]["triangles_lod"].as_u64().unwrap(), t[1]["triangles_lod"].as_u64().unwrap());
+    assert_eq!(full, 64 * b["baked_triangles"].as_u64().unwrap(), "{j}");
+    assert!(coarse < fine && fine <= full, "{j}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -773,23 +773,29 @@ pub fn check_consumers(b: &Baked) -> Result<()> {
     }
     // The per-part boxes an engine culls entities with, as a game reads them, for every kind
     // of pose (every clip at its start and past its end).
+    with_view(b, |view| {
+        if let Some(l) = view.lod() {
+            for threshold in [0.0, 1e-3, f32::MAX] {
+                l.cut(threshold);
+            }
+        }
+        let parts = PartBounds::new(view)?;
+        let clips = (0..b.settings.clips.len() as u32)
+            .flat_map(|clip| [0.0, f32::MAX].map(|time| PoseBounds::ClipAt { clip, time }));
+        for pose in [PoseBounds::Any, PoseBounds::Clips, PoseBounds::Envelope].into_iter().chain(clips) {
+            for i in 0..b.parts.len() {
+                parts.part_box(i, &glam::Affine3A::IDENTITY, &joints, &weights, pose);
+            }
+        }
+        Ok(())
+    })
+}
+
+/// Runs `f` on the run-time view of the bake's bytes (what a game reads from the file).
+pub fn with_view<R>(b: &Baked, f: impl FnOnce(&BakeView) -> Result<R>) -> Result<R> {
     let bytes = to_bytes(b);
     let words = aligned_words(&bytes);
-    let view = BakeView::new(&bytemuck::cast_slice::<u32, u8>(&words)[..bytes.len()])?;
-    if let Some(l) = view.lod() {
-        for threshold in [0.0, 1e-3, f32::MAX] {
-            l.cut(threshold);
-        }
-    }
-    let parts = PartBounds::new(&view)?;
-    let clips = (0..b.settings.clips.len() as u32)
-        .flat_map(|clip| [0.0, f32::MAX].map(|time| PoseBounds::ClipAt { clip, time }));
-    for pose in [PoseBounds::Any, PoseBounds::Clips, PoseBounds::Envelope].into_iter().chain(clips) {
-        for i in 0..b.parts.len() {
-            parts.part_box(i, &glam::Affine3A::IDENTITY, &joints, &weights, pose);
-        }
-    }
-    Ok(())
+    f(&BakeView::new(&bytemuck::cast_slice::<u32, u8>(&words)[..bytes.len()])?)
 }
 
 /// `bytes` in 4-byte aligned storage, zero-padded to whole words: what the runtime's views
