@@ -215,16 +215,16 @@ pub fn posed_attributes(
     let mut out = vec![0.0f32; n * 3 * poses];
     for k in 0..poses {
         // The k-th of `poses` evenly spaced moments through the clips played in turn.
-        let mut at = total * (k as f32 + 0.5) / poses as f32;
-        let clip = clips.iter().find(|c| {
-            let inside = at <= c.end - c.start;
-            if !inside {
-                at -= c.end - c.start;
+        let (mut at, mut clip) = (total * (k as f32 + 0.5) / poses as f32, clips[0]);
+        for &c in clips {
+            clip = c;
+            if at <= c.end - c.start {
+                break;
             }
-            inside
-        });
-        let clip = clip.copied().unwrap_or(clips[clips.len() - 1]);
-        let posed = crate::skinning::posed_positions(skeleton, skin, mesh, Some(clip), Some(clip.start + at))?;
+            at -= c.end - c.start;
+        }
+        let t = (clip.start + at).min(clip.end);
+        let posed = crate::skinning::posed_positions(skeleton, skin, mesh, Some(clip), Some(t))?;
         for (v, p) in posed.iter().enumerate() {
             out[(v * poses + k) * 3..][..3].copy_from_slice(&(*p / scale).to_array());
         }
