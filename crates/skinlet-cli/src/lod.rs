@@ -10,7 +10,7 @@ use skinlet::meshlet::Builder;
 use skinlet::pose::global_transforms;
 use skinlet_lab::crowd::{CrowdParams, Layout, instance_pose, posed_crowd};
 use skinlet_runtime::bake_view::BakeView;
-use skinlet_runtime::lod_select::error_threshold;
+use skinlet_runtime::lod_select::LodCamera;
 use skinlet_runtime::part_bounds::{PartBounds, PoseBounds};
 
 #[derive(clap::Args)]
@@ -125,7 +125,7 @@ fn measure(
     let scene = posed_crowd(&asset.skeleton, &palette, &baked.mesh, clips, &params)?;
     let height = (a.width * 9 / 16).max(1);
     let eye = scene.camera.eye().ok_or_else(|| invalid("the crowd's camera is orthographic"))?;
-    let focal = focal_of(&scene.camera, height);
+    let camera = lod_camera(&scene.camera, eye, a.width, height);
     // Per cluster (meshlets first): triangles, vertices, level.
     let mut size = Vec::new();
     let meshlets = view.meshlets();
@@ -157,7 +157,7 @@ fn measure(
             let (center, radius) = ((lo + hi) / 2.0, (hi - lo).length() / 2.0);
             for (k, &pixels) in a.pixels.iter().enumerate() {
                 let d = &mut drawn[k];
-                for c in lod.cut(error_threshold(pixels, focal, eye, center, radius, 1.0)) {
+                for c in lod.cut(camera.threshold(pixels, center, radius, 1.0)) {
                     let (tris, verts, level) = size[c as usize];
                     (d.0, d.1) = (d.0 + tris, d.1 + verts);
                     if d.2.len() <= level as usize {
@@ -184,10 +184,10 @@ fn invalid(message: &str) -> skinlet::Error {
     skinlet::Error::Invalid { location: "lod".into(), message: message.into() }
 }
 
-/// A symmetric perspective camera's focal length in pixels for an image `height` pixels
-/// tall: its bottom and top planes' inward normals are `π − fov_y` apart.
-fn focal_of(camera: &skinlet::cull::Camera, height: u32) -> f32 {
+/// The crowd's symmetric perspective camera for LOD: its near plane's inward normal is the
+/// view direction, its bottom and top planes' are `π − fov_y` apart.
+fn lod_camera(camera: &skinlet::cull::Camera, eye: Vec3, width: u32, height: u32) -> LodCamera {
     let (bottom, top) = (camera.planes[2].truncate(), camera.planes[3].truncate());
     let fov = std::f32::consts::PI - bottom.dot(top).clamp(-1.0, 1.0).acos();
-    height as f32 / 2.0 / (fov / 2.0).tan()
+    LodCamera::perspective(eye, camera.planes[4].truncate(), fov, width as f32 / height as f32, height)
 }

@@ -649,8 +649,10 @@ pub const NO_GROUP: u32 = u32::MAX;
 /// clusters above level 0 in `MLET`'s layout with their bounds in `BNDS`'s, per cluster its
 /// own group and its parent group, per `MLET` meshlet (level 0) its parent group, per part the
 /// range of its clusters. Checked at load: indices in range, each parent group above its
-/// child's level with an error at least its child's (errors are monotone, so every threshold
-/// picks a cut), finite errors ≥ 0, each cluster inside its part's vertices.
+/// child's level with an error at least its child's, finite errors ≥ 0, each cluster inside its
+/// part's vertices, every group with clusters it simplified and clusters it made, all of one
+/// part. That a cut covers each part once is the baker's guarantee (tested), not re-proved
+/// here: a file that passes is safe to read and draw.
 #[derive(Clone, Copy, Debug)]
 pub struct LodView<'a> {
     pub groups: &'a [BakedLodGroup],
@@ -707,18 +709,23 @@ fn read_lod<'a>(
     }
     // Each array's end, checked against the section's length before any cast.
     let mut at = 16usize;
-    let mut take = |bytes: Option<usize>| -> Result<std::ops::Range<usize>> {
-        let end = bytes.and_then(|b| at.checked_add(b)).filter(|&e| e <= s.len());
-        let end = end.ok_or_else(|| bad(format!("byte {at}: the counts do not fit in the section")))?;
-        let r = at..end;
+    // The next `bytes`, after zero padding to a multiple of `align`.
+    let mut take = |bytes: Option<usize>, align: usize| -> Result<std::ops::Range<usize>> {
+        let start = at.next_multiple_of(align);
+        if s.get(at..start).is_none_or(|pad| pad.iter().any(|&b| b != 0)) {
+            return Err(bad(format!("byte {at}: the padding is cut or not zero")));
+        }
+        let end = bytes.and_then(|b| start.checked_add(b)).filter(|&e| e <= s.len());
+        let end = end.ok_or_else(|| bad(format!("byte {start}: the counts do not fit in the section")))?;
         at = end;
-        Ok(r)
+        Ok(start..end)
     };
-    let groups: &[BakedLodGroup] = cast(&s[take(g.checked_mul(8))?], "LODC")?;
-    let base_parents: &[u32] = cast(&s[take(m.checked_mul(4))?], "LODC")?;
-    let clusters: &[[u32; 2]] = cast(&s[take(c.checked_mul(8))?], "LODC")?;
-    let bounds: &[BakedBounds] = cast(&s[take(c.checked_mul(48))?], "LODC")?;
-    let part_clusters: &[[u32; 2]] = cast(&s[take(p.checked_mul(8))?], "LODC")?;
+    let groups: &[BakedLodGroup] = cast(&s[take(g.checked_mul(8), 4)?], "LODC")?;
+    let base_parents: &[u32] = cast(&s[take(m.checked_mul(4), 4)?], "LODC")?;
+    let clusters: &[[u32; 2]] = cast(&s[take(c.checked_mul(8), 4)?], "LODC")?;
+    // The bounds records start 16-byte aligned, as in BNDS.
+    let bounds: &[BakedBounds] = cast(&s[take(c.checked_mul(48), 16)?], "LODC")?;
+    let part_clusters: &[[u32; 2]] = cast(&s[take(p.checked_mul(8), 4)?], "LODC")?;
     let meshlets = MeshletView::new(&s[at..]).map_err(|e| bad(format!("clusters: {e}")))?;
     if meshlets.len() != c {
         return Err(bad(format!("{} clusters in the meshlet layout, where the header says {c}", meshlets.len())));
@@ -762,6 +769,34 @@ fn read_lod<'a>(
     }
     if end as usize != c {
         return Err(bad("the parts do not cover every cluster".into()));
+    }
+    // Every group simplified some clusters into others, all of one part.
+    let mut seen = vec![(u32::MAX, false, false); g];
+    let mut mark = |group: u32, part: u32, made: bool| -> Result<()> {
+        let Some(x) = seen.get_mut(group as usize) else { return Ok(()) };
+        if x.0 != u32::MAX && x.0 != part {
+            return Err(bad(format!("group {group}: clusters of parts {} and {part}", x.0)));
+        }
+        x.0 = part;
+        if made {
+            x.2 = true
+        } else {
+            x.1 = true
+        }
+        Ok(())
+    };
+    for (p, part) in parts.iter().enumerate() {
+        for m in part.meshlets[0]..part.meshlets[1] {
+            mark(base_parents[m as usize], p as u32, false)?;
+        }
+        for k in part_clusters[p][0]..part_clusters[p][1] {
+            let [own, parent] = clusters[k as usize];
+            mark(own, p as u32, true)?;
+            mark(parent, p as u32, false)?;
+        }
+    }
+    if let Some(i) = seen.iter().position(|x| !(x.1 && x.2)) {
+        return Err(bad(format!("group {i}: no clusters it simplified, or none it made")));
     }
     Ok(LodView { groups, base_parents, clusters, bounds, part_clusters, meshlets })
 }

@@ -418,11 +418,11 @@ proptest! {
     /// LOD thresholds: any numbers give a finite threshold ≥ 0.
     #[test]
     fn lod_thresholds_take_any_numbers(
-        pixels in any_f32(), focal in any_f32(), eye in any_vec3(), center in any_vec3(), radius in any_f32(),
-        scale in any_f32(), m in proptest::array::uniform16(any_f32()), height in any::<u32>(),
+        pixels in any_f32(), fov in any_f32(), aspect in any_f32(), eye in any_vec3(), forward in any_vec3(),
+        center in any_vec3(), radius in any_f32(), scale in any_f32(), height in any::<u32>(),
     ) {
-        let t = skinlet_runtime::lod_select::error_threshold(pixels, focal, eye, center, radius, scale);
+        let cam = skinlet_runtime::lod_select::LodCamera::perspective(eye, forward, fov, aspect, height);
+        let t = cam.threshold(pixels, center, radius, scale);
         prop_assert!(t.is_finite() && t >= 0.0, "{t}");
-        skinlet_runtime::lod_select::focal_px(&Mat4::from_cols_array(&m), height);
     }
 }

@@ -339,7 +339,8 @@ pub fn add_lod(baked: &mut Baked, asset: &Asset, params: &LodParams) -> Result<(
         crate::bounds::lod_error::bound_errors(&asset.skeleton, &palette, &clips, mesh, &mut lod)?;
         let group_offset = out.groups.len() as u32;
         let global = |g: Option<u32>| g.map_or(NO_GROUP, |g| g + group_offset);
-        out.groups.extend(lod.groups.iter().map(|g| (g.level, g.error)));
+        // An unbounded error (a scale through zero) as the largest finite one: never coarser.
+        out.groups.extend(lod.groups.iter().map(|g| (g.level, g.error.min(f32::MAX))));
         for (i, c) in lod.clusters.iter().enumerate() {
             if i < base.len() {
                 out.base_parents[base.start + i] = global(c.parent);
@@ -658,6 +659,7 @@ pub fn to_bytes(b: &Baked) -> Vec<u8> {
         }
         l.base_parents.iter().for_each(|&p| lo.u32(p));
         l.clusters.iter().flatten().for_each(|&x| lo.u32(x));
+        lo.0.resize(lo.0.len().next_multiple_of(16), 0);
         lo.bounds(&l.bounds, &l.classes);
         for r in &l.part_clusters {
             lo.u32(r.start);

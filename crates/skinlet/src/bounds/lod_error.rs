@@ -185,7 +185,7 @@ impl Ctx<'_> {
             for &(k, s, v0, _) in &joints {
                 let (p0, mut offset, mut reach) = (self.position(v0), DVec3::ZERO, 0.0);
                 for &(v, c) in coefficients {
-                    let w = inf.of(v as usize).find(|j| j.0 == k).map_or(0.0, |j| j.1 as f64);
+                    let w: f64 = inf.of(v as usize).filter(|j| j.0 == k).map(|j| j.1 as f64).sum();
                     offset += c * w * (self.position(v) - p0);
                     reach += (c * w).abs() * self.morph_reach(v);
                 }
@@ -254,14 +254,22 @@ impl Terms {
                 let shift = *start_linear * t.offset;
                 lo += shift;
                 hi += shift;
-                ball += deviation * t.offset.length() + stretch * t.reach;
+                ball += times(*deviation, t.offset.length()) + times(*stretch, t.reach);
             }
             start = end as usize;
-            worst = worst.max(lo.abs().max(hi.abs()).length() + ball);
+            let pair = lo.abs().max(hi.abs()).length() + ball;
+            // Unbounded (a scale through zero, a singular joint): NaN or ∞ is no bound.
+            worst = if pair.is_nan() { f64::INFINITY } else { worst.max(pair) };
         }
         let scene = motions.stretch(skeleton, r, None);
-        if (worst * scene).is_nan() { f64::INFINITY } else { worst * scene }
+        let out = times(worst, scene);
+        if out.is_nan() { f64::INFINITY } else { out }
     }
+}
+
+/// `a · b` for bounds ≥ 0, where a zero factor wins over an unbounded one.
+fn times(a: f64, b: f64) -> f64 {
+    if a == 0.0 || b == 0.0 { 0.0 } else { a * b }
 }
 
 /// A triangle of the side matched against, in the bind pose.
