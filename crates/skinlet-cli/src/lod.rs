@@ -141,7 +141,7 @@ fn measure(
     let full = (base.iter().map(|s| s.0).sum(), base.iter().map(|s| s.1).sum());
     let mut drawn = vec![(0u64, 0u64, Vec::<u64>::new()); a.pixels.len()];
     let (mut locals, mut weights, mut globals) = (Vec::new(), Vec::new(), Vec::new());
-    let (mut joints, mut skinning) = (Vec::new(), Vec::new());
+    let (mut joints, mut skinning, mut cut) = (Vec::new(), Vec::new(), Vec::new());
     for frame in 0..a.frames {
         for (i, pl) in scene.placements.iter().enumerate() {
             instance_pose(&asset.skeleton, clips, baked, &params, i, pl, frame, &mut locals, &mut weights);
@@ -157,7 +157,8 @@ fn measure(
             let (center, radius) = ((lo + hi) / 2.0, (hi - lo).length() / 2.0);
             for (k, &pixels) in a.pixels.iter().enumerate() {
                 let d = &mut drawn[k];
-                for c in lod.cut(camera.threshold(pixels, center, radius, 1.0)) {
+                lod.cut(camera.threshold(pixels, center, radius, 1.0), &mut cut);
+                for &c in &cut {
                     let (tris, verts, level) = size[c as usize];
                     (d.0, d.1) = (d.0 + tris, d.1 + verts);
                     if d.2.len() <= level as usize {

@@ -678,15 +678,14 @@ impl LodView<'_> {
     }
 
     /// The cut at error `threshold` (the clusters whose own group's error is at most it and
-    /// whose parent group's is above it), numbered as in [`Self::cluster_errors`].
-    pub fn cut(&self, threshold: f32) -> Vec<u32> {
-        (0..self.base_parents.len() + self.clusters.len())
-            .filter(|&c| {
-                let (own, parent) = self.cluster_errors(c);
-                own <= threshold && threshold < parent
-            })
-            .map(|c| c as u32)
-            .collect()
+    /// whose parent group's is above it), numbered as in [`Self::cluster_errors`], into `out`
+    /// (cleared first; no allocation once it has grown).
+    pub fn cut(&self, threshold: f32, out: &mut Vec<u32>) {
+        out.clear();
+        out.extend((0..self.base_parents.len() + self.clusters.len()).filter_map(|c| {
+            let (own, parent) = self.cluster_errors(c);
+            (own <= threshold && threshold < parent).then_some(c as u32)
+        }));
     }
 }
 

@@ -148,15 +148,19 @@ impl BakedLod {
                 let (triangles, group, parent) = (triangles(&self.meshlets, c), local(group), local(parent));
                 lod.clusters.push(LodCluster { triangles, level, group, parent });
             }
-            for g in first..end {
-                let (level, error) = self.groups[g as usize];
-                let with = |f: &dyn Fn(&LodCluster) -> Option<u32>| -> Vec<u32> {
-                    (0..lod.clusters.len() as u32)
-                        .filter(|&c| f(&lod.clusters[c as usize]) == Some(g - first))
-                        .collect()
-                };
-                let (children, made) = (with(&|c| c.parent), with(&|c| c.group));
-                lod.groups.push(LodGroup { level, children, made, error });
+            lod.groups = (first..end)
+                .map(|g| {
+                    let (level, error) = self.groups[g as usize];
+                    LodGroup { level, children: Vec::new(), made: Vec::new(), error }
+                })
+                .collect();
+            for (c, cluster) in lod.clusters.iter().enumerate() {
+                if let Some(g) = cluster.parent {
+                    lod.groups[g as usize].children.push(c as u32);
+                }
+                if let Some(g) = cluster.group {
+                    lod.groups[g as usize].made.push(c as u32);
+                }
             }
             out.push((part.triangles.clone(), lod));
         }
@@ -777,8 +781,9 @@ pub fn check_consumers(b: &Baked) -> Result<()> {
     // of pose (every clip at its start and past its end).
     with_view(b, |view| {
         if let Some(l) = view.lod() {
+            let mut cut = Vec::new();
             for threshold in [0.0, 1e-3, f32::MAX] {
-                l.cut(threshold);
+                l.cut(threshold, &mut cut);
             }
         }
         let parts = PartBounds::new(view)?;

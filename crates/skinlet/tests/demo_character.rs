@@ -2,6 +2,8 @@
 //! two skins, rigid, animated and instanced parts, a morph face and three clips), one module
 //! per baker module they test.
 
+mod common;
+
 mod bake {
     use glam::Vec3;
     use skinlet::bake::*;
@@ -108,30 +110,22 @@ mod bake {
         let view = BakeView::new(&bytes).unwrap();
         let v = view.lod().unwrap();
         let meshlets = view.meshlets();
+        // A cluster's triangles, numbered as the view numbers them (meshlets first).
         let cluster_triangles = |c: usize| -> Vec<[u32; 3]> {
-            let (m, i) = if c < meshlets.len() { (&meshlets, c) } else { (&v.meshlets, c - meshlets.len()) };
-            let (local, tc) = (m.vertices_of(i), m.counts(i).1);
-            let t = &m.triangles[m.headers[i][1] as usize..][..3 * tc];
-            t.chunks_exact(3).map(|t| [0, 1, 2].map(|k| local[t[k] as usize])).collect()
+            let (m, i) = if c < b.meshlets.len() { (&b.meshlets, c) } else { (&l.meshlets, c - b.meshlets.len()) };
+            m.mesh_triangles(&m.meshlets[i]).collect()
         };
-        let boundary = |triangles: &mut dyn Iterator<Item = [u32; 3]>| {
-            let mut count = std::collections::BTreeMap::new();
-            for t in triangles {
-                for k in 0..3 {
-                    let (a, b) = (t[k], t[(k + 1) % 3]);
-                    *count.entry((a.min(b), a.max(b))).or_insert(0) += 1;
-                }
-            }
-            count.into_iter().filter(|&(_, n)| n % 2 == 1).map(|(e, _)| e).collect::<std::collections::BTreeSet<_>>()
-        };
-        let whole = boundary(&mut b.mesh.triangles.iter().copied());
+        let whole = super::common::boundary(b.mesh.triangles.iter().copied());
         let mut thresholds: Vec<f32> = l.groups.iter().map(|g| g.1).collect();
         thresholds.extend([0.0, f32::MAX]);
+        let mut cut = Vec::new();
         for t in thresholds {
-            let cut = v.cut(t);
-            assert!(boundary(&mut cut.iter().flat_map(|&c| cluster_triangles(c as usize))) == whole, "threshold {t}");
+            v.cut(t, &mut cut);
+            let found = super::common::boundary(cut.iter().flat_map(|&c| cluster_triangles(c as usize)));
+            assert!(found == whole, "threshold {t}");
         }
-        assert_eq!(v.cut(0.0).len(), meshlets.len(), "threshold 0 draws the meshlets");
+        v.cut(0.0, &mut cut);
+        assert_eq!(cut.len(), meshlets.len(), "threshold 0 draws the meshlets");
         // Damaged: counts, a group's error, a cluster's parent.
         let lodc = section(&bytes, b"LODC");
         let damaged = |at: usize, value: [u8; 4], want: &str| {

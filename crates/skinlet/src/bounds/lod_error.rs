@@ -83,7 +83,13 @@ pub fn own_errors(
         clips.iter().flat_map(|&c| key_intervals(c).into_iter().map(move |(a, b)| (Some(c), a, b))).collect()
     };
     let ranges = clip_weight_ranges(&mesh.morphs, clips)?;
-    let ctx = Ctx { skeleton, skin, mesh, ranges };
+    let reach = (0..mesh.positions.len())
+        .map(|v| {
+            let (b, p) = (morph_box(mesh, v, &ranges), mesh.positions[v].as_dvec3());
+            (b.min - p).abs().max((b.max - p).abs()).length()
+        })
+        .collect();
+    let ctx = Ctx { skeleton, skin, mesh, reach };
     (0..lod.groups.len())
         .into_par_iter()
         .map(|g| {
@@ -112,8 +118,8 @@ struct Ctx<'a> {
     skeleton: &'a Skeleton,
     skin: &'a Skin,
     mesh: &'a SkinnedMesh,
-    /// Each morph weight's range over the clips.
-    ranges: Vec<(f64, f64)>,
+    /// How far each vertex's morph deltas can move it within the weights' ranges over the clips.
+    reach: Vec<f64>,
 }
 
 /// One joint `k`'s share of a paired difference: `s · Tₖ(t) m₀` (the carried box of a
@@ -143,11 +149,8 @@ impl Ctx<'_> {
         self.mesh.positions[v as usize].as_dvec3()
     }
 
-    /// How far vertex `v`'s morph deltas can move it within the weight ranges.
     fn morph_reach(&self, v: u32) -> f64 {
-        let b = morph_box(self.mesh, v as usize, &self.ranges);
-        let p = self.position(v);
-        (b.min - p).abs().max((b.max - p).abs()).length()
+        self.reach[v as usize]
     }
 
     /// The pairs between `a` and `b` (both ways) as joint terms.

@@ -101,29 +101,14 @@ impl IntervalMotions {
     /// the interval's start), in operator norm: for a product of factors `Xₙ` against `Yₙ`,
     /// `‖ΠX − ΠY‖ ≤ Σₙ ‖Xₙ − Yₙ‖ · Πⱼ≠ₙ max(‖Xⱼ‖, ‖Yⱼ‖)`.
     pub fn deviation(&self, skeleton: &Skeleton, from: u32, to: u32, at: &[Trs]) -> f64 {
-        let parent = |n: u32| skeleton.nodes[n as usize].parent;
-        let depth = |n: Option<u32>| n.map_or(-1, |n| self.depth[n as usize] as i64);
-        let (mut a, mut t) = (Some(from), Some(to));
         // Σ dₙ Πⱼ≠ₙ normⱼ, accumulated factor by factor: (sum, product of norms).
         let (mut sum, mut product) = (0.0f64, 1.0f64);
-        while a != t {
-            let (n, inverse) = if depth(a) >= depth(t) {
-                let n = a.expect("deeper side is a node");
-                a = parent(n);
-                (n, false)
-            } else {
-                let n = t.expect("deeper side is a node");
-                t = parent(n);
-                (n, true)
-            };
-            let motion = &self.motions[n as usize];
-            let (d, norm) = match (motion.deviation(&at[n as usize]), motion.stretch()) {
-                ((d, _), (norm, _)) if !inverse => (d, norm),
-                ((_, d), (_, norm)) => (d, norm),
-            };
+        self.factors(skeleton, from, Some(to), |n, motion, inverse| {
+            let ((d, d_inv), (norm, norm_inv)) = (motion.deviation(&at[n as usize]), motion.stretch());
+            let (d, norm) = if inverse { (d_inv, norm_inv) } else { (d, norm) };
             sum = sum * norm + d * product;
             product *= norm;
-        }
+        });
         if sum.is_nan() { f64::INFINITY } else { sum }
     }
 
@@ -131,21 +116,32 @@ impl IntervalMotions {
     /// over the interval (`to`: `None` for the scene): the product of the nodes' stretches
     /// on the way from `from` up to the common ancestor and of their inverses' down to `to`.
     pub fn stretch(&self, skeleton: &Skeleton, from: u32, to: Option<u32>) -> f64 {
+        let mut s = 1.0f64;
+        self.factors(skeleton, from, to, |_, motion, inverse| {
+            let (norm, norm_inv) = motion.stretch();
+            s *= if inverse { norm_inv } else { norm };
+        });
+        if s.is_nan() { f64::INFINITY } else { s }
+    }
+
+    /// Calls `f` with every factor of `global(to)⁻¹ · global(from)` (`to`: `None` for the
+    /// scene): each node from `from` up to the common ancestor, then each from `to` up to it,
+    /// inverted (`true`); in no particular order of products.
+    fn factors(&self, skeleton: &Skeleton, from: u32, to: Option<u32>, mut f: impl FnMut(u32, &Motion, bool)) {
         let parent = |n: u32| skeleton.nodes[n as usize].parent;
         let depth = |n: Option<u32>| n.map_or(-1, |n| self.depth[n as usize] as i64);
-        let (mut a, mut t, mut s) = (Some(from), to, 1.0);
+        let (mut a, mut t) = (Some(from), to);
         while a != t {
             if depth(a) >= depth(t) {
                 let n = a.expect("deeper side is a node");
-                s *= self.motions[n as usize].stretch().0;
+                f(n, &self.motions[n as usize], false);
                 a = parent(n);
             } else {
                 let n = t.expect("deeper side is a node");
-                s *= self.motions[n as usize].stretch().1;
+                f(n, &self.motions[n as usize], true);
                 t = parent(n);
             }
         }
-        if s.is_nan() { f64::INFINITY } else { s }
     }
 }
 

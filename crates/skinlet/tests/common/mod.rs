@@ -78,3 +78,15 @@ pub fn part_meshlets(m: &skinlet::meshlet::Meshlets, vertices: &std::ops::Range<
     }
     out
 }
+
+/// The boundary (mod 2) of the triangles: the undirected edges used by an odd number of them.
+pub fn boundary(triangles: impl IntoIterator<Item = [u32; 3]>) -> std::collections::BTreeSet<(u32, u32)> {
+    let mut count = std::collections::BTreeMap::new();
+    for t in triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            *count.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+        }
+    }
+    count.into_iter().filter(|&(_, n)| n % 2 == 1).map(|(e, _)| e).collect()
+}
