@@ -52,6 +52,15 @@
 //! what they hide this frame is not drawn for having been visible last frame, and what they
 //! no longer hide is drawn before the layers behind it are tested.
 //!
+//! Cluster LOD ([`GpuCharacter::with_lod`]): the character's meshlets are its full-detail
+//! meshlets and its LOD hierarchy's clusters (a bake's `LODC`), each with its own group's and
+//! its parent group's error, and each instance has an error threshold
+//! ([`CullInstance::lod_threshold`], from `skinlet_runtime::lod_select::LodCamera`): the cull
+//! pass tests only the clusters of the instance's cut (own error at most the threshold, the
+//! parent's above it: `LodView::cut`'s rule, crack-free with one threshold per instance)
+//! before the frustum, backface and occlusion tests, so the survivors are the visible part of
+//! the cut.
+//!
 //! [`crate::triangle_culling`] adds a per-triangle pass over the survivors (with the
 //! visibility bits then set from the triangles).
 //!
@@ -140,12 +149,24 @@ pub struct CullInstance {
     pub model: [f32; 16],
     /// A [`CullMode`] as `u32`.
     pub mode: u32,
-    pub pad: [u32; 3],
+    /// The error threshold of the instance's LOD cut, in the bake's units (for a character
+    /// uploaded with [`GpuCharacter::with_lod`]; `skinlet_runtime::lod_select::LodCamera`
+    /// gives it): negative or NaN for full detail.
+    pub lod_threshold: f32,
+    pub pad: [u32; 2],
 }
 
 impl CullInstance {
+    /// An instance drawn at full detail.
     pub fn new(model: Mat4, mode: CullMode) -> CullInstance {
-        CullInstance { model: model.to_cols_array(), mode: mode as u32, pad: [0; 3] }
+        CullInstance { model: model.to_cols_array(), mode: mode as u32, lod_threshold: -1.0, pad: [0; 2] }
+    }
+
+    /// An instance drawing its LOD cut at error `threshold` where its mode is
+    /// [`CullMode::Bounds`] or [`CullMode::BoundsAndBoxes`] (the LOD errors hold for the poses
+    /// the bounds hold for), full detail in the other modes.
+    pub fn with_lod(model: Mat4, mode: CullMode, threshold: f32) -> CullInstance {
+        CullInstance { lod_threshold: threshold, ..CullInstance::new(model, mode) }
     }
 }
 
@@ -174,6 +195,8 @@ pub struct GpuCharacter {
     boxes: wgpu::Buffer,
     draws: wgpu::Buffer,
     statics: wgpu::Buffer,
+    /// Per meshlet, its own and its parent group's LOD error (`crowd_cull.wgsl`).
+    lod_errors: wgpu::Buffer,
 }
 
 /// The depth buffer two-phase occlusion culling reads ([`CrowdCulling::with_occlusion`]): the
@@ -456,6 +479,8 @@ impl CullPipelines {
                     layout_entry(8, write),
                     layout_entry(9, Uniform),
                     layout_entry(10, write),
+                    layout_entry(11, read),
+                    layout_entry(12, read),
                 ],
             );
             let finish = crate::context::compute_pipeline_with(
@@ -512,11 +537,44 @@ impl GpuCharacter {
         inverse_bind: &[Mat4],
         draws: &[[u32; 2]],
     ) -> Result<GpuCharacter> {
+        let errors = vec![[0.0, f32::INFINITY]; culler.len()];
+        GpuCharacter::with_lod(device, culler, inverse_bind, draws, culler.len(), &errors)
+    }
+
+    /// [`GpuCharacter::new`] for a character with a cluster LOD hierarchy (a bake's `LODC`,
+    /// `skinlet_runtime::bake_view::LodView`): `culler` and `draws` hold its `base` full-detail
+    /// meshlets, then its clusters, numbered as `LodView::cluster_errors` numbers them, and
+    /// `errors` each one's errors from it (its own group's, 0 at full detail, and its parent
+    /// group's, infinite for a root). Each instance then tests only the clusters of its cut at
+    /// its [`CullInstance::lod_threshold`] (`LodView::cut`'s rule). Errors also when the counts
+    /// disagree, an error is negative or NaN, or a parent's is below its cluster's.
+    pub fn with_lod(
+        device: &wgpu::Device,
+        culler: &MeshletCuller,
+        inverse_bind: &[Mat4],
+        draws: &[[u32; 2]],
+        base: usize,
+        errors: &[[f32; 2]],
+    ) -> Result<GpuCharacter> {
         let location = "GPU character";
         let (meshlets, joints) = (culler.len(), culler.joints());
-        if draws.len() != meshlets {
-            return Err(invalid(location, format!("{} meshlet draws for {meshlets} meshlets", draws.len())));
+        if draws.len() != meshlets || errors.len() != meshlets || base > meshlets {
+            return Err(invalid(
+                location,
+                format!(
+                    "{} meshlet draws, {} LOD errors and {base} full-detail meshlets for {meshlets} meshlets",
+                    draws.len(),
+                    errors.len()
+                ),
+            ));
         }
+        if let Some(i) = errors.iter().position(|&[own, parent]| !(own >= 0.0 && own <= parent)) {
+            return Err(invalid(location, format!("meshlet {i}'s LOD errors {:?} (0 ≤ own ≤ parent)", errors[i])));
+        }
+        // Full detail marked by a negative error of its own (crowd_cull.wgsl).
+        let lod_errors: Vec<[f32; 2]> = (errors.iter().enumerate())
+            .map(|(i, &[own, parent])| [if i < base { -1.0 } else { own }, parent])
+            .collect();
         if inverse_bind.len() != joints {
             return Err(invalid(location, format!("{} inverse bind matrices for {joints} joints", inverse_bind.len())));
         }
@@ -566,6 +624,7 @@ impl GpuCharacter {
             boxes: crate::context::buffer(device, "skinlet any-pose boxes", &pack_boxes(culler), storage),
             draws: crate::context::buffer(device, "skinlet meshlet draws", draws, storage),
             statics: crate::context::buffer(device, "skinlet joint statics", &statics, storage),
+            lod_errors: crate::context::buffer(device, "skinlet LOD errors", &lod_errors, storage),
         })
     }
 
@@ -752,6 +811,8 @@ impl CrowdCulling {
                     bind(8, whole(&survivors)),
                     bind(9, part(&uniforms, OCCLUSION_OFFSET, 96)),
                     bind(10, whole(&state)),
+                    bind(11, whole(&character.lod_errors)),
+                    bind(12, whole(instances)),
                 ],
             });
             let pyramid = depth.map(|d| {

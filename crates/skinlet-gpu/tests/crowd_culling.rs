@@ -117,6 +117,7 @@ fn cull_on_gpu(
     camera: &Camera,
     tests: Tests,
     survivor_capacity: Option<u32>,
+    tested: Option<&[usize]>,
 ) -> Culled {
     let device = &gpu.device;
     let storage = wgpu::BufferUsages::STORAGE;
@@ -144,7 +145,9 @@ fn cull_on_gpu(
         if header.found <= capacity {
             assert_eq!(visible, counts[4 * i], "instance {i}: the visible count and the survivors disagree");
         }
-        assert_eq!(counts[4 * i] + counts[4 * i + 1] + counts[4 * i + 2], m as u32);
+        // Every meshlet tested, or with a LOD hierarchy, every one of the instance's cut.
+        let tested = tested.map_or(m, |t| t[i]) as u32;
+        assert_eq!(counts[4 * i] + counts[4 * i + 1] + counts[4 * i + 2], tested, "instance {i}'s counts");
         assert_eq!(counts[4 * i + 3], 0, "occluded without occlusion culling");
     }
     Culled { drawn, counts: counts.chunks_exact(4).map(|c| [c[0], c[1], c[2]]).collect(), header }
@@ -223,6 +226,7 @@ fn gpu_prepared_crowd_culling_is_exact_and_culls_what_the_cpu_culls() {
                         &instances,
                         camera,
                         tests,
+                        None,
                         None,
                     );
                     for (i, drawn) in out.drawn.iter().enumerate() {
@@ -331,7 +335,8 @@ fn random_joint_matrices_cull_only_what_exact_arithmetic_culls() {
             instances.push(CullInstance::new(model, MODES[i % 3]));
             worlds.push(world);
         }
-        let out = cull_on_gpu(&gpu, &pipelines, &gpu_character, &draws, &palette, &instances, &camera, tests, None);
+        let out =
+            cull_on_gpu(&gpu, &pipelines, &gpu_character, &draws, &palette, &instances, &camera, tests, None, None);
         for (i, drawn) in out.drawn.iter().enumerate() {
             for s in &slots {
                 if !drawn[s.id as usize] {
@@ -420,7 +425,18 @@ fn an_overflowing_survivor_list_draws_what_it_wrote_and_a_later_frame_nothing_st
     }
     let cull = |capacity| {
         let (palette, instances) = (&palette, &instances);
-        cull_on_gpu(&gpu, &pipelines, &gpu_character, &draws, palette, instances, &scene.camera, Tests::Both, capacity)
+        cull_on_gpu(
+            &gpu,
+            &pipelines,
+            &gpu_character,
+            &draws,
+            palette,
+            instances,
+            &scene.camera,
+            Tests::Both,
+            capacity,
+            None,
+        )
     };
     let whole = cull(None);
     let found = whole.header.found;
@@ -455,4 +471,100 @@ fn an_overflowing_survivor_list_draws_what_it_wrote_and_a_later_frame_nothing_st
         let header: SurvivorHeader = bytemuck::pod_read_unaligned(&read_buffer::<u8>(&gpu, crowd.survivors(), 32));
         assert_eq!((header.found, header.instance_count), (expect, expect));
     }
+}
+
+/// A character with a cluster LOD hierarchy (the demo's, `skinlet::bake::add_lod`): per
+/// instance, the GPU tests exactly the clusters of its cut (`LodView::cut` at the instance's
+/// threshold; full detail where the instance's mode is not culled by its bounds) and culls each as it culls the same cluster uploaded without a
+/// hierarchy; thresholds on and between the groups' errors, 0, huge and infinite, in every
+/// mode.
+#[test]
+fn lod_cuts_are_selected_on_the_gpu_as_on_the_cpu() {
+    let Some(gpu) = gpu() else { return };
+    let pipelines = CullPipelines::new(&gpu.device).unwrap();
+    let asset = skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams::default());
+    let character = asset.character().unwrap();
+    let clips: Vec<&Clip> = asset.clips.iter().collect();
+    let mut baked = bake(&asset, &character);
+    skinlet::bake::add_lod(&mut baked, &asset, &skinlet::meshlet::lod::LodParams::default()).unwrap();
+    let skin = &character.palette;
+    let base = baked.meshlets.len();
+    let mut all = baked.meshlets.clone();
+    all.append(&baked.lod.as_ref().unwrap().meshlets, 0);
+    let draws =
+        skinlet_gpu::mesh::meshlet_index_buffer(&all.view(&all.headers()), baked.mesh.positions.len()).unwrap().1;
+    // Thresholds: below 0 and NaN (full detail), 0, a few of the groups' errors exactly and
+    // halfway to the next, past every error, infinite.
+    let mut group_errors: Vec<f32> = baked.lod.as_ref().unwrap().groups.iter().map(|g| g.1).collect();
+    group_errors.sort_by(f32::total_cmp);
+    let pick = |q: f64| group_errors[((group_errors.len() - 1) as f64 * q) as usize];
+    let mut thresholds = vec![-1.0, f32::NAN, 0.0, 1e30, f32::INFINITY];
+    for q in [0.1, 0.4, 0.7, 0.95] {
+        thresholds.extend([pick(q), (pick(q) + pick((q + 0.05).min(1.0))) / 2.0]);
+    }
+    let (culler, errors, cuts) = skinlet::bake::with_view(&baked, |view| {
+        let lod = view.lod().unwrap();
+        let cuts: Vec<Vec<u32>> = (thresholds.iter())
+            .map(|&t| {
+                let mut cut = Vec::new();
+                lod.cut(t, &mut cut);
+                cut
+            })
+            .collect();
+        Ok((view.lod_culler()?.unwrap(), lod.errors(), cuts))
+    })
+    .unwrap();
+    assert_eq!(culler.len(), all.len());
+    let plain = GpuCharacter::new(&gpu.device, &culler, &skin.inverse_bind, &draws).unwrap();
+    let with_lod = GpuCharacter::with_lod(&gpu.device, &culler, &skin.inverse_bind, &draws, base, &errors).unwrap();
+    // 13 thresholds × 4 modes: every pair once.
+    let params = CrowdParams { instances: 4 * thresholds.len(), frames: 1, ..CrowdParams::default() };
+    let scene = crowd(&baked.mesh.positions, clips.len(), &params).unwrap();
+    let (mut palette, mut instances, mut skinning, mut in_cut) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for (k, p) in scene.placements.iter().enumerate() {
+        let clip = clips.get(p.clip).copied();
+        Poser::default().skinning_matrices(&asset.skeleton, skin, clip, p.time(clip, 0, params.fps), &mut skinning);
+        palette.extend(skinning.iter().map(|&m| Mat4::from(m)));
+        let (t, mode) = (k % thresholds.len(), MODES[k % 4]);
+        instances.push(CullInstance::with_lod(p.model.as_mat4(), mode, thresholds[t]));
+        let full = matches!(mode, CullMode::BoxesOnly | CullMode::Keep);
+        let mut cut = vec![false; all.len()];
+        match full {
+            true => cut[..base].fill(true),
+            false => cuts[t].iter().for_each(|&c| cut[c as usize] = true),
+        }
+        in_cut.push(cut);
+    }
+    let tested: Vec<usize> = in_cut.iter().map(|c| c.iter().filter(|&&x| x).count()).collect();
+    let run = |character, tested| {
+        let (palette, instances, camera) = (&palette, &instances, &scene.camera);
+        cull_on_gpu(&gpu, &pipelines, character, &draws, palette, instances, camera, Tests::Both, None, tested)
+    };
+    let (everything, cut) = (run(&plain, None), run(&with_lod, Some(&tested)));
+    let (mut coarse, mut culled) = (0, 0);
+    for (i, (row, whole)) in cut.drawn.iter().zip(&everything.drawn).enumerate() {
+        for c in 0..all.len() {
+            assert_eq!(
+                row[c],
+                whole[c] && in_cut[i][c],
+                "instance {i} (threshold {}, {:?}), cluster {c}: drawn {} where the cut has it {} and culling \
+                 without a hierarchy draws it {}",
+                thresholds[i % thresholds.len()],
+                MODES[i % 4],
+                row[c],
+                in_cut[i][c],
+                whole[c]
+            );
+            coarse += (row[c] && c >= base) as usize;
+            culled += (in_cut[i][c] && !row[c]) as usize;
+        }
+    }
+    assert!(coarse > 0 && culled > 0, "no coarse cluster drawn ({coarse}) or none culled ({culled}): vacuous");
+    // Bad errors are refused.
+    let mut bad = errors.clone();
+    bad[base] = [f32::NAN, 1.0];
+    assert!(GpuCharacter::with_lod(&gpu.device, &culler, &skin.inverse_bind, &draws, base, &bad).is_err());
+    bad[base] = [2.0, 1.0];
+    assert!(GpuCharacter::with_lod(&gpu.device, &culler, &skin.inverse_bind, &draws, base, &bad).is_err());
+    assert!(GpuCharacter::with_lod(&gpu.device, &culler, &skin.inverse_bind, &draws, base, &errors[1..]).is_err());
 }

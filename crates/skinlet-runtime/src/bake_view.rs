@@ -365,6 +365,15 @@ impl<'a> BakeView<'a> {
         MeshletCuller::new(&bounds, &classes, self.joint_count())
     }
 
+    /// The run-time culler for the clip bounds of `BNDS`' meshlets, then `LODC`'s clusters
+    /// (numbered as [`LodView::cluster_errors`] numbers them): to cull a cut. `None` without
+    /// `LODC`.
+    pub fn lod_culler(&self) -> Result<Option<MeshletCuller>> {
+        let Some(lod) = &self.lod else { return Ok(None) };
+        let (bounds, classes) = bounds_and_classes(&[self.bounds, lod.bounds].concat());
+        MeshletCuller::new(&bounds, &classes, self.joint_count()).map(Some)
+    }
+
     /// The morph targets of `MRPH` ([`MorphView::check`]), if the file has the section.
     pub fn morphs(&self) -> Option<MorphView<'a>> {
         self.morphs
@@ -677,11 +686,23 @@ impl LodView<'_> {
         }
     }
 
+    /// Every cluster's errors ([`Self::cluster_errors`]), `MLET`'s meshlets first: the
+    /// `errors` of `skinlet_gpu::crowd_culling::GpuCharacter::with_lod`.
+    pub fn errors(&self) -> Vec<[f32; 2]> {
+        (0..self.base_parents.len() + self.clusters.len()).map(|c| self.cluster_errors(c).into()).collect()
+    }
+
     /// The cut at error `threshold` (the clusters whose own group's error is at most it and
     /// whose parent group's is above it), numbered as in [`Self::cluster_errors`], into `out`
-    /// (cleared first; no allocation once it has grown).
+    /// (cleared first; no allocation once it has grown). Full detail (`MLET`'s meshlets) where
+    /// `threshold` is negative or NaN; an infinite one cuts at the roots.
     pub fn cut(&self, threshold: f32, out: &mut Vec<u32>) {
         out.clear();
+        if threshold.is_nan() || threshold < 0.0 {
+            out.extend(0..self.base_parents.len() as u32);
+            return;
+        }
+        let threshold = threshold.min(f32::MAX);
         out.extend((0..self.base_parents.len() + self.clusters.len()).filter_map(|c| {
             let (own, parent) = self.cluster_errors(c);
             (own <= threshold && threshold < parent).then_some(c as u32)

@@ -21,6 +21,11 @@
 // instance count holds the meshlet's index instead (the lists are that pass's input, not
 // draws), and phase 2 lists every survivor of its tests, drawn in phase 1 or not, and clears
 // only the bits of those it culls: the triangle pass sets the others' from their triangles.
+//
+// With a cluster LOD hierarchy (GpuCharacter::with_lod) the slots hold its clusters beside the
+// full-detail meshlets, and an instance tests only those of its cut (`in_cut`, the rule of
+// skinlet_runtime's LodView::cut): the others are neither tested nor counted, and phase 2
+// clears their visibility bits.
 
 @group(0) @binding(0) var<uniform> cull_params: CullParams;
 @group(0) @binding(1) var<storage, read> slots: array<Slot>;
@@ -47,6 +52,36 @@
 @group(0) @binding(9) var<uniform> occlusion: Occlusion;
 // Per (instance, meshlet) its visibility bit (a word) last frame, then the depth pyramid.
 @group(0) @binding(10) var<storage, read_write> state: array<u32>;
+
+// Per meshlet: the error of the LOD group that made it (negative: full detail, none made it)
+// and of its parent group (+inf: none; a character without a hierarchy: every meshlet full
+// detail without a parent).
+@group(0) @binding(11) var<storage, read> lod_errors: array<vec2<f32>>;
+
+// prepare.wgsl's instances: the culling mode and the LOD threshold.
+struct LodInstance {
+    model: mat4x4<f32>,
+    mode: u32,
+    lod_threshold: f32,
+    pad0: u32,
+    pad1: u32,
+}
+@group(0) @binding(12) var<storage, read> instances: array<LodInstance>;
+
+// Whether meshlet `id` is in `instance`'s cut: its group's error at most the instance's
+// threshold and its parent group's above it. Full detail where the threshold is negative or
+// not a number, or the instance's bounds do not hold (modes 2 and 3: the errors hold only for
+// the poses the bounds hold for).
+fn in_cut(id: u32, instance: u32) -> bool {
+    let e = lod_errors[id];
+    let i = instances[instance];
+    if !(i.lod_threshold >= 0.0) || i.mode >= 2u {
+        return e.x < 0.0;
+    }
+    // An infinite threshold draws the roots (their parents' errors are infinite).
+    let t = min(i.lod_threshold, 3.4028235e38);
+    return e.x <= t && t < e.y;
+}
 
 // This workgroup's survivors, and where they start in the list.
 var<workgroup> group_survivors: atomic<u32>;
@@ -178,34 +213,40 @@ fn cull_draws(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invo
         instance = index / cull_params.slots;
         let s = slots[index % cull_params.slots];
         id = s.id;
-        let flag = meshlet_flag(s, instance);
-        var category = select(select(2u, 1u, (flag & 1u) != 0u), 0u, flag == 0u);
         let bit = instance * cull_params.slots + id;
-        var survives = category == 0u;
-        if phase == 1u {
-            // Past round 0, against the pyramid of the depth drawn so far.
-            survives = survives && state[bit] != 0u && !(round > 0u && occluded(s, instance));
-        } else if phase == 2u {
-            if survives && occluded(s, instance) {
-                category = 3u;
-                survives = false;
+        if !in_cut(id, instance) {
+            if phase == 2u {
+                state[bit] = 0u;
             }
-            if triangles {
-                // The triangle pass sets the bits of the survivors (from their triangles) and
-                // skips drawing those phase 1 drew.
-                if !survives {
-                    state[bit] = 0u;
+        } else {
+            let flag = meshlet_flag(s, instance);
+            var category = select(select(2u, 1u, (flag & 1u) != 0u), 0u, flag == 0u);
+            var survives = category == 0u;
+            if phase == 1u {
+                // Past round 0, against the pyramid of the depth drawn so far.
+                survives = survives && state[bit] != 0u && !(round > 0u && occluded(s, instance));
+            } else if phase == 2u {
+                if survives && occluded(s, instance) {
+                    category = 3u;
+                    survives = false;
                 }
-            } else {
-                survives = survives && state[bit] == 0u;
-                state[bit] = select(0u, 1u, category == 0u);
+                if triangles {
+                    // The triangle pass sets the bits of the survivors (from their triangles) and
+                    // skips drawing those phase 1 drew.
+                    if !survives {
+                        state[bit] = 0u;
+                    }
+                } else {
+                    survives = survives && state[bit] == 0u;
+                    state[bit] = select(0u, 1u, category == 0u);
+                }
             }
-        }
-        if phase != 1u {
-            atomicAdd(&counts[4u * instance + category], 1u);
-        }
-        if survives {
-            place = atomicAdd(&group_survivors, 1u);
+            if phase != 1u {
+                atomicAdd(&counts[4u * instance + category], 1u);
+            }
+            if survives {
+                place = atomicAdd(&group_survivors, 1u);
+            }
         }
     }
     let header = select(0u, 8u, phase == 2u);

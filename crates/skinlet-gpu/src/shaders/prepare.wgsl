@@ -36,12 +36,12 @@ struct CullCamera {
     pad: u32,
 }
 
-// Per instance: its model matrix and how it is culled (0 bounds, 1 bounds and any-pose
-// boxes, 2 any-pose boxes alone, 3 nothing culled).
+// Per instance: its model matrix, how it is culled (0 bounds, 1 bounds and any-pose boxes,
+// 2 any-pose boxes alone, 3 nothing culled) and its LOD threshold (crowd_cull.wgsl).
 struct CullInstance {
     model: mat4x4<f32>,
     mode: u32,
-    pad0: u32,
+    lod_threshold: f32,
     pad1: u32,
     pad2: u32,
 }
