@@ -28,11 +28,13 @@ use skinlet::pose::global_transforms;
 use skinlet_gpu::crowd_culling::{CullMode, GpuCharacter};
 use skinlet_gpu::mesh::{GpuMesh, Pose};
 use skinlet_lab::crowd::{Animation, CrowdParams, Layout, instance_pose, posed_crowd};
+use skinlet_lab::crowd_lod::{CrowdLod, silhouette_displacement};
 use skinlet_lab::gpu_crowd::{CrowdFrame, CrowdView, GpuCrowd};
 use skinlet_lab::headless::{self, GpuOptions};
 use skinlet_lab::occlusion_limits::{DepthPyramid, pose_limits};
 use skinlet_lab::render::{CrowdDraw, Culling, Image, PosedInstance, Renderer, Skinning, TaskCulling};
 use skinlet_runtime::meshlet_cull::{MeshletCuller, Tests};
+use skinlet_runtime::part_bounds::PoseBounds;
 use std::collections::HashSet;
 
 #[derive(clap::Args)]
@@ -89,6 +91,16 @@ pub struct Args {
     /// file is baked here).
     #[arg(long, default_value_t = 10.0)]
     additive_deg: f32,
+    /// Cluster LOD (`skinlet bake --lod`; built here where the bake has none): adds the rows
+    /// `both+lod` and `both+occl+lod` (each instance draws the visible part of its cut at
+    /// `--lod-pixels`) and per timed frame compares the cuts with full detail, both culled:
+    /// triangles and vertex references drawn, pixels differing, and how far the silhouettes
+    /// moved (`max_silhouette_px`). Clips only (the errors hold for the baked clips).
+    #[arg(long)]
+    lod: bool,
+    /// The LOD threshold: the largest screen displacement allowed, in pixels.
+    #[arg(long, default_value_t = 1.0)]
+    lod_pixels: f32,
     #[command(flatten)]
     refine: RefineArgs,
     #[arg(long)]
@@ -104,6 +116,17 @@ struct InstancePose {
     admitted: bool,
     /// The any-pose boxes hold (morph weights inside the envelope's ranges; clips: always).
     boxes: bool,
+    /// The LOD threshold (`--lod`), else negative.
+    lod_threshold: f32,
+}
+
+/// One frame of the GPU-driven crowd, instance after instance: palettes, culling modes (the
+/// pose guard's answer), morph weights, LOD thresholds.
+struct FlatFrame {
+    palette: Vec<glam::Mat4>,
+    modes: Vec<CullMode>,
+    weights: Vec<f32>,
+    lod_thresholds: Vec<f32>,
 }
 
 /// One configuration: a skinning pipeline (with its mesh, culler and bake) and a culling,
@@ -118,6 +141,8 @@ struct Config<'a> {
     tests: Option<Tests>,
     path: Option<Culling>,
     view: Option<CrowdView>,
+    /// Each instance draws its LOD cut.
+    lod: bool,
 }
 
 /// One drawn frame of a configuration.
@@ -177,8 +202,9 @@ struct Row {
     pass_vertices: Option<u64>,
     /// API draw calls per frame.
     draws_issued: u32,
-    /// The warm-up frame's image equals the unculled one (up to depth ties).
-    image_equal: bool,
+    /// The warm-up frame's image equals the unculled one (up to depth ties); none for the LOD
+    /// rows (their cuts are compared with full detail in the JSON's `lod`).
+    image_equal: Option<bool>,
 }
 
 pub fn command(file: &str, a: &Args) -> Result<()> {
@@ -188,6 +214,10 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     );
     anyhow::ensure!((64..=8192).contains(&a.width), "--width must be between 64 and 8192");
     anyhow::ensure!((0.0..=180.0).contains(&a.additive_deg), "--additive-deg must be from 0 to 180");
+    anyhow::ensure!(
+        !a.lod || (a.animation == "clips" && a.lod_pixels > 0.0 && a.lod_pixels.is_finite()),
+        "--lod needs --animation clips (the LOD errors hold for the baked clips) and a positive --lod-pixels"
+    );
     let animation = match a.animation.as_str() {
         "blend" => Animation::Blend,
         "additive" => Animation::Additive(a.additive_deg.to_radians()),
@@ -197,6 +227,11 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let builder = a.builder.as_deref().map(|b| Builder::from_name(b).context("unknown meshlet builder")).transpose()?;
     let (asset, character, mut baked) = crate::crowd::load(file, a.gltf.as_deref(), builder, a.refine, a.json)?;
     let clips = crate::bake::clips_of(&baked, &asset, a.gltf.as_deref().unwrap_or(file))?;
+    let started = std::time::Instant::now();
+    if a.lod && baked.lod.is_none() {
+        skinlet::bake::add_lod(&mut baked, &asset, &skinlet::meshlet::lod::LodParams::default())?;
+    }
+    let lod_s = started.elapsed().as_secs_f64();
     let envelope_spec = format!("clips:{}", a.additive_deg);
     if animation != Animation::Clips && baked.envelope.is_none() {
         anyhow::ensure!(
@@ -235,6 +270,25 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         })
     };
     let culler = culler_of(&baked)?;
+    // With LOD, the GPU-driven crowd culls the meshlets and then the hierarchy's clusters.
+    let all_meshlets_lod = baked.lod.as_ref().filter(|_| a.lod).map(|lod| {
+        let mut all = baked.meshlets.clone();
+        all.append(&lod.meshlets, 0);
+        all
+    });
+    let crowd_culler = match (&all_meshlets_lod, &baked.lod) {
+        (Some(all), Some(lod)) => {
+            let bounds = [&baked.bounds[..], &lod.bounds].concat();
+            let classes = [&baked.classes[..], &lod.classes].concat();
+            let boxes = skinlet::cull::any_pose::build(skin, &baked.mesh, all, &clip_ranges)?;
+            Some(MeshletCuller::new(&bounds, &classes, skin.joints.len())?.with_any_pose(&boxes)?)
+        }
+        _ => None,
+    };
+    let crowd_lod = match a.lod {
+        true => Some(skinlet::bake::with_view(&baked, |v| CrowdLod::new(v, &scene.camera, a.width, height))?),
+        false => None,
+    };
     let want = |p: &str| a.pipelines.iter().any(|q| q == p);
     // MS-CI draws common-influences meshlets: baked too, over the same clips, for their bounds.
     let ci = match want("MS-CI") && gpu.has_mesh_shaders() {
@@ -275,13 +329,17 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             pl.world_matrices(skin, &globals, &mut joints, &mut skinning);
             let admitted = guard.as_ref().is_none_or(|g| g.admits(&locals, &weights));
             let boxes = guard.as_ref().is_none_or(|g| g.admits_weights(&weights));
-            instances.push(InstancePose { skinning, weights: weights.clone(), admitted, boxes });
+            let lod_threshold = crowd_lod.as_ref().map_or(-1.0, |l| {
+                let clip = clips.get(pl.clip).map(|&c| (pl.clip as u32, pl.time(Some(c), f, params.fps)));
+                let pose = clip.map_or(PoseBounds::Clips, |(clip, time)| PoseBounds::ClipAt { clip, time });
+                l.threshold(a.lod_pixels, &joints, &weights, pose)
+            });
+            instances.push(InstancePose { skinning, weights: weights.clone(), admitted, boxes, lod_threshold });
         }
         frames.push(instances);
     }
-    // The GPU-driven crowd's frames: palettes, culling modes (the pose guard's answer) and
-    // morph weights, instance after instance.
-    let flat: Vec<(Vec<glam::Mat4>, Vec<CullMode>, Vec<f32>)> = (frames.iter())
+    // The GPU-driven crowd's frames.
+    let flat: Vec<FlatFrame> = (frames.iter())
         .map(|instances| {
             let palette = instances.iter().flat_map(|i| i.skinning.iter().map(|&m| glam::Mat4::from(m))).collect();
             let modes = (instances.iter())
@@ -293,25 +351,23 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 })
                 .collect();
             let weights = instances.iter().flat_map(|i| i.weights.iter().copied()).collect();
-            (palette, modes, weights)
+            let lod_thresholds = instances.iter().map(|i| i.lod_threshold).collect();
+            FlatFrame { palette, modes, weights, lod_thresholds }
         })
         .collect();
-    let gpu_crowd = GpuCrowd::with_depth_range(
-        &gpu,
-        &baked,
-        &culler,
-        instances as u32,
-        a.width,
-        height,
-        false,
-        a.occlusion_rounds,
-    )?;
+    let (n, rounds) = (instances as u32, a.occlusion_rounds);
+    let gpu_crowd = match &crowd_culler {
+        Some(c) => GpuCrowd::with_lod(&gpu, &baked, c, n, a.width, height, false, rounds)?,
+        None => GpuCrowd::with_depth_range(&gpu, &baked, &culler, n, a.width, height, false, rounds)?,
+    };
     let keep_all = vec![CullMode::Keep; instances];
-    // Frame `f` of the GPU-driven crowd; `keep`: every instance drawn whole.
-    let crowd_frame = |f: usize, tests: Tests, keep: bool| CrowdFrame {
-        palette: &flat[f].0,
-        modes: if keep { &keep_all } else { &flat[f].1 },
-        weights: &flat[f].2,
+    // Frame `f` of the GPU-driven crowd; `keep`: every instance drawn whole; `lod`: each
+    // instance's cut.
+    let crowd_frame = |f: usize, tests: Tests, keep: bool, lod: bool| CrowdFrame {
+        palette: &flat[f].palette,
+        modes: if keep { &keep_all } else { &flat[f].modes },
+        weights: &flat[f].weights,
+        lod_thresholds: if lod { &flat[f].lod_thresholds } else { &[] },
         camera: &scene.camera,
         tests,
     };
@@ -360,7 +416,24 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 (false, _, "none") => (None, None),
                 (false, ..) => continue,
             };
-            configs.push(Config { pipeline, skinning, mesh, culler, baked, culling, tests, path, view });
+            configs.push(Config { pipeline, skinning, mesh, culler, baked, culling, tests, path, view, lod: false });
+        }
+    }
+    if a.lod && want("VS") {
+        for (culling, view) in [("both+lod", CrowdView::Pulled), ("both+occl+lod", CrowdView::Occluded)] {
+            let (pipeline, skinning, tests, path, view) = ("VS", Skinning::Vertex, Some(Tests::Both), None, Some(view));
+            configs.push(Config {
+                pipeline,
+                skinning,
+                mesh: &mesh,
+                culler: &culler,
+                baked: &baked,
+                culling,
+                tests,
+                path,
+                view,
+                lod: true,
+            });
         }
     }
     if gpu.has_indirect_count() && want("VS-indexed") {
@@ -369,7 +442,8 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         {
             let (path, skinning, mesh, culler, baked) = (None, Skinning::Vertex, &mesh, &culler, &baked);
             let pipeline = "VS-indexed";
-            configs.push(Config { pipeline, skinning, mesh, culler, baked, culling, tests, path, view: Some(view) });
+            let view = Some(view);
+            configs.push(Config { pipeline, skinning, mesh, culler, baked, culling, tests, path, view, lod: false });
         }
     }
     // Task-culled rows: each mesh's meshlets uploaded for culling once.
@@ -387,16 +461,18 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let light = Vec3::new(0.4, 0.8, 0.6);
     let all_meshlets = (instances * baked.meshlets.len()) as u64;
     // Triangles per meshlet (the GPU-driven crowd's survivors are counted by meshlet).
-    let meshlet_triangles: Vec<u64> = baked.meshlets.meshlets.iter().map(|m| m.triangle_count as u64).collect();
-    let meshlet_vertices: Vec<u64> = baked.meshlets.meshlets.iter().map(|m| m.vertex_count as u64).collect();
-    let all_vertex_refs = instances as u64 * meshlet_vertices.iter().sum::<u64>();
+    // (With LOD, the hierarchy's clusters after the meshlets: the crowd's survivors number them so.)
+    let uploaded = all_meshlets_lod.as_ref().unwrap_or(&baked.meshlets);
+    let meshlet_triangles: Vec<u64> = uploaded.meshlets.iter().map(|m| m.triangle_count as u64).collect();
+    let meshlet_vertices: Vec<u64> = uploaded.meshlets.iter().map(|m| m.vertex_count as u64).collect();
+    let all_vertex_refs = instances as u64 * meshlet_vertices[..baked.meshlets.len()].iter().sum::<u64>();
     // One frame of configuration `k`: image, GPU ms, triangles and meshlets drawn, draw calls,
     // wall ms.
     let draw = |k: usize, f: usize| -> Result<Frame> {
         let c = &configs[k];
         if let Some(view) = c.view {
             let started = std::time::Instant::now();
-            let d = gpu_crowd.draw(&gpu, &crowd_frame(f, c.tests.unwrap_or(Tests::Both), false), view, light)?;
+            let d = gpu_crowd.draw(&gpu, &crowd_frame(f, c.tests.unwrap_or(Tests::Both), false, c.lod), view, light)?;
             let wall_ms = started.elapsed().as_secs_f64() * 1e3;
             let (mut meshlets, mut triangles, mut vertex_refs, mut pass_vertices) =
                 (all_meshlets, total_triangles * instances as u64, Some(all_vertex_refs), None);
@@ -429,7 +505,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 wall_ms,
             });
         }
-        let list: Vec<PosedInstance> = (frames[f].iter().zip(&flat[f].1))
+        let list: Vec<PosedInstance> = (frames[f].iter().zip(&flat[f].modes))
             .map(|(p, &mode)| PosedInstance {
                 pose: Pose { matrices: &p.skinning, morph_weights: &p.weights },
                 cull: Some(mode),
@@ -468,14 +544,14 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     // and there differently between one instanced draw, a pulled draw and a multi-draw of the
     // same triangles; each renderer pipeline's own unculled draw), and where meshlets tie in
     // depth (draw order picks the color there).
-    let oracle0 = gpu_crowd.draw(&gpu, &crowd_frame(0, Tests::Both, false), CrowdView::Ids, light)?;
+    let oracle0 = gpu_crowd.draw(&gpu, &crowd_frame(0, Tests::Both, false, false), CrowdView::Ids, light)?;
     let ties = oracle0.ties.context("the ID view finds ties")?;
     let same =
         |a: &Image, b: &Image| a.rgba.chunks(4).zip(b.rgba.chunks(4)).zip(&ties).all(|((x, y), &tie)| x == y || tie);
     // Warm-up: frame 0 of every configuration, untimed, checked against its reference. Culling
     // is conservative: every configuration draws the same picture, so the first one's is written.
     let mut picture = None;
-    let mut image_equal = vec![false; configs.len()];
+    let mut image_equal = vec![None; configs.len()];
     // The occlusion rows share the crowd's visibility bits: each one's timed frames start
     // after an untimed frame 0 of its own.
     let occluding = |c: &Config| matches!(c.view, Some(CrowdView::Occluded | CrowdView::OccludedTriangles));
@@ -493,7 +569,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             (Some(CrowdView::Unculled), _) => Some(frame.image.clone()),
             (Some(view), _) => {
                 let same_way = if view == CrowdView::Indexed { view } else { CrowdView::Pulled };
-                gpu_crowd.draw(&gpu, &crowd_frame(0, Tests::Both, true), same_way, light)?.image
+                gpu_crowd.draw(&gpu, &crowd_frame(0, Tests::Both, true, false), same_way, light)?.image
             }
             (None, None) => Some(frame.image.clone()),
             (None, Some(_)) => {
@@ -501,7 +577,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 plain.map(|p| draw(p, 0)).transpose()?.map(|f| f.image)
             }
         };
-        image_equal[k] = reference.is_some_and(|r| same(&r, &frame.image));
+        image_equal[k] = (!c.lod).then(|| reference.is_some_and(|r| same(&r, &frame.image)));
         picture.get_or_insert(frame.image);
     }
     // The limit: meshlets with a visible fragment, per timed frame. And what a box test
@@ -517,9 +593,9 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let mut last: HashSet<u32> = oracle0.ids.iter().flatten().copied().filter(|&id| id != 0).collect();
     let mut last_or_this = Vec::new();
     for (f, poses) in frames.iter().enumerate().skip(1) {
-        gpu_crowd.draw(&gpu, &crowd_frame(f, Tests::Both, false), CrowdView::Pulled, light)?;
+        gpu_crowd.draw(&gpu, &crowd_frame(f, Tests::Both, false, false), CrowdView::Pulled, light)?;
         let survivors = gpu_crowd.survivors(&gpu)?;
-        let d = gpu_crowd.draw(&gpu, &crowd_frame(f, Tests::Both, false), CrowdView::Ids, light)?;
+        let d = gpu_crowd.draw(&gpu, &crowd_frame(f, Tests::Both, false, false), CrowdView::Ids, light)?;
         let ids = d.ids.context("the ID view reads ids")?;
         let visible: HashSet<u32> = ids.iter().copied().filter(|&id| id != 0).collect();
         oracle.push(visible.len() as f64);
@@ -564,6 +640,44 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             pass_vertices[k] = p.map(|p| p / a.frames as u64);
         }
     }
+    // LOD against full detail, both culled (pulled), per timed frame: triangles and vertex
+    // references drawn, pixels differing, the silhouettes' displacement (coverage from depth).
+    let lod = match a.lod {
+        false => None,
+        true => {
+            let (mut t, mut v, mut diff, mut worst) = ([0u64; 2], [0u64; 2], 0u64, 0f32);
+            for f in 1..=a.frames {
+                let mut images = Vec::new();
+                for (k, with_lod) in [false, true].into_iter().enumerate() {
+                    let d = gpu_crowd.draw(
+                        &gpu,
+                        &crowd_frame(f, Tests::Both, false, with_lod),
+                        CrowdView::Pulled,
+                        light,
+                    )?;
+                    let survivors = gpu_crowd.survivors(&gpu)?;
+                    t[k] += survivors.iter().map(|&[_, m]| meshlet_triangles[m as usize]).sum::<u64>();
+                    v[k] += survivors.iter().map(|&[_, m]| meshlet_vertices[m as usize]).sum::<u64>();
+                    let covered: Vec<bool> = gpu_crowd.depth(&gpu)?.iter().map(|&z| z < 1.0).collect();
+                    images.push((d.image.context("the crowd draws an image")?, covered));
+                }
+                let [(full, full_covered), (cut, cut_covered)] = &images[..] else { unreachable!() };
+                diff += full.rgba.chunks(4).zip(cut.rgba.chunks(4)).filter(|(x, y)| x != y).count() as u64;
+                let (w, h) = (a.width as usize, height as usize);
+                worst = worst.max(silhouette_displacement(full_covered, cut_covered, w, h));
+            }
+            let per_frame = |x: u64| x / a.frames as u64;
+            let lod = baked.lod.as_ref().context("the bake has a LOD hierarchy")?;
+            Some(json!({
+                "pixels": a.lod_pixels, "lod_s": lod_s, "groups": lod.groups.len(), "clusters": lod.meshlets.len(),
+                "triangles_full_detail": per_frame(t[0]), "triangles_drawn": per_frame(t[1]),
+                "triangle_reduction": t[0] as f64 / t[1].max(1) as f64,
+                "vertex_refs_full_detail": per_frame(v[0]), "vertex_refs_drawn": per_frame(v[1]),
+                "pixels_differing": per_frame(diff), "image_pixels": a.width as u64 * height as u64,
+                "max_silhouette_px": worst,
+            }))
+        }
+    };
     let rows: Vec<Row> = (0..configs.len())
         .map(|k| {
             let c = &configs[k];
@@ -617,7 +731,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             "instances": instances, "frames": a.frames, "repeats": a.repeats, "width": a.width, "height": height,
             "meshlets": baked.meshlets.len(), "triangles_per_instance": total_triangles,
             "builder": baked.settings.builder.name(), "ci_meshlets": ci_counts.map(|c| c.0),
-            "ci_slim_meshlets": ci_counts.map(|c| c.1), "rows": rows});
+            "ci_slim_meshlets": ci_counts.map(|c| c.1), "lod": lod, "rows": rows});
         println!("{}", serde_json::to_string_pretty(&out)?);
         return Ok(());
     }
@@ -676,7 +790,27 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             r.meshlets_drawn,
             r.triangles,
             r.draws_issued,
-            if r.image_equal { "equal" } else { "DIFF" }
+            match r.image_equal {
+                Some(true) => "equal",
+                Some(false) => "DIFF",
+                None => "-",
+            }
+        );
+    }
+    if let Some(l) = &lod {
+        println!(
+            "  LOD at {} px ({} groups, {} clusters): {} triangles per frame against {} at full detail ({:.1}x \
+             fewer), both culled; {} of {} vertex references; {} pixels differ, silhouettes moved up to {:.2} px",
+            l["pixels"],
+            l["groups"],
+            l["clusters"],
+            l["triangles_drawn"],
+            l["triangles_full_detail"],
+            l["triangle_reduction"].as_f64().unwrap_or(0.0),
+            l["vertex_refs_drawn"],
+            l["vertex_refs_full_detail"],
+            l["pixels_differing"],
+            l["max_silhouette_px"].as_f64().unwrap_or(f64::NAN)
         );
     }
     if rows.iter().all(|r| r.gpu_ms.is_none()) {

@@ -4,14 +4,13 @@
 //! vertex references of those cuts are compared with full detail.
 
 use anyhow::Result;
-use glam::{Affine3A, Vec3};
 use serde_json::json;
 use skinlet::meshlet::Builder;
 use skinlet::pose::global_transforms;
 use skinlet_lab::crowd::{CrowdParams, Layout, instance_pose, posed_crowd};
+use skinlet_lab::crowd_lod::CrowdLod;
 use skinlet_runtime::bake_view::BakeView;
-use skinlet_runtime::lod_select::LodCamera;
-use skinlet_runtime::part_bounds::{PartBounds, PoseBounds};
+use skinlet_runtime::part_bounds::PoseBounds;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -118,14 +117,12 @@ fn measure(
     a: &Args,
 ) -> skinlet::Result<Measured> {
     let lod = view.lod().ok_or_else(|| invalid("the bake has no cluster LOD"))?;
-    let boxes = PartBounds::new(view)?;
     let palette = baked.palette();
     let layout = if a.crowd == "dense" { Layout::Dense } else { Layout::Paper };
     let params = CrowdParams { instances: a.instances, frames: a.frames, layout, ..CrowdParams::default() };
     let scene = posed_crowd(&asset.skeleton, &palette, &baked.mesh, clips, &params)?;
     let height = (a.width * 9 / 16).max(1);
-    let eye = scene.camera.eye().ok_or_else(|| invalid("the crowd's camera is orthographic"))?;
-    let camera = lod_camera(&scene.camera, eye, a.width, height);
+    let thresholds = CrowdLod::new(view, &scene.camera, a.width, height)?;
     // Per cluster (meshlets first): triangles, vertices, level.
     let mut size = Vec::new();
     let meshlets = view.meshlets();
@@ -149,15 +146,9 @@ fn measure(
             pl.world_matrices(&palette, &globals, &mut joints, &mut skinning);
             let clip = clips.get(pl.clip).map(|&c| (pl.clip as u32, pl.time(Some(c), frame, params.fps)));
             let pose = clip.map_or(PoseBounds::Clips, |(clip, time)| PoseBounds::ClipAt { clip, time });
-            let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
-            for p in 0..baked.parts.len() {
-                let b = boxes.part_box(p, &Affine3A::IDENTITY, &joints, &weights, pose);
-                (lo, hi) = (lo.min(b.min), hi.max(b.max));
-            }
-            let (center, radius) = ((lo + hi) / 2.0, (hi - lo).length() / 2.0);
             for (k, &pixels) in a.pixels.iter().enumerate() {
                 let d = &mut drawn[k];
-                lod.cut(camera.threshold(pixels, center, radius, 1.0), &mut cut);
+                lod.cut(thresholds.threshold(pixels, &joints, &weights, pose), &mut cut);
                 for &c in &cut {
                     let (tris, verts, level) = size[c as usize];
                     (d.0, d.1) = (d.0 + tris, d.1 + verts);
@@ -183,12 +174,4 @@ fn measure(
 
 fn invalid(message: &str) -> skinlet::Error {
     skinlet::Error::Invalid { location: "lod".into(), message: message.into() }
-}
-
-/// The crowd's symmetric perspective camera for LOD: its near plane's inward normal is the
-/// view direction, its bottom and top planes' are `π − fov_y` apart.
-fn lod_camera(camera: &skinlet::cull::Camera, eye: Vec3, width: u32, height: u32) -> LodCamera {
-    let (bottom, top) = (camera.planes[2].truncate(), camera.planes[3].truncate());
-    let fov = std::f32::consts::PI - bottom.dot(top).clamp(-1.0, 1.0).acos();
-    LodCamera::perspective(eye, camera.planes[4].truncate(), fov, width as f32 / height as f32, height)
 }

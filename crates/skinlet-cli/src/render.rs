@@ -129,7 +129,14 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             let palette: Vec<glam::Mat4> = matrices.iter().map(|&m| m.into()).collect();
             let survivors = |tests| -> Result<Vec<bool>> {
                 let modes = [CullMode::Bounds];
-                let frame = CrowdFrame { palette: &palette, modes: &modes, weights: &weights, camera: &camera, tests };
+                let frame = CrowdFrame {
+                    palette: &palette,
+                    modes: &modes,
+                    weights: &weights,
+                    lod_thresholds: &[],
+                    camera: &camera,
+                    tests,
+                };
                 crowd.draw(&gpu, &frame, CrowdView::Pulled, LIGHT)?;
                 let mut kept = vec![false; baked.meshlets.len()];
                 crowd.survivors(&gpu)?.iter().for_each(|&[_, m]| kept[m as usize] = true);

@@ -193,10 +193,10 @@ pub struct GpuCharacter {
     slots: wgpu::Buffer,
     slots_by_class: wgpu::Buffer,
     boxes: wgpu::Buffer,
+    /// Per meshlet: index count, first index, its own and its parent group's LOD error
+    /// (`crowd_cull.wgsl`).
     draws: wgpu::Buffer,
     statics: wgpu::Buffer,
-    /// Per meshlet, its own and its parent group's LOD error (`crowd_cull.wgsl`).
-    lod_errors: wgpu::Buffer,
 }
 
 /// The depth buffer two-phase occlusion culling reads ([`CrowdCulling::with_occlusion`]): the
@@ -479,8 +479,6 @@ impl CullPipelines {
                     layout_entry(8, write),
                     layout_entry(9, Uniform),
                     layout_entry(10, write),
-                    layout_entry(11, read),
-                    layout_entry(12, read),
                 ],
             );
             let finish = crate::context::compute_pipeline_with(
@@ -572,8 +570,10 @@ impl GpuCharacter {
             return Err(invalid(location, format!("meshlet {i}'s LOD errors {:?} (0 ≤ own ≤ parent)", errors[i])));
         }
         // Full detail marked by a negative error of its own (crowd_cull.wgsl).
-        let lod_errors: Vec<[f32; 2]> = (errors.iter().enumerate())
-            .map(|(i, &[own, parent])| [if i < base { -1.0 } else { own }, parent])
+        let records: Vec<[u32; 4]> = (draws.iter().zip(errors).enumerate())
+            .map(|(i, (d, &[own, parent]))| {
+                [d[0], d[1], if i < base { -1.0f32 } else { own }.to_bits(), parent.to_bits()]
+            })
             .collect();
         if inverse_bind.len() != joints {
             return Err(invalid(location, format!("{} inverse bind matrices for {joints} joints", inverse_bind.len())));
@@ -622,9 +622,8 @@ impl GpuCharacter {
                 storage,
             ),
             boxes: crate::context::buffer(device, "skinlet any-pose boxes", &pack_boxes(culler), storage),
-            draws: crate::context::buffer(device, "skinlet meshlet draws", draws, storage),
+            draws: crate::context::buffer(device, "skinlet meshlet draws", &records, storage),
             statics: crate::context::buffer(device, "skinlet joint statics", &statics, storage),
-            lod_errors: crate::context::buffer(device, "skinlet LOD errors", &lod_errors, storage),
         })
     }
 
@@ -747,7 +746,8 @@ impl CrowdCulling {
         let lists = if depth.is_some() { 2 } else { 1 };
         let (levels, texels) = depth.map_or((0, 0), |d| pyramid_levels(d.width, d.height));
         let state_size = (cap * meshlets + texels) * 4;
-        let records_size = cap * joints * RECORD_BYTES;
+        // The joints' records, then each instance's LOD threshold.
+        let records_size = cap * joints * RECORD_BYTES + cap * 4;
         let commands_size = lists * survivor_capacity as u64 * COMMAND_BYTES;
         if records_size.max(commands_size).max(state_size).max(cap * COUNT_BYTES) > limit
             || cap * meshlets.max(joints) > u32::MAX as u64 / 2
@@ -811,8 +811,6 @@ impl CrowdCulling {
                     bind(8, whole(&survivors)),
                     bind(9, part(&uniforms, OCCLUSION_OFFSET, 96)),
                     bind(10, whole(&state)),
-                    bind(11, whole(&character.lod_errors)),
-                    bind(12, whole(instances)),
                 ],
             });
             let pyramid = depth.map(|d| {

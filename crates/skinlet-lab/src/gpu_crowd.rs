@@ -50,13 +50,16 @@ pub enum CrowdView {
 }
 
 /// One frame of the crowd: per instance its world-space skinning matrices (`joints` each,
-/// instance after instance), how it is culled, and its morph weights (the mesh's morph weight
-/// count each: none for a mesh without morph targets).
+/// instance after instance), how it is culled, its morph weights (the mesh's morph weight
+/// count each: none for a mesh without morph targets) and, for a crowd made with
+/// [`GpuCrowd::with_lod`], its LOD threshold (`skinlet_gpu::crowd_culling::CullInstance`:
+/// negative for full detail; none: every instance at full detail).
 #[derive(Clone, Copy, Debug)]
 pub struct CrowdFrame<'a> {
     pub palette: &'a [Mat4],
     pub modes: &'a [CullMode],
     pub weights: &'a [f32],
+    pub lod_thresholds: &'a [f32],
     pub camera: &'a Camera,
     pub tests: Tests,
 }
@@ -170,13 +173,64 @@ impl GpuCrowd {
         reversed: bool,
         rounds: u32,
     ) -> Result<GpuCrowd> {
+        Self::build(gpu, baked, culler, false, capacity, [width, height], reversed, rounds)
+    }
+
+    /// [`GpuCrowd::with_depth_range`] with `baked`'s cluster LOD hierarchy: the mesh's meshlets,
+    /// then the hierarchy's clusters (`culler` holds both, in that order, as
+    /// `BakeView::lod_culler` does), each instance culling the clusters of its cut at its
+    /// [`CrowdFrame::lod_thresholds`]. The unculled and ID views draw full detail. Errors when
+    /// `baked` has no hierarchy.
+    #[allow(clippy::too_many_arguments)]
+    pub fn with_lod(
+        gpu: &Gpu,
+        baked: &skinlet::bake::Baked,
+        culler: &MeshletCuller,
+        capacity: u32,
+        width: u32,
+        height: u32,
+        reversed: bool,
+        rounds: u32,
+    ) -> Result<GpuCrowd> {
+        Self::build(gpu, baked, culler, true, capacity, [width, height], reversed, rounds)
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn build(
+        gpu: &Gpu,
+        baked: &skinlet::bake::Baked,
+        culler: &MeshletCuller,
+        lod: bool,
+        capacity: u32,
+        [width, height]: [u32; 2],
+        reversed: bool,
+        rounds: u32,
+    ) -> Result<GpuCrowd> {
         let mesh = &baked.mesh;
-        let headers = baked.meshlets.headers();
-        let meshlets = baked.meshlets.view(&headers);
+        let base = baked.meshlets.len();
+        let (all, errors) = match (lod, &baked.lod) {
+            (false, _) => (None, None),
+            (true, None) => return Err(invalid("the bake has no cluster LOD hierarchy".into())),
+            (true, Some(hierarchy)) => {
+                let mut all = baked.meshlets.clone();
+                all.append(&hierarchy.meshlets, 0);
+                let errors = skinlet::bake::with_view(baked, |view| Ok(view.lod().map(|l| l.errors())))
+                    .map_err(|e| invalid(e.to_string()))?;
+                (Some(all), errors)
+            }
+        };
+        let all = all.as_ref().unwrap_or(&baked.meshlets);
+        let headers = all.headers();
+        let meshlets = all.view(&headers);
         let (indices, draws) = skinlet_gpu::mesh::meshlet_index_buffer(&meshlets, mesh.positions.len())?;
+        // Full detail's indices (the unculled and ID views draw them): the first meshlets'.
+        let full_detail = draws.get(base).map_or(indices.len() as u32, |d| d[1]);
         let device = &gpu.device;
         let pipelines = CullPipelines::new(device)?;
-        let character = GpuCharacter::new(device, culler, &baked.inverse_bind, &draws)?;
+        let character = match &errors {
+            Some(errors) => GpuCharacter::with_lod(device, culler, &baked.inverse_bind, &draws, base, errors)?,
+            None => GpuCharacter::new(device, culler, &baked.inverse_bind, &draws)?,
+        };
         let (joints, morphs) = (baked.inverse_bind.len() as u32, mesh.morphs.weights.len() as u32);
         let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
         let zeros = |bytes: u64| vec![0u8; bytes as usize];
@@ -207,13 +261,13 @@ impl GpuCrowd {
         let packed = CrowdMesh::pack(&mesh.mesh_data(None), joints)?;
         let triangle_meshlets: Vec<u32> =
             (draws.iter().enumerate()).flat_map(|(m, d)| std::iter::repeat_n(m as u32, d[0] as usize / 3)).collect();
-        let triangle_by_vertices = (indices.chunks_exact(3).enumerate())
-            .map(|(k, t)| {
-                let mut t = [t[0], t[1], t[2]];
-                t.sort_unstable();
-                (t, k as u32)
-            })
-            .collect();
+        // (A LOD cluster may repeat a full-detail triangle: the first, full detail's, is kept.)
+        let mut triangle_by_vertices = std::collections::HashMap::new();
+        for (k, t) in indices.chunks_exact(3).enumerate() {
+            let mut t = [t[0], t[1], t[2]];
+            t.sort_unstable();
+            triangle_by_vertices.entry(t).or_insert(k as u32);
+        }
         let read = wgpu::BufferUsages::STORAGE;
         let index_buffer = gpu.buffer("crowd indices", &indices, read | wgpu::BufferUsages::INDEX);
         let target = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
@@ -322,7 +376,7 @@ impl GpuCrowd {
             joints,
             morphs,
             meshlets: character.meshlets(),
-            index_count: indices.len() as u32,
+            index_count: full_detail,
             firsts: draws.iter().map(|d| d[1]).collect(),
             triangle_by_vertices,
             triangle_meshlets,
@@ -372,7 +426,10 @@ impl GpuCrowd {
         }
         let queue = &gpu.queue;
         queue.write_buffer(&self.palette, 0, bytemuck::cast_slice(frame.palette));
-        let instances: Vec<CullInstance> = frame.modes.iter().map(|&m| CullInstance::new(Mat4::IDENTITY, m)).collect();
+        let threshold = |i: usize| frame.lod_thresholds.get(i).copied().unwrap_or(-1.0);
+        let instances: Vec<CullInstance> = (frame.modes.iter().enumerate())
+            .map(|(i, &m)| CullInstance::with_lod(Mat4::IDENTITY, m, threshold(i)))
+            .collect();
         queue.write_buffer(&self.instances, 0, bytemuck::cast_slice(&instances));
         if !frame.weights.is_empty() {
             queue.write_buffer(&self.weights, 0, bytemuck::cast_slice(frame.weights));

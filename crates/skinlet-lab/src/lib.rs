@@ -31,6 +31,7 @@ pub mod backface_views;
 pub mod bevy_baseline;
 pub mod contour_eval;
 pub mod crowd;
+pub mod crowd_lod;
 pub mod demo;
 pub mod gpu_crowd;
 pub mod headless;

@@ -16,9 +16,11 @@ use skinlet::pose::Poser;
 use skinlet_gpu::Gpu;
 use skinlet_gpu::crowd_culling::CullMode;
 use skinlet_lab::crowd::{Animation, CrowdParams, Layout, crowd, instance_pose};
+use skinlet_lab::crowd_lod::{CrowdLod, silhouette_displacement};
 use skinlet_lab::gpu_crowd::{CrowdFrame, CrowdView, GpuCrowd};
 use skinlet_runtime::camera::{Camera, Projection};
 use skinlet_runtime::meshlet_cull::{MeshletCuller, Tests};
+use skinlet_runtime::part_bounds::PoseBounds;
 use std::collections::HashSet;
 
 const LIGHT: Vec3 = Vec3::new(0.4, 0.8, 0.6);
@@ -182,8 +184,14 @@ fn survivors_draw_the_unculled_image_and_hold_every_visible_meshlet() {
             let (palette, weights) = clip_pose(&asset, &baked, &scene, params.fps, f, &in_place);
             let modes = vec![CullMode::Bounds; scene.placements.len()];
             for tests in [Tests::Both, Tests::Frustum] {
-                let frame =
-                    CrowdFrame { palette: &palette, modes: &modes, weights: &weights, camera: &scene.camera, tests };
+                let frame = CrowdFrame {
+                    palette: &palette,
+                    modes: &modes,
+                    weights: &weights,
+                    lod_thresholds: &[],
+                    camera: &scene.camera,
+                    tests,
+                };
                 let counts = check_frame(&gpu, &crowd, &frame, &format!("{name} frame {f} {tests:?}"));
                 totals.iter_mut().zip(counts).for_each(|(t, c)| *t += c);
             }
@@ -235,8 +243,14 @@ fn game_poses_under_the_pose_guard_draw_every_visible_meshlet() {
     }
     let refused = modes.iter().filter(|&&m| m == CullMode::BoxesOnly).count();
     assert!(refused > 0 && refused < 15, "the guard refused {refused} of 16 instances");
-    let frame =
-        CrowdFrame { palette: &palette, modes: &modes, weights: &weights, camera: &scene.camera, tests: Tests::Both };
+    let frame = CrowdFrame {
+        palette: &palette,
+        modes: &modes,
+        weights: &weights,
+        lod_thresholds: &[],
+        camera: &scene.camera,
+        tests: Tests::Both,
+    };
     let [drawn, _, _, meshlets, _] = check_frame(&gpu, &crowd, &frame, "IK poses");
     assert!(drawn < meshlets, "nothing was culled");
 }
@@ -290,8 +304,14 @@ fn occlusion_culling_misses_nothing_when_the_camera_cuts_or_the_crowd_teleports(
         let (mut culled_by_occlusion, mut checked) = (0, 0);
         for (f, cam) in walk.iter().enumerate() {
             let (palette, weights) = pose(f, &in_place);
-            let frame =
-                CrowdFrame { palette: &palette, modes: &modes, weights: &weights, camera: cam, tests: Tests::Both };
+            let frame = CrowdFrame {
+                palette: &palette,
+                modes: &modes,
+                weights: &weights,
+                lod_thresholds: &[],
+                camera: cam,
+                tests: Tests::Both,
+            };
             let [drawn, occluded, ..] =
                 check_frame(&gpu, &crowd, &frame, &format!("reversed {reversed}: walk frame {f}"));
             culled_by_occlusion += drawn - occluded;
@@ -306,6 +326,7 @@ fn occlusion_culling_misses_nothing_when_the_camera_cuts_or_the_crowd_teleports(
                 palette: &palette,
                 modes: &modes,
                 weights: &weights,
+                lod_thresholds: &[],
                 camera: &walk[0],
                 tests: Tests::Both,
             };
@@ -320,4 +341,96 @@ fn occlusion_culling_misses_nothing_when_the_camera_cuts_or_the_crowd_teleports(
         );
         assert!(culled_by_occlusion > 0, "reversed {reversed}: occlusion culled nothing: the test would be vacuous");
     }
+}
+
+/// Cluster LOD in the GPU-driven crowd (the demo's hierarchy, a dense crowd): every survivor
+/// is a cluster of its instance's CPU cut (`LodView::cut` at the threshold `CrowdLod` gives
+/// it), coarse clusters are drawn and fewer triangles than at full detail, the silhouettes
+/// against the background move by at most the pixels asked for plus half a pixel's diagonal
+/// (rasterization at pixel centers), and two-phase occlusion culling covers the same pixels
+/// with a subset of the survivors.
+#[test]
+fn lod_crowd_draws_cuts_whose_silhouettes_stay_within_the_pixels() {
+    let Some(gpu) = gpu() else { return };
+    let demo =
+        skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams { triangles: 4000, ..Default::default() });
+    let mut baked = bake(&demo, &demo.character().unwrap());
+    skinlet::bake::add_lod(&mut baked, &demo, &skinlet::meshlet::lod::LodParams::default()).unwrap();
+    let skin = baked.palette();
+    let clips: Vec<&skinlet::clip::Clip> = demo.clips.iter().collect();
+    let params = CrowdParams { instances: 64, layout: Layout::Dense, ..Default::default() };
+    let scene = crowd(&baked.mesh.positions, clips.len(), &params).unwrap();
+    let (width, height, pixels) = (640, 360, 2.0);
+    let (mut palette, mut weights, mut poser) = (Vec::new(), Vec::new(), Poser::default());
+    let (culler, thresholds, cuts) = skinlet::bake::with_view(&baked, |view| {
+        let lod = view.lod().unwrap();
+        let crowd_lod = CrowdLod::new(view, &scene.camera, width, height)?;
+        let (mut thresholds, mut cuts, mut w) = (Vec::new(), Vec::new(), Vec::new());
+        for pl in &scene.placements {
+            let clip = clips.get(pl.clip).copied();
+            let t = pl.time(clip, 0, params.fps);
+            let globals = poser.globals(&demo.skeleton, clip, t);
+            let (mut joints, mut skinning) = (Vec::new(), Vec::new());
+            pl.world_matrices(&skin, globals, &mut joints, &mut skinning);
+            palette.extend(skinning.iter().map(|&m| Mat4::from(m)));
+            baked.mesh.morphs.weights_at(clip, t, &mut w);
+            weights.extend(&w);
+            let pose = match clip {
+                Some(_) => PoseBounds::ClipAt { clip: pl.clip as u32, time: t },
+                None => PoseBounds::Clips,
+            };
+            let threshold = crowd_lod.threshold(pixels, &joints, &w, pose);
+            let mut cut = Vec::new();
+            lod.cut(threshold, &mut cut);
+            thresholds.push(threshold);
+            cuts.push(cut.into_iter().collect::<HashSet<u32>>());
+        }
+        Ok((view.lod_culler()?.unwrap(), thresholds, cuts))
+    })
+    .unwrap();
+    let n = scene.placements.len();
+    let crowd = GpuCrowd::with_lod(&gpu, &baked, &culler, n as u32, width, height, false, 4).unwrap();
+    let modes = vec![CullMode::Bounds; n];
+    let frame = |lod: bool| CrowdFrame {
+        palette: &palette,
+        modes: &modes,
+        weights: &weights,
+        lod_thresholds: if lod { &thresholds } else { &[] },
+        camera: &scene.camera,
+        tests: Tests::Both,
+    };
+    let base = baked.meshlets.len() as u32;
+    let triangles = |survivors: &[[u32; 2]]| -> usize {
+        let all = [&baked.meshlets.meshlets[..], &baked.lod.as_ref().unwrap().meshlets.meshlets[..]].concat();
+        survivors.iter().map(|&[_, m]| all[m as usize].triangle_count as usize).sum()
+    };
+    // Draws a view of the frame; its survivors and coverage (from depth: cleared to 1).
+    let drawn = |lod: bool, view: CrowdView| {
+        crowd.draw(&gpu, &frame(lod), view, LIGHT).unwrap();
+        let covered: Vec<bool> = crowd.depth(&gpu).unwrap().iter().map(|&z| z < 1.0).collect();
+        (crowd.survivors(&gpu).unwrap(), covered)
+    };
+    let (full, full_covered) = drawn(false, CrowdView::Pulled);
+    let (cut, cut_covered) = drawn(true, CrowdView::Pulled);
+    assert!(full.iter().all(|&[_, m]| m < base), "full detail drew a coarse cluster");
+    for &[i, m] in &cut {
+        assert!(cuts[i as usize].contains(&m), "instance {i} drew cluster {m}, not in its cut");
+    }
+    let coarse = cut.iter().filter(|&&[_, m]| m >= base).count();
+    assert!(coarse > 0 && triangles(&cut) < triangles(&full), "{coarse} coarse clusters drawn");
+    let moved = silhouette_displacement(&full_covered, &cut_covered, width as usize, height as usize);
+    assert!(moved <= pixels + std::f32::consts::FRAC_1_SQRT_2, "silhouettes moved {moved} px");
+    // Occlusion culling, twice (the second frame with the first's visibility bits).
+    drawn(true, CrowdView::Occluded);
+    let (occluded, occluded_covered) = drawn(true, CrowdView::Occluded);
+    let pulled: HashSet<[u32; 2]> = cut.iter().copied().collect();
+    assert!(occluded.iter().all(|s| pulled.contains(s)) && occluded.len() < cut.len());
+    assert!(occluded_covered == cut_covered, "occlusion culling changed the covered pixels");
+    eprintln!(
+        "LOD at {pixels} px: {} of {} triangles drawn ({coarse} coarse clusters), {} survivors with occlusion \
+         culling; silhouettes moved up to {moved:.2} px",
+        triangles(&cut),
+        triangles(&full),
+        occluded.len()
+    );
 }

@@ -382,7 +382,14 @@ fn compute_survivors(
         instances.iter().flat_map(|i| i.pose.matrices.iter().map(|&m| glam::Mat4::from(m))).collect();
     let modes: Vec<CullMode> = instances.iter().map(|i| i.cull.unwrap()).collect();
     let weights: Vec<f32> = instances.iter().flat_map(|i| i.pose.morph_weights.iter().copied()).collect();
-    let frame = CrowdFrame { palette: &palette, modes: &modes, weights: &weights, camera, tests: Tests::Both };
+    let frame = CrowdFrame {
+        palette: &palette,
+        modes: &modes,
+        weights: &weights,
+        lod_thresholds: &[],
+        camera,
+        tests: Tests::Both,
+    };
     crowd.draw(gpu, &frame, CrowdView::Pulled, Vec3::Y).unwrap();
     let mut kept = vec![Vec::new(); instances.len()];
     for [i, m] in crowd.survivors(gpu).unwrap() {

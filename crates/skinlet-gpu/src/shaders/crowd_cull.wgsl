@@ -32,12 +32,15 @@
 // The joint records (RECORD floats per instance and joint), then per instance and joint 16
 // floats: the joint's world matrix as three rows (x, y, z, t), a bound on its spectral norm,
 // the occlusion mode (0 none, 1 the bounds' spheres, 2 the any-pose boxes, 3 both), the rounding
-// bounds of forming it (prepare.wgsl).
+// bounds of forming it; then per instance its LOD threshold, negative for full detail
+// (prepare.wgsl).
 @group(0) @binding(2) var<storage, read> joint_records: array<f32>;
 // Per instance: visible, culled by the frustum, culled as back-facing only, occluded.
 @group(0) @binding(3) var<storage, read_write> counts: array<atomic<u32>>;
-// Per meshlet: its index count and first index in the mesh's index buffer.
-@group(0) @binding(5) var<storage, read> meshlet_draws: array<vec2<u32>>;
+// Per meshlet: its index count and first index in the mesh's index buffer, the error of the
+// LOD group that made it (negative: full detail, none made it) and of its parent group (+inf:
+// none; a character without a hierarchy: every meshlet full detail without a parent).
+@group(0) @binding(5) var<storage, read> meshlet_draws: array<vec4<u32>>;
 // Per survivor, DrawIndexedIndirectArgs: index count, instance count 1, first index, base
 // vertex 0, first instance = the instance. List A from 0, list B from `capacity`.
 @group(0) @binding(6) var<storage, read_write> commands: array<u32>;
@@ -53,33 +56,16 @@
 // Per (instance, meshlet) its visibility bit (a word) last frame, then the depth pyramid.
 @group(0) @binding(10) var<storage, read_write> state: array<u32>;
 
-// Per meshlet: the error of the LOD group that made it (negative: full detail, none made it)
-// and of its parent group (+inf: none; a character without a hierarchy: every meshlet full
-// detail without a parent).
-@group(0) @binding(11) var<storage, read> lod_errors: array<vec2<f32>>;
-
-// prepare.wgsl's instances: the culling mode and the LOD threshold.
-struct LodInstance {
-    model: mat4x4<f32>,
-    mode: u32,
-    lod_threshold: f32,
-    pad0: u32,
-    pad1: u32,
-}
-@group(0) @binding(12) var<storage, read> instances: array<LodInstance>;
-
 // Whether meshlet `id` is in `instance`'s cut: its group's error at most the instance's
-// threshold and its parent group's above it. Full detail where the threshold is negative or
-// not a number, or the instance's bounds do not hold (modes 2 and 3: the errors hold only for
-// the poses the bounds hold for).
+// threshold and its parent group's above it (full detail where the threshold is negative).
 fn in_cut(id: u32, instance: u32) -> bool {
-    let e = lod_errors[id];
-    let i = instances[instance];
-    if !(i.lod_threshold >= 0.0) || i.mode >= 2u {
+    let e = bitcast<vec2<f32>>(meshlet_draws[id].zw);
+    let threshold = joint_records[cull_params.instances * cull_params.joints * (RECORD + 16u) + instance];
+    if threshold < 0.0 {
         return e.x < 0.0;
     }
     // An infinite threshold draws the roots (their parents' errors are infinite).
-    let t = min(i.lod_threshold, 3.4028235e38);
+    let t = min(threshold, 3.4028235e38);
     return e.x <= t && t < e.y;
 }
 

@@ -131,6 +131,14 @@ fn prepare(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let instance = instances[index / params.joints];
     let joint = joint_statics[index % params.joints];
+    // The instance's LOD threshold after every joint's records (crowd_cull.wgsl): -1, full
+    // detail, where it is negative or NaN or the bounds do not hold (the LOD errors hold for
+    // the poses the bounds hold for).
+    if index % params.joints == 0u {
+        let lod = instance.mode <= 1u && instance.lod_threshold >= 0.0;
+        records[params.instances * params.joints * (RECORD + 16u) + index / params.joints] =
+            select(-1.0, instance.lod_threshold, lod);
+    }
     let base = index * RECORD;
     let s = palette[index];
     let g = instance.model * s * joint.bind;
