@@ -101,6 +101,10 @@ pub struct Args {
     /// The LOD threshold: the largest screen displacement allowed, in pixels.
     #[arg(long, default_value_t = 1.0)]
     lod_pixels: f32,
+    /// With `--lod`: also write the first timed frame's cuts as a PNG, each triangle coloured by
+    /// its cluster's level (white at full detail, then blue, green, yellow, orange, red, …).
+    #[arg(long, requires = "lod")]
+    lod_out: Option<std::path::PathBuf>,
     #[command(flatten)]
     refine: RefineArgs,
     #[arg(long)]
@@ -665,6 +669,12 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 diff += full.rgba.chunks(4).zip(cut.rgba.chunks(4)).filter(|(x, y)| x != y).count() as u64;
                 let (w, h) = (a.width as usize, height as usize);
                 worst = worst.max(silhouette_displacement(full_covered, cut_covered, w, h));
+            }
+            if let Some(out) = &a.lod_out {
+                let d =
+                    gpu_crowd.draw(&gpu, &crowd_frame(1, Tests::Both, false, true), CrowdView::PulledByLevel, light)?;
+                let image = d.image.context("the crowd draws an image")?;
+                crate::write_png(out, image.width, image.height, png::ColorType::Rgba, &image.rgba)?;
             }
             let per_frame = |x: u64| x / a.frames as u64;
             let lod = baked.lod.as_ref().context("the bake has a LOD hierarchy")?;

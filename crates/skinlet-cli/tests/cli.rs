@@ -406,6 +406,18 @@ fn lod_bakes_and_verifies() {
     let (fine, coarse) = (t[0]["triangles_lod"].as_u64().unwrap(), t[1]["triangles_lod"].as_u64().unwrap());
     assert_eq!(full, 64 * b["baked_triangles"].as_u64().unwrap(), "{j}");
     assert!(coarse < fine && fine <= full, "{j}");
+    // The cuts selected and culled on the GPU: fewer triangles than full detail, both culled,
+    // silhouettes within the pixels (and half a pixel's diagonal for rasterization).
+    let args = ["--gltf", "@demo:2000", "--crowd", "dense", "--pipelines", "VS", "--instances", "48", "--lod"];
+    let more = ["--lod-pixels", "4", "--frames", "1", "--repeats", "1", "--width", "480", "--json"];
+    let g = json_of(&[&["gpu-bench", with][..], &args, &more].concat());
+    let l = &g["lod"];
+    let (drawn, full) = (l["triangles_drawn"].as_u64().unwrap(), l["triangles_full_detail"].as_u64().unwrap());
+    assert!(drawn < full && l["vertex_refs_drawn"].as_u64() < l["vertex_refs_full_detail"].as_u64(), "{l}");
+    assert!(l["max_silhouette_px"].as_f64().unwrap() <= 4.0 + std::f64::consts::FRAC_1_SQRT_2, "{l}");
+    let rows = g["rows"].as_array().unwrap();
+    let lod_row = rows.iter().find(|r| r["culling"] == "both+lod").unwrap();
+    assert!(lod_row["image_equal_to_unculled"].is_null() && lod_row["triangles_per_frame"].as_u64() == Some(drawn));
     let _ = std::fs::remove_dir_all(&dir);
 }
 

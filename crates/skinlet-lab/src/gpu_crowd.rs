@@ -35,6 +35,9 @@ pub enum CrowdView {
     Unculled,
     /// The survivors, pulled: one `draw_indirect`.
     Pulled,
+    /// [`CrowdView::Pulled`], each triangle coloured by its cluster's LOD level (white at
+    /// full detail; [`GpuCrowd::with_lod`]).
+    PulledByLevel,
     /// The survivors as indexed draws: one `multi_draw_indexed_indirect_count`.
     Indexed,
     /// Two-phase occlusion culling, the survivors pulled: last frame's visible, then the
@@ -223,6 +226,14 @@ impl GpuCrowd {
         let headers = all.headers();
         let meshlets = all.view(&headers);
         let (indices, draws) = skinlet_gpu::mesh::meshlet_index_buffer(&meshlets, mesh.positions.len())?;
+        // Per triangle, its meshlet's LOD level.
+        let level = |m: usize| {
+            let cluster = m.checked_sub(base);
+            cluster.and_then(|c| baked.lod.as_ref().map(|l| l.groups[l.clusters[c][0] as usize].0)).unwrap_or(0)
+        };
+        let levels: Vec<u32> = (0..all.len())
+            .flat_map(|m| std::iter::repeat_n(level(m), all.meshlets[m].triangle_count as usize))
+            .collect();
         // Full detail's indices (the unculled and ID views draw them): the first meshlets'.
         let full_detail = draws.get(base).map_or(indices.len() as u32, |d| d[1]);
         let device = &gpu.device;
@@ -282,8 +293,10 @@ impl GpuCrowd {
             let layout = |label, entries: &[wgpu::BindGroupLayoutEntry]| {
                 device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries })
             };
-            let draw_layout =
-                layout("crowd draw", &[uniform(0, S::VERTEX_FRAGMENT), storage(1, S::VERTEX), storage(2, S::VERTEX)]);
+            let draw_layout = layout(
+                "crowd draw",
+                &[uniform(0, S::VERTEX_FRAGMENT), storage(1, S::VERTEX), storage(2, S::VERTEX), storage(3, S::VERTEX)],
+            );
             let skin_layout = layout("crowd skinning", &layout_entries(S::VERTEX_FRAGMENT | S::COMPUTE));
             fn entries<'a>(buffers: &[&'a wgpu::Buffer]) -> Vec<wgpu::BindGroupEntry<'a>> {
                 (buffers.iter().enumerate())
@@ -291,7 +304,11 @@ impl GpuCrowd {
                     .collect()
             }
             let groups = [
-                gpu.bind_group("crowd draw", &draw_layout, &entries(&[&view, &index_buffer, &commands])),
+                gpu.bind_group(
+                    "crowd draw",
+                    &draw_layout,
+                    &entries(&[&view, &index_buffer, &commands, &gpu.buffer("crowd triangle levels", &levels, read)]),
+                ),
                 gpu.bind_group(
                     "crowd skinning",
                     &skin_layout,
@@ -436,7 +453,7 @@ impl GpuCrowd {
         }
         let mut uniforms: Vec<u32> = frame.camera.view_proj.to_cols_array().map(f32::to_bits).to_vec();
         uniforms.extend(light.normalize_or_zero().extend(0.0).to_array().map(f32::to_bits));
-        uniforms.extend([self.index_count / 3, self.culling.id_bits(), 0, 0]);
+        uniforms.extend([self.index_count / 3, self.culling.id_bits(), (view == CrowdView::PulledByLevel) as u32, 0]);
         queue.write_buffer(&self.view, 0, bytemuck::cast_slice(&uniforms));
         let device = &gpu.device;
         let (row, height) = ((4 * self.width).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT), self.height);
@@ -450,7 +467,7 @@ impl GpuCrowd {
         let passes: Vec<(usize, Option<List>, bool)> = match view {
             CrowdView::Unculled => vec![(0, None, true)],
             CrowdView::Indexed => vec![(0, Some(List::First), true)],
-            CrowdView::Pulled => vec![(1, Some(List::First), true)],
+            CrowdView::Pulled | CrowdView::PulledByLevel => vec![(1, Some(List::First), true)],
             CrowdView::Occluded => occluded(1).collect(),
             CrowdView::Triangles => vec![(4, Some(List::First), true)],
             CrowdView::OccludedTriangles => occluded(4).collect(),
@@ -474,7 +491,7 @@ impl GpuCrowd {
             });
             let (camera, tests) = (frame.camera, frame.tests);
             match view {
-                CrowdView::Pulled | CrowdView::Indexed => {
+                CrowdView::Pulled | CrowdView::PulledByLevel | CrowdView::Indexed => {
                     culling.crowd().encode(queue, &mut encoder, camera, tests, n, start)?
                 }
                 CrowdView::Occluded => culling.crowd().encode_first(queue, &mut encoder, camera, tests, n, start)?,

@@ -418,6 +418,11 @@ fn lod_crowd_draws_cuts_whose_silhouettes_stay_within_the_pixels() {
     }
     let coarse = cut.iter().filter(|&&[_, m]| m >= base).count();
     assert!(coarse > 0 && triangles(&cut) < triangles(&full), "{coarse} coarse clusters drawn");
+    // Coloured by level: the same pixels covered, some of them by coarse (coloured) clusters.
+    let by_level = crowd.draw(&gpu, &frame(true), CrowdView::PulledByLevel, LIGHT).unwrap().image.unwrap();
+    let by_level_covered: Vec<bool> = crowd.depth(&gpu).unwrap().iter().map(|&z| z < 1.0).collect();
+    assert!(by_level_covered == cut_covered);
+    assert!(by_level.rgba.chunks(4).zip(&cut_covered).any(|(p, &c)| c && (p[0] != p[1] || p[1] != p[2])));
     let moved = silhouette_displacement(&full_covered, &cut_covered, width as usize, height as usize);
     assert!(moved <= pixels + std::f32::consts::FRAC_1_SQRT_2, "silhouettes moved {moved} px");
     // Occlusion culling, twice (the second frame with the first's visibility bits).
