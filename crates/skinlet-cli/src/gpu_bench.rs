@@ -231,11 +231,13 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let builder = a.builder.as_deref().map(|b| Builder::from_name(b).context("unknown meshlet builder")).transpose()?;
     let (asset, character, mut baked) = crate::crowd::load(file, a.gltf.as_deref(), builder, a.refine, a.json)?;
     let clips = crate::bake::clips_of(&baked, &asset, a.gltf.as_deref().unwrap_or(file))?;
-    let started = std::time::Instant::now();
+    // The hierarchy's build time where it is built here.
+    let mut lod_s = None;
     if a.lod && baked.lod.is_none() {
+        let started = std::time::Instant::now();
         skinlet::bake::add_lod(&mut baked, &asset, &skinlet::meshlet::lod::LodParams::default())?;
+        lod_s = Some(started.elapsed().as_secs_f64());
     }
-    let lod_s = started.elapsed().as_secs_f64();
     let envelope_spec = format!("clips:{}", a.additive_deg);
     if animation != Animation::Clips && baked.envelope.is_none() {
         anyhow::ensure!(
