@@ -1,9 +1,23 @@
-//! Errors of a cluster LOD hierarchy ([`crate::meshlet::lod`]) that hold under animation.
-//! For every pose of the clips (each of their key intervals, as for the meshlet bounds), a
-//! group's own error bounds the two-sided Hausdorff distance between its simplified clusters
-//! and the clusters it simplified, both skinned; its stored error adds its children's
-//! groups' largest, so errors grow up the hierarchy and a cut whose groups all have errors
-//! within `e` is within `e` of the full detail mesh, skinned, at every such pose.
+//! Errors of a cluster LOD hierarchy ([`crate::meshlet::lod`]) that hold under animation:
+//! for every pose of the clips (each of their key intervals, as for the meshlet bounds), a cut
+//! whose groups all have errors within `e` is within `e` of the full detail mesh, skinned, both
+//! ways. A cut at `e` is every cluster whose own group's error is at most `e` and whose parent
+//! group's is above it; with errors that grow up the hierarchy it replaces, group by group,
+//! children by the clusters made from them. Two ways to assign such errors are bounded, and a
+//! part keeps the one whose cuts draw fewer triangles (the geometric mean over thresholds from
+//! 1/8 to 1/512 of its size):
+//!
+//! - Summed: a group's own error bounds the two-sided distance between its clusters and its
+//!   children; its stored error adds its children's groups' largest. A point of the cut is
+//!   within its group's error of the full mesh by induction down the hierarchy; a full detail
+//!   point reaches the cut through a chain of groups, each within its own error.
+//! - Direct: every cluster stands for a set of full detail triangles, its region (a part's
+//!   meshlets their own; a group's clusters share out its children's regions, each full detail
+//!   triangle going to the made cluster nearest its centroid in the bind pose). A group's
+//!   direct error bounds the distance from its clusters to the group's region and from each
+//!   cluster's region to that cluster; its stored error is the larger of that and its
+//!   children's groups'. A cut's regions partition the full detail mesh, so each full detail
+//!   point is within its cluster's error of it, and no level adds to another.
 //!
 //! How. Distances are bounded through points paired in the bind pose. Each triangle on one
 //! side is covered by sub-triangles (itself, or midpoint subdivisions where one match would
@@ -44,8 +58,8 @@ const MAX_DEPTH: u32 = 3;
 const LOOSE: f64 = 1.05;
 
 /// Replaces every group's error by one that holds at every pose of `clips` (none: the rest
-/// pose): its own, bounded as above, plus its children's groups' largest. `lod` is over
-/// `mesh`'s vertices (the mesh the meshlets were built on), skinned by `skin`.
+/// pose), summed or direct (above), whichever draws fewer triangles. `lod` is over `mesh`'s
+/// vertices (the mesh the meshlets were built on), skinned by `skin`.
 pub fn bound_errors(
     skeleton: &Skeleton,
     skin: &Skin,
@@ -53,26 +67,131 @@ pub fn bound_errors(
     mesh: &SkinnedMesh,
     lod: &mut LodHierarchy,
 ) -> Result<()> {
-    let own = own_errors(skeleton, skin, clips, mesh, lod)?;
-    // Groups come after their children's groups: each sum sees its children's final errors.
-    for (g, own) in own.into_iter().enumerate() {
-        let below = lod.groups[g].children.iter().map(|&c| lod.cluster_errors(c as usize).0).fold(0.0f32, f32::max);
-        let sum = below as f64 + own;
-        // Rounded up to f32.
-        let error = sum as f32;
-        lod.groups[g].error = if (error as f64) < sum { error.next_up() } else { error };
+    let own = group_bounds(skeleton, skin, clips, mesh, lod, |ctx, g| {
+        let group = &lod.groups[g];
+        let (children, made) = (triangles(lod, &group.children), triangles(lod, &group.made));
+        let mut pairs = Vec::new();
+        match_pairs(ctx, &children, &made, &mut pairs);
+        match_pairs(ctx, &made, &children, &mut pairs);
+        (children, pairs)
+    })?;
+    let regions = regions(mesh, lod);
+    let direct = group_bounds(skeleton, skin, clips, mesh, lod, |ctx, g| {
+        let made = &lod.groups[g].made;
+        let region = triangles_of(&regions, made);
+        let mut pairs = Vec::new();
+        for &c in made {
+            let cluster = &lod.clusters[c as usize].triangles;
+            match_pairs(ctx, cluster, &region, &mut pairs);
+            match_pairs(ctx, &regions[c as usize], cluster, &mut pairs);
+        }
+        (region, pairs)
+    })?;
+    let summed = stored(lod, &own, |own, below| own + below);
+    let largest = stored(lod, &direct, f64::max);
+    // Triangles of the cuts at thresholds from 1/8 to 1/512 of the part's size.
+    let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+    for c in lod.clusters.iter().filter(|c| c.group.is_none()) {
+        for &v in &c.triangles {
+            (lo, hi) = (lo.min(mesh.positions[v as usize].as_dvec3()), hi.max(mesh.positions[v as usize].as_dvec3()));
+        }
     }
+    let size = (hi - lo).length() as f32;
+    // The log of the cuts' triangles, summed (each threshold counts alike).
+    let mut drawn = |errors: &[f32]| -> f64 {
+        errors.iter().zip(&mut lod.groups).for_each(|(&e, g)| g.error = e);
+        let cut_triangles =
+            |e: f32| lod.cut(e).iter().map(|&c| lod.clusters[c as usize].triangles.len()).sum::<usize>();
+        (3..=9).map(|k| (cut_triangles(size * 0.5f32.powi(k)).max(1) as f64).ln()).sum()
+    };
+    let keep = if drawn(&largest) <= drawn(&summed) { largest } else { summed };
+    keep.iter().zip(&mut lod.groups).for_each(|(&e, g)| g.error = e);
     Ok(())
 }
 
-/// Each group's own error: the bound on the two-sided distance between its clusters and its
-/// children, skinned, over every interval of `clips`.
-pub fn own_errors(
+/// Stored errors from each group's `own` bound and its children's groups' largest stored
+/// error (`combine(own, below)`), rounded up to f32 (NaN, no bound, as infinity).
+fn stored(lod: &LodHierarchy, own: &[f64], combine: impl Fn(f64, f64) -> f64) -> Vec<f32> {
+    let mut out: Vec<f32> = Vec::with_capacity(own.len());
+    // Groups come after their children's groups: each sees its children's final errors.
+    for (group, &own) in lod.groups.iter().zip(own) {
+        let below = (group.children.iter())
+            .filter_map(|&c| lod.clusters[c as usize].group.map(|g| out[g as usize]))
+            .fold(0.0f32, f32::max);
+        let error = combine(own, below as f64);
+        let rounded = if error.is_nan() { f32::INFINITY } else { error as f32 };
+        out.push(if (rounded as f64) < error { rounded.next_up() } else { rounded });
+    }
+    out
+}
+
+/// The triangles of `clusters`, three mesh vertices each.
+fn triangles(lod: &LodHierarchy, clusters: &[u32]) -> Vec<u32> {
+    clusters.iter().flat_map(|&c| lod.clusters[c as usize].triangles.iter().copied()).collect()
+}
+
+/// Each cluster's region, as full detail triangles (three mesh vertices each; see the module
+/// comment).
+pub fn regions(mesh: &SkinnedMesh, lod: &LodHierarchy) -> Vec<Vec<u32>> {
+    let position = |v: u32| mesh.positions[v as usize].as_dvec3();
+    let mut out: Vec<Vec<u32>> =
+        lod.clusters.iter().map(|c| if c.group.is_none() { c.triangles.clone() } else { Vec::new() }).collect();
+    // Groups come after their children's groups.
+    for group in &lod.groups {
+        let made: Vec<(Aabb, Vec<[DVec3; 3]>)> = (group.made.iter())
+            .map(|&c| {
+                let corners: Vec<[DVec3; 3]> = (lod.clusters[c as usize].triangles.chunks_exact(3))
+                    .map(|t| [position(t[0]), position(t[1]), position(t[2])])
+                    .collect();
+                let mut bounds = Aabb::point(corners.first().map_or(DVec3::ZERO, |t| t[0]));
+                corners.iter().flatten().for_each(|&p| bounds.extend(p));
+                (bounds, corners)
+            })
+            .collect();
+        let region = triangles_of(&out, &group.children);
+        // Each full detail triangle to the made cluster with the triangle nearest its centroid.
+        let owners: Vec<usize> = region
+            .par_chunks_exact(3)
+            .map(|t| {
+                let p = (position(t[0]) + position(t[1]) + position(t[2])) / 3.0;
+                let (mut best, mut near) = (0usize, f64::INFINITY);
+                for (k, (bounds, triangles)) in made.iter().enumerate() {
+                    if box_distance(bounds, p) >= near {
+                        continue;
+                    }
+                    for t in triangles {
+                        let d = (closest_point(t, p).0 - p).length();
+                        if d < near {
+                            (best, near) = (k, d);
+                        }
+                    }
+                }
+                best
+            })
+            .collect();
+        for (t, &k) in region.chunks_exact(3).zip(&owners) {
+            if let Some(&c) = group.made.get(k) {
+                out[c as usize].extend_from_slice(t);
+            }
+        }
+    }
+    out
+}
+
+/// The regions of `clusters`, one after the other.
+fn triangles_of(regions: &[Vec<u32>], clusters: &[u32]) -> Vec<u32> {
+    clusters.iter().flat_map(|&c| regions[c as usize].iter().copied()).collect()
+}
+
+/// Per group, the largest paired distance over every interval of `clips`, the pairs and the
+/// triangles whose principal joint they are bounded in given by `pairs_of`.
+fn group_bounds(
     skeleton: &Skeleton,
     skin: &Skin,
     clips: &[&Clip],
     mesh: &SkinnedMesh,
     lod: &LodHierarchy,
+    pairs_of: impl Fn(&Ctx, usize) -> (Vec<u32>, Vec<Vec<(u32, f64)>>) + Sync,
 ) -> Result<Vec<f64>> {
     if mesh.influences.is_none() {
         return Err(Error::invalid("cluster LOD errors", "the mesh has no skin weights"));
@@ -93,13 +212,9 @@ pub fn own_errors(
     (0..lod.groups.len())
         .into_par_iter()
         .map(|g| {
-            let group = &lod.groups[g];
-            let triangles = |cs: &[u32]| -> Vec<u32> {
-                cs.iter().flat_map(|&c| lod.clusters[c as usize].triangles.iter().copied()).collect()
-            };
-            let (children, made) = (triangles(&group.children), triangles(&group.made));
-            let terms = ctx.terms(&children, &made)?;
-            let (mut own, mut poser, mut at) = (0.0f64, Poser::default(), Vec::new());
+            let (principal, pairs) = pairs_of(&ctx, g);
+            let terms = ctx.terms(&principal, &pairs)?;
+            let (mut error, mut poser, mut at) = (0.0f64, Poser::default(), Vec::new());
             for &(clip, t1, t2) in &intervals {
                 let motions = IntervalMotions::new(skeleton, &mesh.morphs, clip, t1, t2)?;
                 match clip {
@@ -107,9 +222,9 @@ pub fn own_errors(
                     None => at = skeleton.nodes.iter().map(|n| n.rest).collect(),
                 }
                 let globals = poser.globals(skeleton, clip, t1);
-                own = own.max(terms.bound(&ctx, &motions, &at, globals));
+                error = error.max(terms.bound(&ctx, &motions, &at, globals));
             }
-            Ok(own)
+            Ok(error)
         })
         .collect()
 }
@@ -153,10 +268,11 @@ impl Ctx<'_> {
         self.reach[v as usize]
     }
 
-    /// The pairs between `a` and `b` (both ways) as joint terms.
-    fn terms(&self, a: &[u32], b: &[u32]) -> Result<Terms> {
-        let inf = self.mesh.influences.as_ref().expect("checked by own_errors");
-        let mut vertices: Vec<u32> = a.to_vec();
+    /// Paired differences (coefficients over mesh vertices, [`match_pairs`]) as joint terms,
+    /// in the space of the principal joint of `triangles`' vertices.
+    fn terms(&self, triangles: &[u32], pairs: &[Vec<(u32, f64)>]) -> Result<Terms> {
+        let inf = self.mesh.influences.as_ref().expect("checked by group_bounds");
+        let mut vertices: Vec<u32> = triangles.to_vec();
         vertices.sort_unstable();
         vertices.dedup();
         let principal = principal_joint(self.mesh, &vertices)
@@ -164,11 +280,8 @@ impl Ctx<'_> {
             .0;
         let mut out = Terms { principal, terms: Vec::new(), ends: Vec::new(), joints: Vec::new(), carried: Vec::new() };
         let (mut joint_slot, mut carried_slot) = (HashMap::new(), HashMap::new());
-        let mut pairs = Vec::new();
-        match_pairs(self, a, b, &mut pairs);
-        match_pairs(self, b, a, &mut pairs);
         let mut joints: Vec<(u16, f64, u32, f64)> = Vec::new();
-        for coefficients in &pairs {
+        for coefficients in pairs {
             // Per joint: the sum of α, the vertex with the largest |α| and that |α|.
             joints.clear();
             for &(v, c) in coefficients {

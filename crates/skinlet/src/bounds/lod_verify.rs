@@ -33,10 +33,8 @@ pub struct LodReport {
     /// Largest distance found ÷ the error that bounds it.
     pub max_ratio: f64,
     /// Median over groups: the largest distance from its clusters to the full detail part ÷
-    /// its stored error; and the largest distance between its clusters and its children (both
-    /// ways) ÷ its own share of the error (stored minus its children's groups' largest).
+    /// its stored error.
     pub median_ratio: f64,
-    pub median_own_ratio: f64,
 }
 
 /// Checks the hierarchies `parts` (each with the range of its part's triangles in `mesh`) at
@@ -59,8 +57,8 @@ pub fn verify_errors(
         }
     }
     let mut report = LodReport { poses: poses.len(), ..LodReport::default() };
-    // Per group over all poses: (largest distance to full, error, largest own distance, own error).
-    let mut groups: Vec<(f64, f64, f64, f64)> = Vec::new();
+    // Per group over all poses: (largest distance to full, error).
+    let mut groups: Vec<(f64, f64)> = Vec::new();
     let (mut matrices, mut weights, mut poser) = (Vec::new(), Vec::new(), crate::pose::Poser::default());
     for (pose, &(clip, t)) in poses.iter().enumerate() {
         poser.skinning_matrices(skeleton, skin, clip, t, &mut matrices);
@@ -100,20 +98,11 @@ pub fn verify_errors(
                 as_triangles(&flat)
             };
             for g in &lod.groups {
-                let (made, children) = (triangles(&g.made), triangles(&g.children));
-                let far = measure(&made, &grid, g.error as f64);
-                let below = g.children.iter().map(|&c| lod.cluster_errors(c as usize).0).fold(0.0f32, f32::max);
-                let own = (g.error - below) as f64;
-                let own_far = measure(&made, &Grid::new(&posed, children.clone(), 16.0), own).max(measure(
-                    &children,
-                    &Grid::new(&posed, made, 16.0),
-                    own,
-                ));
+                let far = measure(&triangles(&g.made), &grid, g.error as f64);
                 if pose == 0 {
-                    groups.push((far, g.error as f64, own_far, own));
+                    groups.push((far, g.error as f64));
                 } else {
                     groups[at].0 = groups[at].0.max(far);
-                    groups[at].2 = groups[at].2.max(own_far);
                 }
                 at += 1;
             }
@@ -127,12 +116,9 @@ pub fn verify_errors(
             }
         }
     }
-    let median = |mut r: Vec<f64>| {
-        r.sort_by(f64::total_cmp);
-        r.get(r.len() / 2).copied().unwrap_or(0.0)
-    };
-    report.median_ratio = median(groups.iter().filter(|g| g.1 > 0.0).map(|g| g.0 / g.1).collect());
-    report.median_own_ratio = median(groups.iter().filter(|g| g.3 > 0.0).map(|g| g.2 / g.3).collect());
+    let mut ratios: Vec<f64> = groups.iter().filter(|g| g.1 > 0.0).map(|g| g.0 / g.1).collect();
+    ratios.sort_by(f64::total_cmp);
+    report.median_ratio = ratios.get(ratios.len() / 2).copied().unwrap_or(0.0);
     Ok(report)
 }
 

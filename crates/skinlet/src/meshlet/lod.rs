@@ -47,8 +47,10 @@ pub struct LodGroup {
     /// The clusters it simplified (its children) and the clusters it made.
     pub children: Vec<u32>,
     pub made: Vec<u32>,
-    /// How far its clusters may be from the full detail surface, in the bind pose: its own
-    /// simplification's error plus its children's groups' largest.
+    /// How far its clusters may be from the full detail surface: in the bind pose as the
+    /// simplifier measures it (its own simplification's error plus its children's groups'
+    /// largest), until `bounds::lod_error::bound_errors` replaces it by one that holds under
+    /// animation.
     pub error: f32,
 }
 
