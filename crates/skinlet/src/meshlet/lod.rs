@@ -17,8 +17,8 @@
 //! The errors [`build`] stores are the simplifier's, in the bind pose (absolute, in the mesh's
 //! units), each group's plus its children's groups' largest; [`crate::bounds::lod_error`]
 //! replaces them by errors that hold under animation. Skin motion enters the simplification
-//! itself through [`posed_attributes`]. Not yet: the bake section and selection on the GPU
-//! (issue 39).
+//! itself through [`posed_attributes`]. The bake stores the hierarchy (`LODC`); run-time
+//! selection is `skinlet_runtime::lod_select` (CPU) and `skinlet_gpu::crowd_culling` (GPU).
 
 use super::{MeshletLimits, Meshlets};
 use crate::clip::Clip;
