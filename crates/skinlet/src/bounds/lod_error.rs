@@ -132,7 +132,7 @@ fn triangles(lod: &LodHierarchy, clusters: &[u32]) -> Vec<u32> {
 
 /// Each cluster's region, as full detail triangles (three mesh vertices each; see the module
 /// comment).
-pub fn regions(mesh: &SkinnedMesh, lod: &LodHierarchy) -> Vec<Vec<u32>> {
+fn regions(mesh: &SkinnedMesh, lod: &LodHierarchy) -> Vec<Vec<u32>> {
     let position = |v: u32| mesh.positions[v as usize].as_dvec3();
     let mut out: Vec<Vec<u32>> =
         lod.clusters.iter().map(|c| if c.group.is_none() { c.triangles.clone() } else { Vec::new() }).collect();
