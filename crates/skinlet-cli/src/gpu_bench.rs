@@ -362,10 +362,8 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         })
         .collect();
     let (n, rounds) = (instances as u32, a.occlusion_rounds);
-    let gpu_crowd = match &crowd_culler {
-        Some(c) => GpuCrowd::with_lod(&gpu, &baked, c, n, a.width, height, false, rounds)?,
-        None => GpuCrowd::with_depth_range(&gpu, &baked, &culler, n, a.width, height, false, rounds)?,
-    };
+    let crowd_culler = crowd_culler.as_ref().unwrap_or(&culler);
+    let gpu_crowd = GpuCrowd::with_depth_range(&gpu, &baked, crowd_culler, n, a.width, height, false, rounds)?;
     let keep_all = vec![CullMode::Keep; instances];
     // Frame `f` of the GPU-driven crowd; `keep`: every instance drawn whole; `lod`: each
     // instance's cut.

@@ -36,7 +36,7 @@ pub enum CrowdView {
     /// The survivors, pulled: one `draw_indirect`.
     Pulled,
     /// [`CrowdView::Pulled`], each triangle coloured by its cluster's LOD level (white at
-    /// full detail; [`GpuCrowd::with_lod`]).
+    /// full detail; a crowd with LOD, [`GpuCrowd::with_depth_range`]).
     PulledByLevel,
     /// The survivors as indexed draws: one `multi_draw_indexed_indirect_count`.
     Indexed,
@@ -55,7 +55,7 @@ pub enum CrowdView {
 /// One frame of the crowd: per instance its world-space skinning matrices (`joints` each,
 /// instance after instance), how it is culled, its morph weights (the mesh's morph weight
 /// count each: none for a mesh without morph targets) and, for a crowd made with
-/// [`GpuCrowd::with_lod`], its LOD threshold (`skinlet_gpu::crowd_culling::CullInstance`:
+/// LOD ([`GpuCrowd::with_depth_range`]), its LOD threshold (`skinlet_gpu::crowd_culling::CullInstance`:
 /// negative for full detail; none: every instance at full detail).
 #[derive(Clone, Copy, Debug)]
 pub struct CrowdFrame<'a> {
@@ -165,6 +165,11 @@ impl GpuCrowd {
     /// fragments the greater, occlusion culling's pyramid of the nearest; occlusion culling in
     /// `rounds` rounds ([`skinlet_gpu::crowd_culling::OcclusionDepth::rounds`]: the frames'
     /// instances are best ordered nearest first).
+    ///
+    /// Cluster LOD: where `culler` holds the mesh's meshlets and then `baked`'s LOD
+    /// hierarchy's clusters (as `BakeView::lod_culler` does), each instance culls the clusters
+    /// of its cut at its [`CrowdFrame::lod_thresholds`]; the unculled and ID views draw full
+    /// detail. Errors when `culler` holds neither the meshlets nor meshlets and clusters.
     #[allow(clippy::too_many_arguments)]
     pub fn with_depth_range(
         gpu: &Gpu,
@@ -176,50 +181,23 @@ impl GpuCrowd {
         reversed: bool,
         rounds: u32,
     ) -> Result<GpuCrowd> {
-        Self::build(gpu, baked, culler, false, capacity, [width, height], reversed, rounds)
-    }
-
-    /// [`GpuCrowd::with_depth_range`] with `baked`'s cluster LOD hierarchy: the mesh's meshlets,
-    /// then the hierarchy's clusters (`culler` holds both, in that order, as
-    /// `BakeView::lod_culler` does), each instance culling the clusters of its cut at its
-    /// [`CrowdFrame::lod_thresholds`]. The unculled and ID views draw full detail. Errors when
-    /// `baked` has no hierarchy.
-    #[allow(clippy::too_many_arguments)]
-    pub fn with_lod(
-        gpu: &Gpu,
-        baked: &skinlet::bake::Baked,
-        culler: &MeshletCuller,
-        capacity: u32,
-        width: u32,
-        height: u32,
-        reversed: bool,
-        rounds: u32,
-    ) -> Result<GpuCrowd> {
-        Self::build(gpu, baked, culler, true, capacity, [width, height], reversed, rounds)
-    }
-
-    #[allow(clippy::too_many_arguments)]
-    fn build(
-        gpu: &Gpu,
-        baked: &skinlet::bake::Baked,
-        culler: &MeshletCuller,
-        lod: bool,
-        capacity: u32,
-        [width, height]: [u32; 2],
-        reversed: bool,
-        rounds: u32,
-    ) -> Result<GpuCrowd> {
         let mesh = &baked.mesh;
         let base = baked.meshlets.len();
-        let (all, errors) = match (lod, &baked.lod) {
-            (false, _) => (None, None),
-            (true, None) => return Err(invalid("the bake has no cluster LOD hierarchy".into())),
-            (true, Some(hierarchy)) => {
+        let clusters = baked.lod.as_ref().map_or(0, |l| l.meshlets.len());
+        let (all, errors) = match &baked.lod {
+            _ if culler.len() == base => (None, None),
+            Some(hierarchy) if culler.len() == base + clusters => {
                 let mut all = baked.meshlets.clone();
                 all.append(&hierarchy.meshlets, 0);
                 let errors = skinlet::bake::with_view(baked, |view| Ok(view.lod().map(|l| l.errors())))
                     .map_err(|e| invalid(e.to_string()))?;
                 (Some(all), errors)
+            }
+            _ => {
+                return Err(invalid(format!(
+                    "a culler of {} meshlets for {base} meshlets and {clusters} LOD clusters",
+                    culler.len()
+                )));
             }
         };
         let all = all.as_ref().unwrap_or(&baked.meshlets);

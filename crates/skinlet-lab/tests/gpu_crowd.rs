@@ -389,7 +389,7 @@ fn lod_crowd_draws_cuts_whose_silhouettes_stay_within_the_pixels() {
     })
     .unwrap();
     let n = scene.placements.len();
-    let crowd = GpuCrowd::with_lod(&gpu, &baked, &culler, n as u32, width, height, false, 4).unwrap();
+    let crowd = GpuCrowd::with_depth_range(&gpu, &baked, &culler, n as u32, width, height, false, 4).unwrap();
     let modes = vec![CullMode::Bounds; n];
     let frame = |lod: bool| CrowdFrame {
         palette: &palette,
