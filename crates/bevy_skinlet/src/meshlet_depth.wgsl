@@ -17,6 +17,10 @@ struct DepthOut {
 #ifdef NORMAL_PREPASS
     @location(1) world_normal: vec3<f32>,
 #endif
+#ifdef SKINLET_TWO_SIDED
+    // 1 where the part is drawn two-sided (the others' back faces are discarded).
+    @location(2) @interpolate(flat) two_sided: u32,
+#endif
 }
 
 @vertex
@@ -30,6 +34,9 @@ fn shadow_vertex(@builtin(vertex_index) index: u32, @builtin(instance_index) ins
         return out;
     }
     out.position = view.clip_from_world * vec4<f32>(skinned_position(instance, corner.x), 1.0);
+#ifdef SKINLET_TWO_SIDED
+    out.two_sided = corner.w;
+#endif
 #ifdef UNCLIPPED_DEPTH_ORTHO_EMULATION
     // A directional light's casters in front of its near plane, clamped to it (as Bevy does).
     out.unclipped_depth = out.position.z;
@@ -47,7 +54,20 @@ fn prepass_vertex(@builtin(vertex_index) index: u32, @builtin(instance_index) in
 #ifdef NORMAL_PREPASS
     out.world_normal = skinned_normal(entry.x, corner);
 #endif
+#ifdef SKINLET_TWO_SIDED
+    out.two_sided = corner.w;
+#endif
     return out;
+}
+
+// Whether the fragment is a back face of a part drawn one-sided (SKINLET_TWO_SIDED: drawn with
+// no faces culled).
+fn culled_face(in: DepthOut, is_front: bool) -> bool {
+#ifdef SKINLET_TWO_SIDED
+    return !is_front && in.two_sided == 0u;
+#else
+    return false;
+#endif
 }
 
 // (DEPTH_FRAGMENT_OUTPUT: the normal or the depth written; else nothing.)
@@ -62,12 +82,21 @@ struct DepthFragment {
 }
 
 @fragment
-fn depth_fragment(in: DepthOut) -> DepthFragment {
+fn depth_fragment(in: DepthOut, @builtin(front_facing) is_front: bool) -> DepthFragment {
+    if culled_face(in, is_front) {
+        discard;
+    }
     var out: DepthFragment;
 #ifdef NORMAL_PREPASS
-    // As Bevy's prepass writes a lit, single-sided material's world normal (interpolated, not
-    // normalized again): into 0..1.
-    out.normal = vec4<f32>(in.world_normal * 0.5 + vec3<f32>(0.5), 1.0);
+    // As Bevy's prepass writes a lit material's world normal (interpolated, not normalized
+    // again; a double-sided part's back face's reversed): into 0..1.
+    var normal = in.world_normal;
+#ifdef SKINLET_TWO_SIDED
+    if !is_front {
+        normal = -normal;
+    }
+#endif
+    out.normal = vec4<f32>(normal * 0.5 + vec3<f32>(0.5), 1.0);
 #endif
 #ifdef UNCLIPPED_DEPTH_ORTHO_EMULATION
     out.depth = in.unclipped_depth;
@@ -76,5 +105,9 @@ fn depth_fragment(in: DepthOut) -> DepthFragment {
 }
 #else
 @fragment
-fn depth_fragment(in: DepthOut) {}
+fn depth_fragment(in: DepthOut, @builtin(front_facing) is_front: bool) {
+    if culled_face(in, is_front) {
+        discard;
+    }
+}
 #endif

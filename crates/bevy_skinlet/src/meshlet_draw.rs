@@ -17,22 +17,26 @@
 //! - a phase item in `Opaque3d` draws that list (both lists with occlusion culling) with
 //!   Bevy's view bindings (groups 0 and 1), skinning each corner's bake vertex with the
 //!   function the culling tested (so the culling is conservative for this draw) and its
-//!   source vertex's normal and texture coordinates (the bake's `SRCT` section,
-//!   `skinlet_runtime::source_corners`), shaded by Bevy's PBR functions with the part's
-//!   `StandardMaterial` as Bevy uploads it and its textures (group 3, where the device
-//!   indexes texture arrays per fragment);
+//!   source vertex's normal, tangent and texture coordinates (the bake's `SRCT` section,
+//!   `skinlet_runtime::source_corners`; normals and tangents morphed as Bevy morphs them),
+//!   shaded by Bevy's PBR functions with the part's `StandardMaterial` as Bevy uploads it
+//!   and its textures, the normal map too (group 3, where the device indexes texture arrays
+//!   per fragment);
+//! - a double-sided part (`cull_mode: None`) is neither backface-culled by meshlet nor by
+//!   triangle, and its bake is drawn with no faces culled, the other parts' back faces
+//!   discarded per fragment;
 //! - a phase item in each shadow view (`Shadow`) draws every triangle of every instance, depth
 //!   only, with Bevy's prepass view bindings (but a part marked `NotShadowCaster`);
 //! - a phase item in a camera's prepass (`Opaque3dPrepass`, with `DepthPrepass` or
 //!   `NormalPrepass`) draws the camera's culled list: depth, and the world normals as Bevy's
 //!   prepass writes them.
 //!
-//! Not yet: normal maps, morph targets' normal deltas (positions morph), motion vectors (the
-//! characters are drawn into a motion vector prepass as if still, with a warning), culling in
+//! Not yet: motion vectors (the characters are drawn into a motion vector prepass as if
+//! still, with a warning), normal maps in the normal prepass, culling in
 //! shadow views, occlusion culling against Bevy's meshes, culling for more than one camera
 //! (with several, every triangle is drawn), materials other than `StandardMaterial` (such a
 //! part stays Bevy's too, with a warning), a part's own visibility (every part of a marked
-//! instance is drawn), double-sided materials (drawn back-face culled).
+//! instance is drawn).
 
 use crate::SkinletBounds;
 use crate::bake_asset::Bake;
@@ -245,9 +249,10 @@ struct BakeDraw {
     mesh: CrowdMesh,
     /// Per corner id: bake vertex, attribute vertex, part, 0.
     corners: Vec<[u32; 4]>,
-    /// Per attribute vertex (the parts' source vertices one part after another): its normal
-    /// and its texture coordinates (zero where the part has none).
-    normals: Vec<[f32; 4]>,
+    /// The attribute vertices (the parts' source vertices one part after another) as
+    /// [`vertex_attributes`] lays them out: normals, tangents and their morph deltas.
+    attributes: Vec<[u32; 4]>,
+    /// Per attribute vertex, its texture coordinates (zero where the part has none).
     uvs: Vec<[f32; 2]>,
     /// Per driver, its inverse bind matrix.
     inverse_bind: Vec<Mat4>,
@@ -347,7 +352,7 @@ fn build_bake_draws(
 fn bake_draw(bake: &Bake, meshes: &[&Mesh]) -> Result<BakeDraw, String> {
     let view = bake.view().map_err(|e| e.to_string())?;
     let mut sources = Vec::with_capacity(meshes.len());
-    let mut normals = Vec::new();
+    let mut attributes = VertexAttributes::default();
     let mut uvs = Vec::new();
     let mut offsets = Vec::with_capacity(meshes.len());
     let mut indices = Vec::with_capacity(meshes.len());
@@ -362,12 +367,30 @@ fn bake_draw(bake: &Bake, meshes: &[&Mesh]) -> Result<BakeDraw, String> {
         let Some(VertexAttributeValues::Float32x3(nor)) = mesh.attribute(Mesh::ATTRIBUTE_NORMAL) else {
             return Err(format!("part {p}: no f32 normals"));
         };
-        offsets.push(normals.len() as u32);
-        normals.extend(nor.iter().map(|n| [n[0], n[1], n[2], 0.0]));
+        offsets.push(uvs.len() as u32);
+        let tangents = match mesh.attribute(Mesh::ATTRIBUTE_TANGENT) {
+            Some(VertexAttributeValues::Float32x4(t)) if t.len() == nor.len() => Some(t.as_slice()),
+            Some(_) => return Err(format!("part {p}: tangents not f32 quadruples, one per vertex")),
+            None => None,
+        };
+        // Per morph target of the mesh, its weight among the bake's (its node's target).
+        let morphs = mesh.get_morph_targets().unwrap_or(&[]);
+        if !morphs.len().is_multiple_of(nor.len().max(1)) {
+            return Err(format!("part {p}: {} morph displacements for {} vertices", morphs.len(), nor.len()));
+        }
+        let node = view.parts().get(p).map(|r| r.node);
+        let baked = view.morphs().map_or(&[][..], |m| m.weights);
+        let weights = (0..morphs.len() / nor.len().max(1))
+            .map(|t| {
+                let k = baked.iter().position(|w| Some(w.node) == node && w.target as usize == t);
+                k.map(|k| k as u32).ok_or_else(|| format!("part {p}: morph target {t} is not in the bake"))
+            })
+            .collect::<Result<Vec<u32>, String>>()?;
+        attributes.push_part(nor, tangents, morphs, &weights);
         match mesh.attribute(Mesh::ATTRIBUTE_UV_0) {
             Some(VertexAttributeValues::Float32x2(uv)) if uv.len() == nor.len() => uvs.extend_from_slice(uv),
             Some(_) => return Err(format!("part {p}: texture coordinates not f32 pairs, one per vertex")),
-            None => uvs.resize(normals.len(), [0.0; 2]),
+            None => uvs.resize(uvs.len() + nor.len(), [0.0; 2]),
         }
         indices.push(match mesh.indices() {
             Some(Indices::U16(i)) => Some(i.iter().map(|&x| x as u32).collect::<Vec<u32>>()),
@@ -389,11 +412,57 @@ fn bake_draw(bake: &Bake, meshes: &[&Mesh]) -> Result<BakeDraw, String> {
         len: bake.bytes().len(),
         mesh,
         corners,
-        normals,
+        attributes: attributes.finish(),
         uvs,
         inverse_bind: view.inverse_bind().iter().map(Mat4::from_cols_array).collect(),
         has_boxes: bake.has_envelope(),
     })
+}
+
+/// The attribute vertices' normals and tangents and their morph deltas, as
+/// `meshlet_group2.wgsl` reads them: two entries per vertex (normal and where its deltas
+/// start, tangent), one more whose last word is where the last vertex's deltas end, then two
+/// entries per delta (normal delta and its morph weight, tangent delta); the floats' bits.
+#[derive(Default)]
+struct VertexAttributes {
+    vertices: Vec<[u32; 4]>,
+    deltas: Vec<[u32; 4]>,
+}
+
+impl VertexAttributes {
+    /// A part's vertices: `normals`, `tangents` (zero without), and `morphs` (Bevy's morph
+    /// displacements, target by target) whose target `t` is the bake's morph weight
+    /// `weights[t]`; displacements of neither normal nor tangent are left out.
+    fn push_part(
+        &mut self,
+        normals: &[[f32; 3]],
+        tangents: Option<&[[f32; 4]]>,
+        morphs: &[bevy::mesh::morph::MorphAttributes],
+        weights: &[u32],
+    ) {
+        let bits = |v: Vec3, w: u32| [v.x.to_bits(), v.y.to_bits(), v.z.to_bits(), w];
+        for (v, n) in normals.iter().enumerate() {
+            // (Where the deltas start, from the deltas' first entry: made absolute by `finish`.)
+            self.vertices.push(bits(Vec3::from_array(*n), self.deltas.len() as u32));
+            self.vertices.push(tangents.map_or([0; 4], |t| t[v].map(f32::to_bits)));
+            for (t, &weight) in weights.iter().enumerate() {
+                let m = morphs[t * normals.len() + v];
+                if m.normal != Vec3::ZERO || m.tangent != Vec3::ZERO {
+                    self.deltas.extend([bits(m.normal, weight), bits(m.tangent, 0)]);
+                }
+            }
+        }
+    }
+
+    fn finish(mut self) -> Vec<[u32; 4]> {
+        let base = self.vertices.len() as u32 + 1;
+        for v in self.vertices.iter_mut().step_by(2) {
+            v[3] += base;
+        }
+        self.vertices.push([0, 0, 0, base + self.deltas.len() as u32]);
+        self.vertices.extend(self.deltas);
+        self.vertices
+    }
 }
 
 /// This frame's instances of each bake, as the render world uploads them.
@@ -406,14 +475,19 @@ struct BakeFrame {
     instances: Vec<CullInstance>,
     weights: Vec<f32>,
     materials: Vec<StandardMaterialUniform>,
-    /// Per part: its base colour, metallic-roughness, emissive and occlusion textures.
-    textures: Vec<[Option<AssetId<Image>>; 4]>,
+    textures: Vec<PartTextures>,
+    /// Per part: whether its material shows back faces (`cull_mode: None`, a glTF
+    /// double-sided material).
+    two_sided: Vec<bool>,
     /// Per instance, [`shadow_words`] words: bit `p % 32` of word `p / 32` set where part `p`
     /// casts no shadow.
     no_shadow: Vec<u32>,
     /// Per instance, where its scene root is (occlusion culling's order, nearest first).
     positions: Vec<Vec3>,
 }
+
+/// A part's base colour, metallic-roughness, emissive, occlusion and normal map textures.
+type PartTextures = [Option<AssetId<Image>>; 5];
 
 /// A frame's per-instance arrays, as uploaded.
 struct InstanceData<'a> {
@@ -476,6 +550,7 @@ fn extract_frames(
     no_shadow: Extract<Query<(), With<NotShadowCaster>>>,
     materials: Extract<Res<Assets<StandardMaterial>>>,
     images: Res<RenderAssets<GpuImage>>,
+    mut warned: Local<bool>,
 ) {
     for frame in frames.0.values_mut() {
         frame.palette.clear();
@@ -494,6 +569,7 @@ fn extract_frames(
             weights: Vec::new(),
             materials: Vec::new(),
             textures: Vec::new(),
+            two_sided: Vec::new(),
             no_shadow: Vec::new(),
             positions: Vec::new(),
         });
@@ -501,12 +577,24 @@ fn extract_frames(
             frame.draw = draw.clone();
             frame.materials.clear();
             frame.textures.clear();
+            frame.two_sided.clear();
             for &e in instance.part_entities() {
                 let m = parts.get(e).ok().and_then(|p| materials.get(&p.0));
+                let cull_mode = m.map_or(Some(Face::Back), |m| m.cull_mode);
+                if cull_mode == Some(Face::Front) && !std::mem::replace(&mut *warned, true) {
+                    warn!("skinlet meshlets: a material culls front faces: skinlet culls its back faces");
+                }
+                frame.two_sided.push(cull_mode.is_none());
                 frame.materials.push(m.map(|m| m.as_bind_group_shader_type(&images)).unwrap_or_default());
-                frame.textures.push(m.map_or([None; 4], |m| {
-                    [&m.base_color_texture, &m.metallic_roughness_texture, &m.emissive_texture, &m.occlusion_texture]
-                        .map(|t| t.as_ref().map(|h| h.id()))
+                frame.textures.push(m.map_or([None; 5], |m| {
+                    [
+                        &m.base_color_texture,
+                        &m.metallic_roughness_texture,
+                        &m.emissive_texture,
+                        &m.occlusion_texture,
+                        &m.normal_map_texture,
+                    ]
+                    .map(|t| t.as_ref().map(|h| h.id()))
                 }));
             }
         }
@@ -616,9 +704,10 @@ fn init_pipeline(
 }
 
 impl SpecializedRenderPipeline for MeshletDrawPipeline {
-    type Key = MeshPipelineKey;
+    /// The view's key, and whether the bake has parts drawn two-sided.
+    type Key = (MeshPipelineKey, bool);
 
-    fn specialize(&self, key: MeshPipelineKey) -> RenderPipelineDescriptor {
+    fn specialize(&self, (key, two_sided): (MeshPipelineKey, bool)) -> RenderPipelineDescriptor {
         // What Bevy's forward mesh pipeline uses for this view: its view layouts (groups 0
         // and 1) and shader defs (view key bits and Bevy's cargo features), from a POSITION +
         // NORMAL mesh layout.
@@ -635,6 +724,9 @@ impl SpecializedRenderPipeline for MeshletDrawPipeline {
                     if let Some(group3) = &self.group3 {
                         layout.push(group3.clone());
                         defs.push("SKINLET_TEXTURES".into());
+                    }
+                    if two_sided {
+                        defs.push("SKINLET_TWO_SIDED".into());
                     }
                     (layout, defs)
                 }
@@ -664,7 +756,7 @@ impl SpecializedRenderPipeline for MeshletDrawPipeline {
             }),
             primitive: PrimitiveState {
                 topology: PrimitiveTopology::TriangleList,
-                cull_mode: Some(Face::Back),
+                cull_mode: (!two_sided).then_some(Face::Back),
                 ..default()
             },
             depth_stencil: Some(DepthStencilState {
@@ -707,6 +799,10 @@ struct BakeGpu {
     raster: Raster,
     rounds: u32,
     samples: u32,
+    /// Per part, whether it is drawn two-sided ([`BakeFrame::two_sided`]): its meshlets are
+    /// not backface-culled, and the draws cull no faces (the others' back faces are
+    /// discarded per fragment).
+    two_sided: Vec<bool>,
     occlusion: Option<OcclusionDraw>,
     instances: u32,
     palette: wgpu::Buffer,
@@ -735,7 +831,7 @@ struct BakeGpu {
     /// whether an image was still loading then (in a slot of Bevy's white fallback image).
     texture_slots: wgpu::Buffer,
     texture_group: Option<BindGroup>,
-    texture_parts: Vec<[Option<AssetId<Image>>; 4]>,
+    texture_parts: Vec<PartTextures>,
     textures_pending: bool,
 }
 
@@ -825,7 +921,11 @@ fn prepare_gpu(
     for (&id, frame) in &frames.0 {
         let n = frame.instances.len() as u32;
         let fits = gpu.bakes.get(&id).is_some_and(|b| {
-            b.capacity >= n && b.raster == raster && b.rounds == rounds && (rounds == 0 || b.samples == samples)
+            b.capacity >= n
+                && b.raster == raster
+                && b.rounds == rounds
+                && (rounds == 0 || b.samples == samples)
+                && b.two_sided == frame.two_sided
         });
         if !fits {
             let capacity = n.next_power_of_two().max(4);
@@ -912,15 +1012,15 @@ fn texture_group(
     queue: &RenderQueue,
     layout: &wgpu::BindGroupLayout,
     b: &mut BakeGpu,
-    parts: &[[Option<AssetId<Image>>; 4]],
+    parts: &[PartTextures],
     images: &RenderAssets<GpuImage>,
     fallback: &FallbackImage,
 ) {
     let mut distinct: Vec<AssetId<Image>> = Vec::new();
     let mut over = false;
-    let slots: Vec<[u32; 4]> = (parts.iter())
+    let slots: Vec<[u32; 8]> = (parts.iter())
         .map(|textures| {
-            textures.map(|t| {
+            let [a, b, c, d, e] = textures.map(|t| {
                 let Some(id) = t else { return 0 };
                 match distinct.iter().position(|&d| d == id) {
                     Some(k) => k as u32 + 1,
@@ -933,7 +1033,10 @@ fn texture_group(
                         0
                     }
                 }
-            })
+            });
+            // (A normal map still loading is none yet: white is no flat normal.)
+            let e = if textures[4].is_some_and(|id| images.get(id).is_none()) { 0 } else { e };
+            [a, b, c, d, e, 0, 0, 0]
         })
         .collect();
     if over {
@@ -988,15 +1091,19 @@ fn bake_gpu(
     let no_shadow = zeros("skinlet shadow bits", 4 * bits_words * capacity as u64, storage);
     let skin_uniform = init("skinlet skin", bytemuck::cast_slice(&draw.mesh.uniform), wgpu::BufferUsages::UNIFORM);
     let words = init("skinlet mesh", bytemuck::cast_slice(&draw.mesh.words), wgpu::BufferUsages::STORAGE);
-    let corners = init("skinlet corners", bytemuck::cast_slice(&draw.corners), wgpu::BufferUsages::STORAGE);
-    let normals = init("skinlet normals", bytemuck::cast_slice(&draw.normals), wgpu::BufferUsages::STORAGE);
+    // (Each corner's last word: 1 where its part is drawn two-sided.)
+    let two_sided = |part: u32| frame.two_sided.get(part as usize) == Some(&true);
+    let corner_words: Vec<[u32; 4]> =
+        (draw.corners.iter()).map(|&[v, a, p, _]| [v, a, p, two_sided(p) as u32]).collect();
+    let corners = init("skinlet corners", bytemuck::cast_slice(&corner_words), wgpu::BufferUsages::STORAGE);
+    let attributes = init("skinlet attributes", bytemuck::cast_slice(&draw.attributes), wgpu::BufferUsages::STORAGE);
     let uvs = init("skinlet uvs", bytemuck::cast_slice(&draw.uvs), wgpu::BufferUsages::STORAGE);
-    let texture_slots = zeros("skinlet texture slots", 16 * frame.materials.len().max(1) as u64, storage);
+    let texture_slots = zeros("skinlet texture slots", 32 * frame.materials.len().max(1) as u64, storage);
     let material_size = StandardMaterialUniform::min_size().get();
     let materials = zeros("skinlet materials", material_size * frame.materials.len().max(1) as u64, storage);
     let bytes = &bytemuck::cast_slice::<u32, u8>(&draw.words)[..draw.len];
     let view = skinlet_runtime::bake_view::BakeView::new(bytes).map_err(|e| e.to_string())?;
-    let culler = view.culler().map_err(|e| e.to_string())?;
+    let culler = view.two_sided_culler(&frame.two_sided).map_err(|e| e.to_string())?;
     let meshlets = view.meshlets();
     let vertices = view.vertices().positions.len();
     let (_, draws) = skinlet_gpu::mesh::meshlet_index_buffer(&meshlets, vertices).map_err(e)?;
@@ -1047,6 +1154,7 @@ fn bake_gpu(
         triangles_per_list,
         raster,
         Entries::Corners,
+        &view.meshlets_of_parts(&frame.two_sided),
     )
     .map_err(e)?;
     let params = init(
@@ -1056,7 +1164,7 @@ fn bake_gpu(
     );
     let draw_layout = cache.get_bind_group_layout(&draw_layout());
     let entries: Vec<wgpu::BindGroupEntry> =
-        [&skin_uniform, &palette, &words, &weights, &corners, &normals, &materials, &params, &uvs, &no_shadow]
+        [&skin_uniform, &palette, &words, &weights, &corners, &attributes, &materials, &params, &uvs, &no_shadow]
             .iter()
             .enumerate()
             .map(|(b, buffer)| bind(b as u32, buffer))
@@ -1073,9 +1181,11 @@ fn bake_gpu(
         usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
         mapped_at_creation: false,
     });
-    let occlusion = occlusion.map(|_| occlusion_draw(device, &skin_layout, &corners, samples));
+    let any_two_sided = frame.two_sided.contains(&true);
+    let occlusion = occlusion.map(|_| occlusion_draw(device, &skin_layout, &corners, samples, any_two_sided));
     Ok(BakeGpu {
         samples,
+        two_sided: frame.two_sided.clone(),
         rounds: occlusion.as_ref().map_or(0, |_| culling.crowd().occlusion_rounds()),
         occlusion,
         meshlets: character.meshlets(),
@@ -1109,12 +1219,15 @@ fn bake_gpu(
 const OCCLUSION_DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
 /// skinlet's own depth pass over a bake's triangle lists (`meshlet_occlusion.wgsl`: the
-/// crowd skinning in group 1, its `skinning` bind group), with the camera's `samples`.
+/// crowd skinning in group 1, its `skinning` bind group), with the camera's `samples`;
+/// `two_sided`: the bake has parts drawn two-sided (no faces culled, the other parts' back
+/// faces discarded).
 fn occlusion_draw(
     device: &wgpu::Device,
     skin_layout: &wgpu::BindGroupLayout,
     corners: &wgpu::Buffer,
     samples: u32,
+    two_sided: bool,
 ) -> OcclusionDraw {
     let source = [CROWD_SKIN_WGSL, TRIANGLES_WGSL, include_str!("meshlet_occlusion.wgsl")].concat();
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -1162,7 +1275,7 @@ fn occlusion_draw(
             compilation_options: Default::default(),
             buffers: &[],
         },
-        primitive: wgpu::PrimitiveState { cull_mode: Some(wgpu::Face::Back), ..Default::default() },
+        primitive: wgpu::PrimitiveState { cull_mode: (!two_sided).then_some(wgpu::Face::Back), ..Default::default() },
         depth_stencil: Some(wgpu::DepthStencilState {
             format: OCCLUSION_DEPTH,
             depth_write_enabled: Some(true),
@@ -1171,7 +1284,12 @@ fn occlusion_draw(
             bias: Default::default(),
         }),
         multisample: wgpu::MultisampleState { count: samples, ..Default::default() },
-        fragment: None,
+        fragment: two_sided.then_some(wgpu::FragmentState {
+            module: &module,
+            entry_point: Some("two_sided_fragment"),
+            compilation_options: Default::default(),
+            targets: &[],
+        }),
         multiview_mask: None,
         cache: None,
     });
@@ -1314,24 +1432,47 @@ fn queue_draws(
     views: Query<(&ExtractedView, &RenderVisibleEntities)>,
     dirty: Res<DirtySpecializations>,
     mut pending: ResMut<PendingMeshletQueues>,
+    (frames, draws): (Res<MeshletFrames>, Query<&SkinletMeshletDraw>),
+    mut queued: Local<HashMap<(RetainedViewEntity, MainEntity), (Entity, bool)>>,
 ) {
     let Some(draw_pipeline) = draw_pipeline else { return };
     let draw_function = draw_functions.read().id::<DrawMeshletCommands>();
+    // Whether a draw's bake has parts drawn two-sided this frame (its pipeline culls no faces).
+    let two_sided = |entity: Entity| {
+        let frame = draws.get(entity).ok().and_then(|d| frames.0.get(&d.bake));
+        frame.is_some_and(|f| f.two_sided.contains(&true))
+    };
+    queued.retain(|(view, _), _| phases.contains_key(view));
     for (view, visible) in &views {
         let Some(phase) = phases.get_mut(&view.retained_view_entity) else { continue };
         let Some(visible) = visible.get::<SkinletMeshletDraw>() else { continue };
         let view_pending = pending.prepare_for_new_frame(view.retained_view_entity);
         for &main_entity in dirty.iter_to_dequeue(view.retained_view_entity, visible) {
             phase.remove(main_entity);
+            queued.remove(&(view.retained_view_entity, main_entity));
         }
-        for (render_entity, main_entity) in
-            dirty.iter_to_queue(view.retained_view_entity, visible, &view_pending.prev_frame)
-        {
+        let mut to_queue: Vec<(Entity, MainEntity)> =
+            (dirty.iter_to_queue(view.retained_view_entity, visible, &view_pending.prev_frame))
+                .map(|(r, m)| (*r, *m))
+                .collect();
+        // A draw queued with the other pipeline (its bake's parts changed sides): again.
+        for (&(v, main_entity), &(entity, sides)) in &queued {
+            if v == view.retained_view_entity
+                && sides != two_sided(entity)
+                && !to_queue.iter().any(|&(_, m)| m == main_entity)
+            {
+                to_queue.push((entity, main_entity));
+            }
+        }
+        for (render_entity, main_entity) in to_queue {
             let Some(key) = view_keys.get(&view.retained_view_entity) else {
-                view_pending.current_frame.insert((*render_entity, *main_entity));
+                view_pending.current_frame.insert((render_entity, main_entity));
                 continue;
             };
-            let pipeline = pipelines.specialize(&cache, &draw_pipeline, *key);
+            let sides = two_sided(render_entity);
+            let pipeline = pipelines.specialize(&cache, &draw_pipeline, (*key, sides));
+            phase.remove(main_entity);
+            queued.insert((view.retained_view_entity, main_entity), (render_entity, sides));
             phase.add(
                 Opaque3dBatchSetKey {
                     draw_function,
@@ -1341,7 +1482,7 @@ fn queue_draws(
                     slabs: MeshSlabs::default(),
                 },
                 Opaque3dBinKey { asset_id: AssetId::<Mesh>::invalid().untyped() },
-                (*render_entity, *main_entity),
+                (render_entity, main_entity),
                 InputUniformIndex::default(),
                 BinnedRenderPhaseType::NonMesh,
             );
@@ -1419,9 +1560,10 @@ enum DepthView {
 }
 
 impl SpecializedRenderPipeline for MeshletDepthPipeline {
-    type Key = DepthView;
+    /// The view, and whether the bake has parts drawn two-sided.
+    type Key = (DepthView, bool);
 
-    fn specialize(&self, key: DepthView) -> RenderPipelineDescriptor {
+    fn specialize(&self, (key, two_sided): (DepthView, bool)) -> RenderPipelineDescriptor {
         let (directional, view_key) = match key {
             DepthView::Shadow { directional } => (directional, MeshPipelineKey::NONE),
             DepthView::Prepass(view_key) => (false, view_key),
@@ -1438,6 +1580,9 @@ impl SpecializedRenderPipeline for MeshletDepthPipeline {
         }
         if normal || emulate {
             shader_defs.push("DEPTH_FRAGMENT_OUTPUT".into());
+        }
+        if two_sided {
+            shader_defs.push("SKINLET_TWO_SIDED".into());
         }
         // The prepass's targets as Bevy's prepass pipeline has them; skinlet writes the normals
         // only (no motion vectors: it keeps no previous palettes; the deferred targets are for
@@ -1464,7 +1609,7 @@ impl SpecializedRenderPipeline for MeshletDepthPipeline {
                 entry_point: Some(entry_point.into()),
                 buffers: vec![],
             },
-            fragment: (emulate || !targets.is_empty()).then(|| FragmentState {
+            fragment: (emulate || two_sided || !targets.is_empty()).then(|| FragmentState {
                 shader: self.shader.clone(),
                 shader_defs,
                 entry_point: Some("depth_fragment".into()),
@@ -1472,7 +1617,7 @@ impl SpecializedRenderPipeline for MeshletDepthPipeline {
             }),
             primitive: PrimitiveState {
                 topology: PrimitiveTopology::TriangleList,
-                cull_mode: Some(Face::Back),
+                cull_mode: (!two_sided).then_some(Face::Back),
                 unclipped_depth: directional && self.depth_clip_control,
                 ..default()
             },
@@ -1509,17 +1654,19 @@ impl MeshletDepthPipeline {
 /// The depth draws queued, per (view, draw entity): their pipeline.
 type DepthQueued = HashMap<(RetainedViewEntity, MainEntity), CachedRenderPipelineId>;
 
-/// Keeps every bake's depth draw in `view`'s `phase` with `pipeline` (the batch set and bin
-/// keys from `keys`): removed while its bake draws no instance, added again when its pipeline
-/// changed.
+/// Keeps every bake's depth draw in `view`'s `phase` with the pipeline `pipeline` gives for
+/// whether the bake has parts drawn two-sided (the batch set and bin keys from `keys`):
+/// removed while its bake draws no instance, added again when its pipeline changed.
+#[allow(clippy::too_many_arguments)]
 fn queue_depth_draws<P: BinnedPhaseItem>(
     phase: &mut BinnedRenderPhase<P>,
     view: RetainedViewEntity,
-    pipeline: CachedRenderPipelineId,
+    mut pipeline: impl FnMut(bool) -> CachedRenderPipelineId,
     draws: &Query<(Entity, &MainEntity, &SkinletMeshletDraw)>,
     gpu: &MeshletGpu,
+    frames: &MeshletFrames,
     queued: &mut DepthQueued,
-    keys: impl Fn() -> (P::BatchSetKey, P::BinKey),
+    keys: impl Fn(CachedRenderPipelineId) -> (P::BatchSetKey, P::BinKey),
 ) {
     for (entity, &main_entity, draw) in draws {
         let key = (view, main_entity);
@@ -1530,11 +1677,13 @@ fn queue_depth_draws<P: BinnedPhaseItem>(
             }
             continue;
         }
+        let two_sided = frames.0.get(&draw.bake).is_some_and(|f| f.two_sided.contains(&true));
+        let pipeline = pipeline(two_sided);
         if queued.insert(key, pipeline) == Some(pipeline) {
             continue;
         }
         phase.remove(main_entity);
-        let (batch_set, bin) = keys();
+        let (batch_set, bin) = keys(pipeline);
         let (input, phase_type) = (InputUniformIndex::default(), BinnedRenderPhaseType::NonMesh);
         phase.add(batch_set, bin, (entity, main_entity), input, phase_type);
     }
@@ -1553,7 +1702,7 @@ fn queue_shadows(
     draw_functions: Res<DrawFunctions<Shadow>>,
     lights: Query<(&ExtractedView, &LightEntity)>,
     draws: Query<(Entity, &MainEntity, &SkinletMeshletDraw)>,
-    gpu: Res<MeshletGpu>,
+    (gpu, frames): (Res<MeshletGpu>, Res<MeshletFrames>),
     mut queued: Local<DepthQueued>,
 ) {
     let Some(prepass) = prepass else { return };
@@ -1564,8 +1713,10 @@ fn queue_shadows(
     for (view, light) in &lights {
         let Some(phase) = phases.get_mut(&view.retained_view_entity) else { continue };
         let directional = matches!(light, LightEntity::Directional { .. });
-        let pipeline = pipelines.specialize(&cache, depth_pipeline, DepthView::Shadow { directional });
-        queue_depth_draws(phase, view.retained_view_entity, pipeline, &draws, &gpu, &mut queued, || {
+        let key = DepthView::Shadow { directional };
+        let pipeline = |two_sided| pipelines.specialize(&cache, depth_pipeline, (key, two_sided));
+        let view = view.retained_view_entity;
+        queue_depth_draws(phase, view, pipeline, &draws, &gpu, &frames, &mut queued, |pipeline| {
             let slabs = MeshSlabs::default();
             let batch_set = ShadowBatchSetKey { pipeline, draw_function, material_bind_group_index: None, slabs };
             (batch_set, ShadowBinKey { asset_id: AssetId::<Mesh>::invalid().untyped() })
@@ -1588,7 +1739,7 @@ fn queue_prepass(
     draw_functions: Res<DrawFunctions<Opaque3dPrepass>>,
     views: Query<&ExtractedView, With<ExtractedCamera>>,
     draws: Query<(Entity, &MainEntity, &SkinletMeshletDraw)>,
-    gpu: Res<MeshletGpu>,
+    (gpu, frames): (Res<MeshletGpu>, Res<MeshletFrames>),
     mut queued: Local<DepthQueued>,
     mut warned: Local<bool>,
 ) {
@@ -1603,8 +1754,10 @@ fn queue_prepass(
         if view_key.contains(MeshPipelineKey::MOTION_VECTOR_PREPASS) && !std::mem::replace(&mut *warned, true) {
             warn!("skinlet meshlets: characters drawn by skinlet write no motion vectors (drawn as if still)");
         }
-        let pipeline = pipelines.specialize(&cache, depth_pipeline, DepthView::Prepass(view_key));
-        queue_depth_draws(phase, view.retained_view_entity, pipeline, &draws, &gpu, &mut queued, || {
+        let key = DepthView::Prepass(view_key);
+        let pipeline = |two_sided| pipelines.specialize(&cache, depth_pipeline, (key, two_sided));
+        let view = view.retained_view_entity;
+        queue_depth_draws(phase, view, pipeline, &draws, &gpu, &frames, &mut queued, |pipeline| {
             let slabs = MeshSlabs::default();
             let batch_set =
                 OpaqueNoLightmap3dBatchSetKey { pipeline, draw_function, material_bind_group_index: None, slabs };

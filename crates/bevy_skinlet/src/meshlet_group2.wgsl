@@ -10,14 +10,18 @@ struct DrawParams {
     pad: u32,
 }
 
-// Per corner: bake vertex, source attribute vertex, part, 0.
+// Per corner: bake vertex, source attribute vertex, part, 1 where the part is drawn two-sided
+// (its material culls no faces).
 @group(2) @binding(4) var<storage, read> corners: array<vec4<u32>>;
 @group(2) @binding(7) var<uniform> draw: DrawParams;
 // Per instance, draw.shadow_words words: bit p % 32 of word p / 32 set where part p casts no
 // shadow (Bevy's NotShadowCaster on the part's entity).
 @group(2) @binding(9) var<storage, read> no_shadow: array<u32>;
-// Per source attribute vertex: its normal (w 0).
-@group(2) @binding(5) var<storage, read> normals: array<vec4<f32>>;
+// The source attribute vertices' normals and tangents, and their morph deltas (the floats'
+// bits): per vertex v, entry 2v its normal and where its deltas start, 2v + 1 its tangent; the
+// entry after the last vertex's says where its deltas end; per delta two entries: its normal
+// delta and morph weight, its tangent delta.
+@group(2) @binding(5) var<storage, read> attributes: array<vec4<u32>>;
 
 // The inverse transpose of m's 3 × 3 part, as Bevy's `inverse_transpose_3x3` skins normals.
 fn inverse_transpose_3x3(m: mat4x4<f32>) -> mat3x3<f32> {
@@ -37,8 +41,34 @@ fn drawn_entry(index: u32, instance: u32) -> vec2<u32> {
     return triangle_entry(index, draw.id_bits);
 }
 
+// Source attribute vertex a's normal (k = 0) or tangent (k = 1) of `instance`, morphed as
+// Bevy morphs them (the tangent's w, its sign, is not).
+fn morphed_attribute(instance: u32, a: u32, k: u32) -> vec4<f32> {
+    var v = bitcast<vec4<f32>>(attributes[2u * a + k]);
+    for (var d = attributes[2u * a].w; d < attributes[2u * a + 2u].w; d += 2u) {
+        let weight = morph_weights[instance * skin.weights + attributes[d].w];
+        v += vec4<f32>(bitcast<vec3<f32>>(attributes[d + k].xyz) * weight, 0.0);
+    }
+    return select(v, vec4<f32>(v.xyz, 0.0), k == 0u);
+}
+
+// A normal skinned by the skinning matrix m, as Bevy skins normals.
+fn skin_normal(m: mat4x4<f32>, normal: vec4<f32>) -> vec3<f32> {
+    return normalize(inverse_transpose_3x3(m) * normal.xyz);
+}
+
+// A tangent skinned by m, as Bevy moves tangents to world space (a zero tangent stays zero);
+// its sign follows the skinning matrix's handedness.
+fn skin_tangent(m: mat4x4<f32>, tangent: vec4<f32>) -> vec4<f32> {
+    if all(tangent == vec4<f32>(0.0)) {
+        return tangent;
+    }
+    let m3 = mat3x3<f32>(m[0].xyz, m[1].xyz, m[2].xyz);
+    return vec4<f32>(normalize(m3 * tangent.xyz), tangent.w * select(1.0, -1.0, determinant(m3) < 0.0));
+}
+
 // The world normal of `corner` (bake vertex, source vertex, part) of `instance`: its source
-// vertex's normal skinned as Bevy skins normals.
+// vertex's normal, morphed and skinned as Bevy does.
 fn skinned_normal(instance: u32, corner: vec4<u32>) -> vec3<f32> {
-    return normalize(inverse_transpose_3x3(skin_matrix(instance, corner.x)) * normals[corner.y].xyz);
+    return skin_normal(skin_matrix(instance, corner.x), morphed_attribute(instance, corner.y, 0u));
 }

@@ -10,12 +10,27 @@ struct OcclusionView {
 }
 
 @group(0) @binding(0) var<uniform> occlusion_view: OcclusionView;
-// Per corner: bake vertex, source attribute vertex, part, 0.
+// Per corner: bake vertex, source attribute vertex, part, 1 where the part is drawn two-sided.
 @group(0) @binding(1) var<storage, read> corners: array<vec4<u32>>;
 
+struct OcclusionOut {
+    @builtin(position) position: vec4<f32>,
+    @location(0) @interpolate(flat) two_sided: u32,
+}
+
 @vertex
-fn vertex(@builtin(vertex_index) index: u32) -> @builtin(position) vec4<f32> {
+fn vertex(@builtin(vertex_index) index: u32) -> OcclusionOut {
     let entry = triangle_entry(index, occlusion_view.id_bits);
-    let world = skinned_position(entry.x, corners[entry.y].x);
-    return occlusion_view.clip_from_world * vec4<f32>(world, 1.0);
+    let corner = corners[entry.y];
+    let world = skinned_position(entry.x, corner.x);
+    return OcclusionOut(occlusion_view.clip_from_world * vec4<f32>(world, 1.0), corner.w);
+}
+
+// A bake with parts drawn two-sided is drawn with no faces culled: the other parts' back faces
+// are discarded, as the opaque pass culls them.
+@fragment
+fn two_sided_fragment(in: OcclusionOut, @builtin(front_facing) is_front: bool) {
+    if !is_front && in.two_sided == 0u {
+        discard;
+    }
 }

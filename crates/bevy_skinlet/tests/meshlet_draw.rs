@@ -237,3 +237,67 @@ fn skinlets_meshlet_draw_looks_like_bevys_own() {
     assert!(drawn > (WIDTH * HEIGHT / 20) as usize, "the prepass shows no characters: {drawn} pixels");
     assert!(large * 200 < drawn, "prepass: {large} of {drawn} pixels differ by more than 2 levels");
 }
+
+/// Close to the face of the demo with materials (`common::demo_with_materials`): a
+/// double-sided normal-mapped body with turned triangles (drawn, normals reversed), single-sided
+/// parts with turned triangles (holes), every morph weight at 1 (the mouth's target moves
+/// normals too), a light casting shadows: Bevy's frame and skinlet's within the tolerance of
+/// the crowd test, skinlet's culled equal to its unculled.
+#[test]
+fn double_sided_normal_mapped_morphed_parts_look_like_bevys() {
+    if !common::vulkan_available() {
+        return;
+    }
+    let Some((dir, characters)) = asset_folder("meshlet_materials", &["@demo-materials"]) else { return };
+    let mut app = app(&dir, true);
+    app.add_plugins(SkinletMeshletPlugin);
+    common::watch_pipelines(&mut app);
+    let roots = common::spawn_rows(app.world_mut(), &characters, &[0.0], 3);
+    let camera = common::readback_camera(app.world_mut(), WIDTH, HEIGHT, Transform::default());
+    for mut light in app.world_mut().query::<&mut DirectionalLight>().iter_mut(app.world_mut()) {
+        light.shadow_maps_enabled = true;
+    }
+    update_until(&mut app, 3000, "every instance bound", |w| {
+        roots.iter().all(|&(e, _)| w.get::<SkinletInstance>(e).is_some())
+    });
+    let (root, _) = roots[1];
+    let nodes = common::node_entities(app.world_mut(), root);
+    let descendants: Vec<Entity> =
+        app.world_mut().query::<&Children>().query(app.world()).iter_descendants(root).collect();
+    for &e in &descendants {
+        if let Some(mut weights) = app.world_mut().get_mut::<bevy::mesh::morph::MorphWeights>(e) {
+            weights.weights_mut().fill(1.0);
+        }
+    }
+    for _ in 0..5 {
+        app.update();
+    }
+    // In front of the face: from the head joint through the middle of the eyes.
+    let at = |name: &str| {
+        let node = characters[0].asset.skeleton.nodes.iter().position(|n| n.name == name).unwrap();
+        app.world().get::<GlobalTransform>(nodes[node].unwrap()).unwrap().translation()
+    };
+    let (head, eyes) = (at("head"), (at("eye_l") + at("eye_r")) / 2.0);
+    let eye = eyes + (eyes - head).normalize() * 1.2 + Vec3::Y * 0.3;
+    app.world_mut().entity_mut(camera).insert(Transform::from_translation(eye).looking_at(head, Vec3::Y));
+    let bevy = settled_image(&mut app);
+    for &(root, _) in &roots {
+        app.world_mut().entity_mut(root).insert(SkinletMeshlets);
+    }
+    let skinlet = settled_image(&mut app);
+    app.world_mut().resource_mut::<SkinletMeshletSettings>().culling = false;
+    let unculled = settled_image(&mut app);
+    let out = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
+    let per_pixel = common::pixel_differences(&bevy, &skinlet);
+    let side = common::side_by_side(&[&bevy, &skinlet, &common::difference_image(&per_pixel)], WIDTH);
+    common::write_png(&out.join("meshlet_materials_side_by_side.png"), &side, 3 * WIDTH);
+    let drawn = common::drawn_pixels(&bevy);
+    let large = per_pixel.iter().filter(|&&d| d > 2).count();
+    let culled_away = skinlet.chunks(4).zip(unculled.chunks(4)).filter(|(a, b)| a != b).count();
+    eprintln!(
+        "{drawn} pixels drawn; {large} differ by more than 2 levels; culled and unculled differ at {culled_away}"
+    );
+    assert!(drawn > (WIDTH * HEIGHT / 8) as usize, "the close up shows too little: {drawn} pixels");
+    assert!(large * 200 < drawn, "{large} of {drawn} pixels differ by more than 2 levels");
+    assert_eq!(culled_away, 0, "skinlet's culling changed {culled_away} pixels");
+}

@@ -1540,6 +1540,7 @@ mod tests {
             1000,
             Raster { width, height, subpixel_bits: 8, cull_back_faces: true, multisampled: false },
             Entries::Vertices,
+            &[],
         )
         .unwrap();
         let camera = test_camera();

@@ -134,14 +134,16 @@ const FIRST_TESTED: u64 = 512;
 pub const MAX_MESHLET_VERTICES: usize = 128;
 
 /// The meshlets as `meshlet_words` of triangle_cull.wgsl: per meshlet where its vertices
-/// start, their count, where its triangles start, their count (words of this array); the
+/// start, their count (bit 31 set where `two_sided` says so), where its triangles start, their
+/// count (words of this array); the
 /// vertices; from the returned base, the triangles, one word each (local indices in the low
 /// three bytes), the one at MLET triangle byte `3·i` at word `base + i`.
-fn pack_meshlets(m: &MeshletView) -> (Vec<u32>, u32) {
+fn pack_meshlets(m: &MeshletView, two_sided: &[bool]) -> (Vec<u32>, u32) {
     let mut words = vec![0u32; 4 * m.len()];
     for i in 0..m.len() {
         let (first, (vertices, _)) = (words.len() as u32, m.counts(i));
-        words[4 * i..4 * i + 2].copy_from_slice(&[first, vertices as u32]);
+        let sides = (two_sided.get(i) == Some(&true)) as u32;
+        words[4 * i..4 * i + 2].copy_from_slice(&[first, vertices as u32 | sides << 31]);
         words.extend(m.vertices_of(i));
     }
     let base = words.len();
@@ -161,9 +163,15 @@ impl TriangleCulling {
     /// The triangle pass after `crowd` (which it takes over: [`TriangleCulling::crowd`]), for
     /// a mesh of `vertices` vertices and its `meshlets` (the culler's, in its order; at most
     /// [`MAX_MESHLET_VERTICES`] vertices each), skinned by `skinning`, drawn as `raster` says;
-    /// the lists name `entries`. Each list holds `capacity` triangles. Errors when an argument is out of range, the
-    /// meshlets are not the crowd's or fail their check, the encoded indices would not fit 32
-    /// bits, or the pipeline fails validation (e.g. the skinning WGSL or its layout).
+    /// the lists name `entries`. Each list holds `capacity` triangles. `two_sided`, per
+    /// meshlet (empty: none): the draw shows its back faces (a double-sided material), so
+    /// its triangles are not tested for facing even where `raster` culls back faces (the
+    /// draw then culls the other meshlets' back faces itself, e.g. discarding back-facing
+    /// fragments, and their crowd culling keeps its cones; the double-sided meshlets' culler
+    /// classes must be frustum-only). Errors when an argument is out of range, the meshlets
+    /// are not the crowd's or fail their check, `two_sided` is neither empty nor one per
+    /// meshlet, the encoded indices would not fit 32 bits, or the pipeline fails validation
+    /// (e.g. the skinning WGSL or its layout).
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         device: &wgpu::Device,
@@ -174,6 +182,7 @@ impl TriangleCulling {
         capacity: u32,
         raster: Raster,
         entries: Entries,
+        two_sided: &[bool],
     ) -> Result<TriangleCulling> {
         let location = "GPU triangle culling";
         let Raster { width, height, subpixel_bits, cull_back_faces, multisampled } = raster;
@@ -188,7 +197,13 @@ impl TriangleCulling {
         meshlets
             .check(vertices as usize, [MAX_MESHLET_VERTICES, usize::MAX])
             .map_err(|e| invalid(location, e.to_string()))?;
-        let (words, triangle_base) = pack_meshlets(meshlets);
+        if !two_sided.is_empty() && two_sided.len() != meshlets.len() {
+            return Err(invalid(
+                location,
+                format!("{} two-sided flags for {} meshlets", two_sided.len(), meshlets.len()),
+            ));
+        }
+        let (words, triangle_base) = pack_meshlets(meshlets, two_sided);
         if let Some((w, h, ..)) = crowd.occlusion
             && (w, h) != (width, height)
         {

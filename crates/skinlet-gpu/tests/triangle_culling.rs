@@ -1,8 +1,9 @@
 //! Per-triangle culling of crowd culling's survivors (`skinlet_gpu::triangle_culling`), with a
 //! skinning function of the test's own (each instance's model matrix on the bind pose): every
 //! triangle of the crowd that covers a pixel center in exact (f64) arithmetic, front-facing,
-//! is in the list, and the list culls a good part of the rest; an overflowing list draws what
-//! it wrote and a later frame nothing stale; bad arguments are errors.
+//! is in the list (back-facing too, for meshlets drawn two-sided), and the list culls a good
+//! part of the rest; an overflowing list draws what it wrote and a later frame nothing stale;
+//! bad arguments are errors.
 
 mod common;
 use common::{bake, gpu, read_buffer};
@@ -45,9 +46,12 @@ struct Scene {
     /// Crowd culling's parts, for more crowds.
     parts: (CullPipelines, GpuCharacter, wgpu::Buffer, wgpu::Buffer),
     baked: skinlet::bake::Baked,
+    /// Per triangle of `indices`: whether its meshlet is drawn two-sided.
+    two_sided: Vec<bool>,
 }
 
-fn scene(capacity: Option<u32>, entries: Entries) -> Option<Scene> {
+/// The scene with every third meshlet drawn two-sided where `two_sided`.
+fn scene(capacity: Option<u32>, entries: Entries, two_sided: bool) -> Option<Scene> {
     let gpu = gpu()?;
     let device = &gpu.device;
     let asset = skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams::default());
@@ -101,9 +105,11 @@ fn scene(capacity: Option<u32>, entries: Entries) -> Option<Scene> {
         cull_back_faces: true,
         multisampled: false,
     };
+    let sides: Vec<bool> = (0..meshlets.len()).map(|m| two_sided && m % 3 == 1).collect();
+    let capacity = capacity.unwrap_or(all);
     let culling =
-        TriangleCulling::new(device, crowd, how, &meshlets, vertices, capacity.unwrap_or(all), raster, entries)
-            .unwrap();
+        TriangleCulling::new(device, crowd, how, &meshlets, vertices, capacity, raster, entries, &sides).unwrap();
+    let two_sided = draws.iter().zip(&sides).flat_map(|(d, &t)| std::iter::repeat_n(t, d[0] as usize / 3)).collect();
     // Per corner id (MLET's triangle i, corner k at 3·i + k), the mesh vertex.
     let mut corners = vec![u32::MAX; baked.meshlets.triangles.len()];
     for m in &baked.meshlets.meshlets {
@@ -124,6 +130,7 @@ fn scene(capacity: Option<u32>, entries: Entries) -> Option<Scene> {
         parts: (pipelines, character, palette, instances),
         baked,
         gpu,
+        two_sided,
     })
 }
 
@@ -153,10 +160,11 @@ fn cull(s: &Scene, camera: &Camera) -> (TriangleHeader, Vec<(u32, [u32; 3])>) {
     (header, list)
 }
 
-/// Whether triangle `t` of instance `i` covers a pixel center, front-facing, in f64: the
-/// center at least 0.02 pixel inside each edge (rasterizers snap vertices to 1/256 pixel or
-/// finer; the f32 corners are within 1e-4 pixel here), every corner in front of the eye.
-fn covers_a_pixel_center(s: &Scene, i: usize, t: &[u32]) -> bool {
+/// Whether triangle `t` of instance `i` covers a pixel center, front-facing (either facing
+/// where `two_sided`), in f64: the center at least 0.02 pixel inside each edge (rasterizers
+/// snap vertices to 1/256 pixel or finer; the f32 corners are within 1e-4 pixel here), every
+/// corner in front of the eye.
+fn covers_a_pixel_center(s: &Scene, i: usize, t: &[u32], two_sided: bool) -> bool {
     let view_proj = s.camera.view_proj.as_dmat4();
     let size = DVec3::new(WIDTH as f64, HEIGHT as f64, 1.0);
     let mut corners = [DVec3::ZERO; 3];
@@ -169,9 +177,11 @@ fn covers_a_pixel_center(s: &Scene, i: usize, t: &[u32]) -> bool {
         // Pixels, y up.
         corners[k] = (clip.truncate() / clip.w * 0.5 + 0.5) * size;
     }
-    let [a, b, c] = corners;
+    let [a, mut b, mut c] = corners;
     let area = (b - a).x * (c - a).y - (b - a).y * (c - a).x;
-    if area <= 0.0 {
+    if area < 0.0 && two_sided {
+        std::mem::swap(&mut b, &mut c);
+    } else if area <= 0.0 {
         return false;
     }
     let inside = |p: DVec3| {
@@ -198,7 +208,16 @@ fn covers_a_pixel_center(s: &Scene, i: usize, t: &[u32]) -> bool {
 
 #[test]
 fn every_triangle_covering_a_pixel_center_is_kept() {
-    let Some(s) = scene(None, Entries::Vertices) else { return };
+    every_visible_triangle_is_kept(false);
+}
+
+#[test]
+fn two_sided_meshlets_keep_their_back_faces() {
+    every_visible_triangle_is_kept(true);
+}
+
+fn every_visible_triangle_is_kept(two_sided: bool) {
+    let Some(s) = scene(None, Entries::Vertices, two_sided) else { return };
     let (header, list) = cull(&s, &s.camera);
     assert_eq!(3 * header.found, header.index_count, "the list overflowed");
     let kept: HashSet<(u32, [u32; 3])> = list.iter().copied().collect();
@@ -213,31 +232,33 @@ fn every_triangle_covering_a_pixel_center_is_kept() {
         })
         .collect();
     assert!(kept.iter().all(|(i, t)| (*i as usize) < s.models.len() && triangles.contains(t)), "a stranger listed");
-    let (mut required, mut all) = (0, 0);
+    let (mut required, mut all, mut back) = (0, 0, 0);
     for i in 0..s.models.len() {
-        for t in s.indices.chunks_exact(3) {
+        for (t, &two_sided) in s.indices.chunks_exact(3).zip(&s.two_sided) {
             all += 1;
-            if covers_a_pixel_center(&s, i, t) {
+            if covers_a_pixel_center(&s, i, t, two_sided) {
                 required += 1;
+                back += !covers_a_pixel_center(&s, i, t, false) as usize;
                 let mut v = [t[0], t[1], t[2]];
                 v.sort_unstable();
                 assert!(kept.contains(&(i as u32, v)), "instance {i}'s triangle {t:?} covers a pixel center: culled");
             }
         }
     }
-    eprintln!("{all} triangles: {} kept, {required} cover a pixel center", list.len());
+    eprintln!("{all} triangles: {} kept, {required} cover a pixel center ({back} back-facing)", list.len());
     assert!(required > 100, "too few visible triangles for a test");
+    assert_eq!(back > 100, two_sided, "{back} back-facing triangles of two-sided meshlets cover a pixel center");
     assert!(2 * list.len() < all, "the pass culled less than half the crowd's triangles");
 }
 
 #[test]
 fn an_overflowing_triangle_list_draws_what_it_wrote_and_a_later_frame_nothing_stale() {
-    let Some(whole_scene) = scene(None, Entries::Vertices) else { return };
+    let Some(whole_scene) = scene(None, Entries::Vertices, false) else { return };
     let (whole, all) = cull(&whole_scene, &whole_scene.camera);
     let found = whole.found;
     let all: HashSet<_> = all.into_iter().collect();
     for capacity in [1, found / 2, found - 1] {
-        let s = scene(Some(capacity), Entries::Vertices).unwrap();
+        let s = scene(Some(capacity), Entries::Vertices, false).unwrap();
         let (header, part) = cull(&s, &s.camera);
         assert_eq!((header.found, header.index_count), (found, 3 * capacity), "capacity {capacity}");
         assert!(part.iter().all(|t| all.contains(t)), "capacity {capacity}: a triangle listed that was culled");
@@ -253,7 +274,9 @@ fn an_overflowing_triangle_list_draws_what_it_wrote_and_a_later_frame_nothing_st
 
 #[test]
 fn corner_lists_name_the_triangles_vertex_lists_do() {
-    let (Some(by_vertex), Some(by_corner)) = (scene(None, Entries::Vertices), scene(None, Entries::Corners)) else {
+    let (Some(by_vertex), Some(by_corner)) =
+        (scene(None, Entries::Vertices, false), scene(None, Entries::Corners, false))
+    else {
         return;
     };
     let (a, mut vertex_list) = cull(&by_vertex, &by_vertex.camera);
@@ -267,7 +290,7 @@ fn corner_lists_name_the_triangles_vertex_lists_do() {
 
 #[test]
 fn triangle_culling_refuses_bad_arguments() {
-    let Some(s) = scene(None, Entries::Vertices) else { return };
+    let Some(s) = scene(None, Entries::Vertices, false) else { return };
     let device = &s.gpu.device;
     let (pipelines, character, palette, instances) = &s.parts;
     let crowd = || CrowdCulling::new(device, pipelines, character, palette, instances, 16, 16).unwrap();
@@ -276,7 +299,7 @@ fn triangle_culling_refuses_bad_arguments() {
     let meshlets = s.baked.meshlets.view(&headers);
     let vertices = s.positions.len() as u32;
     let make = |skinning: TriangleSkinning, meshlets: &MeshletView, vertices: u32, raster: Raster| {
-        TriangleCulling::new(device, crowd(), skinning, meshlets, vertices, 64, raster, Entries::Vertices)
+        TriangleCulling::new(device, crowd(), skinning, meshlets, vertices, 64, raster, Entries::Vertices, &[])
             .err()
             .map(|e| e.to_string())
             .unwrap_or_default()
@@ -290,6 +313,9 @@ fn triangle_culling_refuses_bad_arguments() {
     assert!(make(skinning, &meshlets, vertices, Raster { width: 0, ..size }).contains("drawn at 0×"));
     assert!(make(skinning, &meshlets, vertices, Raster { subpixel_bits: 17, ..size }).contains("17 sub-pixel bits"));
     assert!(make(skinning, &meshlets, 1 << 31, size).contains("32-bit indices"));
+    let sides =
+        TriangleCulling::new(device, crowd(), skinning, &meshlets, vertices, 64, size, Entries::Vertices, &[true]);
+    assert!(sides.err().unwrap().to_string().contains("1 two-sided flags for"));
     let nan = TriangleSkinning { margin: f32::NAN, ..skinning };
     assert!(make(nan, &meshlets, vertices, size).contains("margins"));
     let broken =

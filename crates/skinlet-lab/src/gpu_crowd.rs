@@ -362,6 +362,7 @@ impl GpuCrowd {
             all_triangles,
             Raster { width, height, subpixel_bits, cull_back_faces: true, multisampled: false },
             Entries::Vertices,
+            &[],
         )?;
         let (groups, pipelines) = built;
         Ok(GpuCrowd {

@@ -365,6 +365,29 @@ impl<'a> BakeView<'a> {
         MeshletCuller::new(&bounds, &classes, self.joint_count())
     }
 
+    /// Per meshlet, whether its part is marked in `parts` (one flag per part of `PART`;
+    /// missing flags are false): e.g. the parts whose material is double-sided.
+    pub fn meshlets_of_parts(&self, parts: &[bool]) -> Vec<bool> {
+        let mut out = vec![false; self.meshlets.len()];
+        for (p, &marked) in self.parts.iter().zip(parts) {
+            out[p.meshlets[0] as usize..p.meshlets[1] as usize].fill(marked);
+        }
+        out
+    }
+
+    /// [`BakeView::culler`] for a draw that shows the back faces of the parts `two_sided`
+    /// marks (one flag per part: a double-sided material): their meshlets are frustum-culled
+    /// only, never backface-culled.
+    pub fn two_sided_culler(&self, two_sided: &[bool]) -> Result<MeshletCuller> {
+        let (bounds, mut classes) = bounds_and_classes(self.bounds);
+        for (class, two_sided) in classes.iter_mut().zip(self.meshlets_of_parts(two_sided)) {
+            if two_sided && *class == Class::Both {
+                *class = Class::FrustumOnly;
+            }
+        }
+        MeshletCuller::new(&bounds, &classes, self.joint_count())
+    }
+
     /// The run-time culler for the clip bounds of `BNDS`' meshlets, then `LODC`'s clusters
     /// (numbered as [`LodView::cluster_errors`] numbers them): to cull a cut. `None` without
     /// `LODC`.

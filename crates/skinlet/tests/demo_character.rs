@@ -327,6 +327,17 @@ mod bake {
         assert_eq!((draws.len(), indices.len()), (b.meshlets.len(), first as usize));
         let culler = MeshletCuller::new(&b.bounds, &b.classes, b.inverse_bind.len()).unwrap();
         assert_eq!(view.culler().unwrap().slots(), culler.slots());
+        // Part 0 drawn two-sided: its meshlets (and only those) are never backface-culled.
+        let two_sided = view.meshlets_of_parts(&[true]);
+        let part = view.parts()[0].meshlets;
+        assert!((0..b.meshlets.len()).all(|m| two_sided[m] == (part[0] as usize..part[1] as usize).contains(&m)));
+        let slots = culler.slots();
+        assert!(slots.iter().any(|s| two_sided[s.id as usize] && s.sin <= 1.0), "no cone in part 0 to test");
+        for (s, t) in slots.iter().zip(view.two_sided_culler(&[true]).unwrap().slots()) {
+            let no_cone = skinlet_runtime::meshlet_cull::CullSlot { axis: glam::Vec3::ZERO, sin: 2.0, ..*s };
+            let want = if two_sided[s.id as usize] { no_cone } else { *s };
+            assert_eq!(t, want);
+        }
         let (e, ev) = (b.envelope.as_ref().unwrap(), view.envelope().unwrap());
         assert_eq!(ev.guard().unwrap(), e.envelope.guard().unwrap());
         assert_eq!(ev.any_pose(), e.any_pose);

@@ -24,7 +24,8 @@ pub struct Character {
 }
 
 /// A folder under the test target directory holding `files` (from the shared assets, or
-/// `@demo` for the demo character as `demo.glb`), each with a bake beside it
+/// `@demo` for the demo character as `demo.glb`, `@demo-materials` for
+/// [`demo_with_materials`] as `demo_materials.glb`), each with a bake beside it
 /// (`NAME.skinlet`, baked as a default recipe bakes: skin-aware meshlets, every clip, an
 /// envelope around the clips widened by 10°). `None` (with a note) without the shared assets, unless they are required.
 pub fn asset_folder(name: &str, files: &[&str]) -> Option<(PathBuf, Vec<Character>)> {
@@ -38,11 +39,9 @@ pub fn asset_folder(name: &str, files: &[&str]) -> Option<(PathBuf, Vec<Characte
     let mut out = Vec::new();
     for &f in files {
         let (file, bytes) = if f == "@demo" {
-            let demo = skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams {
-                triangles: 3000,
-                ..Default::default()
-            });
-            ("demo.glb".to_string(), skinlet::export::to_glb(&demo).unwrap())
+            ("demo.glb".to_string(), demo_glb())
+        } else if f == "@demo-materials" {
+            ("demo_materials.glb".to_string(), demo_with_materials(&dir))
         } else {
             let Some(shared) = &shared else {
                 if required("SKINLET_REQUIRE_ASSETS") {
@@ -64,6 +63,103 @@ pub fn asset_folder(name: &str, files: &[&str]) -> Option<(PathBuf, Vec<Characte
         out.push(Character { file, asset, character });
     }
     Some((dir, out))
+}
+
+/// The demo character (3,000 triangles) as a GLB file.
+fn demo_glb() -> Vec<u8> {
+    let params = skinlet_lab::demo::DemoParams { triangles: 3000, ..Default::default() };
+    skinlet::export::to_glb(&skinlet_lab::demo::demo_character(&params)).unwrap()
+}
+
+/// The demo character with materials, as exporters write them: the body double-sided with a
+/// normal map (texture coordinates projected from its positions; the map, `demo_normal.png`
+/// written into `dir`, a field of bumps), the other meshes single-sided; every fourth
+/// triangle of every mesh turned around (from outside a back face: a hole in a single-sided
+/// mesh, in the double-sided body a face drawn with its normal reversed).
+pub fn demo_with_materials(dir: &Path) -> Vec<u8> {
+    use serde_json::{Value, json};
+    let glb = demo_glb();
+    let word = |at: usize| u32::from_le_bytes(glb[at..at + 4].try_into().unwrap()) as usize;
+    let json_len = word(12);
+    let mut gltf: Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
+    let bin_at = 20 + json_len;
+    let mut bin = glb[bin_at + 8..bin_at + 8 + word(bin_at)].to_vec();
+    // An accessor's first byte in the buffer and its count (tightly packed views).
+    let place = |gltf: &Value, a: &Value| {
+        let accessor = &gltf["accessors"][a.as_u64().unwrap() as usize];
+        let view = &gltf["bufferViews"][accessor["bufferView"].as_u64().unwrap() as usize];
+        assert!(view.get("byteStride").is_none());
+        let at = view["byteOffset"].as_u64().unwrap_or(0) + accessor["byteOffset"].as_u64().unwrap_or(0);
+        (at as usize, accessor["count"].as_u64().unwrap() as usize, accessor["componentType"].as_u64().unwrap())
+    };
+    let f32_at = |bin: &[u8], at: usize| f32::from_le_bytes(bin[at..at + 4].try_into().unwrap());
+    for m in 0..gltf["meshes"].as_array().unwrap().len() {
+        for p in 0..gltf["meshes"][m]["primitives"].as_array().unwrap().len() {
+            let primitive = gltf["meshes"][m]["primitives"][p].clone();
+            let (at, count, kind) = place(&gltf, &primitive["indices"]);
+            assert_eq!(kind, 5125, "32-bit indices");
+            for t in (0..count / 3).step_by(4) {
+                let (b, c) = (at + 12 * t + 4, at + 12 * t + 8);
+                for k in 0..4 {
+                    bin.swap(b + k, c + k);
+                }
+            }
+            gltf["meshes"][m]["primitives"][p]["material"] = json!(if m == 0 { 0 } else { 1 });
+            if m == 0 {
+                let (at, vertices, _) = place(&gltf, &primitive["attributes"]["POSITION"]);
+                let offset = bin.len().next_multiple_of(4);
+                bin.resize(offset, 0);
+                for v in 0..vertices {
+                    let (x, y) = (f32_at(&bin, at + 12 * v), f32_at(&bin, at + 12 * v + 4));
+                    bin.extend([3.0 * x + 0.5, 3.0 * y].iter().flat_map(|c| c.to_le_bytes()));
+                }
+                let views = gltf["bufferViews"].as_array_mut().unwrap();
+                views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": 8 * vertices}));
+                let view = views.len() - 1;
+                let accessors = gltf["accessors"].as_array_mut().unwrap();
+                accessors.push(json!({"bufferView": view, "componentType": 5126, "count": vertices, "type": "VEC2"}));
+                gltf["meshes"][m]["primitives"][p]["attributes"]["TEXCOORD_0"] = json!(accessors.len() - 1);
+            }
+        }
+    }
+    gltf["buffers"][0]["byteLength"] = json!(bin.len());
+    gltf["materials"] = json!([
+        {
+            "name": "two-sided, normal-mapped",
+            "doubleSided": true,
+            "pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.6, 0.4, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.5},
+            "normalTexture": {"index": 0}
+        },
+        {"name": "one-sided", "pbrMetallicRoughness": {"baseColorFactor": [0.3, 0.5, 0.9, 1.0]}}
+    ]);
+    gltf["textures"] = json!([{"source": 0, "sampler": 0}]);
+    gltf["samplers"] = json!([{}]);
+    gltf["images"] = json!([{"uri": "demo_normal.png"}]);
+    // The normal map: bumps h = sin(2π·4u)·sin(2π·4v), normals (−∂h/∂u, −∂h/∂v, 1) / 4.
+    const SIZE: usize = 64;
+    let tau = std::f32::consts::TAU;
+    let texels: Vec<u8> = (0..SIZE * SIZE)
+        .flat_map(|i| {
+            let (u, v) = ((i % SIZE) as f32 / SIZE as f32, (i / SIZE) as f32 / SIZE as f32);
+            let du = 4.0 * tau * (4.0 * tau * u).cos() * (4.0 * tau * v).sin() / 4.0 / 8.0;
+            let dv = 4.0 * tau * (4.0 * tau * u).sin() * (4.0 * tau * v).cos() / 4.0 / 8.0;
+            let n = Vec3::new(-du, -dv, 1.0).normalize();
+            n.to_array().map(|c| ((c * 0.5 + 0.5) * 255.0).round() as u8)
+        })
+        .collect();
+    let file = std::io::BufWriter::new(std::fs::File::create(dir.join("demo_normal.png")).unwrap());
+    let mut encoder = png::Encoder::new(file, SIZE as u32, SIZE as u32);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.write_header().unwrap().write_image_data(&texels).unwrap();
+    // The file again: header, JSON chunk (padded with spaces), binary chunk (with zeros).
+    let mut json = serde_json::to_vec(&gltf).unwrap();
+    json.resize(json.len().next_multiple_of(4), b' ');
+    bin.resize(bin.len().next_multiple_of(4), 0);
+    let mut out = Vec::with_capacity(28 + json.len() + bin.len());
+    out.extend(b"glTF".iter().chain(&2u32.to_le_bytes()).chain(&((28 + json.len() + bin.len()) as u32).to_le_bytes()));
+    out.extend((json.len() as u32).to_le_bytes().iter().chain(b"JSON").chain(&json));
+    out.extend((bin.len() as u32).to_le_bytes().iter().chain(b"BIN\0").chain(&bin));
+    out
 }
 
 /// A headless app (no window) reading assets from `dir`, with skinlet's plugin and a fixed

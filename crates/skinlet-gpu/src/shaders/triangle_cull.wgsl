@@ -56,8 +56,8 @@ struct TriangleParams {
 @group(0) @binding(3) var<storage, read> survivors: array<u32>;
 // Visibility bits, then the depth pyramid (crowd_cull.wgsl, pyramid.wgsl).
 @group(0) @binding(4) var<storage, read_write> state: array<u32>;
-// The meshlets: per meshlet where its vertices start (in this array), their count, where its
-// triangles start, their count; then the vertices (mesh vertex indices); then, from
+// The meshlets: per meshlet where its vertices start (in this array), their count (the top bit
+// set where the draw shows its back faces), where its triangles start, their count; then the vertices (mesh vertex indices); then, from
 // triangle_base in MLET's order, the triangles (local vertex indices in the low three bytes).
 @group(0) @binding(5) var<storage, read> meshlet_words: array<u32>;
 // Two headers of 8 words (lists A and B): DrawIndexedIndirectArgs (index count, 1, first
@@ -119,7 +119,8 @@ fn tested() -> bool {
     return tri.phase == 2u || (tri.flags & 4u) != 0u;
 }
 
-fn test_triangle(c: array<Corner, 3>) -> u32 {
+// `two_sided`: the draw shows the triangle's back face (a double-sided material).
+fn test_triangle(c: array<Corner, 3>, two_sided: bool) -> u32 {
     // The projection's rows.
     let rows = transpose(occlusion.view_proj);
     if beyond(c, rows, 0u, 1.0) || beyond(c, rows, 0u, -1.0) || beyond(c, rows, 1u, 1.0)
@@ -172,7 +173,7 @@ fn test_triangle(c: array<Corner, 3>) -> u32 {
     let area = a.x * b.y - a.y * b.x;
     let slack = da * (abs(b.x) + abs(b.y)) + db * (abs(a.x) + abs(a.y)) + 2.0 * da * db
         + 1e-6 * (abs(a.x * b.y) + abs(a.y * b.x));
-    let cull_back = (tri.flags & 1u) != 0u;
+    let cull_back = (tri.flags & 1u) != 0u && !two_sided;
     if cull_back && area + slack < 0.0 {
         return CULLED;
     }
@@ -300,7 +301,9 @@ fn cull_triangles(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocati
     let instance = commands[c + 4u];
     let m = 4u * meshlet;
     let first_vertex = meshlet_words[m];
-    let vertices = meshlet_words[m + 1u];
+    // (The top bit: the meshlet is drawn two-sided.)
+    let vertices = meshlet_words[m + 1u] & 0xffffu;
+    let two_sided = (meshlet_words[m + 1u] >> 31u) != 0u;
     let first_triangle = meshlet_words[m + 2u];
     let count = meshlet_words[m + 3u];
     let bit = instance * tri.meshlets + meshlet;
@@ -329,7 +332,7 @@ fn cull_triangles(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocati
                 v[i] = select(meshlet_words[first_vertex + l], 3u * (first_triangle + t - tri.triangle_base) + i, corners);
                 k[i] = Corner(corner_clip[l], vec3<f32>(corner_d[l]), corner_r[l]);
             }
-            let result = test_triangle(k);
+            let result = test_triangle(k, two_sided);
             if result == SEEN {
                 atomicStore(&group_seen, 1u);
             }
