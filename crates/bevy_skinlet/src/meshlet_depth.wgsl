@@ -1,12 +1,16 @@
 // skinlet's meshlet draw in Bevy's depth-only views (meshlet_draw.rs), with Bevy's prepass view
 // bindings: the shadow views (every corner of every instance: the culled list is the camera's)
-// and the camera's prepass (the culled list, as the main pass draws it; the normals where the
-// camera has a normal prepass, written as Bevy's prepass writes them; no motion vectors). Both
-// skin with the crowd skinning (group 2) as the main pass does.
+// and the camera's prepass (the culled list, as the main pass draws it; the normals and motion
+// vectors where the camera has those prepasses, written as Bevy's prepass writes them). Both
+// skin with the crowd skinning (group 2) as the main pass does; the motion vectors' previous
+// positions skin with the frame before's palettes and weights (instance + draw.previous).
 
 #import bevy_render::view::View
 
 @group(0) @binding(0) var<uniform> view: View;
+#ifdef MOTION_VECTOR_PREPASS
+#import bevy_pbr::prepass_bindings::previous_view_uniforms
+#endif
 // Group 2's corners, draw, normals and no_shadow are in meshlet_group2.wgsl.
 
 struct DepthOut {
@@ -20,6 +24,10 @@ struct DepthOut {
 #ifdef SKINLET_TWO_SIDED
     // 1 where the part is drawn two-sided (the others' back faces are discarded).
     @location(2) @interpolate(flat) two_sided: u32,
+#endif
+#ifdef MOTION_VECTOR_PREPASS
+    @location(3) world_position: vec4<f32>,
+    @location(4) previous_world_position: vec4<f32>,
 #endif
 }
 
@@ -50,7 +58,12 @@ fn prepass_vertex(@builtin(vertex_index) index: u32, @builtin(instance_index) in
     let entry = drawn_entry(index, instance);
     let corner = corners[entry.y];
     var out: DepthOut;
-    out.position = view.clip_from_world * vec4<f32>(skinned_position(entry.x, corner.x), 1.0);
+    let world = vec4<f32>(skinned_position(entry.x, corner.x), 1.0);
+    out.position = view.clip_from_world * world;
+#ifdef MOTION_VECTOR_PREPASS
+    out.world_position = world;
+    out.previous_world_position = vec4<f32>(skinned_position(entry.x + draw.previous, corner.x), 1.0);
+#endif
 #ifdef NORMAL_PREPASS
     out.world_normal = skinned_normal(entry.x, corner);
 #endif
@@ -76,6 +89,9 @@ struct DepthFragment {
 #ifdef NORMAL_PREPASS
     @location(0) normal: vec4<f32>,
 #endif
+#ifdef MOTION_VECTOR_PREPASS
+    @location(1) motion_vector: vec2<f32>,
+#endif
 #ifdef UNCLIPPED_DEPTH_ORTHO_EMULATION
     @builtin(frag_depth) depth: f32,
 #endif
@@ -97,6 +113,13 @@ fn depth_fragment(in: DepthOut, @builtin(front_facing) is_front: bool) -> DepthF
     }
 #endif
     out.normal = vec4<f32>(normal * 0.5 + vec3<f32>(0.5), 1.0);
+#endif
+#ifdef MOTION_VECTOR_PREPASS
+    // As Bevy's prepass: the unjittered clip position's move since the frame before, in
+    // texture coordinates.
+    let clip = view.unjittered_clip_from_world * in.world_position;
+    let previous = previous_view_uniforms.clip_from_world * in.previous_world_position;
+    out.motion_vector = (clip.xy / clip.w - previous.xy / previous.w) * vec2<f32>(0.5, -0.5);
 #endif
 #ifdef UNCLIPPED_DEPTH_ORTHO_EMULATION
     out.depth = in.unclipped_depth;

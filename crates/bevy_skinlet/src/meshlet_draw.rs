@@ -28,11 +28,11 @@
 //! - a phase item in each shadow view (`Shadow`) draws every triangle of every instance, depth
 //!   only, with Bevy's prepass view bindings (but a part marked `NotShadowCaster`);
 //! - a phase item in a camera's prepass (`Opaque3dPrepass`, with `DepthPrepass` or
-//!   `NormalPrepass`) draws the camera's culled list: depth, and the world normals as Bevy's
-//!   prepass writes them.
+//!   `NormalPrepass`) draws the camera's culled list: depth, and the world normals and motion
+//!   vectors as Bevy's prepass writes them (the frame before's palettes and morph weights
+//!   after this frame's in the same buffers).
 //!
-//! Not yet: motion vectors (the characters are drawn into a motion vector prepass as if
-//! still, with a warning), normal maps in the normal prepass, culling in
+//! Not yet: normal maps in the normal prepass, culling in
 //! shadow views, occlusion culling against Bevy's meshes, culling for more than one camera
 //! (with several, every triangle is drawn), materials other than `StandardMaterial` (such a
 //! part stays Bevy's too, with a warning), a part's own visibility (every part of a marked
@@ -474,6 +474,10 @@ struct BakeFrame {
     palette: Vec<Mat4>,
     instances: Vec<CullInstance>,
     weights: Vec<f32>,
+    /// Per instance, its palette and morph weights of the frame before (this frame's where it
+    /// was not drawn then): the motion vectors' previous positions.
+    previous_palette: Vec<Mat4>,
+    previous_weights: Vec<f32>,
     materials: Vec<StandardMaterialUniform>,
     textures: Vec<PartTextures>,
     /// Per part: whether its material shows back faces (`cull_mode: None`, a glTF
@@ -494,7 +498,23 @@ struct InstanceData<'a> {
     palette: &'a [Mat4],
     instances: &'a [CullInstance],
     weights: &'a [f32],
+    previous_palette: &'a [Mat4],
+    previous_weights: &'a [f32],
     no_shadow: &'a [u32],
+}
+
+impl BakeFrame {
+    /// The arrays in the frame's order.
+    fn data(&self) -> InstanceData<'_> {
+        InstanceData {
+            palette: &self.palette,
+            instances: &self.instances,
+            weights: &self.weights,
+            previous_palette: &self.previous_palette,
+            previous_weights: &self.previous_weights,
+            no_shadow: &self.no_shadow,
+        }
+    }
 }
 
 /// A frame's per-instance arrays reordered nearest the camera first (occlusion culling's
@@ -505,6 +525,8 @@ struct NearestFirst {
     palette: Vec<Mat4>,
     instances: Vec<CullInstance>,
     weights: Vec<f32>,
+    previous_palette: Vec<Mat4>,
+    previous_weights: Vec<f32>,
     no_shadow: Vec<u32>,
 }
 
@@ -522,11 +544,15 @@ impl NearestFirst {
         gather(&mut self.palette, &frame.palette, &self.order);
         gather(&mut self.instances, &frame.instances, &self.order);
         gather(&mut self.weights, &frame.weights, &self.order);
+        gather(&mut self.previous_palette, &frame.previous_palette, &self.order);
+        gather(&mut self.previous_weights, &frame.previous_weights, &self.order);
         gather(&mut self.no_shadow, &frame.no_shadow, &self.order);
         InstanceData {
             palette: &self.palette,
             instances: &self.instances,
             weights: &self.weights,
+            previous_palette: &self.previous_palette,
+            previous_weights: &self.previous_weights,
             no_shadow: &self.no_shadow,
         }
     }
@@ -536,6 +562,9 @@ impl NearestFirst {
 fn shadow_words(parts: usize) -> usize {
     parts.div_ceil(32).max(1)
 }
+
+/// A scene root's palette and morph weights of the last frame it was drawn.
+type LastPose = (Vec<Mat4>, Vec<f32>);
 
 /// A marked scene root: its entity, instance and bounds.
 type MarkedRoot = (Entity, &'static SkinletInstance, &'static SkinletBounds);
@@ -551,11 +580,14 @@ fn extract_frames(
     materials: Extract<Res<Assets<StandardMaterial>>>,
     images: Res<RenderAssets<GpuImage>>,
     mut warned: Local<bool>,
+    mut previous: Local<HashMap<Entity, LastPose>>,
 ) {
     for frame in frames.0.values_mut() {
         frame.palette.clear();
         frame.instances.clear();
         frame.weights.clear();
+        frame.previous_palette.clear();
+        frame.previous_weights.clear();
         frame.no_shadow.clear();
         frame.positions.clear();
     }
@@ -567,6 +599,8 @@ fn extract_frames(
             palette: Vec::new(),
             instances: Vec::new(),
             weights: Vec::new(),
+            previous_palette: Vec::new(),
+            previous_weights: Vec::new(),
             materials: Vec::new(),
             textures: Vec::new(),
             two_sided: Vec::new(),
@@ -598,10 +632,22 @@ fn extract_frames(
                 }));
             }
         }
+        let start = frame.palette.len();
         for (&e, inverse_bind) in instance.drivers().iter().zip(&draw.inverse_bind) {
             let global = globals.get(e).map_or(Mat4::NAN, |g| g.to_matrix());
             frame.palette.push(global * *inverse_bind);
         }
+        // The frame before's palette and weights (this frame's for an instance new to it),
+        // then this frame's kept for the next.
+        let (palette, weights) = (&frame.palette[start..], instance.morph_weights());
+        let (last_palette, last_weights) = previous.entry(root).or_default();
+        let seen = last_palette.len() == palette.len() && last_weights.len() == weights.len();
+        frame.previous_palette.extend_from_slice(if seen { last_palette } else { palette });
+        frame.previous_weights.extend_from_slice(if seen { last_weights } else { weights });
+        last_palette.clear();
+        last_weights.clear();
+        last_palette.extend_from_slice(palette);
+        last_weights.extend_from_slice(weights);
         let mode = match instance.pose {
             PoseBounds::Clips | PoseBounds::ClipAt { .. } => CullMode::Bounds,
             _ if draw.has_boxes => CullMode::BoxesOnly,
@@ -619,6 +665,7 @@ fn extract_frames(
         }));
     }
     frames.0.retain(|_, f| !f.instances.is_empty());
+    previous.retain(|&root, _| roots.contains(root));
 }
 
 /// The draw's shader (made in the main world).
@@ -972,18 +1019,18 @@ fn prepare_gpu(
                 queue.write_buffer(&occlusion.uniform, 0, bytemuck::cast_slice(&words));
                 sorted.sort(frame, view.world_from_view.translation())
             }
-            None => InstanceData {
-                palette: &frame.palette,
-                instances: &frame.instances,
-                weights: &frame.weights,
-                no_shadow: &frame.no_shadow,
-            },
+            None => frame.data(),
         };
         queue.write_buffer(&b.no_shadow, 0, bytemuck::cast_slice(data.no_shadow));
+        // (The frame before's palettes and weights after `capacity` instances' room.)
+        let (joints, morphs) = (frame.draw.mesh.uniform[0] as u64, frame.draw.mesh.uniform[2] as u64);
         queue.write_buffer(&b.palette, 0, bytemuck::cast_slice(data.palette));
+        queue.write_buffer(&b.palette, 64 * joints * b.capacity as u64, bytemuck::cast_slice(data.previous_palette));
         queue.write_buffer(&b.instance_buffer, 0, bytemuck::cast_slice(data.instances));
         if !data.weights.is_empty() {
             queue.write_buffer(&b.weights, 0, bytemuck::cast_slice(data.weights));
+            let previous = 4 * morphs * b.capacity as u64;
+            queue.write_buffer(&b.weights, previous, bytemuck::cast_slice(data.previous_weights));
         }
         material_bytes.clear();
         if encase::StorageBuffer::new(&mut *material_bytes).write(&frame.materials).is_ok() {
@@ -1084,9 +1131,10 @@ fn bake_gpu(
     let zeros = |label: &str, bytes: u64, usage| init(label, &vec![0u8; bytes.max(16) as usize], usage);
     let joints = draw.mesh.uniform[0] as u64;
     let morphs = draw.mesh.uniform[2] as u64;
-    let palette = zeros("skinlet palette", 64 * joints * capacity as u64, storage);
+    // (Room for the frame before's palettes and weights after this frame's: motion vectors.)
+    let palette = zeros("skinlet palette", 2 * 64 * joints * capacity as u64, storage);
     let instance_buffer = zeros("skinlet instances", 80 * capacity as u64, storage);
-    let weights = zeros("skinlet morph weights", 4 * morphs.max(1) * capacity as u64, storage);
+    let weights = zeros("skinlet morph weights", 2 * 4 * morphs.max(1) * capacity as u64, storage);
     let bits_words = shadow_words(frame.materials.len()) as u64;
     let no_shadow = zeros("skinlet shadow bits", 4 * bits_words * capacity as u64, storage);
     let skin_uniform = init("skinlet skin", bytemuck::cast_slice(&draw.mesh.uniform), wgpu::BufferUsages::UNIFORM);
@@ -1159,7 +1207,7 @@ fn bake_gpu(
     .map_err(e)?;
     let params = init(
         "skinlet draw params",
-        bytemuck::cast_slice(&[culling.id_bits(), 0, bits_words as u32, 0]),
+        bytemuck::cast_slice(&[culling.id_bits(), 0, bits_words as u32, capacity]),
         wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
     );
     let draw_layout = cache.get_bind_group_layout(&draw_layout());
@@ -1578,21 +1626,23 @@ impl SpecializedRenderPipeline for MeshletDepthPipeline {
         if normal {
             shader_defs.push("NORMAL_PREPASS".into());
         }
-        if normal || emulate {
+        if motion_vectors {
+            shader_defs.push("MOTION_VECTOR_PREPASS".into());
+        }
+        if normal || motion_vectors || emulate {
             shader_defs.push("DEPTH_FRAGMENT_OUTPUT".into());
         }
         if two_sided {
             shader_defs.push("SKINLET_TWO_SIDED".into());
         }
         // The prepass's targets as Bevy's prepass pipeline has them; skinlet writes the normals
-        // only (no motion vectors: it keeps no previous palettes; the deferred targets are for
-        // Bevy's deferred materials).
+        // and motion vectors (the deferred targets are for Bevy's deferred materials).
         let mut targets = bevy::core_pipeline::prepass::prepass_target_descriptors(
             normal,
             motion_vectors,
             view_key.contains(MeshPipelineKey::DEFERRED_PREPASS),
         );
-        for target in targets.iter_mut().skip(1).flatten() {
+        for target in targets.iter_mut().skip(2).flatten() {
             target.write_mask = ColorWrites::empty();
         }
         if targets.iter().all(Option::is_none) {
@@ -1741,7 +1791,6 @@ fn queue_prepass(
     draws: Query<(Entity, &MainEntity, &SkinletMeshletDraw)>,
     (gpu, frames): (Res<MeshletGpu>, Res<MeshletFrames>),
     mut queued: Local<DepthQueued>,
-    mut warned: Local<bool>,
 ) {
     let Some(prepass) = prepass else { return };
     let depth_pipeline = depth_pipeline.get_or_insert_with(|| MeshletDepthPipeline::new(&prepass, &shader, &device));
@@ -1751,9 +1800,6 @@ fn queue_prepass(
     for view in &views {
         let Some(phase) = phases.get_mut(&view.retained_view_entity) else { continue };
         let Some(&view_key) = view_keys.get(&view.retained_view_entity) else { continue };
-        if view_key.contains(MeshPipelineKey::MOTION_VECTOR_PREPASS) && !std::mem::replace(&mut *warned, true) {
-            warn!("skinlet meshlets: characters drawn by skinlet write no motion vectors (drawn as if still)");
-        }
         let key = DepthView::Prepass(view_key);
         let pipeline = |two_sided| pipelines.specialize(&cache, depth_pipeline, (key, two_sided));
         let view = view.retained_view_entity;

@@ -7,7 +7,8 @@ struct DrawParams {
     unculled: u32,
     // Words of shadow bits per instance (no_shadow).
     shadow_words: u32,
-    pad: u32,
+    // Instance i's palette and morph weights of the frame before are instance i + previous's.
+    previous: u32,
 }
 
 // Per corner: bake vertex, source attribute vertex, part, 1 where the part is drawn two-sided
