@@ -1,6 +1,5 @@
 // skinlet's meshlet draw in Bevy's depth-only views (meshlet_draw.rs), with Bevy's prepass view
-// bindings: the shadow views (every corner of every instance: the culled list is the camera's)
-// and the camera's prepass (the culled list, as the main pass draws it; the normals and motion
+// bindings: the shadow views (each view's own culled list) and the camera's prepass (the culled list, as the main pass draws it; the normals and motion
 // vectors where the camera has those prepasses, written as Bevy's prepass writes them). Both
 // skin with the crowd skinning (group 2) as the main pass does; the motion vectors' previous
 // positions skin with the frame before's palettes and weights (instance + draw.previous).
@@ -34,14 +33,16 @@ struct DepthOut {
 @vertex
 fn shadow_vertex(@builtin(vertex_index) index: u32, @builtin(instance_index) instance: u32) -> DepthOut {
     var out: DepthOut;
-    let corner = corners[index];
-    let bits = no_shadow[instance * draw.shadow_words + corner.z / 32u];
+    // (The shadow view's culled list, or unculled every corner of every instance.)
+    let entry = drawn_entry(index, instance);
+    let corner = corners[entry.y];
+    let bits = no_shadow[entry.x * draw.shadow_words + corner.z / 32u];
     if ((bits >> (corner.z % 32u)) & 1u) != 0u {
         // Every corner of the part's triangles at one point outside the view: nothing drawn.
         out.position = vec4<f32>(2.0, 2.0, 0.5, 1.0);
         return out;
     }
-    out.position = view.clip_from_world * vec4<f32>(skinned_position(instance, corner.x), 1.0);
+    out.position = view.clip_from_world * vec4<f32>(skinned_position(entry.x, corner.x), 1.0);
 #ifdef SKINLET_TWO_SIDED
     out.two_sided = corner.w;
 #endif

@@ -25,15 +25,16 @@
 //! - a double-sided part (`cull_mode: None`) is neither backface-culled by meshlet nor by
 //!   triangle, and its bake is drawn with no faces culled, the other parts' back faces
 //!   discarded per fragment;
-//! - a phase item in each shadow view (`Shadow`) draws every triangle of every instance, depth
-//!   only, with Bevy's prepass view bindings (but a part marked `NotShadowCaster`);
+//! - a phase item in each shadow view (`Shadow`) draws that view's own culled list (a crowd
+//!   culling and triangle pass per shadow view, with the light's projection), depth only,
+//!   with Bevy's prepass view bindings (but a part marked `NotShadowCaster`);
 //! - a phase item in a camera's prepass (`Opaque3dPrepass`, with `DepthPrepass` or
 //!   `NormalPrepass`) draws the camera's culled list: depth, and the world normals and motion
 //!   vectors as Bevy's prepass writes them (the frame before's palettes and morph weights
 //!   after this frame's in the same buffers).
 //!
-//! Not yet: normal maps in the normal prepass, culling in
-//! shadow views, occlusion culling against Bevy's meshes, culling for more than one camera
+//! Not yet: normal maps in the normal prepass, occlusion culling against Bevy's meshes or in
+//! shadow views, culling for more than one camera
 //! (with several, every triangle is drawn), materials other than `StandardMaterial` (such a
 //! part stays Bevy's too, with a warning), a part's own visibility (every part of a marked
 //! instance is drawn).
@@ -176,9 +177,18 @@ pub struct MeshletStats {
     /// Triangles of every instance.
     pub triangles_total: u64,
     pub triangles_drawn: u64,
-    /// Triangles kept that the list had no room for (not drawn; 0 unless the list overflowed).
+    /// Triangles kept that the list had no room for (not drawn; 0 unless the list overflowed),
+    /// the camera's and the shadow views'.
     pub triangles_dropped: u64,
+    /// Shadow views counted (at most [`MAX_COUNTED_SHADOW_VIEWS`]; each draws its own culled
+    /// list), the triangles of every instance in each, and those drawn.
+    pub shadow_views: u32,
+    pub shadow_triangles_total: u64,
+    pub shadow_triangles_drawn: u64,
 }
+
+/// The shadow views whose counts [`SkinletMeshletStats`] reads back, per bake.
+pub const MAX_COUNTED_SHADOW_VIEWS: usize = 32;
 
 /// Draws the parts of scene instances marked [`SkinletMeshlets`] by meshlet (see the module
 /// documentation). Needs [`crate::SkinletPlugin`] and Bevy's renderer.
@@ -880,6 +890,15 @@ struct BakeGpu {
     texture_group: Option<BindGroup>,
     texture_parts: Vec<PartTextures>,
     textures_pending: bool,
+    /// What a shadow view's culling is made of: the bake's meshlets on the GPU, the skinning's
+    /// layout, per meshlet whether it is two-sided, triangles per list.
+    character: GpuCharacter,
+    skin_layout: wgpu::BindGroupLayout,
+    two_sided_meshlets: Vec<bool>,
+    triangles_per_list: u32,
+    /// Per shadow view (a directional light's cascade, a point light's face, a spot light):
+    /// its culling, its triangle lists and the raster they were made for.
+    shadows: HashMap<RetainedViewEntity, (TriangleCulling, Buffer, Raster)>,
 }
 
 const IDLE: u8 = 0;
@@ -892,9 +911,22 @@ fn clip_from_world(view: &ExtractedView) -> Mat4 {
     view.clip_from_world.unwrap_or(view.clip_from_view * view_from_world)
 }
 
-/// The camera the culling runs for this frame: the first active 3D camera's view.
-fn cull_camera(view: &ExtractedView) -> Option<CullCamera> {
-    let clip_from_world = clip_from_world(view);
+/// A shadow view's projection for culling: a directional light's casters in front of its near
+/// plane are drawn clamped to it (and those past its far plane would be too), so its depth
+/// row is replaced by a constant inside the clip volume (`z = w / 2`): no near or far plane.
+fn shadow_clip_from_world(view: &ExtractedView, directional: bool) -> Mat4 {
+    let m = clip_from_world(view);
+    if !directional {
+        return m;
+    }
+    let mut rows = m.transpose();
+    rows.z_axis = rows.w_axis * 0.5;
+    rows.transpose()
+}
+
+/// The camera a view's culling runs for, with the projection `clip_from_world` (the first
+/// active 3D camera's view, or a shadow view).
+fn cull_camera(clip_from_world: Mat4, view: &ExtractedView) -> Option<CullCamera> {
     let eye = view.world_from_view.translation();
     let projection = if view.clip_from_view.w_axis.w == 1.0 {
         Projection::Orthographic { dir: view.world_from_view.forward().into() }
@@ -915,6 +947,7 @@ fn prepare_gpu(
     settings: Res<SkinletMeshletSettings>,
     stats: Res<SkinletMeshletStats>,
     views: Query<(&ExtractedView, &Msaa), With<ExtractedCamera>>,
+    lights: Query<&ExtractedView, With<LightEntity>>,
     textures: (Option<Res<MeshletDrawPipeline>>, Res<RenderAssets<GpuImage>>, Res<FallbackImage>),
     mut warned: Local<[bool; 2]>,
     mut material_bytes: Local<Vec<u8>>,
@@ -991,6 +1024,33 @@ fn prepare_gpu(
         let b = gpu.bakes.get_mut(&id).unwrap();
         b.instances = n;
         b.unculled = !settings.culling || several;
+        // Each shadow view's culling (made when the view appears or changes size, dropped when
+        // it goes); where one cannot be made, the bake is drawn unculled everywhere.
+        b.shadows.retain(|v, _| lights.iter().any(|l| l.retained_view_entity == *v));
+        for light in &lights {
+            if b.unculled {
+                break;
+            }
+            let shadow = Raster {
+                width: light.viewport.z.max(1),
+                height: light.viewport.w.max(1),
+                multisampled: false,
+                ..raster
+            };
+            if b.shadows.get(&light.retained_view_entity).is_some_and(|(.., r)| *r == shadow) {
+                continue;
+            }
+            match shadow_culling(wgpu_device, gpu.pipelines.as_ref().unwrap(), b, &frame.draw, shadow) {
+                Ok(c) => {
+                    let lists = Buffer::from(c.triangles().clone());
+                    b.shadows.insert(light.retained_view_entity, (c, lists, shadow));
+                }
+                Err(e) => {
+                    error!("skinlet meshlets: a shadow view's culling: {e}");
+                    b.unculled = true;
+                }
+            }
+        }
         if b.unculled {
             let (meshlets, triangles) = (n as u64 * b.meshlets as u64, n as u64 * b.mesh_triangles as u64);
             stats.set(
@@ -1006,6 +1066,9 @@ fn prepare_gpu(
                     triangles_total: triangles,
                     triangles_drawn: triangles,
                     triangles_dropped: 0,
+                    shadow_views: 0,
+                    shadow_triangles_total: 0,
+                    shadow_triangles_drawn: 0,
                 },
             );
         }
@@ -1193,6 +1256,7 @@ fn bake_gpu(
     let triangles_per_list = (capacity as u64 * view.triangles().len() as u64)
         .min((device.limits().max_storage_buffer_binding_size - 2 * TriangleHeader::SIZE) / 24)
         as u32;
+    let two_sided_meshlets = view.meshlets_of_parts(&frame.two_sided);
     let culling = TriangleCulling::new(
         device,
         crowd,
@@ -1202,7 +1266,7 @@ fn bake_gpu(
         triangles_per_list,
         raster,
         Entries::Corners,
-        &view.meshlets_of_parts(&frame.two_sided),
+        &two_sided_meshlets,
     )
     .map_err(e)?;
     let params = init(
@@ -1225,7 +1289,8 @@ fn bake_gpu(
     let culling_id_bits = culling.id_bits();
     let readback = device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("skinlet meshlet counts"),
-        size: 2 * (SurvivorHeader::SIZE + TriangleHeader::SIZE),
+        size: 2 * (SurvivorHeader::SIZE + TriangleHeader::SIZE)
+            + MAX_COUNTED_SHADOW_VIEWS as u64 * TriangleHeader::SIZE,
         usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
         mapped_at_creation: false,
     });
@@ -1260,7 +1325,35 @@ fn bake_gpu(
         corners: draw.corners.len() as u32,
         params,
         unculled: false,
+        character,
+        skin_layout,
+        two_sided_meshlets,
+        triangles_per_list,
+        shadows: HashMap::default(),
     })
+}
+
+/// A shadow view's culling of the bake `b` (of `draw`): crowd culling of its instances (no
+/// occlusion), then their triangles, drawn as `raster` says.
+fn shadow_culling(
+    device: &wgpu::Device,
+    pipelines: &CullPipelines,
+    b: &BakeGpu,
+    draw: &BakeDraw,
+    raster: Raster,
+) -> Result<TriangleCulling, String> {
+    let e = |e: skinlet_gpu::GpuError| e.to_string();
+    let bytes = &bytemuck::cast_slice::<u32, u8>(&draw.words)[..draw.len];
+    let view = skinlet_runtime::bake_view::BakeView::new(bytes).map_err(|e| e.to_string())?;
+    let survivors = b.capacity * b.character.meshlets();
+    let (palette, instances) = (&b.palette, &b.instance_buffer);
+    let crowd = CrowdCulling::new(device, pipelines, &b.character, palette, instances, b.capacity, survivors);
+    let (margin, relative) = draw.mesh.margins();
+    let how = TriangleSkinning { wgsl: CROWD_SKIN_WGSL, layout: &b.skin_layout, margin, relative };
+    let vertices = view.vertices().positions.len() as u32;
+    let (meshlets, capacity, sides) = (view.meshlets(), b.triangles_per_list, &b.two_sided_meshlets);
+    TriangleCulling::new(device, crowd.map_err(e)?, how, &meshlets, vertices, capacity, raster, Entries::Corners, sides)
+        .map_err(e)
 }
 
 /// Occlusion culling's depth format (Bevy's main pass depth: reversed, near 1).
@@ -1353,13 +1446,23 @@ fn cull(
     gpu: Res<MeshletGpu>,
     queue: Res<RenderQueue>,
     views: Query<&ExtractedView, With<ExtractedCamera>>,
+    lights: Query<(&ExtractedView, &LightEntity)>,
 ) {
-    let Some(camera) = views.iter().next().and_then(cull_camera) else { return };
+    let Some(camera) = views.iter().next().and_then(|v| cull_camera(clip_from_world(v), v)) else { return };
     let encoder = ctx.command_encoder();
     let culled = gpu.bakes.values().filter(|b| b.instances > 0 && !b.unculled);
     let mut occluding = Vec::new();
     for b in culled {
         let (c, skinning, n) = (&b.culling, &b.skinning, b.instances);
+        // Each shadow view's, for the light's view.
+        for (light, kind) in &lights {
+            let directional = matches!(kind, LightEntity::Directional { .. });
+            let Some((culling, ..)) = b.shadows.get(&light.retained_view_entity) else { continue };
+            let Some(camera) = cull_camera(shadow_clip_from_world(light, directional), light) else { continue };
+            if let Err(e) = culling.encode(&queue, encoder, &camera, Tests::Both, n, skinning, None) {
+                error!("skinlet meshlets: {e}");
+            }
+        }
         // (An occluding bake's counts are copied after its last round.)
         let encoded = match &b.occlusion {
             Some(draw) if gpu.depth.is_some() => c
@@ -1421,6 +1524,12 @@ fn copy_counts(encoder: &mut wgpu::CommandEncoder, b: &BakeGpu) {
         let headers = 2 * SurvivorHeader::SIZE;
         encoder.copy_buffer_to_buffer(b.culling.crowd().survivors(), 0, &b.readback, 0, headers);
         encoder.copy_buffer_to_buffer(b.culling.triangles(), 0, &b.readback, headers, 2 * TriangleHeader::SIZE);
+        // Each shadow view's list header after them.
+        let at = headers + 2 * TriangleHeader::SIZE;
+        for (k, (c, ..)) in b.shadows.values().take(MAX_COUNTED_SHADOW_VIEWS).enumerate() {
+            let to = at + k as u64 * TriangleHeader::SIZE;
+            encoder.copy_buffer_to_buffer(c.triangles(), 0, &b.readback, to, TriangleHeader::SIZE);
+        }
     }
 }
 
@@ -1434,17 +1543,22 @@ fn read_back_stats(gpu: Res<MeshletGpu>, stats: Res<SkinletMeshletStats>) {
         let (buffer, state, stats) = (b.readback.clone(), b.readback_state.clone(), stats.clone());
         let (frame, n, meshlets, triangles, rounds) =
             (gpu.frame, b.instances as u64, b.meshlets as u64, b.mesh_triangles as u64, b.rounds);
+        let shadow_views = b.shadows.len().min(MAX_COUNTED_SHADOW_VIEWS);
         b.readback.slice(..).map_async(wgpu::MapMode::Read, move |mapped| {
             if mapped.is_ok() {
-                let (survivors, lists): ([SurvivorHeader; 2], [TriangleHeader; 2]) = {
+                let (survivors, lists, shadows): ([SurvivorHeader; 2], [TriangleHeader; 2], Vec<TriangleHeader>) = {
                     let bytes = buffer.slice(..).get_mapped_range();
                     let (s, t) = bytes.split_at(2 * SurvivorHeader::SIZE as usize);
-                    (bytemuck::pod_read_unaligned(s), bytemuck::pod_read_unaligned(t))
+                    let (t, shadows) = t.split_at(2 * TriangleHeader::SIZE as usize);
+                    let shadows = shadows.chunks_exact(TriangleHeader::SIZE as usize).take(shadow_views);
+                    let shadows = shadows.map(bytemuck::pod_read_unaligned).collect();
+                    (bytemuck::pod_read_unaligned(s), bytemuck::pod_read_unaligned(t), shadows)
                 };
                 buffer.unmap();
                 // With occlusion culling, the second list's survivors are every meshlet its
                 // tests kept, and both lists draw.
                 let sum = |f: fn(&TriangleHeader) -> u32| lists.iter().map(|l| f(l) as u64).sum::<u64>();
+                let shadow_sum = |f: fn(&TriangleHeader) -> u32| shadows.iter().map(|l| f(l) as u64).sum::<u64>();
                 stats.set(
                     id,
                     MeshletStats {
@@ -1457,7 +1571,11 @@ fn read_back_stats(gpu: Res<MeshletGpu>, stats: Res<SkinletMeshletStats>) {
                         meshlets_drawn: sum(|l| l.meshlets),
                         triangles_total: n * triangles,
                         triangles_drawn: sum(|l| l.index_count / 3),
-                        triangles_dropped: sum(|l| l.found.saturating_sub(l.index_count / 3)),
+                        triangles_dropped: sum(|l| l.found.saturating_sub(l.index_count / 3))
+                            + shadow_sum(|l| l.found.saturating_sub(l.index_count / 3)),
+                        shadow_views: shadow_views as u32,
+                        shadow_triangles_total: shadow_views as u64 * n * triangles,
+                        shadow_triangles_drawn: shadow_sum(|l| l.index_count / 3),
                     },
                 );
             }
@@ -1812,29 +1930,38 @@ fn queue_prepass(
     }
 }
 
-/// Group 2 and every corner of every instance of the bake.
-struct DrawMeshletsUnculled;
+/// Group 2 and the bake's shadow draw in a shadow view: the view's culled list, or unculled
+/// every corner of every instance.
+struct DrawMeshletShadow;
 
-impl<P: PhaseItem> RenderCommand<P> for DrawMeshletsUnculled {
+impl<P: PhaseItem> RenderCommand<P> for DrawMeshletShadow {
     type Param = SRes<MeshletGpu>;
-    type ViewQuery = ();
+    type ViewQuery = bevy::ecs::system::lifetimeless::Read<ExtractedView>;
     type ItemQuery = bevy::ecs::system::lifetimeless::Read<SkinletMeshletDraw>;
 
     fn render<'w>(
         _: &P,
-        _: ROQueryItem<'w, '_, Self::ViewQuery>,
+        view: ROQueryItem<'w, '_, Self::ViewQuery>,
         item: Option<ROQueryItem<'w, '_, Self::ItemQuery>>,
         gpu: SystemParamItem<'w, '_, Self::Param>,
         pass: &mut TrackedRenderPass<'w>,
     ) -> RenderCommandResult {
         let Some(b) = drawn_bake(item, gpu.into_inner(), pass) else { return RenderCommandResult::Skip };
-        pass.draw(0..b.corners, 0..b.instances);
+        if b.unculled {
+            pass.draw(0..b.corners, 0..b.instances);
+        } else {
+            let Some((_, lists, _)) = b.shadows.get(&view.retained_view_entity) else {
+                return RenderCommandResult::Skip;
+            };
+            pass.set_index_buffer(lists.slice(2 * TriangleHeader::SIZE..), IndexFormat::Uint32);
+            pass.draw_indexed_indirect(lists, 0);
+        }
         RenderCommandResult::Success
     }
 }
 
 type DrawMeshletShadowCommands =
-    (SetItemPipeline, SetPrepassViewBindGroup<0>, SetPrepassViewEmptyBindGroup<1>, DrawMeshletsUnculled);
+    (SetItemPipeline, SetPrepassViewBindGroup<0>, SetPrepassViewEmptyBindGroup<1>, DrawMeshletShadow);
 
 type DrawMeshletPrepassCommands =
     (SetItemPipeline, SetPrepassViewBindGroup<0>, SetPrepassViewEmptyBindGroup<1>, DrawMeshlets<false>);

@@ -130,6 +130,8 @@ fn skinlets_meshlet_draw_looks_like_bevys_own() {
         assert!(s.culled && s.instances == 5 && s.triangles_dropped == 0, "{s:?}");
         assert!(0 < s.meshlets_drawn && s.meshlets_drawn <= s.meshlets_tested_visible, "{s:?}");
         assert!(s.meshlets_tested_visible <= s.meshlets_total && s.triangles_drawn < s.triangles_total, "{s:?}");
+        // Each of the light's cascades culls its own list.
+        assert!(s.shadow_views > 0 && s.shadow_triangles_drawn < s.shadow_triangles_total, "{s:?}");
     }
     let tested: u64 = stats.values().map(|s| s.meshlets_tested_visible).sum();
     assert!(tested < stats.values().map(|s| s.meshlets_total).sum(), "no meshlet culled");
