@@ -8,10 +8,10 @@
 //!   Bevy animated) times the bake's inverse bind matrices, its morph weights and its pose
 //!   guard's answer from the bounds plugin ([`crate::SkinletInstance::pose`]);
 //! - before the cameras render (a system in Bevy's `RenderGraph` schedule), skinlet's crowd
-//!   culling and triangle pass (`skinlet_gpu::crowd_culling`, `triangle_culling`) run for the
-//!   first camera on Bevy's own device and encoder, writing one compacted list of triangle
-//!   corners; the counts are read back into [`SkinletMeshletStats`]; with occlusion culling
-//!   ([`SkinletMeshletSettings::occlusion_rounds`]) in rounds over the instances nearest
+//!   culling and triangle pass (`skinlet_gpu::crowd_culling`, `triangle_culling`) run for each
+//!   camera (and each shadow view) on Bevy's own device and encoder, each writing its own
+//!   compacted list of triangle corners; the counts are read back into [`SkinletMeshletStats`]; with occlusion culling
+//!   ([`SkinletMeshletSettings::occlusion_rounds`], the first camera) in rounds over the instances nearest
 //!   first, each round's lists drawn depth only into a depth buffer of skinlet's own
 //!   (`meshlet_occlusion.wgsl`) that the next round's tests read;
 //! - a phase item in `Opaque3d` draws that list (both lists with occlusion culling) with
@@ -34,8 +34,7 @@
 //!   after this frame's in the same buffers).
 //!
 //! Not yet: normal maps in the normal prepass, occlusion culling against Bevy's meshes or in
-//! shadow views, culling for more than one camera
-//! (with several, every triangle is drawn), materials other than `StandardMaterial` (such a
+//! shadow views or cameras but the first, materials other than `StandardMaterial` (such a
 //! part stays Bevy's too, with a warning), a part's own visibility (every part of a marked
 //! instance is drawn).
 
@@ -162,7 +161,8 @@ impl SkinletMeshletStats {
 pub struct MeshletStats {
     /// The render frame counted (the plugin counts frames from 1).
     pub frame: u64,
-    /// Whether the frame was culled ([`SkinletMeshletSettings::culling`], one camera).
+    /// Whether the frame was culled ([`SkinletMeshletSettings::culling`]); the counts below
+    /// are the first camera's (each other camera culls its own list, not counted).
     pub culled: bool,
     /// Occlusion culling's rounds (0: none).
     pub occlusion_rounds: u32,
@@ -834,6 +834,9 @@ impl SpecializedRenderPipeline for MeshletDrawPipeline {
 struct MeshletGpu {
     /// Frames prepared (the frame [`MeshletStats`] name).
     frame: u64,
+    /// The first camera this frame: the bakes' own culling is its (the other views have
+    /// theirs).
+    first_camera: Option<RetainedViewEntity>,
     pipelines: Option<CullPipelines>,
     bakes: HashMap<AssetId<Bake>, BakeGpu>,
     /// Occlusion culling's depth buffer (every bake's rounds draw into it) and its view.
@@ -896,9 +899,42 @@ struct BakeGpu {
     skin_layout: wgpu::BindGroupLayout,
     two_sided_meshlets: Vec<bool>,
     triangles_per_list: u32,
-    /// Per shadow view (a directional light's cascade, a point light's face, a spot light):
-    /// its culling, its triangle lists and the raster they were made for.
-    shadows: HashMap<RetainedViewEntity, (TriangleCulling, Buffer, Raster)>,
+    /// Per shadow view (a directional light's cascade, a point light's face, a spot light),
+    /// and per camera but the first: its culling, its triangle lists and the raster they were
+    /// made for.
+    shadows: HashMap<RetainedViewEntity, ViewCulling>,
+    cameras: HashMap<RetainedViewEntity, ViewCulling>,
+}
+
+/// A view's own culling (no occlusion): its triangle pass, its lists (as Bevy binds them) and
+/// the raster they were made for.
+type ViewCulling = (TriangleCulling, Buffer, Raster);
+
+/// Keeps a culling for each view of `shadows` and `cameras` (with the raster each is drawn
+/// with): made when the view appears or its raster changes, dropped when it goes.
+fn update_view_cullings(
+    device: &wgpu::Device,
+    pipelines: &CullPipelines,
+    b: &mut BakeGpu,
+    draw: &BakeDraw,
+    shadows: &[(RetainedViewEntity, Raster)],
+    cameras: &[(RetainedViewEntity, Raster)],
+) -> Result<(), String> {
+    b.shadows.retain(|v, _| shadows.iter().any(|(s, _)| s == v));
+    b.cameras.retain(|v, _| cameras.iter().any(|(c, _)| c == v));
+    for (views, shadow) in [(shadows, true), (cameras, false)] {
+        for &(view, raster) in views {
+            let have = if shadow { &b.shadows } else { &b.cameras };
+            if have.get(&view).is_some_and(|(.., r)| *r == raster) {
+                continue;
+            }
+            let culling = view_culling(device, pipelines, b, draw, raster)?;
+            let lists = Buffer::from(culling.triangles().clone());
+            let have = if shadow { &mut b.shadows } else { &mut b.cameras };
+            have.insert(view, (culling, lists, raster));
+        }
+    }
+    Ok(())
 }
 
 const IDLE: u8 = 0;
@@ -949,19 +985,15 @@ fn prepare_gpu(
     views: Query<(&ExtractedView, &Msaa), With<ExtractedCamera>>,
     lights: Query<&ExtractedView, With<LightEntity>>,
     textures: (Option<Res<MeshletDrawPipeline>>, Res<RenderAssets<GpuImage>>, Res<FallbackImage>),
-    mut warned: Local<[bool; 2]>,
+    mut warned: Local<bool>,
     mut material_bytes: Local<Vec<u8>>,
     mut sorted: Local<NearestFirst>,
 ) {
     gpu.frame += 1;
     let Some((view, msaa)) = views.iter().next() else { return };
-    // Culled for one camera, the list would be wrong in another: with several, every triangle
-    // is drawn.
-    let several = views.iter().count() > 1;
-    if several && !warned[0] {
-        warn!("skinlet meshlets: several cameras: culling is for one camera, drawing unculled");
-        warned[0] = true;
-    }
+    // The first camera's culling is the bake's own (with occlusion culling); every other view
+    // (the other cameras, the shadow views) has its own.
+    gpu.first_camera = Some(view.retained_view_entity);
     let raster = Raster {
         width: view.viewport.z.max(1),
         height: view.viewport.w.max(1),
@@ -969,7 +1001,16 @@ fn prepare_gpu(
         cull_back_faces: true,
         multisampled: msaa.samples() > 1,
     };
-    let rounds = if settings.culling && !several { settings.occlusion_rounds.min(MAX_OCCLUSION_ROUNDS) } else { 0 };
+    let rounds = if settings.culling { settings.occlusion_rounds.min(MAX_OCCLUSION_ROUNDS) } else { 0 };
+    let view_raster = |v: &ExtractedView, multisampled| Raster {
+        width: v.viewport.z.max(1),
+        height: v.viewport.w.max(1),
+        multisampled,
+        ..raster
+    };
+    let shadow_rasters: Vec<_> = lights.iter().map(|l| (l.retained_view_entity, view_raster(l, false))).collect();
+    let camera_rasters: Vec<_> =
+        views.iter().skip(1).map(|(v, msaa)| (v.retained_view_entity, view_raster(v, msaa.samples() > 1))).collect();
     let wgpu_device = device.wgpu_device();
     let gpu = &mut *gpu;
     let samples = msaa.samples();
@@ -1023,33 +1064,16 @@ fn prepare_gpu(
         }
         let b = gpu.bakes.get_mut(&id).unwrap();
         b.instances = n;
-        b.unculled = !settings.culling || several;
-        // Each shadow view's culling (made when the view appears or changes size, dropped when
-        // it goes); where one cannot be made, the bake is drawn unculled everywhere.
-        b.shadows.retain(|v, _| lights.iter().any(|l| l.retained_view_entity == *v));
-        for light in &lights {
-            if b.unculled {
-                break;
-            }
-            let shadow = Raster {
-                width: light.viewport.z.max(1),
-                height: light.viewport.w.max(1),
-                multisampled: false,
-                ..raster
-            };
-            if b.shadows.get(&light.retained_view_entity).is_some_and(|(.., r)| *r == shadow) {
-                continue;
-            }
-            match shadow_culling(wgpu_device, gpu.pipelines.as_ref().unwrap(), b, &frame.draw, shadow) {
-                Ok(c) => {
-                    let lists = Buffer::from(c.triangles().clone());
-                    b.shadows.insert(light.retained_view_entity, (c, lists, shadow));
-                }
-                Err(e) => {
-                    error!("skinlet meshlets: a shadow view's culling: {e}");
-                    b.unculled = true;
-                }
-            }
+        b.unculled = !settings.culling;
+        // The other views' cullings; where one cannot be made, the bake is drawn unculled
+        // everywhere.
+        let pipelines = gpu.pipelines.as_ref().unwrap();
+        if !b.unculled
+            && let Err(e) =
+                update_view_cullings(wgpu_device, pipelines, b, &frame.draw, &shadow_rasters, &camera_rasters)
+        {
+            error!("skinlet meshlets: a view's culling: {e}");
+            b.unculled = true;
         }
         if b.unculled {
             let (meshlets, triangles) = (n as u64 * b.meshlets as u64, n as u64 * b.mesh_triangles as u64);
@@ -1105,9 +1129,9 @@ fn prepare_gpu(
                 let layout = cache.get_bind_group_layout(layout);
                 texture_group(wgpu_device, &queue, &layout, b, &frame.textures, images, fallback);
             }
-            None if !warned[1] && frame.textures.iter().flatten().any(Option::is_some) => {
+            None if !*warned && frame.textures.iter().flatten().any(Option::is_some) => {
                 warn!("skinlet meshlets: this device cannot index texture arrays per fragment: textures are not drawn");
-                warned[1] = true;
+                *warned = true;
             }
             _ => {}
         }
@@ -1330,12 +1354,13 @@ fn bake_gpu(
         two_sided_meshlets,
         triangles_per_list,
         shadows: HashMap::default(),
+        cameras: HashMap::default(),
     })
 }
 
-/// A shadow view's culling of the bake `b` (of `draw`): crowd culling of its instances (no
+/// A view's own culling of the bake `b` (of `draw`): crowd culling of its instances (no
 /// occlusion), then their triangles, drawn as `raster` says.
-fn shadow_culling(
+fn view_culling(
     device: &wgpu::Device,
     pipelines: &CullPipelines,
     b: &BakeGpu,
@@ -1437,7 +1462,7 @@ fn occlusion_draw(
     OcclusionDraw { pipeline, uniform, group }
 }
 
-/// Before the cameras render: each bake's culling for the first camera. With occlusion
+/// Before the cameras render: each bake's culling for each camera and shadow view. With occlusion
 /// culling every bake's rounds go together: round `r`'s first phase of each bake, then its
 /// second phase of each bake, so that every bake's near instances are drawn into the occlusion
 /// depth before any bake's farther ones are tested.
@@ -1448,17 +1473,21 @@ fn cull(
     views: Query<&ExtractedView, With<ExtractedCamera>>,
     lights: Query<(&ExtractedView, &LightEntity)>,
 ) {
-    let Some(camera) = views.iter().next().and_then(|v| cull_camera(clip_from_world(v), v)) else { return };
+    let first = views.iter().find(|v| Some(v.retained_view_entity) == gpu.first_camera);
+    let Some(camera) = first.and_then(|v| cull_camera(clip_from_world(v), v)) else { return };
     let encoder = ctx.command_encoder();
     let culled = gpu.bakes.values().filter(|b| b.instances > 0 && !b.unculled);
     let mut occluding = Vec::new();
     for b in culled {
         let (c, skinning, n) = (&b.culling, &b.skinning, b.instances);
-        // Each shadow view's, for the light's view.
-        for (light, kind) in &lights {
+        // Each other view's: the other cameras', each shadow view's for the light's view.
+        let shadows = lights.iter().map(|(light, kind)| {
             let directional = matches!(kind, LightEntity::Directional { .. });
-            let Some((culling, ..)) = b.shadows.get(&light.retained_view_entity) else { continue };
-            let Some(camera) = cull_camera(shadow_clip_from_world(light, directional), light) else { continue };
+            (b.shadows.get(&light.retained_view_entity), shadow_clip_from_world(light, directional), light)
+        });
+        let cameras = views.iter().map(|v| (b.cameras.get(&v.retained_view_entity), clip_from_world(v), v));
+        for (culling, clip_from_world, view) in shadows.chain(cameras) {
+            let (Some((culling, ..)), Some(camera)) = (culling, cull_camera(clip_from_world, view)) else { continue };
             if let Err(e) = culling.encode(&queue, encoder, &camera, Tests::Both, n, skinning, None) {
                 error!("skinlet meshlets: {e}");
             }
@@ -1672,23 +1701,31 @@ struct DrawMeshlets<const TEXTURES: bool>;
 
 impl<P: PhaseItem, const TEXTURES: bool> RenderCommand<P> for DrawMeshlets<TEXTURES> {
     type Param = SRes<MeshletGpu>;
-    type ViewQuery = ();
+    type ViewQuery = bevy::ecs::system::lifetimeless::Read<ExtractedView>;
     type ItemQuery = bevy::ecs::system::lifetimeless::Read<SkinletMeshletDraw>;
 
     fn render<'w>(
         _: &P,
-        _: ROQueryItem<'w, '_, Self::ViewQuery>,
+        view: ROQueryItem<'w, '_, Self::ViewQuery>,
         item: Option<ROQueryItem<'w, '_, Self::ItemQuery>>,
         gpu: SystemParamItem<'w, '_, Self::Param>,
         pass: &mut TrackedRenderPass<'w>,
     ) -> RenderCommandResult {
-        let Some(b) = drawn_bake(item, gpu.into_inner(), pass) else { return RenderCommandResult::Skip };
+        let gpu = gpu.into_inner();
+        let Some(b) = drawn_bake(item, gpu, pass) else { return RenderCommandResult::Skip };
         if let Some(textures) = b.texture_group.as_ref().filter(|_| TEXTURES) {
             pass.set_bind_group(3, textures, &[]);
         }
         if b.unculled {
             // Every corner of every instance: the vertex and instance indices name them.
             pass.draw(0..b.corners, 0..b.instances);
+        } else if gpu.first_camera != Some(view.retained_view_entity) {
+            // Another camera: its own list.
+            let Some((_, lists, _)) = b.cameras.get(&view.retained_view_entity) else {
+                return RenderCommandResult::Skip;
+            };
+            pass.set_index_buffer(lists.slice(2 * TriangleHeader::SIZE..), IndexFormat::Uint32);
+            pass.draw_indexed_indirect(lists, 0);
         } else {
             pass.set_index_buffer(b.triangles.slice(2 * TriangleHeader::SIZE..), IndexFormat::Uint32);
             pass.draw_indexed_indirect(&b.triangles, 0);

@@ -251,9 +251,9 @@ fn skinlets_meshlet_draw_looks_like_bevys_own() {
 /// double-sided normal-mapped body with turned triangles (drawn, normals reversed), single-sided
 /// parts with turned triangles (holes), every morph weight at 1 (the mouth's target moves
 /// normals too), a light casting shadows: Bevy's frame and skinlet's within the tolerance of
-/// the crowd test, skinlet's culled equal to its unculled. Then the motion vectors (a quad in
-/// front of the camera shows them): the frame right after an instance moved, and its morph
-/// weights changed, Bevy's and skinlet's.
+/// the crowd test, skinlet's culled equal to its unculled, also with a second camera (each
+/// camera's image). Then the motion vectors (a quad in front of the camera shows them): the
+/// frame right after an instance moved, Bevy's and skinlet's.
 #[test]
 fn double_sided_normal_mapped_morphed_parts_look_like_bevys() {
     if !common::vulkan_available() {
@@ -315,6 +315,26 @@ fn double_sided_normal_mapped_morphed_parts_look_like_bevys() {
     assert!(drawn > (WIDTH * HEIGHT / 8) as usize, "the close up shows too little: {drawn} pixels");
     assert!(large * 200 < drawn, "{large} of {drawn} pixels differ by more than 2 levels");
     assert_eq!(culled_away, 0, "skinlet's culling changed {culled_away} pixels");
+
+    // A second camera, looking from elsewhere with 4× MSAA (each camera culls its own list):
+    // each camera's image with culling on equals its image with culling off.
+    let second = common::Frames::default();
+    let at = Transform::from_translation(eye + Vec3::new(1.5, 1.0, 0.5)).looking_at(head, Vec3::Y);
+    let other = common::camera_read_into(app.world_mut(), WIDTH, HEIGHT, at, second.clone());
+    app.world_mut().entity_mut(other).insert((Camera { order: 1, ..default() }, Msaa::Sample4));
+    let images = [true, false].map(|culling| {
+        app.world_mut().resource_mut::<SkinletMeshletSettings>().culling = culling;
+        let first = settled_image(&mut app);
+        let last = second.0.lock().unwrap().last().unwrap().clone();
+        (first, last)
+    });
+    let [(first_culled, second_culled), (first_unculled, second_unculled)] = &images;
+    let differ = |a: &[u8], b: &[u8]| a.chunks(4).zip(b.chunks(4)).filter(|(a, b)| a != b).count();
+    let (first_away, second_away) = (differ(first_culled, first_unculled), differ(second_culled, second_unculled));
+    eprintln!("two cameras: culled and unculled differ at {first_away} and {second_away} pixels");
+    assert_eq!((first_away, second_away), (0, 0), "with two cameras, culling changed pixels");
+    assert!(common::drawn_pixels(second_culled) > 1000 && differ(first_culled, second_culled) > 1000);
+    app.world_mut().entity_mut(other).despawn();
 
     // Motion vectors: depth and motion vector prepasses on the camera, a quad just in front of
     // it showing the motion vectors.

@@ -264,6 +264,13 @@ pub fn watch_pipelines(app: &mut App) {
 /// Spawns a camera (tonemapping and MSAA off) at `at` drawing into a `width` × `height` RGBA8
 /// image read back into [`Frames`] every frame, and a directional light; returns the camera.
 pub fn readback_camera(world: &mut World, width: u32, height: u32, at: Transform) -> Entity {
+    world.spawn((DirectionalLight::default(), Transform::from_xyz(3.0, 8.0, 4.0).looking_at(Vec3::ZERO, Vec3::Y)));
+    let frames = world.get_resource_or_init::<Frames>().clone();
+    camera_read_into(world, width, height, at, frames)
+}
+
+/// A camera at `at` rendering a `width` × `height` image, each frame read back into `frames`.
+pub fn camera_read_into(world: &mut World, width: u32, height: u32, at: Transform, frames: Frames) -> Entity {
     use bevy::camera::RenderTarget;
     use bevy::render::gpu_readback::{Readback, ReadbackComplete};
     use bevy::render::render_resource::{TextureFormat, TextureUsages};
@@ -279,8 +286,6 @@ pub fn readback_camera(world: &mut World, width: u32, height: u32, at: Transform
             at,
         ))
         .id();
-    world.spawn((DirectionalLight::default(), Transform::from_xyz(3.0, 8.0, 4.0).looking_at(Vec3::ZERO, Vec3::Y)));
-    let frames = world.get_resource_or_init::<Frames>().clone();
     world.spawn(Readback::texture(target)).observe(move |event: On<ReadbackComplete>| {
         frames.0.lock().unwrap().push(event.data.clone());
     });
