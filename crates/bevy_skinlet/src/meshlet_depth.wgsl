@@ -10,7 +10,7 @@
 #ifdef MOTION_VECTOR_PREPASS
 #import bevy_pbr::prepass_bindings::previous_view_uniforms
 #endif
-// Group 2's corners, draw, normals and no_shadow are in meshlet_group2.wgsl.
+// Group 2's corners, draw, attributes and part bits are in meshlet_group2.wgsl.
 
 struct DepthOut {
     @builtin(position) position: vec4<f32>,
@@ -36,10 +36,8 @@ fn shadow_vertex(@builtin(vertex_index) index: u32, @builtin(instance_index) ins
     // (The shadow view's culled list, or unculled every corner of every instance.)
     let entry = drawn_entry(index, instance);
     let corner = corners[entry.y];
-    let bits = no_shadow[entry.x * draw.shadow_words + corner.z / 32u];
-    if ((bits >> (corner.z % 32u)) & 1u) != 0u {
-        // Every corner of the part's triangles at one point outside the view: nothing drawn.
-        out.position = vec4<f32>(2.0, 2.0, 0.5, 1.0);
+    if part_bit(entry.x, corner.z, 0u) || part_bit(entry.x, corner.z, 1u) {
+        out.position = NOT_DRAWN;
         return out;
     }
     out.position = view.clip_from_world * vec4<f32>(skinned_position(entry.x, corner.x), 1.0);
@@ -59,6 +57,10 @@ fn prepass_vertex(@builtin(vertex_index) index: u32, @builtin(instance_index) in
     let entry = drawn_entry(index, instance);
     let corner = corners[entry.y];
     var out: DepthOut;
+    if part_bit(entry.x, corner.z, 0u) {
+        out.position = NOT_DRAWN;
+        return out;
+    }
     let world = vec4<f32>(skinned_position(entry.x, corner.x), 1.0);
     out.position = view.clip_from_world * world;
 #ifdef MOTION_VECTOR_PREPASS

@@ -25,6 +25,8 @@
 //! - a double-sided part (`cull_mode: None`) is neither backface-culled by meshlet nor by
 //!   triangle, and its bake is drawn with no faces culled, the other parts' back faces
 //!   discarded per fragment;
+//! - a part is hidden as Bevy would hide it (its visibility when skinlet took it over, else
+//!   its node's): a bit per instance and part collapses its triangles in every pass;
 //! - a phase item in each shadow view (`Shadow`) draws that view's own culled list (a crowd
 //!   culling and triangle pass per shadow view, with the light's projection), depth only,
 //!   with Bevy's prepass view bindings (but a part marked `NotShadowCaster`);
@@ -35,8 +37,8 @@
 //!
 //! Not yet: normal maps in the normal prepass, occlusion culling against Bevy's meshes or in
 //! shadow views or cameras but the first, materials other than `StandardMaterial` (such a
-//! part stays Bevy's too, with a warning), a part's own visibility (every part of a marked
-//! instance is drawn).
+//! part stays Bevy's too, with a warning), a visibility set on a part's mesh entity while
+//! skinlet draws it (hide its node instead, or set [`SkinletDrawnPart::visibility`]).
 
 use crate::SkinletBounds;
 use crate::bake_asset::Bake;
@@ -103,7 +105,9 @@ pub struct SkinletMeshlets;
 
 /// On a part entity skinlet draws: the visibility it had. While skinlet draws it, it is
 /// `Visibility::Hidden`, so Bevy's pipeline draws neither it nor its shadow (skinlet draws
-/// both); removing [`SkinletMeshlets`] from the root puts the visibility back.
+/// both, as this visibility and its node's say); removing [`SkinletMeshlets`] from the root
+/// puts the visibility back. To hide or show the part meanwhile, set this visibility (or its
+/// node's), not the entity's.
 #[derive(Component, Clone, Copy, Debug)]
 pub struct SkinletDrawnPart {
     pub visibility: Visibility,
@@ -493,9 +497,9 @@ struct BakeFrame {
     /// Per part: whether its material shows back faces (`cull_mode: None`, a glTF
     /// double-sided material).
     two_sided: Vec<bool>,
-    /// Per instance, [`shadow_words`] words: bit `p % 32` of word `p / 32` set where part `p`
-    /// casts no shadow.
-    no_shadow: Vec<u32>,
+    /// Per instance, twice [`part_words`] words: bit `p % 32` of word `p / 32` set where part
+    /// `p` is hidden, then where it casts no shadow.
+    part_bits: Vec<u32>,
     /// Per instance, where its scene root is (occlusion culling's order, nearest first).
     positions: Vec<Vec3>,
 }
@@ -510,7 +514,7 @@ struct InstanceData<'a> {
     weights: &'a [f32],
     previous_palette: &'a [Mat4],
     previous_weights: &'a [f32],
-    no_shadow: &'a [u32],
+    part_bits: &'a [u32],
 }
 
 impl BakeFrame {
@@ -522,7 +526,7 @@ impl BakeFrame {
             weights: &self.weights,
             previous_palette: &self.previous_palette,
             previous_weights: &self.previous_weights,
-            no_shadow: &self.no_shadow,
+            part_bits: &self.part_bits,
         }
     }
 }
@@ -537,7 +541,7 @@ struct NearestFirst {
     weights: Vec<f32>,
     previous_palette: Vec<Mat4>,
     previous_weights: Vec<f32>,
-    no_shadow: Vec<u32>,
+    part_bits: Vec<u32>,
 }
 
 impl NearestFirst {
@@ -556,20 +560,20 @@ impl NearestFirst {
         gather(&mut self.weights, &frame.weights, &self.order);
         gather(&mut self.previous_palette, &frame.previous_palette, &self.order);
         gather(&mut self.previous_weights, &frame.previous_weights, &self.order);
-        gather(&mut self.no_shadow, &frame.no_shadow, &self.order);
+        gather(&mut self.part_bits, &frame.part_bits, &self.order);
         InstanceData {
             palette: &self.palette,
             instances: &self.instances,
             weights: &self.weights,
             previous_palette: &self.previous_palette,
             previous_weights: &self.previous_weights,
-            no_shadow: &self.no_shadow,
+            part_bits: &self.part_bits,
         }
     }
 }
 
-/// Words of shadow bits per instance of a bake with `parts` parts.
-fn shadow_words(parts: usize) -> usize {
+/// Words of one bit per part (hidden, casting no shadow) of a bake with `parts` parts.
+fn part_words(parts: usize) -> usize {
     parts.div_ceil(32).max(1)
 }
 
@@ -587,6 +591,8 @@ fn extract_frames(
     globals: Extract<Query<&GlobalTransform>>,
     parts: Extract<Query<&MeshMaterial3d<StandardMaterial>>>,
     no_shadow: Extract<Query<(), With<NotShadowCaster>>>,
+    shown: Extract<Query<(&SkinletDrawnPart, &ChildOf)>>,
+    inherited: Extract<Query<&InheritedVisibility>>,
     materials: Extract<Res<Assets<StandardMaterial>>>,
     images: Res<RenderAssets<GpuImage>>,
     mut warned: Local<bool>,
@@ -598,7 +604,7 @@ fn extract_frames(
         frame.weights.clear();
         frame.previous_palette.clear();
         frame.previous_weights.clear();
-        frame.no_shadow.clear();
+        frame.part_bits.clear();
         frame.positions.clear();
     }
     for (root, instance, bounds) in &roots {
@@ -614,7 +620,7 @@ fn extract_frames(
             materials: Vec::new(),
             textures: Vec::new(),
             two_sided: Vec::new(),
-            no_shadow: Vec::new(),
+            part_bits: Vec::new(),
             positions: Vec::new(),
         });
         if frame.instances.is_empty() {
@@ -666,13 +672,24 @@ fn extract_frames(
         frame.instances.push(CullInstance::new(Mat4::IDENTITY, mode));
         frame.positions.push(globals.get(root).map_or(Vec3::ZERO, |g| g.translation()));
         frame.weights.extend_from_slice(instance.morph_weights());
-        // The parts marked `NotShadowCaster`, a bit each (as Bevy reads the marker: on the
-        // mesh entity).
+        // The parts hidden (the visibility a part had when skinlet took it over, inherited from
+        // its node where it is `Inherited`), and those marked `NotShadowCaster` (as Bevy reads
+        // the marker: on the mesh entity), a bit each.
         let parts = instance.part_entities();
-        frame.no_shadow.extend((0..shadow_words(parts.len())).map(|w| {
-            (parts.iter().skip(32 * w).take(32).enumerate())
-                .fold(0u32, |bits, (k, &e)| bits | ((no_shadow.contains(e) as u32) << k))
-        }));
+        let hidden = |e: Entity| match shown.get(e) {
+            Ok((part, node)) => match part.visibility {
+                Visibility::Hidden => true,
+                Visibility::Visible => false,
+                Visibility::Inherited => inherited.get(node.parent()).is_ok_and(|v| !v.get()),
+            },
+            Err(_) => false,
+        };
+        for bit in [&hidden as &dyn Fn(Entity) -> bool, &|e| no_shadow.contains(e)] {
+            frame.part_bits.extend((0..part_words(parts.len())).map(|w| {
+                (parts.iter().skip(32 * w).take(32).enumerate())
+                    .fold(0u32, |bits, (k, &e)| bits | ((bit(e) as u32) << k))
+            }));
+        }
     }
     frames.0.retain(|_, f| !f.instances.is_empty());
     previous.retain(|&root, _| roots.contains(root));
@@ -868,8 +885,8 @@ struct BakeGpu {
     palette: wgpu::Buffer,
     instance_buffer: wgpu::Buffer,
     weights: wgpu::Buffer,
-    /// Per instance, the parts that cast no shadow ([`BakeFrame::no_shadow`]).
-    no_shadow: wgpu::Buffer,
+    /// Per instance, the parts hidden and those that cast no shadow ([`BakeFrame::part_bits`]).
+    part_bits: wgpu::Buffer,
     materials: Buffer,
     skinning: wgpu::BindGroup,
     draw_group: BindGroup,
@@ -1103,12 +1120,13 @@ fn prepare_gpu(
                 let mut words = [0u32; 20];
                 words[..16].copy_from_slice(&clip_from_world(view).to_cols_array().map(f32::to_bits));
                 words[16] = b.id_bits;
+                words[17] = part_words(frame.materials.len()) as u32;
                 queue.write_buffer(&occlusion.uniform, 0, bytemuck::cast_slice(&words));
                 sorted.sort(frame, view.world_from_view.translation())
             }
             None => frame.data(),
         };
-        queue.write_buffer(&b.no_shadow, 0, bytemuck::cast_slice(data.no_shadow));
+        queue.write_buffer(&b.part_bits, 0, bytemuck::cast_slice(data.part_bits));
         // (The frame before's palettes and weights after `capacity` instances' room.)
         let (joints, morphs) = (frame.draw.mesh.uniform[0] as u64, frame.draw.mesh.uniform[2] as u64);
         queue.write_buffer(&b.palette, 0, bytemuck::cast_slice(data.palette));
@@ -1222,8 +1240,8 @@ fn bake_gpu(
     let palette = zeros("skinlet palette", 2 * 64 * joints * capacity as u64, storage);
     let instance_buffer = zeros("skinlet instances", 80 * capacity as u64, storage);
     let weights = zeros("skinlet morph weights", 2 * 4 * morphs.max(1) * capacity as u64, storage);
-    let bits_words = shadow_words(frame.materials.len()) as u64;
-    let no_shadow = zeros("skinlet shadow bits", 4 * bits_words * capacity as u64, storage);
+    let bits_words = part_words(frame.materials.len()) as u64;
+    let part_bits = zeros("skinlet part bits", 2 * 4 * bits_words * capacity as u64, storage);
     let skin_uniform = init("skinlet skin", bytemuck::cast_slice(&draw.mesh.uniform), wgpu::BufferUsages::UNIFORM);
     let words = init("skinlet mesh", bytemuck::cast_slice(&draw.mesh.words), wgpu::BufferUsages::STORAGE);
     // (Each corner's last word: 1 where its part is drawn two-sided.)
@@ -1300,7 +1318,7 @@ fn bake_gpu(
     );
     let draw_layout = cache.get_bind_group_layout(&draw_layout());
     let entries: Vec<wgpu::BindGroupEntry> =
-        [&skin_uniform, &palette, &words, &weights, &corners, &attributes, &materials, &params, &uvs, &no_shadow]
+        [&skin_uniform, &palette, &words, &weights, &corners, &attributes, &materials, &params, &uvs, &part_bits]
             .iter()
             .enumerate()
             .map(|(b, buffer)| bind(b as u32, buffer))
@@ -1319,7 +1337,8 @@ fn bake_gpu(
         mapped_at_creation: false,
     });
     let any_two_sided = frame.two_sided.contains(&true);
-    let occlusion = occlusion.map(|_| occlusion_draw(device, &skin_layout, &corners, samples, any_two_sided));
+    let occlusion =
+        occlusion.map(|_| occlusion_draw(device, &skin_layout, &corners, &part_bits, samples, any_two_sided));
     Ok(BakeGpu {
         samples,
         two_sided: frame.two_sided.clone(),
@@ -1341,7 +1360,7 @@ fn bake_gpu(
         palette,
         instance_buffer,
         weights,
-        no_shadow,
+        part_bits,
         materials: Buffer::from(materials),
         skinning,
         draw_group,
@@ -1392,6 +1411,7 @@ fn occlusion_draw(
     device: &wgpu::Device,
     skin_layout: &wgpu::BindGroupLayout,
     corners: &wgpu::Buffer,
+    part_bits: &wgpu::Buffer,
     samples: u32,
     two_sided: bool,
 ) -> OcclusionDraw {
@@ -1411,6 +1431,7 @@ fn occlusion_draw(
         entries: &[
             entry(0, wgpu::BufferBindingType::Uniform),
             entry(1, wgpu::BufferBindingType::Storage { read_only: true }),
+            entry(2, wgpu::BufferBindingType::Storage { read_only: true }),
         ],
     });
     let uniform = device.create_buffer(&wgpu::BufferDescriptor {
@@ -1425,6 +1446,7 @@ fn occlusion_draw(
         entries: &[
             wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 1, resource: corners.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 2, resource: part_bits.as_entire_binding() },
         ],
     });
     let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {

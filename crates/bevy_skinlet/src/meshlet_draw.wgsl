@@ -55,6 +55,10 @@ fn vertex(@builtin(vertex_index) index: u32, @builtin(instance_index) instance: 
     let entry = drawn_entry(index, instance);
     let corner = corners[entry.y];
     var out: VertexOut;
+    if part_bit(entry.x, corner.z, 0u) {
+        out.position = NOT_DRAWN;
+        return out;
+    }
     out.world_position = vec4<f32>(skinned_position(entry.x, corner.x), 1.0);
     out.position = position_world_to_clip(out.world_position.xyz);
     let m = skin_matrix(entry.x, corner.x);

@@ -5,8 +5,8 @@ struct DrawParams {
     id_bits: u32,
     // 1: drawn unculled (vertex index the corner, instance index the instance).
     unculled: u32,
-    // Words of shadow bits per instance (no_shadow).
-    shadow_words: u32,
+    // Words of one bit per part (part_bits).
+    part_words: u32,
     // Instance i's palette and morph weights of the frame before are instance i + previous's.
     previous: u32,
 }
@@ -15,9 +15,18 @@ struct DrawParams {
 // (its material culls no faces).
 @group(2) @binding(4) var<storage, read> corners: array<vec4<u32>>;
 @group(2) @binding(7) var<uniform> draw: DrawParams;
-// Per instance, draw.shadow_words words: bit p % 32 of word p / 32 set where part p casts no
-// shadow (Bevy's NotShadowCaster on the part's entity).
-@group(2) @binding(9) var<storage, read> no_shadow: array<u32>;
+// Per instance, two sets of draw.part_words words: bit p % 32 of word p / 32 set where part p
+// is hidden (its visibility, or its node's), then where it casts no shadow (Bevy's
+// NotShadowCaster on the part's entity).
+@group(2) @binding(9) var<storage, read> part_bits: array<u32>;
+
+// Whether part p of instance i has its bit in set k (0: hidden, 1: casts no shadow).
+fn part_bit(i: u32, p: u32, k: u32) -> bool {
+    return ((part_bits[(2u * i + k) * draw.part_words + p / 32u] >> (p % 32u)) & 1u) != 0u;
+}
+
+// Every corner of a part not drawn: at one point outside the view (its triangles draw nothing).
+const NOT_DRAWN: vec4<f32> = vec4<f32>(2.0, 2.0, 0.5, 1.0);
 // The source attribute vertices' normals and tangents, and their morph deltas (the floats'
 // bits): per vertex v, entry 2v its normal and where its deltas start, 2v + 1 its tangent; the
 // entry after the last vertex's says where its deltas end; per delta two entries: its normal

@@ -250,7 +250,7 @@ fn skinlets_meshlet_draw_looks_like_bevys_own() {
 /// Close to the face of the demo with materials (`common::demo_with_materials`): a
 /// double-sided normal-mapped body with turned triangles (drawn, normals reversed), single-sided
 /// parts with turned triangles (holes), every morph weight at 1 (the mouth's target moves
-/// normals too), a light casting shadows: Bevy's frame and skinlet's within the tolerance of
+/// normals too), parts hidden by their nodes, a light casting shadows: Bevy's frame and skinlet's within the tolerance of
 /// the crowd test, skinlet's culled equal to its unculled, also with a second camera (each
 /// camera's image). Then the motion vectors (a quad in front of the camera shows them): the
 /// frame right after an instance moved, Bevy's and skinlet's.
@@ -284,6 +284,13 @@ fn double_sided_normal_mapped_morphed_parts_look_like_bevys() {
         }
     };
     set_weights(&mut app, 1.0);
+    // Parts hidden by their nodes (Bevy hides their meshes, so must skinlet): this instance's
+    // collar and propeller, its neighbours' bodies.
+    let node_of = |name: &str| characters[0].asset.skeleton.nodes.iter().position(|n| n.name == name).unwrap();
+    for (root, name) in [(root, "collar"), (root, "propeller"), (roots[0].0, "body"), (roots[2].0, "body")] {
+        let node = common::node_entities(app.world_mut(), root)[node_of(name)].unwrap();
+        app.world_mut().entity_mut(node).insert(Visibility::Hidden);
+    }
     for _ in 0..5 {
         app.update();
     }
