@@ -910,8 +910,9 @@ struct BakeGpu {
     texture_group: Option<BindGroup>,
     texture_parts: Vec<PartTextures>,
     textures_pending: bool,
-    /// What a shadow view's culling is made of: the bake's meshlets on the GPU, the skinning's
-    /// layout, per meshlet whether it is two-sided, triangles per list.
+    /// What another view's culling is made of: the bake's meshlets on the GPU, the skinning's
+    /// layout, per meshlet whether it is two-sided, triangles per list (every triangle of
+    /// every instance, up to the storage binding limit, in each view).
     character: GpuCharacter,
     skin_layout: wgpu::BindGroupLayout,
     two_sided_meshlets: Vec<bool>,
