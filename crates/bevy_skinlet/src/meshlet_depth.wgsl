@@ -19,6 +19,9 @@ struct DepthOut {
 #endif
 #ifdef NORMAL_PREPASS
     @location(1) world_normal: vec3<f32>,
+    @location(5) world_tangent: vec4<f32>,
+    @location(6) uv: vec2<f32>,
+    @location(7) @interpolate(flat) part: u32,
 #endif
 #ifdef SKINLET_TWO_SIDED
     // 1 where the part is drawn two-sided (the others' back faces are discarded).
@@ -68,7 +71,11 @@ fn prepass_vertex(@builtin(vertex_index) index: u32, @builtin(instance_index) in
     out.previous_world_position = vec4<f32>(skinned_position(entry.x + draw.previous, corner.x), 1.0);
 #endif
 #ifdef NORMAL_PREPASS
-    out.world_normal = skinned_normal(entry.x, corner);
+    let m = skin_matrix(entry.x, corner.x);
+    out.world_normal = skin_normal(m, morphed_attribute(entry.x, corner.y, 0u));
+    out.world_tangent = skin_tangent(m, morphed_attribute(entry.x, corner.y, 1u));
+    out.uv = uvs[corner.y];
+    out.part = corner.z;
 #endif
 #ifdef SKINLET_TWO_SIDED
     out.two_sided = corner.w;
@@ -86,7 +93,7 @@ fn culled_face(in: DepthOut, is_front: bool) -> bool {
 #endif
 }
 
-// (DEPTH_FRAGMENT_OUTPUT: the normal or the depth written; else nothing.)
+// (DEPTH_FRAGMENT_OUTPUT: the normal, the motion vector or the depth written; else nothing.)
 #ifdef DEPTH_FRAGMENT_OUTPUT
 struct DepthFragment {
 #ifdef NORMAL_PREPASS
@@ -107,15 +114,12 @@ fn depth_fragment(in: DepthOut, @builtin(front_facing) is_front: bool) -> DepthF
     }
     var out: DepthFragment;
 #ifdef NORMAL_PREPASS
-    // As Bevy's prepass writes a lit material's world normal (interpolated, not normalized
-    // again; a double-sided part's back face's reversed): into 0..1.
-    var normal = in.world_normal;
-#ifdef SKINLET_TWO_SIDED
-    if !is_front {
-        normal = -normal;
-    }
-#endif
-    out.normal = vec4<f32>(normal * 0.5 + vec3<f32>(0.5), 1.0);
+    // As Bevy's prepass writes a lit material's world normal (the interpolated one, not
+    // normalized again, or the normal map's): into 0..1.
+    let m = materials[in.part];
+    let uv = (m.uv_transform * vec3(in.uv, 1.0)).xy;
+    let n = fragment_normal(m, in.part, uv, in.world_normal, in.world_tangent, is_front, view.mip_bias);
+    out.normal = vec4<f32>(select(n.world, n.mapped, n.is_mapped) * 0.5 + vec3<f32>(0.5), 1.0);
 #endif
 #ifdef MOTION_VECTOR_PREPASS
     // As Bevy's prepass: the unjittered clip position's move since the frame before, in

@@ -35,7 +35,7 @@
 //!   vectors as Bevy's prepass writes them (the frame before's palettes and morph weights
 //!   after this frame's in the same buffers).
 //!
-//! Not yet: normal maps in the normal prepass, occlusion culling against Bevy's meshes or in
+//! Not yet: occlusion culling against Bevy's meshes or in
 //! shadow views or cameras but the first, materials other than `StandardMaterial` (such a
 //! part stays Bevy's too, with a warning), a visibility set on a part's mesh entity while
 //! skinlet draws it (hide its node instead, or set [`SkinletDrawnPart::visibility`]).
@@ -204,11 +204,11 @@ impl Plugin for SkinletMeshletPlugin {
         // Both shaders: the crowd skinning in group 2, then group 2's other shared bindings.
         let group2 = [CROWD_SKIN_WGSL.replace("@group(1)", "@group(2)").as_str(), GROUP2_WGSL].concat();
         let shader = {
-            let source = [group2.as_str(), TRIANGLES_WGSL, DRAW_WGSL].concat();
+            let source = [group2.as_str(), MATERIALS_WGSL, TRIANGLES_WGSL, DRAW_WGSL].concat();
             app.world_mut().resource_mut::<Assets<Shader>>().add(Shader::from_wgsl(source, "skinlet/meshlet_draw.wgsl"))
         };
         let depth_shader = {
-            let source = [group2.as_str(), TRIANGLES_WGSL, DEPTH_WGSL].concat();
+            let source = [group2.as_str(), MATERIALS_WGSL, TRIANGLES_WGSL, DEPTH_WGSL].concat();
             app.world_mut()
                 .resource_mut::<Assets<Shader>>()
                 .add(Shader::from_wgsl(source, "skinlet/meshlet_depth.wgsl"))
@@ -248,6 +248,7 @@ impl Plugin for SkinletMeshletPlugin {
 }
 
 const GROUP2_WGSL: &str = include_str!("meshlet_group2.wgsl");
+const MATERIALS_WGSL: &str = include_str!("meshlet_materials.wgsl");
 const DRAW_WGSL: &str = include_str!("meshlet_draw.wgsl");
 const DEPTH_WGSL: &str = include_str!("meshlet_depth.wgsl");
 
@@ -1719,10 +1720,11 @@ fn drawn_bake<'w>(
     Some(b)
 }
 
-/// Group 2 and the bake's one indexed indirect draw.
-struct DrawMeshlets<const TEXTURES: bool>;
+/// Groups 2 and 3 (the textures, where the pipeline has them) and the view's list (both lists
+/// with occlusion culling; every corner of every instance unculled).
+struct DrawMeshlets;
 
-impl<P: PhaseItem, const TEXTURES: bool> RenderCommand<P> for DrawMeshlets<TEXTURES> {
+impl<P: PhaseItem> RenderCommand<P> for DrawMeshlets {
     type Param = SRes<MeshletGpu>;
     type ViewQuery = bevy::ecs::system::lifetimeless::Read<ExtractedView>;
     type ItemQuery = bevy::ecs::system::lifetimeless::Read<SkinletMeshletDraw>;
@@ -1736,7 +1738,7 @@ impl<P: PhaseItem, const TEXTURES: bool> RenderCommand<P> for DrawMeshlets<TEXTU
     ) -> RenderCommandResult {
         let gpu = gpu.into_inner();
         let Some(b) = drawn_bake(item, gpu, pass) else { return RenderCommandResult::Skip };
-        if let Some(textures) = b.texture_group.as_ref().filter(|_| TEXTURES) {
+        if let Some(textures) = &b.texture_group {
             pass.set_bind_group(3, textures, &[]);
         }
         if b.unculled {
@@ -1762,12 +1764,15 @@ impl<P: PhaseItem, const TEXTURES: bool> RenderCommand<P> for DrawMeshlets<TEXTU
 }
 
 /// The depth-only views' pipeline (shadow views, the camera's prepass): Bevy's prepass view
-/// layout (group 0), its empty group 1, skinlet's group 2.
+/// layout (group 0), its empty group 1, skinlet's group 2, and in a camera's prepass the
+/// parts' textures (group 3, for normal maps; where the device indexes texture arrays per
+/// fragment).
 struct MeshletDepthPipeline {
     view: BindGroupLayoutDescriptor,
     view_motion_vectors: BindGroupLayoutDescriptor,
     empty: BindGroupLayoutDescriptor,
     group2: BindGroupLayoutDescriptor,
+    group3: Option<BindGroupLayoutDescriptor>,
     shader: Handle<Shader>,
     depth_clip_control: bool,
 }
@@ -1828,9 +1833,14 @@ impl SpecializedRenderPipeline for MeshletDepthPipeline {
         }
         let view = if motion_vectors { &self.view_motion_vectors } else { &self.view };
         let entry_point = if matches!(key, DepthView::Shadow { .. }) { "shadow_vertex" } else { "prepass_vertex" };
+        let mut layout = vec![view.clone(), self.empty.clone(), self.group2.clone()];
+        if let (DepthView::Prepass(_), Some(group3)) = (key, &self.group3) {
+            layout.push(group3.clone());
+            shader_defs.push("SKINLET_TEXTURES".into());
+        }
         RenderPipelineDescriptor {
             label: Some("skinlet meshlet depth".into()),
-            layout: vec![view.clone(), self.empty.clone(), self.group2.clone()],
+            layout,
             vertex: VertexState {
                 shader: self.shader.clone(),
                 shader_defs: shader_defs.clone(),
@@ -1873,6 +1883,7 @@ impl MeshletDepthPipeline {
             view_motion_vectors: prepass.view_layout_motion_vectors.clone(),
             empty: prepass.empty_layout.clone(),
             group2: draw_layout(),
+            group3: textures_usable(device).then(texture_layout),
             shader: shader.0.clone(),
             depth_clip_control: device.features().contains(wgpu::Features::DEPTH_CLIP_CONTROL),
         }
@@ -2024,7 +2035,7 @@ type DrawMeshletShadowCommands =
     (SetItemPipeline, SetPrepassViewBindGroup<0>, SetPrepassViewEmptyBindGroup<1>, DrawMeshletShadow);
 
 type DrawMeshletPrepassCommands =
-    (SetItemPipeline, SetPrepassViewBindGroup<0>, SetPrepassViewEmptyBindGroup<1>, DrawMeshlets<false>);
+    (SetItemPipeline, SetPrepassViewBindGroup<0>, SetPrepassViewEmptyBindGroup<1>, DrawMeshlets);
 
 type DrawMeshletCommands =
-    (SetItemPipeline, SetMeshViewBindGroup<0>, SetMeshViewBindingArrayBindGroup<1>, DrawMeshlets<true>);
+    (SetItemPipeline, SetMeshViewBindGroup<0>, SetMeshViewBindingArrayBindGroup<1>, DrawMeshlets);

@@ -10,32 +10,14 @@
 
 #import bevy_pbr::{
     mesh_view_bindings::view,
-    pbr_types::{PbrInput, pbr_input_new, StandardMaterial, STANDARD_MATERIAL_FLAGS_DOUBLE_SIDED_BIT,
-        STANDARD_MATERIAL_FLAGS_UNLIT_BIT},
+    pbr_types::{PbrInput, pbr_input_new, STANDARD_MATERIAL_FLAGS_UNLIT_BIT},
     pbr_functions,
     mesh_types::MESH_FLAGS_SHADOW_RECEIVER_BIT,
     view_transformations::position_world_to_clip,
 }
 
-// Group 2's shared bindings (corners, draw, normals) are in meshlet_group2.wgsl.
-// Per part: its material as Bevy uploads a StandardMaterial.
-@group(2) @binding(6) var<storage, read> materials: array<StandardMaterial>;
-// Per source attribute vertex: its first texture coordinates.
-@group(2) @binding(8) var<storage, read> uvs: array<vec2<f32>>;
-
-#ifdef SKINLET_TEXTURES
-// The bake's distinct textures (slot 0: white) and, per part, two entries: the slots of its
-// base colour, metallic-roughness, emissive and occlusion textures (0 where it has none:
-// multiplying by white changes nothing, so every texture is sampled unconditionally), then
-// its normal map's (0: none, not applied).
-@group(3) @binding(0) var textures: binding_array<texture_2d<f32>, 16>;
-@group(3) @binding(1) var samplers: binding_array<sampler, 16>;
-@group(3) @binding(2) var<storage, read> texture_slots: array<vec4<u32>>;
-
-fn sample_slot(slot: u32, uv: vec2<f32>) -> vec4<f32> {
-    return textureSampleBias(textures[slot], samplers[slot], uv, view.mip_bias);
-}
-#endif
+// Group 2's shared bindings (corners, draw, attributes) are in meshlet_group2.wgsl, the
+// materials, texture coordinates and textures in meshlet_materials.wgsl.
 
 struct VertexOut {
     @builtin(position) position: vec4<f32>,
@@ -88,31 +70,23 @@ fn fragment(in: VertexOut, @builtin(front_facing) is_front: bool) -> @location(0
     p.V = pbr_functions::calculate_view(in.world_position, p.is_orthographic);
     p.frag_coord = in.position;
     p.world_position = in.world_position;
-    let double_sided = (p.material.flags & STANDARD_MATERIAL_FLAGS_DOUBLE_SIDED_BIT) != 0u;
-    // As Bevy's prepare_world_normal: a double-sided part's back face has its normal reversed
-    // where the mesh has no tangents (else a normal map reverses it, or nothing does).
-    let tangents = any(in.world_tangent != vec4<f32>(0.0));
-    p.world_normal = select(
-        pbr_functions::prepare_world_normal(in.world_normal, double_sided, is_front), in.world_normal, tangents);
+    let uv = (p.material.uv_transform * vec3(in.uv, 1.0)).xy;
+    let normal = fragment_normal(p.material, in.part, uv, in.world_normal, in.world_tangent, is_front, view.mip_bias);
+    p.world_normal = normal.world;
     p.N = normalize(p.world_normal);
     p.clearcoat_N = p.N;
+    if normal.is_mapped {
+        p.N = normal.mapped;
+    }
 #ifdef SKINLET_TEXTURES
     // As Bevy's pbr_input_from_standard_material applies them.
-    let uv = (p.material.uv_transform * vec3(in.uv, 1.0)).xy;
     let slots = texture_slots[2u * in.part];
-    p.material.base_color *= sample_slot(slots.x, uv);
-    let metallic_roughness = sample_slot(slots.y, uv);
+    p.material.base_color *= sample_slot(slots.x, uv, view.mip_bias);
+    let metallic_roughness = sample_slot(slots.y, uv, view.mip_bias);
     p.material.metallic *= metallic_roughness.b;
     p.material.perceptual_roughness *= metallic_roughness.g;
-    p.material.emissive = vec4(p.material.emissive.rgb * sample_slot(slots.z, uv).rgb, p.material.emissive.a);
-    p.diffuse_occlusion = vec3(sample_slot(slots.w, uv).r);
-    // The normal map, where the part has one and tangents (as Bevy, with mikktspace).
-    let normal_slot = texture_slots[2u * in.part + 1u].x;
-    let Nt = sample_slot(normal_slot, uv).rgb;
-    if normal_slot != 0u && tangents {
-        let TBN = pbr_functions::calculate_tbn_mikktspace(p.world_normal, in.world_tangent);
-        p.N = pbr_functions::apply_normal_mapping(p.material.flags, TBN, double_sided, is_front, Nt);
-    }
+    p.material.emissive = vec4(p.material.emissive.rgb * sample_slot(slots.z, uv, view.mip_bias).rgb, p.material.emissive.a);
+    p.diffuse_occlusion = vec3(sample_slot(slots.w, uv, view.mip_bias).r);
 #endif
     p.material.base_color = pbr_functions::alpha_discard(p.material, p.material.base_color);
     var color = p.material.base_color;

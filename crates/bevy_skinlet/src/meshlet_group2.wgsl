@@ -77,8 +77,3 @@ fn skin_tangent(m: mat4x4<f32>, tangent: vec4<f32>) -> vec4<f32> {
     return vec4<f32>(normalize(m3 * tangent.xyz), tangent.w * select(1.0, -1.0, determinant(m3) < 0.0));
 }
 
-// The world normal of `corner` (bake vertex, source vertex, part) of `instance`: its source
-// vertex's normal, morphed and skinned as Bevy does.
-fn skinned_normal(instance: u32, corner: vec4<u32>) -> vec3<f32> {
-    return skin_normal(skin_matrix(instance, corner.x), morphed_attribute(instance, corner.y, 0u));
-}

@@ -346,16 +346,17 @@ fn double_sided_normal_mapped_morphed_parts_look_like_bevys() {
     // Motion vectors: depth and motion vector prepasses on the camera, a quad just in front of
     // it showing the motion vectors.
     app.world_mut().resource_mut::<SkinletMeshletSettings>().culling = true;
-    {
+    let shown = {
         use bevy::core_pipeline::prepass::{DepthPrepass, MotionVectorPrepass, NormalPrepass};
         let world = app.world_mut();
         world.entity_mut(camera).insert((DepthPrepass, NormalPrepass, MotionVectorPrepass));
         let mesh = world.resource_mut::<Assets<Mesh>>().add(Rectangle::new(4.0, 4.0));
         let material = ShowPrepass { scale: Vec4::new(8.0, 0.0, 0.0, 1.0) };
         let material = world.resource_mut::<Assets<ShowPrepass>>().add(material);
-        let quad = (Mesh3d(mesh), MeshMaterial3d(material), Transform::from_xyz(0.0, 0.0, -0.5));
+        let quad = (Mesh3d(mesh), MeshMaterial3d(material.clone()), Transform::from_xyz(0.0, 0.0, -0.5));
         world.spawn((quad, bevy::light::NotShadowCaster, ChildOf(camera)));
-    }
+        material
+    };
     // From a settled frame with the instance at `start` and its morph weights at `from`: the
     // first frame after it moved by `by` and its weights went to `to`.
     let start = *app.world().get::<Transform>(root).unwrap();
@@ -406,4 +407,20 @@ fn double_sided_normal_mapped_morphed_parts_look_like_bevys() {
     // (One run: 637; with the frame before's weights taken as 0, as Bevy's own vectors have
     // them, 1,501.)
     assert!(morph_moved * 10 < moving, "held at 1, {morph_moved} of {moving} moving pixels differ from held at 0");
+
+    // The normal prepass (the quad shows the normals' x and y): the normal-mapped body's
+    // normals (and the double-sided back faces'), Bevy's and skinlet's.
+    app.world_mut().resource_mut::<Assets<ShowPrepass>>().get_mut(&shown).unwrap().scale.w = 0.0;
+    let bevy = settled_image(&mut app);
+    for &(root, _) in &roots {
+        app.world_mut().entity_mut(root).insert(SkinletMeshlets);
+    }
+    let skinlet = settled_image(&mut app);
+    let per_pixel = common::pixel_differences(&bevy, &skinlet);
+    let side = common::side_by_side(&[&bevy, &skinlet, &common::difference_image(&per_pixel)], WIDTH);
+    common::write_png(&out.join("meshlet_normals_side_by_side.png"), &side, 3 * WIDTH);
+    let (drawn, large) = (common::drawn_pixels(&bevy), per_pixel.iter().filter(|&&d| d > 2).count());
+    eprintln!("normal prepass: {drawn} pixels drawn; {large} differ by more than 2 levels");
+    assert!(drawn > (WIDTH * HEIGHT / 8) as usize, "the normal prepass shows too little: {drawn} pixels");
+    assert!(large * 200 < drawn, "normal prepass: {large} of {drawn} pixels differ by more than 2 levels");
 }
