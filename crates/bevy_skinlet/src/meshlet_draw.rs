@@ -486,21 +486,13 @@ struct MeshletFrames(HashMap<AssetId<Bake>, BakeFrame>);
 
 struct BakeFrame {
     draw: Arc<BakeDraw>,
-    palette: Vec<Mat4>,
-    instances: Vec<CullInstance>,
-    weights: Vec<f32>,
-    /// Per instance, its palette and morph weights of the frame before (this frame's where it
-    /// was not drawn then): the motion vectors' previous positions.
-    previous_palette: Vec<Mat4>,
-    previous_weights: Vec<f32>,
+    /// The per-instance arrays, in the roots' order.
+    arrays: InstanceArrays,
     materials: Vec<StandardMaterialUniform>,
     textures: Vec<PartTextures>,
     /// Per part: whether its material shows back faces (`cull_mode: None`, a glTF
     /// double-sided material).
     two_sided: Vec<bool>,
-    /// Per instance, twice [`part_words`] words: bit `p % 32` of word `p / 32` set where part
-    /// `p` is hidden, then where it casts no shadow.
-    part_bits: Vec<u32>,
     /// Per instance, where its scene root is (occlusion culling's order, nearest first).
     positions: Vec<Vec3>,
 }
@@ -509,26 +501,29 @@ struct BakeFrame {
 type PartTextures = [Option<AssetId<Image>>; 5];
 
 /// A frame's per-instance arrays, as uploaded.
-struct InstanceData<'a> {
-    palette: &'a [Mat4],
-    instances: &'a [CullInstance],
-    weights: &'a [f32],
-    previous_palette: &'a [Mat4],
-    previous_weights: &'a [f32],
-    part_bits: &'a [u32],
+#[derive(Default)]
+struct InstanceArrays {
+    palette: Vec<Mat4>,
+    instances: Vec<CullInstance>,
+    weights: Vec<f32>,
+    /// Per instance, its palette and morph weights of the frame before (this frame's where it
+    /// was not drawn then): the motion vectors' previous positions.
+    previous_palette: Vec<Mat4>,
+    previous_weights: Vec<f32>,
+    /// Per instance, twice [`part_words`] words: bit `p % 32` of word `p / 32` set where part
+    /// `p` is hidden, then where it casts no shadow.
+    part_bits: Vec<u32>,
 }
 
-impl BakeFrame {
-    /// The arrays in the frame's order.
-    fn data(&self) -> InstanceData<'_> {
-        InstanceData {
-            palette: &self.palette,
-            instances: &self.instances,
-            weights: &self.weights,
-            previous_palette: &self.previous_palette,
-            previous_weights: &self.previous_weights,
-            part_bits: &self.part_bits,
-        }
+impl InstanceArrays {
+    /// Empty, keeping the vectors' room.
+    fn clear(&mut self) {
+        self.palette.clear();
+        self.instances.clear();
+        self.weights.clear();
+        self.previous_palette.clear();
+        self.previous_weights.clear();
+        self.part_bits.clear();
     }
 }
 
@@ -537,39 +532,28 @@ impl BakeFrame {
 #[derive(Default)]
 struct NearestFirst {
     order: Vec<usize>,
-    palette: Vec<Mat4>,
-    instances: Vec<CullInstance>,
-    weights: Vec<f32>,
-    previous_palette: Vec<Mat4>,
-    previous_weights: Vec<f32>,
-    part_bits: Vec<u32>,
+    arrays: InstanceArrays,
 }
 
 impl NearestFirst {
-    fn sort<'a>(&'a mut self, frame: &BakeFrame, eye: Vec3) -> InstanceData<'a> {
+    fn sort<'a>(&'a mut self, frame: &BakeFrame, eye: Vec3) -> &'a InstanceArrays {
         let distance = |&i: &usize| frame.positions[i].distance_squared(eye);
         self.order.clear();
-        self.order.extend(0..frame.instances.len());
+        self.order.extend(0..frame.arrays.instances.len());
         self.order.sort_by(|a, b| distance(a).total_cmp(&distance(b)));
         fn gather<T: Copy>(out: &mut Vec<T>, all: &[T], order: &[usize]) {
             let per = all.len() / order.len().max(1);
             out.clear();
             out.extend(order.iter().flat_map(|&i| &all[i * per..(i + 1) * per]));
         }
-        gather(&mut self.palette, &frame.palette, &self.order);
-        gather(&mut self.instances, &frame.instances, &self.order);
-        gather(&mut self.weights, &frame.weights, &self.order);
-        gather(&mut self.previous_palette, &frame.previous_palette, &self.order);
-        gather(&mut self.previous_weights, &frame.previous_weights, &self.order);
-        gather(&mut self.part_bits, &frame.part_bits, &self.order);
-        InstanceData {
-            palette: &self.palette,
-            instances: &self.instances,
-            weights: &self.weights,
-            previous_palette: &self.previous_palette,
-            previous_weights: &self.previous_weights,
-            part_bits: &self.part_bits,
-        }
+        let (out, all, order) = (&mut self.arrays, &frame.arrays, &self.order);
+        gather(&mut out.palette, &all.palette, order);
+        gather(&mut out.instances, &all.instances, order);
+        gather(&mut out.weights, &all.weights, order);
+        gather(&mut out.previous_palette, &all.previous_palette, order);
+        gather(&mut out.previous_weights, &all.previous_weights, order);
+        gather(&mut out.part_bits, &all.part_bits, order);
+        &self.arrays
     }
 }
 
@@ -600,12 +584,7 @@ fn extract_frames(
     mut previous: Local<HashMap<Entity, LastPose>>,
 ) {
     for frame in frames.0.values_mut() {
-        frame.palette.clear();
-        frame.instances.clear();
-        frame.weights.clear();
-        frame.previous_palette.clear();
-        frame.previous_weights.clear();
-        frame.part_bits.clear();
+        frame.arrays.clear();
         frame.positions.clear();
     }
     for (root, instance, bounds) in &roots {
@@ -613,18 +592,13 @@ fn extract_frames(
         let Some(draw) = draws.0.get(&id) else { continue };
         let frame = frames.0.entry(id).or_insert_with(|| BakeFrame {
             draw: draw.clone(),
-            palette: Vec::new(),
-            instances: Vec::new(),
-            weights: Vec::new(),
-            previous_palette: Vec::new(),
-            previous_weights: Vec::new(),
+            arrays: InstanceArrays::default(),
             materials: Vec::new(),
             textures: Vec::new(),
             two_sided: Vec::new(),
-            part_bits: Vec::new(),
             positions: Vec::new(),
         });
-        if frame.instances.is_empty() {
+        if frame.arrays.instances.is_empty() {
             frame.draw = draw.clone();
             frame.materials.clear();
             frame.textures.clear();
@@ -649,18 +623,19 @@ fn extract_frames(
                 }));
             }
         }
-        let start = frame.palette.len();
+        let a = &mut frame.arrays;
+        let start = a.palette.len();
         for (&e, inverse_bind) in instance.drivers().iter().zip(&draw.inverse_bind) {
             let global = globals.get(e).map_or(Mat4::NAN, |g| g.to_matrix());
-            frame.palette.push(global * *inverse_bind);
+            a.palette.push(global * *inverse_bind);
         }
         // The frame before's palette and weights (this frame's for an instance new to it),
         // then this frame's kept for the next.
-        let (palette, weights) = (&frame.palette[start..], instance.morph_weights());
+        let (palette, weights) = (&a.palette[start..], instance.morph_weights());
         let (last_palette, last_weights) = previous.entry(root).or_default();
         let seen = last_palette.len() == palette.len() && last_weights.len() == weights.len();
-        frame.previous_palette.extend_from_slice(if seen { last_palette } else { palette });
-        frame.previous_weights.extend_from_slice(if seen { last_weights } else { weights });
+        a.previous_palette.extend_from_slice(if seen { last_palette } else { palette });
+        a.previous_weights.extend_from_slice(if seen { last_weights } else { weights });
         last_palette.clear();
         last_weights.clear();
         last_palette.extend_from_slice(palette);
@@ -670,9 +645,9 @@ fn extract_frames(
             _ if draw.has_boxes => CullMode::BoxesOnly,
             _ => CullMode::Keep,
         };
-        frame.instances.push(CullInstance::new(Mat4::IDENTITY, mode));
+        a.instances.push(CullInstance::new(Mat4::IDENTITY, mode));
         frame.positions.push(globals.get(root).map_or(Vec3::ZERO, |g| g.translation()));
-        frame.weights.extend_from_slice(instance.morph_weights());
+        a.weights.extend_from_slice(instance.morph_weights());
         // The parts hidden (the visibility a part had when skinlet took it over, inherited from
         // its node where it is `Inherited`), and those marked `NotShadowCaster` (as Bevy reads
         // the marker: on the mesh entity), a bit each.
@@ -686,13 +661,13 @@ fn extract_frames(
             Err(_) => false,
         };
         for bit in [&hidden as &dyn Fn(Entity) -> bool, &|e| no_shadow.contains(e)] {
-            frame.part_bits.extend((0..part_words(parts.len())).map(|w| {
+            a.part_bits.extend((0..part_words(parts.len())).map(|w| {
                 (parts.iter().skip(32 * w).take(32).enumerate())
                     .fold(0u32, |bits, (k, &e)| bits | ((bit(e) as u32) << k))
             }));
         }
     }
-    frames.0.retain(|_, f| !f.instances.is_empty());
+    frames.0.retain(|_, f| !f.arrays.instances.is_empty());
     previous.retain(|&root, _| roots.contains(root));
 }
 
@@ -1007,6 +982,7 @@ fn prepare_gpu(
     mut warned: Local<bool>,
     mut material_bytes: Local<Vec<u8>>,
     mut sorted: Local<NearestFirst>,
+    mut rasters: Local<[Vec<(RetainedViewEntity, Raster)>; 2]>,
 ) {
     gpu.frame += 1;
     let Some((view, msaa)) = views.iter().next() else { return };
@@ -1027,9 +1003,13 @@ fn prepare_gpu(
         multisampled,
         ..raster
     };
-    let shadow_rasters: Vec<_> = lights.iter().map(|l| (l.retained_view_entity, view_raster(l, false))).collect();
-    let camera_rasters: Vec<_> =
-        views.iter().skip(1).map(|(v, msaa)| (v.retained_view_entity, view_raster(v, msaa.samples() > 1))).collect();
+    // The other views' rasters: the shadow views', the cameras' but the first.
+    let [shadow_rasters, camera_rasters] = &mut *rasters;
+    shadow_rasters.clear();
+    shadow_rasters.extend(lights.iter().map(|l| (l.retained_view_entity, view_raster(l, false))));
+    camera_rasters.clear();
+    camera_rasters
+        .extend(views.iter().skip(1).map(|(v, msaa)| (v.retained_view_entity, view_raster(v, msaa.samples() > 1))));
     let wgpu_device = device.wgpu_device();
     let gpu = &mut *gpu;
     let samples = msaa.samples();
@@ -1059,7 +1039,7 @@ fn prepare_gpu(
     }
     gpu.bakes.retain(|id, _| frames.0.contains_key(id));
     for (&id, frame) in &frames.0 {
-        let n = frame.instances.len() as u32;
+        let n = frame.arrays.instances.len() as u32;
         let fits = gpu.bakes.get(&id).is_some_and(|b| {
             b.capacity >= n
                 && b.raster == raster
@@ -1088,8 +1068,7 @@ fn prepare_gpu(
         // everywhere.
         let pipelines = gpu.pipelines.as_ref().unwrap();
         if !b.unculled
-            && let Err(e) =
-                update_view_cullings(wgpu_device, pipelines, b, &frame.draw, &shadow_rasters, &camera_rasters)
+            && let Err(e) = update_view_cullings(wgpu_device, pipelines, b, &frame.draw, shadow_rasters, camera_rasters)
         {
             error!("skinlet meshlets: a view's culling: {e}");
             b.unculled = true;
@@ -1126,18 +1105,18 @@ fn prepare_gpu(
                 queue.write_buffer(&occlusion.uniform, 0, bytemuck::cast_slice(&words));
                 sorted.sort(frame, view.world_from_view.translation())
             }
-            None => frame.data(),
+            None => &frame.arrays,
         };
-        queue.write_buffer(&b.part_bits, 0, bytemuck::cast_slice(data.part_bits));
+        queue.write_buffer(&b.part_bits, 0, bytemuck::cast_slice(&data.part_bits));
         // (The frame before's palettes and weights after `capacity` instances' room.)
         let (joints, morphs) = (frame.draw.mesh.uniform[0] as u64, frame.draw.mesh.uniform[2] as u64);
-        queue.write_buffer(&b.palette, 0, bytemuck::cast_slice(data.palette));
-        queue.write_buffer(&b.palette, 64 * joints * b.capacity as u64, bytemuck::cast_slice(data.previous_palette));
-        queue.write_buffer(&b.instance_buffer, 0, bytemuck::cast_slice(data.instances));
+        queue.write_buffer(&b.palette, 0, bytemuck::cast_slice(&data.palette));
+        queue.write_buffer(&b.palette, 64 * joints * b.capacity as u64, bytemuck::cast_slice(&data.previous_palette));
+        queue.write_buffer(&b.instance_buffer, 0, bytemuck::cast_slice(&data.instances));
         if !data.weights.is_empty() {
-            queue.write_buffer(&b.weights, 0, bytemuck::cast_slice(data.weights));
+            queue.write_buffer(&b.weights, 0, bytemuck::cast_slice(&data.weights));
             let previous = 4 * morphs * b.capacity as u64;
-            queue.write_buffer(&b.weights, previous, bytemuck::cast_slice(data.previous_weights));
+            queue.write_buffer(&b.weights, previous, bytemuck::cast_slice(&data.previous_weights));
         }
         material_bytes.clear();
         if encase::StorageBuffer::new(&mut *material_bytes).write(&frame.materials).is_ok() {
@@ -1653,6 +1632,7 @@ fn queue_draws(
     mut pending: ResMut<PendingMeshletQueues>,
     (frames, draws): (Res<MeshletFrames>, Query<&SkinletMeshletDraw>),
     mut queued: Local<HashMap<(RetainedViewEntity, MainEntity), (Entity, bool)>>,
+    mut to_queue: Local<Vec<(Entity, MainEntity)>>,
 ) {
     let Some(draw_pipeline) = draw_pipeline else { return };
     let draw_function = draw_functions.read().id::<DrawMeshletCommands>();
@@ -1670,10 +1650,10 @@ fn queue_draws(
             phase.remove(main_entity);
             queued.remove(&(view.retained_view_entity, main_entity));
         }
-        let mut to_queue: Vec<(Entity, MainEntity)> =
-            (dirty.iter_to_queue(view.retained_view_entity, visible, &view_pending.prev_frame))
-                .map(|(r, m)| (*r, *m))
-                .collect();
+        to_queue.clear();
+        to_queue.extend(
+            (dirty.iter_to_queue(view.retained_view_entity, visible, &view_pending.prev_frame)).map(|(r, m)| (*r, *m)),
+        );
         // A draw queued with the other pipeline (its bake's parts changed sides): again.
         for (&(v, main_entity), &(entity, sides)) in &queued {
             if v == view.retained_view_entity
@@ -1683,7 +1663,7 @@ fn queue_draws(
                 to_queue.push((entity, main_entity));
             }
         }
-        for (render_entity, main_entity) in to_queue {
+        for &(render_entity, main_entity) in to_queue.iter() {
             let Some(key) = view_keys.get(&view.retained_view_entity) else {
                 view_pending.current_frame.insert((render_entity, main_entity));
                 continue;
