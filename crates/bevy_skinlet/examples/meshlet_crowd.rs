@@ -59,6 +59,12 @@ pub struct Args {
     /// (`SkinletMeshletSettings::occlusion_rounds`; 0: none).
     #[arg(long, default_value_t = 16)]
     pub occlusion_rounds: u32,
+    /// Walls across the crowd every four rows (Bevy meshes, open where the camera walks) and
+    /// Bevy's occlusion culling on the camera (`OcclusionCulling`, `DepthPrepass`): Bevy culls
+    /// its meshes (in its pipeline, the characters too) by occlusion, and skinlet's occlusion
+    /// culling starts from Bevy's depth (the walls hide characters).
+    #[arg(long)]
+    pub bevy_occlusion: bool,
     /// Which pipeline draws: both (alternating, compared), or one of them alone (for a
     /// profiler; nothing compared).
     #[arg(long, value_enum, default_value_t = Pipelines::Both)]
@@ -289,6 +295,25 @@ pub fn run(args: &Args) -> Option<serde_json::Value> {
         }
     }
     let camera = common::readback_camera(app.world_mut(), args.width, args.height, Transform::default());
+    let aisle = ((side - 1) / 2) as f32 * spacing + spacing / 2.0;
+    if args.bevy_occlusion {
+        let world = app.world_mut();
+        world
+            .entity_mut(camera)
+            .insert((bevy::core_pipeline::prepass::DepthPrepass, bevy::render::occlusion_culling::OcclusionCulling));
+        // Each wall in two pieces, left and right of the aisle, 2.4 high (above the eye).
+        let (left, right) = (aisle - 0.8 + spacing / 2.0, (side - 1) as f32 * spacing + spacing / 2.0 - aisle - 0.8);
+        let gray = world.resource_mut::<Assets<StandardMaterial>>().add(Color::srgb(0.5, 0.5, 0.55));
+        let mut meshes = world.resource_mut::<Assets<Mesh>>();
+        let pieces = [(left, (left - spacing) / 2.0), (right, aisle + 0.8 + right / 2.0)]
+            .map(|(width, x)| (meshes.add(Cuboid::new(width, 2.4, 0.3)), x));
+        for row in (1..total.div_ceil(side).saturating_sub(1)).step_by(4) {
+            let z = -(row as f32 + 0.5) * spacing;
+            for (mesh, x) in &pieces {
+                world.spawn((Mesh3d(mesh.clone()), MeshMaterial3d(gray.clone()), Transform::from_xyz(*x, 1.2, z)));
+            }
+        }
+    }
     app.world_mut().resource_mut::<SkinletMeshletSettings>().occlusion_rounds = args.occlusion_rounds;
     common::update_until(&mut app, 100_000, "every instance bound", |w| {
         roots.iter().all(|&(e, _)| w.get::<SkinletInstance>(e).is_some())
@@ -318,7 +343,6 @@ pub fn run(args: &Args) -> Option<serde_json::Value> {
     let warm = 3;
     let steps = blocks * (block_frames + warm);
     let compare_at: Vec<usize> = (0..args.compare).map(|k| (2 * k + 1) * blocks / (2 * args.compare)).collect();
-    let aisle = ((side - 1) / 2) as f32 * spacing + spacing / 2.0;
     let depth = (total.div_ceil(side) - 1) as f32 * spacing;
     let mut timing = [Timing::default(), Timing::default()];
     let mut counts = Counts::default();
@@ -392,6 +416,7 @@ pub fn run(args: &Args) -> Option<serde_json::Value> {
         // before it, skinlet's own depth pass draws each round's two lists.
         "draws_issued": counts.sums.len() * if args.occlusion_rounds > 0 { 2 } else { 1 },
         "occlusion_rounds": args.occlusion_rounds,
+        "bevy_occlusion": args.bevy_occlusion,
         "occlusion_depth_draws": counts.sums.len() * 2 * args.occlusion_rounds as usize,
         "max_pixel_diff_vs_bevy": max_diff,
         "equal_to_unculled": equal,

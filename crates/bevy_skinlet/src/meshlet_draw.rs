@@ -14,6 +14,10 @@
 //!   ([`SkinletMeshletSettings::occlusion_rounds`], the first camera) in rounds over the instances nearest
 //!   first, each round's lists drawn depth only into a depth buffer of skinlet's own
 //!   (`meshlet_occlusion.wgsl`) that the next round's tests read;
+//! - where Bevy culls the first camera by occlusion too (`OcclusionCulling`), that camera's
+//!   occlusion culling runs in its `Core3d` schedule between Bevy's early and late prepasses,
+//!   skinlet's depth starting as Bevy's after the early prepass: Bevy's meshes hide
+//!   characters;
 //! - a phase item in `Opaque3d` draws that list (both lists with occlusion culling) with
 //!   Bevy's view bindings (groups 0 and 1), skinning each corner's bake vertex with the
 //!   function the culling tested (so the culling is conservative for this draw) and its
@@ -35,18 +39,21 @@
 //!   vectors as Bevy's prepass writes them (the frame before's palettes and morph weights
 //!   after this frame's in the same buffers).
 //!
-//! Not yet: occlusion culling against Bevy's meshes or in
-//! shadow views or cameras but the first, materials other than `StandardMaterial` (such a
-//! part stays Bevy's too, with a warning), a visibility set on a part's mesh entity while
-//! skinlet draws it (hide its node instead, or set [`SkinletDrawnPart::visibility`]).
+//! Not yet: occlusion culling in shadow views or cameras but the first, characters hiding
+//! Bevy's meshes from Bevy's occlusion culling (they are not in its early prepass), materials
+//! other than `StandardMaterial` (such a part stays Bevy's too, with a warning), a visibility
+//! set on a part's mesh entity while skinlet draws it (hide its node instead, or set
+//! [`SkinletDrawnPart::visibility`]).
 
 use crate::SkinletBounds;
 use crate::bake_asset::Bake;
 use crate::instance::{SkinletError, SkinletInstance};
 use bevy::camera::visibility::{self, NoFrustumCulling, VisibilityClass};
 use bevy::core_pipeline::core_3d::{CORE_3D_DEPTH_FORMAT, Opaque3d, Opaque3dBatchSetKey, Opaque3dBinKey};
+use bevy::core_pipeline::prepass::DepthPrepass;
+use bevy::core_pipeline::prepass::node::{early_prepass, late_prepass};
 use bevy::core_pipeline::prepass::{Opaque3dPrepass, OpaqueNoLightmap3dBatchSetKey, OpaqueNoLightmap3dBinKey};
-use bevy::core_pipeline::schedule::camera_driver;
+use bevy::core_pipeline::schedule::{Core3d, camera_driver};
 use bevy::ecs::query::ROQueryItem;
 use bevy::ecs::system::{SystemParamItem, lifetimeless::SRes};
 use bevy::light::NotShadowCaster;
@@ -62,6 +69,7 @@ use bevy::render::camera::{DirtySpecializations, ExtractedCamera, PendingQueues}
 use bevy::render::extract_component::{ExtractComponent, ExtractComponentPlugin};
 use bevy::render::extract_resource::{ExtractResource, ExtractResourcePlugin};
 use bevy::render::mesh::allocator::MeshSlabs;
+use bevy::render::occlusion_culling::OcclusionCulling;
 use bevy::render::render_asset::RenderAssets;
 use bevy::render::render_phase::{
     AddRenderCommand, BinnedPhaseItem, BinnedRenderPhase, BinnedRenderPhaseType, DrawFunctions, InputUniformIndex,
@@ -76,11 +84,11 @@ use bevy::render::render_resource::{
     binding_types::{sampler, storage_buffer_read_only_sized, texture_2d, uniform_buffer_sized},
     encase,
 };
-use bevy::render::renderer::{RenderAdapter, RenderContext, RenderDevice, RenderGraph, RenderQueue};
+use bevy::render::renderer::{RenderAdapter, RenderContext, RenderDevice, RenderGraph, RenderQueue, ViewQuery};
 use bevy::render::sync_world::MainEntity;
 use bevy::render::texture::{FallbackImage, GpuImage};
 use bevy::render::view::RetainedViewEntity;
-use bevy::render::view::{ExtractedView, RenderVisibleEntities};
+use bevy::render::view::{ExtractedView, NoIndirectDrawing, RenderVisibleEntities, ViewDepthTexture};
 use bevy::render::{Extract, ExtractSchedule, Render, RenderApp, RenderStartup, RenderSystems};
 use bevy::shader::ShaderDefVal;
 use skinlet_gpu::crowd_culling::{
@@ -95,7 +103,7 @@ use skinlet_runtime::camera::{Camera as CullCamera, Projection};
 use skinlet_runtime::meshlet_cull::Tests;
 use skinlet_runtime::part_bounds::PoseBounds;
 use skinlet_runtime::source_corners::{PartSource, source_corners};
-use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 use std::sync::{Arc, Mutex};
 
 /// Put beside [`crate::SkinletBounds`] on a scene root: skinlet draws the scene's parts by
@@ -127,12 +135,16 @@ pub struct SkinletMeshletSettings {
     /// Cull on the GPU (meshlets, then triangles); `false` draws every triangle of every
     /// instance (the reference the culled image must equal).
     pub culling: bool,
-    /// Occlusion culling among the characters in this many rounds (0: none; at most
-    /// [`skinlet_gpu::crowd_culling::MAX_OCCLUSION_ROUNDS`]): before Bevy's passes, skinlet
-    /// draws the characters' depth into a depth buffer of its own, round by round (instances
-    /// nearest the camera first), testing each round's meshlets and triangles against what
-    /// the earlier rounds drew; Bevy's passes then draw the survivors of every round.
-    /// Characters are not tested against Bevy's other meshes.
+    /// Occlusion culling in this many rounds (0: none; at most
+    /// [`skinlet_gpu::crowd_culling::MAX_OCCLUSION_ROUNDS`]): skinlet draws the characters'
+    /// depth into a depth buffer of its own, round by round (instances nearest the camera
+    /// first), testing each round's meshlets and triangles against what the earlier rounds
+    /// drew; Bevy's passes then draw the survivors of every round. Without Bevy's occlusion
+    /// culling on the camera this runs before Bevy's passes and only characters occlude
+    /// characters. With it (`OcclusionCulling` and `DepthPrepass` on the camera, its viewport
+    /// the whole target), it runs between Bevy's early and late prepasses, in at least one
+    /// round, and skinlet's depth starts as Bevy's after its early prepass: Bevy's meshes
+    /// hide characters too ([`MeshletStats::bevy_occluders`]).
     pub occlusion_rounds: u32,
 }
 
@@ -170,6 +182,9 @@ pub struct MeshletStats {
     pub culled: bool,
     /// Occlusion culling's rounds (0: none).
     pub occlusion_rounds: u32,
+    /// Whether occlusion culling started from Bevy's depth after its early prepass (Bevy's
+    /// meshes hide characters; see [`SkinletMeshletSettings::occlusion_rounds`]).
+    pub bevy_occluders: bool,
     pub instances: u32,
     /// Meshlets of every instance.
     pub meshlets_total: u64,
@@ -243,7 +258,8 @@ impl Plugin for SkinletMeshletPlugin {
             .add_systems(Render, prepare_gpu.in_set(RenderSystems::PrepareResources))
             .add_systems(Render, (queue_draws, queue_shadows, queue_prepass).in_set(RenderSystems::Queue))
             .add_systems(Render, read_back_stats.in_set(RenderSystems::Cleanup))
-            .add_systems(RenderGraph, cull.before(camera_driver));
+            .add_systems(RenderGraph, cull.before(camera_driver))
+            .add_systems(Core3d, cull_behind_bevy.after(early_prepass).before(late_prepass));
     }
 }
 
@@ -834,6 +850,12 @@ struct MeshletGpu {
     bakes: HashMap<AssetId<Bake>, BakeGpu>,
     /// Occlusion culling's depth buffer (every bake's rounds draw into it) and its view.
     depth: Option<(wgpu::Texture, wgpu::TextureView)>,
+    /// Whether this frame's occlusion culling starts from Bevy's depth after its early
+    /// prepass (Bevy's occlusion culling is on the first camera): it runs in that camera's
+    /// `Core3d` schedule ([`cull_behind_bevy`]), and `culled` says whether it ran yet (the
+    /// early prepass draws none of the first camera's lists).
+    bevy_occluders: bool,
+    culled: AtomicBool,
 }
 
 /// skinlet's own depth pass of a bake's occlusion culling rounds.
@@ -976,7 +998,8 @@ fn prepare_gpu(
     cache: Res<PipelineCache>,
     settings: Res<SkinletMeshletSettings>,
     stats: Res<SkinletMeshletStats>,
-    views: Query<(&ExtractedView, &Msaa), With<ExtractedCamera>>,
+    views: Query<(Entity, &ExtractedView, &Msaa), With<ExtractedCamera>>,
+    bevy_occlusion: Query<&ExtractedCamera, (With<OcclusionCulling>, With<DepthPrepass>, Without<NoIndirectDrawing>)>,
     lights: Query<&ExtractedView, With<LightEntity>>,
     textures: (Option<Res<MeshletDrawPipeline>>, Res<RenderAssets<GpuImage>>, Res<FallbackImage>),
     mut warned: Local<bool>,
@@ -985,7 +1008,8 @@ fn prepare_gpu(
     mut rasters: Local<[Vec<(RetainedViewEntity, Raster)>; 2]>,
 ) {
     gpu.frame += 1;
-    let Some((view, msaa)) = views.iter().next() else { return };
+    *gpu.culled.get_mut() = false;
+    let Some((entity, view, msaa)) = views.iter().next() else { return };
     // The first camera's culling is the bake's own (with occlusion culling); every other view
     // (the other cameras, the shadow views) has its own.
     gpu.first_camera = Some(view.retained_view_entity);
@@ -996,7 +1020,17 @@ fn prepare_gpu(
         cull_back_faces: true,
         multisampled: msaa.samples() > 1,
     };
-    let rounds = if settings.culling { settings.occlusion_rounds.min(MAX_OCCLUSION_ROUNDS) } else { 0 };
+    // Bevy's depth after its early prepass starts occlusion culling where Bevy culls this
+    // camera by occlusion too and its depth texture is the viewport's size (skinlet's is).
+    gpu.bevy_occluders = settings.culling
+        && bevy_occlusion
+            .get(entity)
+            .is_ok_and(|c| c.physical_target_size == Some(view.viewport.zw()) && view.viewport.xy() == UVec2::ZERO);
+    let rounds = match settings.culling {
+        true if gpu.bevy_occluders => settings.occlusion_rounds.clamp(1, MAX_OCCLUSION_ROUNDS),
+        true => settings.occlusion_rounds.min(MAX_OCCLUSION_ROUNDS),
+        false => 0,
+    };
     let view_raster = |v: &ExtractedView, multisampled| Raster {
         width: v.viewport.z.max(1),
         height: v.viewport.w.max(1),
@@ -1009,7 +1043,7 @@ fn prepare_gpu(
     shadow_rasters.extend(lights.iter().map(|l| (l.retained_view_entity, view_raster(l, false))));
     camera_rasters.clear();
     camera_rasters
-        .extend(views.iter().skip(1).map(|(v, msaa)| (v.retained_view_entity, view_raster(v, msaa.samples() > 1))));
+        .extend(views.iter().skip(1).map(|(_, v, msaa)| (v.retained_view_entity, view_raster(v, msaa.samples() > 1))));
     let wgpu_device = device.wgpu_device();
     let gpu = &mut *gpu;
     let samples = msaa.samples();
@@ -1022,7 +1056,9 @@ fn prepare_gpu(
             sample_count: samples,
             dimension: wgpu::TextureDimension::D2,
             format: OCCLUSION_DEPTH,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                | wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_DST,
             view_formats: &[],
         });
         let view = texture.create_view(&Default::default());
@@ -1081,6 +1117,7 @@ fn prepare_gpu(
                     frame: gpu.frame,
                     culled: false,
                     occlusion_rounds: 0,
+                    bevy_occluders: false,
                     instances: n,
                     meshlets_total: meshlets,
                     meshlets_tested_visible: meshlets,
@@ -1465,10 +1502,8 @@ fn occlusion_draw(
     OcclusionDraw { pipeline, uniform, group }
 }
 
-/// Before the cameras render: each bake's culling for each camera and shadow view. With occlusion
-/// culling every bake's rounds go together: round `r`'s first phase of each bake, then its
-/// second phase of each bake, so that every bake's near instances are drawn into the occlusion
-/// depth before any bake's farther ones are tested.
+/// Before the cameras render: each bake's culling for each camera and shadow view, and the
+/// first camera's occlusion culling ([`cull_occluding`]) unless it starts from Bevy's depth.
 fn cull(
     mut ctx: RenderContext,
     gpu: Res<MeshletGpu>,
@@ -1479,9 +1514,7 @@ fn cull(
     let first = views.iter().find(|v| Some(v.retained_view_entity) == gpu.first_camera);
     let Some(camera) = first.and_then(|v| cull_camera(clip_from_world(v), v)) else { return };
     let encoder = ctx.command_encoder();
-    let culled = gpu.bakes.values().filter(|b| b.instances > 0 && !b.unculled);
-    let mut occluding = Vec::new();
-    for b in culled {
+    for b in gpu.bakes.values().filter(|b| b.instances > 0 && !b.unculled) {
         let (c, skinning, n) = (&b.culling, &b.skinning, b.instances);
         // Each other view's: the other cameras', each shadow view's for the light's view.
         let shadows = lights.iter().map(|(light, kind)| {
@@ -1495,22 +1528,75 @@ fn cull(
                 error!("skinlet meshlets: {e}");
             }
         }
-        // (An occluding bake's counts are copied after its last round.)
-        let encoded = match &b.occlusion {
-            Some(draw) if gpu.depth.is_some() => c
-                .encode_first(&queue, encoder, &camera, Tests::Both, n, skinning, None)
-                .map(|_| occluding.push((b, draw))),
-            _ => c.encode(&queue, encoder, &camera, Tests::Both, n, skinning, None).map(|_| copy_counts(encoder, b)),
-        };
-        if let Err(e) = encoded {
-            error!("skinlet meshlets: {e}");
+        if !occluding(&gpu, b) {
+            match c.encode(&queue, encoder, &camera, Tests::Both, n, skinning, None) {
+                Ok(()) => copy_counts(encoder, b),
+                Err(e) => error!("skinlet meshlets: {e}"),
+            }
         }
     }
-    let (Some((_, depth)), Some(rounds)) = (&gpu.depth, occluding.iter().map(|(b, _)| b.rounds).max()) else {
+    if !gpu.bevy_occluders {
+        cull_occluding(encoder, &gpu, &queue, &camera, None);
+    }
+}
+
+/// Whether a bake's first camera culling is by occlusion ([`cull_occluding`]).
+fn occluding(gpu: &MeshletGpu, b: &BakeGpu) -> bool {
+    b.occlusion.is_some() && gpu.depth.is_some()
+}
+
+/// With Bevy's occlusion culling on the first camera ([`MeshletGpu::bevy_occluders`]), in its
+/// `Core3d` schedule between Bevy's early and late prepasses: the first camera's occlusion
+/// culling, starting from Bevy's depth of the meshes its early prepass drew (what the frame's
+/// final depth can only come nearer to, so what it hides stays hidden).
+fn cull_behind_bevy(
+    mut ctx: RenderContext,
+    gpu: Res<MeshletGpu>,
+    queue: Res<RenderQueue>,
+    view: ViewQuery<(&ExtractedView, &ViewDepthTexture)>,
+) {
+    let (view, depth) = view.into_inner();
+    if !gpu.bevy_occluders || gpu.first_camera != Some(view.retained_view_entity) {
         return;
+    }
+    if let Some(camera) = cull_camera(clip_from_world(view), view) {
+        cull_occluding(ctx.command_encoder(), &gpu, &queue, &camera, Some(&depth.texture));
+    }
+    gpu.culled.store(true, Ordering::Release);
+}
+
+/// The first camera's occlusion culling of every occluding bake, in rounds that go together:
+/// round `r`'s first phase of each bake, then its second phase of each bake, so that every
+/// bake's near instances are drawn into the occlusion depth before any bake's farther ones are
+/// tested. The depth starts cleared, or as `start` (Bevy's depth, of the same size and
+/// samples).
+fn cull_occluding(
+    encoder: &mut wgpu::CommandEncoder,
+    gpu: &MeshletGpu,
+    queue: &RenderQueue,
+    camera: &CullCamera,
+    start: Option<&wgpu::Texture>,
+) {
+    let Some((texture, depth)) = &gpu.depth else { return };
+    let mut occluding: Vec<_> = gpu
+        .bakes
+        .values()
+        .filter(|b| b.instances > 0 && !b.unculled && occluding(gpu, b))
+        .filter_map(|b| {
+            let draw = b.occlusion.as_ref()?;
+            let encoded = b.culling.encode_first(queue, encoder, camera, Tests::Both, b.instances, &b.skinning, None);
+            encoded.map_err(|e| error!("skinlet meshlets: {e}")).ok().map(|_| (b, draw))
+        })
+        .collect();
+    let Some(rounds) = occluding.iter().map(|(b, _)| b.rounds).max() else { return };
+    let mut load = match start {
+        Some(start) if (start.size(), start.sample_count()) == (texture.size(), texture.sample_count()) => {
+            encoder.copy_texture_to_texture(start.as_image_copy(), texture.as_image_copy(), texture.size());
+            wgpu::LoadOp::Load
+        }
+        _ => wgpu::LoadOp::Clear(0.0),
     };
-    // (Round 0's first phases were recorded above; the depth is cleared by the first pass.)
-    let mut clear = true;
+    // (Round 0's first phases were recorded above.)
     for round in 0..rounds {
         for list in [List::First, List::Second] {
             occluding.retain(|&(b, _)| {
@@ -1522,16 +1608,15 @@ fn cull(
                 };
                 encoded.map_err(|e| error!("skinlet meshlets: {e}")).is_ok()
             });
-            let load = match std::mem::replace(&mut clear, false) {
-                true => wgpu::LoadOp::Clear(0.0),
-                false => wgpu::LoadOp::Load,
-            };
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("skinlet occlusion depth"),
                 color_attachments: &[],
                 depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                     view: depth,
-                    depth_ops: Some(wgpu::Operations { load, store: wgpu::StoreOp::Store }),
+                    depth_ops: Some(wgpu::Operations {
+                        load: std::mem::replace(&mut load, wgpu::LoadOp::Load),
+                        store: wgpu::StoreOp::Store,
+                    }),
                     stencil_ops: None,
                 }),
                 ..Default::default()
@@ -1575,6 +1660,7 @@ fn read_back_stats(gpu: Res<MeshletGpu>, stats: Res<SkinletMeshletStats>) {
         let (buffer, state, stats) = (b.readback.clone(), b.readback_state.clone(), stats.clone());
         let (frame, n, meshlets, triangles, rounds) =
             (gpu.frame, b.instances as u64, b.meshlets as u64, b.mesh_triangles as u64, b.rounds);
+        let bevy_occluders = gpu.bevy_occluders && occluding(&gpu, b);
         let shadow_views = b.shadows.len().min(MAX_COUNTED_SHADOW_VIEWS);
         b.readback.slice(..).map_async(wgpu::MapMode::Read, move |mapped| {
             if mapped.is_ok() {
@@ -1597,6 +1683,7 @@ fn read_back_stats(gpu: Res<MeshletGpu>, stats: Res<SkinletMeshletStats>) {
                         frame,
                         culled: true,
                         occlusion_rounds: rounds,
+                        bevy_occluders,
                         instances: n as u32,
                         meshlets_total: n * meshlets,
                         meshlets_tested_visible: survivors[(rounds > 0) as usize].found as u64,
@@ -1731,6 +1818,9 @@ impl<P: PhaseItem> RenderCommand<P> for DrawMeshlets {
             };
             pass.set_index_buffer(lists.slice(2 * TriangleHeader::SIZE..), IndexFormat::Uint32);
             pass.draw_indexed_indirect(lists, 0);
+        } else if gpu.bevy_occluders && occluding(gpu, b) && !gpu.culled.load(Ordering::Acquire) {
+            // Bevy's early prepass, before the culling that starts from its depth.
+            return RenderCommandResult::Skip;
         } else {
             pass.set_index_buffer(b.triangles.slice(2 * TriangleHeader::SIZE..), IndexFormat::Uint32);
             pass.draw_indexed_indirect(&b.triangles, 0);

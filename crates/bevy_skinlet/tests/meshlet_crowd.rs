@@ -1,5 +1,5 @@
 //! The `meshlet_crowd` example on a small crowd (headless, lavapipe on CPU-only machines),
-//! with occlusion culling: its JSON has skinlet's counts read back from the GPU, both
+//! with a wall and occlusion culling (Bevy's, skinlet's starting from its depth): its JSON has skinlet's counts read back from the GPU, both
 //! pipelines' timings, and frames where skinlet's image matches Bevy's (the tolerance of
 //! `tests/meshlet_draw.rs`) and its culled image equals its unculled one.
 
@@ -16,6 +16,7 @@ fn the_crowd_example_reports_and_matches_bevy() {
         width: 256,
         height: 160,
         occlusion_rounds: 4,
+        bevy_occlusion: true,
         pipeline: meshlet_crowd::Pipelines::Both,
         pictures: Some(std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR"))),
         json: true,
@@ -24,6 +25,7 @@ fn the_crowd_example_reports_and_matches_bevy() {
     eprintln!("{}", serde_json::to_string_pretty(&out).unwrap());
     assert_eq!(out["instances"], 12);
     assert_eq!(out["equal_to_unculled"], true);
+    assert_eq!(out["bevy_occlusion"], true);
     // Two draws per bake in Bevy's opaque pass with occlusion culling.
     assert_eq!(out["draws_issued"], 8);
     for side in ["bevy", "skinlet"] {

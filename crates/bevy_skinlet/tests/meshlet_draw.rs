@@ -424,3 +424,94 @@ fn double_sided_normal_mapped_morphed_parts_look_like_bevys() {
     assert!(drawn > (WIDTH * HEIGHT / 8) as usize, "the normal prepass shows too little: {drawn} pixels");
     assert!(large * 200 < drawn, "normal prepass: {large} of {drawn} pixels differ by more than 2 levels");
 }
+
+/// With Bevy's occlusion culling on the camera (`OcclusionCulling`, `DepthPrepass`), skinlet's
+/// occlusion culling starts from Bevy's depth after its early prepass: a wall (a Bevy mesh)
+/// in front of two rows of characters hides some of them from skinlet's culling too. Fewer
+/// meshlets drawn than with skinlet's own occlusion culling alone (same round), the image
+/// equal to skinlet's unculled one (also with 4× MSAA), and Bevy's frame (its own occlusion
+/// culling on) and skinlet's within the crowd test's tolerance.
+#[test]
+fn bevys_meshes_hide_characters_under_bevys_occlusion_culling() {
+    use bevy::core_pipeline::prepass::DepthPrepass;
+    use bevy::render::occlusion_culling::OcclusionCulling;
+    if !common::vulkan_available() {
+        return;
+    }
+    let Some((dir, characters)) = asset_folder("meshlet_occluders", &["skinned/Xbot.glb", "@demo"]) else { return };
+    let mut app = app(&dir, true);
+    app.add_plugins(SkinletMeshletPlugin);
+    common::watch_pipelines(&mut app);
+    let roots = common::spawn_rows(app.world_mut(), &characters, &[0.0, -2.2], 5);
+    let at = Transform::from_xyz(0.0, 1.2, 4.0).looking_at(Vec3::new(0.0, 0.8, -1.0), Vec3::Y);
+    let camera = common::readback_camera(app.world_mut(), WIDTH, HEIGHT, at);
+    {
+        // A wall hiding the left of both rows, and the ground.
+        let world = app.world_mut();
+        let wall = world.resource_mut::<Assets<Mesh>>().add(Cuboid::new(2.4, 2.6, 0.2));
+        let ground = world.resource_mut::<Assets<Mesh>>().add(Plane3d::default().mesh().size(24.0, 24.0));
+        let gray = world.resource_mut::<Assets<StandardMaterial>>().add(Color::srgb(0.6, 0.6, 0.6));
+        world.spawn((Mesh3d(wall), MeshMaterial3d(gray.clone()), Transform::from_xyz(-1.3, 1.3, 2.0)));
+        world.spawn((Mesh3d(ground), MeshMaterial3d(gray)));
+        world.entity_mut(camera).insert((DepthPrepass, OcclusionCulling));
+    }
+    update_until(&mut app, 3000, "every instance bound", |w| {
+        roots.iter().all(|&(e, _)| w.get::<SkinletInstance>(e).is_some())
+    });
+    for (i, &(root, c)) in roots.iter().enumerate() {
+        common::play_clips(app.world_mut(), root, &characters[c], |nodes| vec![(nodes[i % nodes.len()], 1.0)]);
+    }
+    for _ in 0..25 {
+        app.update();
+    }
+    app.world_mut().resource_mut::<Time<Virtual>>().pause();
+    let bevy = settled_image(&mut app);
+    for &(root, _) in &roots {
+        app.world_mut().entity_mut(root).insert(SkinletMeshlets);
+    }
+    // Each image culled with (`bevy`) and without Bevy's depth, and the meshlets it drew.
+    let culled = |app: &mut App, bevy_occluders: bool| {
+        if bevy_occluders {
+            app.world_mut().entity_mut(camera).insert(OcclusionCulling);
+        } else {
+            app.world_mut().entity_mut(camera).remove::<OcclusionCulling>();
+        }
+        let image = settled_image(app);
+        let stats = latest_stats_after(app, characters.len());
+        for s in stats.values() {
+            eprintln!("Bevy's depth {bevy_occluders}: {s:?}");
+            assert!(s.culled && s.occlusion_rounds == 1 && s.triangles_dropped == 0, "{s:?}");
+            assert_eq!(s.bevy_occluders, bevy_occluders, "{s:?}");
+        }
+        (image, stats.values().map(|s| s.meshlets_drawn).sum::<u64>())
+    };
+    // (0 rounds asked: Bevy's occlusion culling turns skinlet's on, in one round.)
+    let (skinlet, drawn_behind_bevy) = culled(&mut app, true);
+    app.world_mut().resource_mut::<SkinletMeshletSettings>().occlusion_rounds = 1;
+    let (_, drawn_own) = culled(&mut app, false);
+    assert!(
+        drawn_behind_bevy < drawn_own,
+        "{drawn_behind_bevy} meshlets drawn with Bevy's depth, {drawn_own} with skinlet's own occlusion culling"
+    );
+    app.world_mut().resource_mut::<SkinletMeshletSettings>().culling = false;
+    let unculled = settled_image(&mut app);
+    let differing = skinlet.chunks(4).zip(unculled.chunks(4)).filter(|(a, b)| a != b).count();
+    assert_eq!(differing, 0, "culling behind Bevy's depth changed {differing} pixels");
+    // 4× MSAA: Bevy's depth has the camera's samples, copied as it is.
+    app.world_mut().entity_mut(camera).insert((Msaa::Sample4, OcclusionCulling));
+    let unculled_msaa = settled_image(&mut app);
+    app.world_mut().resource_mut::<SkinletMeshletSettings>().culling = true;
+    let (skinlet_msaa, drawn_msaa) = culled(&mut app, true);
+    let differing = skinlet_msaa.chunks(4).zip(unculled_msaa.chunks(4)).filter(|(a, b)| a != b).count();
+    eprintln!(
+        "meshlets drawn: {drawn_behind_bevy} with Bevy's depth, {drawn_own} without; with 4× MSAA {drawn_msaa}, {differing} pixels differ from unculled"
+    );
+    assert_eq!(differing, 0, "with 4× MSAA, culling behind Bevy's depth changed {differing} pixels");
+    let per_pixel = common::pixel_differences(&bevy, &skinlet);
+    let out = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
+    let side = common::side_by_side(&[&bevy, &skinlet, &common::difference_image(&per_pixel)], WIDTH);
+    common::write_png(&out.join("meshlet_occluders_side_by_side.png"), &side, 3 * WIDTH);
+    let (drawn, large) = (common::drawn_pixels(&bevy), per_pixel.iter().filter(|&&d| d > 2).count());
+    eprintln!("Bevy's frame and skinlet's: {large} of {drawn} drawn pixels differ by more than 2 levels");
+    assert!(large * 200 < drawn, "{large} of {drawn} pixels differ by more than 2 levels");
+}
