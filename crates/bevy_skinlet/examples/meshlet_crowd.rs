@@ -197,22 +197,34 @@ struct Compared {
     max_diff: u8,
     over_2: usize,
     equal_to_unculled: bool,
+    /// With Bevy's occlusion culling: the pixels it changes in Bevy's own frame (drawn again
+    /// without it).
+    bevy_occlusion_changed: Option<usize>,
     stats: Vec<MeshletStats>,
 }
 
-/// Draws the paused frame with each pipeline (switching back to `back` after).
+/// Draws the paused frame with each pipeline (switching back to `back` after); where
+/// `occlusion_camera` (the camera, with Bevy's occlusion culling) is given, Bevy's frame also
+/// without Bevy's occlusion culling.
 fn compare(
     app: &mut App,
     roots: &[(Entity, usize)],
     readback: (Entity, &Readback),
     back: Pipeline,
-    picture: Option<PathBuf>,
-    width: u32,
+    (picture, width): (Option<PathBuf>, u32),
+    occlusion_camera: Option<Entity>,
 ) -> Compared {
+    use bevy::render::occlusion_culling::OcclusionCulling;
     app.world_mut().resource_mut::<Time<Virtual>>().pause();
     app.world_mut().entity_mut(readback.0).insert(readback.1.clone());
     set_pipeline(app.world_mut(), roots, Pipeline::Bevy);
     let bevy = common::settled_image(app);
+    let bevy_occlusion_changed = occlusion_camera.map(|camera| {
+        app.world_mut().entity_mut(camera).remove::<OcclusionCulling>();
+        let without = common::settled_image(app);
+        app.world_mut().entity_mut(camera).insert(OcclusionCulling);
+        bevy.chunks(4).zip(without.chunks(4)).filter(|(a, b)| a != b).count()
+    });
     let before: u64 = stats_now(app).values().map(|s| s.frame).max().unwrap_or(0);
     set_pipeline(app.world_mut(), roots, Pipeline::Skinlet);
     let skinlet = common::settled_image(app);
@@ -241,6 +253,7 @@ fn compare(
         max_diff: differences.iter().copied().max().unwrap_or(0),
         over_2: differences.iter().filter(|&&d| d > 2).count(),
         equal_to_unculled: skinlet == unculled,
+        bevy_occlusion_changed,
         stats,
     }
 }
@@ -356,7 +369,9 @@ pub fn run(args: &Args) -> Option<serde_json::Value> {
         };
         if args.pipeline == Pipelines::Both && compare_at.contains(&block) {
             let picture = args.pictures.as_ref().map(|d| d.join(format!("meshlet_crowd_{}.png", compared.len())));
-            compared.push(compare(&mut app, &roots, (readback.0, &readback.1), pipeline, picture, args.width));
+            let occlusion_camera = args.bevy_occlusion.then_some(camera);
+            let readback = (readback.0, &readback.1);
+            compared.push(compare(&mut app, &roots, readback, pipeline, (picture, args.width), occlusion_camera));
         }
         set_pipeline(app.world_mut(), &roots, pipeline);
         for f in 0..warm + block_frames {
@@ -428,11 +443,14 @@ pub fn run(args: &Args) -> Option<serde_json::Value> {
             "max_pixel_diff_vs_bevy": c.max_diff,
             "pixels_over_2_levels": c.over_2,
             "equal_to_unculled": c.equal_to_unculled,
+            "bevy_occlusion_changed_pixels": c.bevy_occlusion_changed,
             "meshlets_total": c.stats.iter().map(|s| s.meshlets_total).sum::<u64>(),
             "meshlets_tested_visible": c.stats.iter().map(|s| s.meshlets_tested_visible).sum::<u64>(),
             "meshlets_drawn": c.stats.iter().map(|s| s.meshlets_drawn).sum::<u64>(),
             "triangles_total": c.stats.iter().map(|s| s.triangles_total).sum::<u64>(),
             "triangles_drawn": c.stats.iter().map(|s| s.triangles_drawn).sum::<u64>(),
+            // The room of the camera's lists, summed over the bakes (24 bytes a triangle).
+            "list_triangles": c.stats.iter().map(|s| s.list_triangles as u64).sum::<u64>(),
         })).collect::<Vec<_>>(),
     }))
 }

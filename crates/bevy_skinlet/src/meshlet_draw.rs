@@ -10,10 +10,12 @@
 //! - before the cameras render (a system in Bevy's `RenderGraph` schedule), skinlet's crowd
 //!   culling and triangle pass (`skinlet_gpu::crowd_culling`, `triangle_culling`) run for each
 //!   camera (and each shadow view) on Bevy's own device and encoder, each writing its own
-//!   compacted list of triangle corners; the counts are read back into [`SkinletMeshletStats`]; with occlusion culling
-//!   ([`SkinletMeshletSettings::occlusion_rounds`], the first camera) in rounds over the instances nearest
-//!   first, each round's lists drawn depth only into a depth buffer of skinlet's own
-//!   (`meshlet_occlusion.wgsl`) that the next round's tests read;
+//!   compacted list of triangle corners (its room grows to what the culling finds,
+//!   [`SkinletMeshletSettings::list_triangles`]); the counts are read back into
+//!   [`SkinletMeshletStats`]; with occlusion culling
+//!   ([`SkinletMeshletSettings::occlusion_rounds`], the first camera) in rounds over the
+//!   instances nearest first, each round's lists drawn depth only into a depth buffer of
+//!   skinlet's own (`meshlet_occlusion.wgsl`) that the next round's tests read;
 //! - where Bevy culls the first camera by occlusion too (`OcclusionCulling`), that camera's
 //!   occlusion culling runs in its `Core3d` schedule between Bevy's early and late prepasses,
 //!   skinlet's depth starting as Bevy's after the early prepass: Bevy's meshes hide
@@ -146,11 +148,19 @@ pub struct SkinletMeshletSettings {
     /// round, and skinlet's depth starts as Bevy's after its early prepass: Bevy's meshes
     /// hide characters too ([`MeshletStats::bevy_occluders`]).
     pub occlusion_rounds: u32,
+    /// Room each view's triangle lists start with, per bake, in triangles (24 bytes each): a
+    /// list that overflows (the triangles past its room are not drawn, counted in
+    /// [`MeshletStats::triangles_dropped`]) is made again, when its counts are read back a
+    /// frame or two later, with room for what that frame's culling found and a quarter more
+    /// (to a power of two), and never shrinks; at most every triangle of every instance, up
+    /// to the device's storage binding limit. `u32::MAX`: that room from the start (no frame
+    /// drops a triangle; memory for every triangle of every instance in every view).
+    pub list_triangles: u32,
 }
 
 impl Default for SkinletMeshletSettings {
     fn default() -> Self {
-        SkinletMeshletSettings { culling: true, occlusion_rounds: 0 }
+        SkinletMeshletSettings { culling: true, occlusion_rounds: 0, list_triangles: 1 << 16 }
     }
 }
 
@@ -199,6 +209,9 @@ pub struct MeshletStats {
     /// Triangles kept that the list had no room for (not drawn; 0 unless the list overflowed),
     /// the camera's and the shadow views'.
     pub triangles_dropped: u64,
+    /// The room of each of the camera's lists, in triangles
+    /// ([`SkinletMeshletSettings::list_triangles`]).
+    pub list_triangles: u32,
     /// Shadow views counted (at most [`MAX_COUNTED_SHADOW_VIEWS`]; each draws its own culled
     /// list), the triangles of every instance in each, and those drawn.
     pub shadow_views: u32,
@@ -206,8 +219,13 @@ pub struct MeshletStats {
     pub shadow_triangles_drawn: u64,
 }
 
-/// The shadow views whose counts [`SkinletMeshletStats`] reads back, per bake.
+/// The shadow views whose counts [`SkinletMeshletStats`] reads back, per bake (a view past
+/// them has list room for every triangle).
 pub const MAX_COUNTED_SHADOW_VIEWS: usize = 32;
+
+/// The cameras but the first whose counts are read back (to grow their lists), per bake (a
+/// camera past them has list room for every triangle).
+const READ_CAMERAS: usize = 8;
 
 /// Draws the parts of scene instances marked [`SkinletMeshlets`] by meshlet (see the module
 /// documentation). Needs [`crate::SkinletPlugin`] and Bevy's renderer.
@@ -856,6 +874,8 @@ struct MeshletGpu {
     /// early prepass draws none of the first camera's lists).
     bevy_occluders: bool,
     culled: AtomicBool,
+    /// Per bake, the room its lists need (kept when its culling is made again).
+    needs: HashMap<AssetId<Bake>, ListNeeds>,
 }
 
 /// skinlet's own depth pass of a bake's occlusion culling rounds.
@@ -909,25 +929,44 @@ struct BakeGpu {
     texture_parts: Vec<PartTextures>,
     textures_pending: bool,
     /// What another view's culling is made of: the bake's meshlets on the GPU, the skinning's
-    /// layout, per meshlet whether it is two-sided, triangles per list (every triangle of
-    /// every instance, up to the storage binding limit, in each view).
+    /// layout, per meshlet whether it is two-sided.
     character: GpuCharacter,
     skin_layout: wgpu::BindGroupLayout,
     two_sided_meshlets: Vec<bool>,
+    /// The room of the first camera's lists; every triangle of every instance (up to the
+    /// storage binding limit); the room each list needs (kept across rebuilds).
     triangles_per_list: u32,
+    all_triangles: u32,
+    needs: ListNeeds,
     /// Per shadow view (a directional light's cascade, a point light's face, a spot light),
-    /// and per camera but the first: its culling, its triangle lists and the raster they were
-    /// made for.
+    /// and per camera but the first: its culling.
     shadows: HashMap<RetainedViewEntity, ViewCulling>,
     cameras: HashMap<RetainedViewEntity, ViewCulling>,
 }
 
-/// A view's own culling (no occlusion): its triangle pass, its lists (as Bevy binds them) and
-/// the raster they were made for.
-type ViewCulling = (TriangleCulling, Buffer, Raster);
+/// Per list of a bake (`None`: the first camera's, else the view's), the room it needs: what
+/// a frame's culling found past its room, with a quarter more, to a power of two.
+type ListNeeds = Arc<Mutex<HashMap<Option<RetainedViewEntity>, u32>>>;
+
+/// The room of a list: `start`, or what it needs, up to `all`.
+fn list_room(start: u32, needs: &ListNeeds, list: Option<RetainedViewEntity>, all: u32) -> u32 {
+    let need = needs.lock().ok().and_then(|n| n.get(&list).copied()).unwrap_or(0);
+    start.max(need).min(all).max(1)
+}
+
+/// A view's own culling (no occlusion): its triangle pass, its lists (as Bevy binds them),
+/// the raster they were made for, and where its list's counts are read back (shadow views
+/// first; none past them: then its room is every triangle).
+struct ViewCulling {
+    culling: TriangleCulling,
+    lists: Buffer,
+    raster: Raster,
+    slot: Option<usize>,
+}
 
 /// Keeps a culling for each view of `shadows` and `cameras` (with the raster each is drawn
-/// with): made when the view appears or its raster changes, dropped when it goes.
+/// with): made when the view appears, its raster changes or its list needs more room than
+/// it has (`start` at first), dropped when it goes.
 fn update_view_cullings(
     device: &wgpu::Device,
     pipelines: &CullPipelines,
@@ -935,19 +974,32 @@ fn update_view_cullings(
     draw: &BakeDraw,
     shadows: &[(RetainedViewEntity, Raster)],
     cameras: &[(RetainedViewEntity, Raster)],
+    start: u32,
 ) -> Result<(), String> {
     b.shadows.retain(|v, _| shadows.iter().any(|(s, _)| s == v));
     b.cameras.retain(|v, _| cameras.iter().any(|(c, _)| c == v));
-    for (views, shadow) in [(shadows, true), (cameras, false)] {
+    if let Ok(mut needs) = b.needs.lock() {
+        needs.retain(|v, _| v.is_none_or(|v| b.shadows.contains_key(&v) || b.cameras.contains_key(&v)));
+    }
+    let slots = [0..MAX_COUNTED_SHADOW_VIEWS, MAX_COUNTED_SHADOW_VIEWS..MAX_COUNTED_SHADOW_VIEWS + READ_CAMERAS];
+    for ((views, shadow), slots) in [(shadows, true), (cameras, false)].into_iter().zip(slots) {
         for &(view, raster) in views {
             let have = if shadow { &b.shadows } else { &b.cameras };
-            if have.get(&view).is_some_and(|(.., r)| *r == raster) {
+            let slot = have
+                .get(&view)
+                .map(|v| v.slot)
+                .unwrap_or_else(|| slots.clone().find(|&k| have.values().all(|v| v.slot != Some(k))));
+            let room = match slot {
+                Some(_) => list_room(start, &b.needs, Some(view), b.all_triangles),
+                None => b.all_triangles,
+            };
+            if have.get(&view).is_some_and(|v| v.raster == raster && v.culling.capacity() == room) {
                 continue;
             }
-            let culling = view_culling(device, pipelines, b, draw, raster)?;
+            let culling = view_culling(device, pipelines, b, draw, raster, room)?;
             let lists = Buffer::from(culling.triangles().clone());
             let have = if shadow { &mut b.shadows } else { &mut b.cameras };
-            have.insert(view, (culling, lists, raster));
+            have.insert(view, ViewCulling { culling, lists, raster, slot });
         }
     }
     Ok(())
@@ -988,6 +1040,9 @@ fn cull_camera(clip_from_world: Mat4, view: &ExtractedView) -> Option<CullCamera
     CullCamera::from_view_proj(clip_from_world, projection).ok()
 }
 
+/// The cameras Bevy culls by occlusion (two prepasses, a depth pyramid).
+type BevyOcclusionCulling = (With<OcclusionCulling>, With<DepthPrepass>, Without<NoIndirectDrawing>);
+
 #[allow(clippy::too_many_arguments)]
 fn prepare_gpu(
     mut gpu: ResMut<MeshletGpu>,
@@ -999,7 +1054,7 @@ fn prepare_gpu(
     settings: Res<SkinletMeshletSettings>,
     stats: Res<SkinletMeshletStats>,
     views: Query<(Entity, &ExtractedView, &Msaa), With<ExtractedCamera>>,
-    bevy_occlusion: Query<&ExtractedCamera, (With<OcclusionCulling>, With<DepthPrepass>, Without<NoIndirectDrawing>)>,
+    bevy_occlusion: Query<&ExtractedCamera, BevyOcclusionCulling>,
     lights: Query<&ExtractedView, With<LightEntity>>,
     textures: (Option<Res<MeshletDrawPipeline>>, Res<RenderAssets<GpuImage>>, Res<FallbackImage>),
     mut warned: Local<bool>,
@@ -1074,6 +1129,7 @@ fn prepare_gpu(
         }
     }
     gpu.bakes.retain(|id, _| frames.0.contains_key(id));
+    gpu.needs.retain(|id, _| frames.0.contains_key(id));
     for (&id, frame) in &frames.0 {
         let n = frame.arrays.instances.len() as u32;
         let fits = gpu.bakes.get(&id).is_some_and(|b| {
@@ -1082,12 +1138,14 @@ fn prepare_gpu(
                 && b.rounds == rounds
                 && (rounds == 0 || b.samples == samples)
                 && b.two_sided == frame.two_sided
+                && b.triangles_per_list == list_room(settings.list_triangles, &b.needs, None, b.all_triangles)
         });
         if !fits {
             let capacity = n.next_power_of_two().max(4);
             let occlusion = gpu.depth.as_ref().filter(|_| rounds > 0).map(|(_, view)| (view, rounds));
             let pipelines = gpu.pipelines.as_ref().unwrap();
-            match bake_gpu(wgpu_device, pipelines, &cache, frame, capacity, raster, occlusion, samples) {
+            let lists = (settings.list_triangles, gpu.needs.entry(id).or_default().clone());
+            match bake_gpu(wgpu_device, pipelines, &cache, frame, capacity, raster, occlusion, samples, lists) {
                 Ok(b) => {
                     gpu.bakes.insert(id, b);
                 }
@@ -1104,7 +1162,15 @@ fn prepare_gpu(
         // everywhere.
         let pipelines = gpu.pipelines.as_ref().unwrap();
         if !b.unculled
-            && let Err(e) = update_view_cullings(wgpu_device, pipelines, b, &frame.draw, shadow_rasters, camera_rasters)
+            && let Err(e) = update_view_cullings(
+                wgpu_device,
+                pipelines,
+                b,
+                &frame.draw,
+                shadow_rasters,
+                camera_rasters,
+                settings.list_triangles,
+            )
         {
             error!("skinlet meshlets: a view's culling: {e}");
             b.unculled = true;
@@ -1125,6 +1191,7 @@ fn prepare_gpu(
                     triangles_total: triangles,
                     triangles_drawn: triangles,
                     triangles_dropped: 0,
+                    list_triangles: 0,
                     shadow_views: 0,
                     shadow_triangles_total: 0,
                     shadow_triangles_drawn: 0,
@@ -1232,7 +1299,7 @@ fn texture_group(
 
 /// A bake's culling and buffers for `capacity` instances drawn as `raster` says, with
 /// occlusion culling in `occlusion`'s rounds against its depth buffer (of `samples` samples)
-/// where given.
+/// where given, its lists' room from `list_start` and `needs`.
 #[allow(clippy::too_many_arguments)]
 fn bake_gpu(
     device: &wgpu::Device,
@@ -1243,6 +1310,7 @@ fn bake_gpu(
     raster: Raster,
     occlusion: Option<(&wgpu::TextureView, u32)>,
     samples: u32,
+    (list_start, needs): (u32, ListNeeds),
 ) -> Result<BakeGpu, String> {
     use wgpu::util::DeviceExt;
     let draw = &frame.draw;
@@ -1313,9 +1381,8 @@ fn bake_gpu(
     });
     let (margin, relative) = draw.mesh.margins();
     let how = TriangleSkinning { wgsl: CROWD_SKIN_WGSL, layout: &skin_layout, margin, relative };
-    let triangles_per_list = (capacity as u64 * view.triangles().len() as u64)
-        .min((device.limits().max_storage_buffer_binding_size - 2 * TriangleHeader::SIZE) / 24)
-        as u32;
+    let all_triangles = all_triangles(device, capacity, view.triangles().len() as u32);
+    let triangles_per_list = list_room(list_start, &needs, None, all_triangles);
     let two_sided_meshlets = view.meshlets_of_parts(&frame.two_sided);
     let culling = TriangleCulling::new(
         device,
@@ -1350,7 +1417,7 @@ fn bake_gpu(
     let readback = device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("skinlet meshlet counts"),
         size: 2 * (SurvivorHeader::SIZE + TriangleHeader::SIZE)
-            + MAX_COUNTED_SHADOW_VIEWS as u64 * TriangleHeader::SIZE,
+            + (MAX_COUNTED_SHADOW_VIEWS + READ_CAMERAS) as u64 * TriangleHeader::SIZE,
         usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
         mapped_at_creation: false,
     });
@@ -1390,6 +1457,8 @@ fn bake_gpu(
         skin_layout,
         two_sided_meshlets,
         triangles_per_list,
+        all_triangles,
+        needs,
         shadows: HashMap::default(),
         cameras: HashMap::default(),
     })
@@ -1403,6 +1472,7 @@ fn view_culling(
     b: &BakeGpu,
     draw: &BakeDraw,
     raster: Raster,
+    room: u32,
 ) -> Result<TriangleCulling, String> {
     let e = |e: skinlet_gpu::GpuError| e.to_string();
     let bytes = &bytemuck::cast_slice::<u32, u8>(&draw.words)[..draw.len];
@@ -1413,9 +1483,16 @@ fn view_culling(
     let (margin, relative) = draw.mesh.margins();
     let how = TriangleSkinning { wgsl: CROWD_SKIN_WGSL, layout: &b.skin_layout, margin, relative };
     let vertices = view.vertices().positions.len() as u32;
-    let (meshlets, capacity, sides) = (view.meshlets(), b.triangles_per_list, &b.two_sided_meshlets);
-    TriangleCulling::new(device, crowd.map_err(e)?, how, &meshlets, vertices, capacity, raster, Entries::Corners, sides)
+    let (meshlets, sides) = (view.meshlets(), &b.two_sided_meshlets);
+    TriangleCulling::new(device, crowd.map_err(e)?, how, &meshlets, vertices, room, raster, Entries::Corners, sides)
         .map_err(e)
+}
+
+/// Every triangle of `capacity` instances of `triangles` each, up to what a list of the
+/// storage binding limit holds.
+fn all_triangles(device: &wgpu::Device, capacity: u32, triangles: u32) -> u32 {
+    let limit = (device.limits().max_storage_buffer_binding_size - 2 * TriangleHeader::SIZE) / 24;
+    (capacity as u64 * triangles as u64).min(limit) as u32
 }
 
 /// Occlusion culling's depth format (Bevy's main pass depth: reversed, near 1).
@@ -1523,7 +1600,10 @@ fn cull(
         });
         let cameras = views.iter().map(|v| (b.cameras.get(&v.retained_view_entity), clip_from_world(v), v));
         for (culling, clip_from_world, view) in shadows.chain(cameras) {
-            let (Some((culling, ..)), Some(camera)) = (culling, cull_camera(clip_from_world, view)) else { continue };
+            let (Some(ViewCulling { culling, .. }), Some(camera)) = (culling, cull_camera(clip_from_world, view))
+            else {
+                continue;
+            };
             if let Err(e) = culling.encode(&queue, encoder, &camera, Tests::Both, n, skinning, None) {
                 error!("skinlet meshlets: {e}");
             }
@@ -1641,11 +1721,13 @@ fn copy_counts(encoder: &mut wgpu::CommandEncoder, b: &BakeGpu) {
         let headers = 2 * SurvivorHeader::SIZE;
         encoder.copy_buffer_to_buffer(b.culling.crowd().survivors(), 0, &b.readback, 0, headers);
         encoder.copy_buffer_to_buffer(b.culling.triangles(), 0, &b.readback, headers, 2 * TriangleHeader::SIZE);
-        // Each shadow view's list header after them.
+        // Each other view's list header after them, in its slot.
         let at = headers + 2 * TriangleHeader::SIZE;
-        for (k, (c, ..)) in b.shadows.values().take(MAX_COUNTED_SHADOW_VIEWS).enumerate() {
-            let to = at + k as u64 * TriangleHeader::SIZE;
-            encoder.copy_buffer_to_buffer(c.triangles(), 0, &b.readback, to, TriangleHeader::SIZE);
+        for v in b.shadows.values().chain(b.cameras.values()) {
+            if let Some(slot) = v.slot {
+                let to = at + slot as u64 * TriangleHeader::SIZE;
+                encoder.copy_buffer_to_buffer(v.culling.triangles(), 0, &b.readback, to, TriangleHeader::SIZE);
+            }
         }
     }
 }
@@ -1657,22 +1739,46 @@ fn read_back_stats(gpu: Res<MeshletGpu>, stats: Res<SkinletMeshletStats>) {
         if b.readback_state.compare_exchange(COPIED, MAPPING, Ordering::AcqRel, Ordering::Relaxed).is_err() {
             continue;
         }
-        let (buffer, state, stats) = (b.readback.clone(), b.readback_state.clone(), stats.clone());
+        let (buffer, state, stats, needs) =
+            (b.readback.clone(), b.readback_state.clone(), stats.clone(), b.needs.clone());
         let (frame, n, meshlets, triangles, rounds) =
             (gpu.frame, b.instances as u64, b.meshlets as u64, b.mesh_triangles as u64, b.rounds);
-        let bevy_occluders = gpu.bevy_occluders && occluding(&gpu, b);
-        let shadow_views = b.shadows.len().min(MAX_COUNTED_SHADOW_VIEWS);
+        let (bevy_occluders, room) = (gpu.bevy_occluders && occluding(&gpu, b), b.triangles_per_list);
+        // The other views whose headers were copied: slot, view, whether a shadow view, room.
+        let views: Vec<(usize, RetainedViewEntity, bool, u32)> = (b.shadows.iter().map(|v| (v, true)))
+            .chain(b.cameras.iter().map(|v| (v, false)))
+            .filter_map(|((&view, v), shadow)| Some((v.slot?, view, shadow, v.culling.capacity())))
+            .collect();
         b.readback.slice(..).map_async(wgpu::MapMode::Read, move |mapped| {
             if mapped.is_ok() {
-                let (survivors, lists, shadows): ([SurvivorHeader; 2], [TriangleHeader; 2], Vec<TriangleHeader>) = {
+                let (survivors, lists, headers): ([SurvivorHeader; 2], [TriangleHeader; 2], Vec<TriangleHeader>) = {
                     let bytes = buffer.slice(..).get_mapped_range();
                     let (s, t) = bytes.split_at(2 * SurvivorHeader::SIZE as usize);
-                    let (t, shadows) = t.split_at(2 * TriangleHeader::SIZE as usize);
-                    let shadows = shadows.chunks_exact(TriangleHeader::SIZE as usize).take(shadow_views);
-                    let shadows = shadows.map(bytemuck::pod_read_unaligned).collect();
-                    (bytemuck::pod_read_unaligned(s), bytemuck::pod_read_unaligned(t), shadows)
+                    let (t, views) = t.split_at(2 * TriangleHeader::SIZE as usize);
+                    let views = views.chunks_exact(TriangleHeader::SIZE as usize);
+                    (
+                        bytemuck::pod_read_unaligned(s),
+                        bytemuck::pod_read_unaligned(t),
+                        views.map(bytemuck::pod_read_unaligned).collect(),
+                    )
                 };
                 buffer.unmap();
+                // Lists that overflowed need more room.
+                let grown = |found: u32| (found as u64 * 5 / 4).next_power_of_two().min(u32::MAX as u64) as u32;
+                if let Ok(mut needs) = needs.lock() {
+                    let mut need = |list, found: u32, room: u32| {
+                        if found > room {
+                            let need = needs.entry(list).or_default();
+                            *need = (*need).max(grown(found));
+                        }
+                    };
+                    need(None, lists.iter().map(|l| l.found).max().unwrap_or(0), room);
+                    for &(slot, view, _, room) in &views {
+                        need(Some(view), headers[slot].found, room);
+                    }
+                }
+                let shadows: Vec<&TriangleHeader> =
+                    views.iter().filter(|v| v.2).map(|&(slot, ..)| &headers[slot]).collect();
                 // With occlusion culling, the second list's survivors are every meshlet its
                 // tests kept, and both lists draw.
                 let sum = |f: fn(&TriangleHeader) -> u32| lists.iter().map(|l| f(l) as u64).sum::<u64>();
@@ -1692,8 +1798,9 @@ fn read_back_stats(gpu: Res<MeshletGpu>, stats: Res<SkinletMeshletStats>) {
                         triangles_drawn: sum(|l| l.index_count / 3),
                         triangles_dropped: sum(|l| l.found.saturating_sub(l.index_count / 3))
                             + shadow_sum(|l| l.found.saturating_sub(l.index_count / 3)),
-                        shadow_views: shadow_views as u32,
-                        shadow_triangles_total: shadow_views as u64 * n * triangles,
+                        list_triangles: room,
+                        shadow_views: shadows.len() as u32,
+                        shadow_triangles_total: shadows.len() as u64 * n * triangles,
                         shadow_triangles_drawn: shadow_sum(|l| l.index_count / 3),
                     },
                 );
@@ -1813,7 +1920,7 @@ impl<P: PhaseItem> RenderCommand<P> for DrawMeshlets {
             pass.draw(0..b.corners, 0..b.instances);
         } else if gpu.first_camera != Some(view.retained_view_entity) {
             // Another camera: its own list.
-            let Some((_, lists, _)) = b.cameras.get(&view.retained_view_entity) else {
+            let Some(ViewCulling { lists, .. }) = b.cameras.get(&view.retained_view_entity) else {
                 return RenderCommandResult::Skip;
             };
             pass.set_index_buffer(lists.slice(2 * TriangleHeader::SIZE..), IndexFormat::Uint32);
@@ -2091,7 +2198,7 @@ impl<P: PhaseItem> RenderCommand<P> for DrawMeshletShadow {
         if b.unculled {
             pass.draw(0..b.corners, 0..b.instances);
         } else {
-            let Some((_, lists, _)) = b.shadows.get(&view.retained_view_entity) else {
+            let Some(ViewCulling { lists, .. }) = b.shadows.get(&view.retained_view_entity) else {
                 return RenderCommandResult::Skip;
             };
             pass.set_index_buffer(lists.slice(2 * TriangleHeader::SIZE..), IndexFormat::Uint32);

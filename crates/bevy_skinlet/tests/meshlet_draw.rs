@@ -303,10 +303,21 @@ fn double_sided_normal_mapped_morphed_parts_look_like_bevys() {
     let eye = eyes + (eyes - head).normalize() * 1.2 + Vec3::Y * 0.3;
     app.world_mut().entity_mut(camera).insert(Transform::from_translation(eye).looking_at(head, Vec3::Y));
     let bevy = settled_image(&mut app);
+    // Every list (the camera's, each shadow cascade's, the second camera's below) starts with
+    // room for 64 triangles: each must grow to what its culling finds.
+    app.world_mut().resource_mut::<SkinletMeshletSettings>().list_triangles = 64;
     for &(root, _) in &roots {
         app.world_mut().entity_mut(root).insert(SkinletMeshlets);
     }
     let skinlet = settled_image(&mut app);
+    let stats = latest_stats_after(&mut app, 1);
+    for s in stats.values() {
+        eprintln!("{s:?}");
+        assert!(
+            s.triangles_dropped == 0 && s.triangles_drawn > 64 && s.list_triangles >= s.triangles_drawn as u32,
+            "{s:?}"
+        );
+    }
     app.world_mut().resource_mut::<SkinletMeshletSettings>().culling = false;
     let unculled = settled_image(&mut app);
     let out = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
