@@ -444,6 +444,8 @@ pub fn run(args: &Args) -> Option<serde_json::Value> {
             "pixels_over_2_levels": c.over_2,
             "equal_to_unculled": c.equal_to_unculled,
             "bevy_occlusion_changed_pixels": c.bevy_occlusion_changed,
+            // Whether skinlet's occlusion culling started from Bevy's depth (every bake).
+            "bevy_occluders": c.stats.iter().all(|s| s.bevy_occluders),
             "meshlets_total": c.stats.iter().map(|s| s.meshlets_total).sum::<u64>(),
             "meshlets_tested_visible": c.stats.iter().map(|s| s.meshlets_tested_visible).sum::<u64>(),
             "meshlets_drawn": c.stats.iter().map(|s| s.meshlets_drawn).sum::<u64>(),

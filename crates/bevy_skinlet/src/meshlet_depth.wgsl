@@ -20,7 +20,7 @@ struct DepthOut {
 #ifdef NORMAL_PREPASS
     @location(1) world_normal: vec3<f32>,
     @location(5) world_tangent: vec4<f32>,
-    @location(6) uv: vec2<f32>,
+    @location(6) uv: vec4<f32>,
     @location(7) @interpolate(flat) part: u32,
 #endif
 #ifdef SKINLET_TWO_SIDED
@@ -117,7 +117,7 @@ fn depth_fragment(in: DepthOut, @builtin(front_facing) is_front: bool) -> DepthF
     // As Bevy's prepass writes a lit material's world normal (the interpolated one, not
     // normalized again, or the normal map's): into 0..1.
     let m = materials[in.part];
-    let uv = (m.uv_transform * vec3(in.uv, 1.0)).xy;
+    let uv = material_uvs(m, in.uv);
     let n = fragment_normal(m, in.part, uv, in.world_normal, in.world_tangent, is_front, view.mip_bias);
     out.normal = vec4<f32>(select(n.world, n.mapped, n.is_mapped) * 0.5 + vec3<f32>(0.5), 1.0);
 #endif

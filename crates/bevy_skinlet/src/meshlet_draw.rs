@@ -57,9 +57,10 @@ use bevy::core_pipeline::prepass::node::{early_prepass, late_prepass};
 use bevy::core_pipeline::prepass::{Opaque3dPrepass, OpaqueNoLightmap3dBatchSetKey, OpaqueNoLightmap3dBinKey};
 use bevy::core_pipeline::schedule::{Core3d, camera_driver};
 use bevy::ecs::query::ROQueryItem;
+use bevy::ecs::schedule::ScheduleLabel;
 use bevy::ecs::system::{SystemParamItem, lifetimeless::SRes};
 use bevy::light::NotShadowCaster;
-use bevy::mesh::{Indices, MeshVertexBufferLayouts, PrimitiveTopology, VertexAttributeValues};
+use bevy::mesh::{Indices, MeshVertexBufferLayouts, PrimitiveTopology, UvChannel, VertexAttributeValues};
 use bevy::pbr::{
     LightEntity, MeshPipeline, MeshPipelineKey, MeshPipelineSystems, PrepassPipeline, SetMeshViewBindGroup,
     SetMeshViewBindingArrayBindGroup, SetPrepassViewBindGroup, SetPrepassViewEmptyBindGroup, Shadow, ShadowBatchSetKey,
@@ -67,7 +68,7 @@ use bevy::pbr::{
 };
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
-use bevy::render::camera::{DirtySpecializations, ExtractedCamera, PendingQueues};
+use bevy::render::camera::{DirtySpecializations, ExtractedCamera, PendingQueues, TemporalJitter};
 use bevy::render::extract_component::{ExtractComponent, ExtractComponentPlugin};
 use bevy::render::extract_resource::{ExtractResource, ExtractResourcePlugin};
 use bevy::render::mesh::allocator::MeshSlabs;
@@ -144,15 +145,15 @@ pub struct SkinletMeshletSettings {
     /// drew; Bevy's passes then draw the survivors of every round. Without Bevy's occlusion
     /// culling on the camera this runs before Bevy's passes and only characters occlude
     /// characters. With it (`OcclusionCulling` and `DepthPrepass` on the camera, its viewport
-    /// the whole target), it runs between Bevy's early and late prepasses, in at least one
+    /// the whole target, no `TemporalJitter`, Bevy's 3D schedule), it runs between Bevy's early and late prepasses, in at least one
     /// round, and skinlet's depth starts as Bevy's after its early prepass: Bevy's meshes
     /// hide characters too ([`MeshletStats::bevy_occluders`]).
     pub occlusion_rounds: u32,
     /// Room each view's triangle lists start with, per bake, in triangles (24 bytes each): a
     /// list that overflows (the triangles past its room are not drawn, counted in
     /// [`MeshletStats::triangles_dropped`]) is made again, when its counts are read back a
-    /// frame or two later, with room for what that frame's culling found and a quarter more
-    /// (to a power of two), and never shrinks; at most every triangle of every instance, up
+    /// frame or two later, with room for twice what that frame's culling found (to a power of
+    /// two), and never shrinks; at most every triangle of every instance, up
     /// to the device's storage binding limit. `u32::MAX`: that room from the start (no frame
     /// drops a triangle; memory for every triangle of every instance in every view).
     pub list_triangles: u32,
@@ -160,7 +161,7 @@ pub struct SkinletMeshletSettings {
 
 impl Default for SkinletMeshletSettings {
     fn default() -> Self {
-        SkinletMeshletSettings { culling: true, occlusion_rounds: 0, list_triangles: 1 << 16 }
+        SkinletMeshletSettings { culling: true, occlusion_rounds: 0, list_triangles: 1 << 18 }
     }
 }
 
@@ -302,7 +303,7 @@ struct BakeDraw {
     /// [`vertex_attributes`] lays them out: normals, tangents and their morph deltas.
     attributes: Vec<[u32; 4]>,
     /// Per attribute vertex, its texture coordinates (zero where the part has none).
-    uvs: Vec<[f32; 2]>,
+    uvs: Vec<[f32; 4]>,
     /// Per driver, its inverse bind matrix.
     inverse_bind: Vec<Mat4>,
     /// Whether the bake has any-pose boxes (its envelope section).
@@ -436,11 +437,19 @@ fn bake_draw(bake: &Bake, meshes: &[&Mesh]) -> Result<BakeDraw, String> {
             })
             .collect::<Result<Vec<u32>, String>>()?;
         attributes.push_part(nor, tangents, morphs, &weights);
-        match mesh.attribute(Mesh::ATTRIBUTE_UV_0) {
-            Some(VertexAttributeValues::Float32x2(uv)) if uv.len() == nor.len() => uvs.extend_from_slice(uv),
-            Some(_) => return Err(format!("part {p}: texture coordinates not f32 pairs, one per vertex")),
-            None => uvs.resize(uvs.len() + nor.len(), [0.0; 2]),
-        }
+        // Both sets of texture coordinates (the second: the first where the mesh has none, as
+        // Bevy samples them).
+        let uv = |attribute| match mesh.attribute(attribute) {
+            Some(VertexAttributeValues::Float32x2(uv)) if uv.len() == nor.len() => Ok(Some(uv)),
+            Some(_) => Err(format!("part {p}: texture coordinates not f32 pairs, one per vertex")),
+            None => Ok(None),
+        };
+        let (a, b) = (uv(Mesh::ATTRIBUTE_UV_0)?, uv(Mesh::ATTRIBUTE_UV_1)?);
+        uvs.extend((0..nor.len()).map(|v| {
+            let a = a.map_or([0.0; 2], |a| a[v]);
+            let b = b.map_or(a, |b| b[v]);
+            [a[0], a[1], b[0], b[1]]
+        }));
         indices.push(match mesh.indices() {
             Some(Indices::U16(i)) => Some(i.iter().map(|&x| x as u32).collect::<Vec<u32>>()),
             Some(Indices::U32(i)) => Some(i.clone()),
@@ -531,8 +540,14 @@ struct BakeFrame {
     positions: Vec<Vec3>,
 }
 
-/// A part's base colour, metallic-roughness, emissive, occlusion and normal map textures.
-type PartTextures = [Option<AssetId<Image>>; 5];
+/// A part's base colour, metallic-roughness, emissive, occlusion and normal map textures,
+/// and which of them its material samples at the second texture coordinates (bit `k`: the
+/// `k`-th; `UvChannel::Uv1`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct PartTextures {
+    images: [Option<AssetId<Image>>; 5],
+    uv_b: u32,
+}
 
 /// A frame's per-instance arrays, as uploaded.
 #[derive(Default)]
@@ -645,15 +660,28 @@ fn extract_frames(
                 }
                 frame.two_sided.push(cull_mode.is_none());
                 frame.materials.push(m.map(|m| m.as_bind_group_shader_type(&images)).unwrap_or_default());
-                frame.textures.push(m.map_or([None; 5], |m| {
-                    [
-                        &m.base_color_texture,
-                        &m.metallic_roughness_texture,
-                        &m.emissive_texture,
-                        &m.occlusion_texture,
-                        &m.normal_map_texture,
-                    ]
-                    .map(|t| t.as_ref().map(|h| h.id()))
+                frame.textures.push(m.map_or_else(PartTextures::default, |m| {
+                    PartTextures {
+                        images: [
+                            &m.base_color_texture,
+                            &m.metallic_roughness_texture,
+                            &m.emissive_texture,
+                            &m.occlusion_texture,
+                            &m.normal_map_texture,
+                        ]
+                        .map(|t| t.as_ref().map(|h| h.id())),
+                        uv_b: [
+                            &m.base_color_channel,
+                            &m.metallic_roughness_channel,
+                            &m.emissive_channel,
+                            &m.occlusion_channel,
+                            &m.normal_map_channel,
+                        ]
+                        .into_iter()
+                        .enumerate()
+                        .map(|(k, c)| ((*c == UvChannel::Uv1) as u32) << k)
+                        .sum(),
+                    }
                 }));
             }
         }
@@ -874,6 +902,8 @@ struct MeshletGpu {
     /// early prepass draws none of the first camera's lists).
     bevy_occluders: bool,
     culled: AtomicBool,
+    /// Whether this frame's occlusion culling did start from Bevy's depth.
+    started_from_bevy: AtomicBool,
     /// Per bake, the room its lists need (kept when its culling is made again).
     needs: HashMap<AssetId<Bake>, ListNeeds>,
 }
@@ -944,8 +974,8 @@ struct BakeGpu {
     cameras: HashMap<RetainedViewEntity, ViewCulling>,
 }
 
-/// Per list of a bake (`None`: the first camera's, else the view's), the room it needs: what
-/// a frame's culling found past its room, with a quarter more, to a power of two.
+/// Per list of a bake (`None`: the first camera's, else the view's), the room it needs: twice
+/// what a frame's culling found past its room, to a power of two.
 type ListNeeds = Arc<Mutex<HashMap<Option<RetainedViewEntity>, u32>>>;
 
 /// The room of a list: `start`, or what it needs, up to `all`.
@@ -979,7 +1009,8 @@ fn update_view_cullings(
     b.shadows.retain(|v, _| shadows.iter().any(|(s, _)| s == v));
     b.cameras.retain(|v, _| cameras.iter().any(|(c, _)| c == v));
     if let Ok(mut needs) = b.needs.lock() {
-        needs.retain(|v, _| v.is_none_or(|v| b.shadows.contains_key(&v) || b.cameras.contains_key(&v)));
+        let present = |v: &RetainedViewEntity| shadows.iter().chain(cameras).any(|(s, _)| s == v);
+        needs.retain(|v, _| v.as_ref().is_none_or(present));
     }
     let slots = [0..MAX_COUNTED_SHADOW_VIEWS, MAX_COUNTED_SHADOW_VIEWS..MAX_COUNTED_SHADOW_VIEWS + READ_CAMERAS];
     for ((views, shadow), slots) in [(shadows, true), (cameras, false)].into_iter().zip(slots) {
@@ -1040,8 +1071,10 @@ fn cull_camera(clip_from_world: Mat4, view: &ExtractedView) -> Option<CullCamera
     CullCamera::from_view_proj(clip_from_world, projection).ok()
 }
 
-/// The cameras Bevy culls by occlusion (two prepasses, a depth pyramid).
-type BevyOcclusionCulling = (With<OcclusionCulling>, With<DepthPrepass>, Without<NoIndirectDrawing>);
+/// The cameras Bevy culls by occlusion (two prepasses, a depth pyramid), without temporal
+/// jitter (skinlet's tests take the unjittered projection; Bevy's depth is jittered).
+type BevyOcclusionCulling =
+    (With<OcclusionCulling>, With<DepthPrepass>, Without<NoIndirectDrawing>, Without<TemporalJitter>);
 
 #[allow(clippy::too_many_arguments)]
 fn prepare_gpu(
@@ -1076,11 +1109,14 @@ fn prepare_gpu(
         multisampled: msaa.samples() > 1,
     };
     // Bevy's depth after its early prepass starts occlusion culling where Bevy culls this
-    // camera by occlusion too and its depth texture is the viewport's size (skinlet's is).
+    // camera by occlusion too, its depth texture is the viewport's size (skinlet's is) and
+    // it renders with Bevy's 3D schedule (where `cull_behind_bevy` runs).
     gpu.bevy_occluders = settings.culling
-        && bevy_occlusion
-            .get(entity)
-            .is_ok_and(|c| c.physical_target_size == Some(view.viewport.zw()) && view.viewport.xy() == UVec2::ZERO);
+        && bevy_occlusion.get(entity).is_ok_and(|c| {
+            let whole = c.physical_target_size == Some(view.viewport.zw()) && view.viewport.xy() == UVec2::ZERO;
+            whole && c.schedule == Core3d.intern()
+        });
+    *gpu.started_from_bevy.get_mut() = false;
     let rounds = match settings.culling {
         true if gpu.bevy_occluders => settings.occlusion_rounds.clamp(1, MAX_OCCLUSION_ROUNDS),
         true => settings.occlusion_rounds.min(MAX_OCCLUSION_ROUNDS),
@@ -1232,7 +1268,7 @@ fn prepare_gpu(
                 let layout = cache.get_bind_group_layout(layout);
                 texture_group(wgpu_device, &queue, &layout, b, &frame.textures, images, fallback);
             }
-            None if !*warned && frame.textures.iter().flatten().any(Option::is_some) => {
+            None if !*warned && frame.textures.iter().flat_map(|t| t.images).any(|t| t.is_some()) => {
                 warn!("skinlet meshlets: this device cannot index texture arrays per fragment: textures are not drawn");
                 *warned = true;
             }
@@ -1257,7 +1293,7 @@ fn texture_group(
     let mut over = false;
     let slots: Vec<[u32; 8]> = (parts.iter())
         .map(|textures| {
-            let [a, b, c, d, e] = textures.map(|t| {
+            let [a, b, c, d, e] = textures.images.map(|t| {
                 let Some(id) = t else { return 0 };
                 match distinct.iter().position(|&d| d == id) {
                     Some(k) => k as u32 + 1,
@@ -1272,8 +1308,8 @@ fn texture_group(
                 }
             });
             // (A normal map still loading is none yet: white is no flat normal.)
-            let e = if textures[4].is_some_and(|id| images.get(id).is_none()) { 0 } else { e };
-            [a, b, c, d, e, 0, 0, 0]
+            let e = if textures.images[4].is_some_and(|id| images.get(id).is_none()) { 0 } else { e };
+            [a, b, c, d, e, textures.uv_b, 0, 0]
         })
         .collect();
     if over {
@@ -1672,6 +1708,7 @@ fn cull_occluding(
     let mut load = match start {
         Some(start) if (start.size(), start.sample_count()) == (texture.size(), texture.sample_count()) => {
             encoder.copy_texture_to_texture(start.as_image_copy(), texture.as_image_copy(), texture.size());
+            gpu.started_from_bevy.store(true, Ordering::Release);
             wgpu::LoadOp::Load
         }
         _ => wgpu::LoadOp::Clear(0.0),
@@ -1743,7 +1780,8 @@ fn read_back_stats(gpu: Res<MeshletGpu>, stats: Res<SkinletMeshletStats>) {
             (b.readback.clone(), b.readback_state.clone(), stats.clone(), b.needs.clone());
         let (frame, n, meshlets, triangles, rounds) =
             (gpu.frame, b.instances as u64, b.meshlets as u64, b.mesh_triangles as u64, b.rounds);
-        let (bevy_occluders, room) = (gpu.bevy_occluders && occluding(&gpu, b), b.triangles_per_list);
+        let bevy_occluders = gpu.started_from_bevy.load(Ordering::Acquire) && occluding(&gpu, b);
+        let room = b.triangles_per_list;
         // The other views whose headers were copied: slot, view, whether a shadow view, room.
         let views: Vec<(usize, RetainedViewEntity, bool, u32)> = (b.shadows.iter().map(|v| (v, true)))
             .chain(b.cameras.iter().map(|v| (v, false)))
@@ -1764,7 +1802,7 @@ fn read_back_stats(gpu: Res<MeshletGpu>, stats: Res<SkinletMeshletStats>) {
                 };
                 buffer.unmap();
                 // Lists that overflowed need more room.
-                let grown = |found: u32| (found as u64 * 5 / 4).next_power_of_two().min(u32::MAX as u64) as u32;
+                let grown = |found: u32| (2 * found as u64).next_power_of_two().min(u32::MAX as u64) as u32;
                 if let Ok(mut needs) = needs.lock() {
                     let mut need = |list, found: u32, room: u32| {
                         if found > room {

@@ -24,7 +24,7 @@ struct VertexOut {
     @location(0) world_position: vec4<f32>,
     @location(1) world_normal: vec3<f32>,
     @location(2) @interpolate(flat) part: u32,
-    @location(3) uv: vec2<f32>,
+    @location(3) uv: vec4<f32>,
     @location(5) world_tangent: vec4<f32>,
 #ifdef SKINLET_TWO_SIDED
     // 1 where the part is drawn two-sided.
@@ -70,7 +70,7 @@ fn fragment(in: VertexOut, @builtin(front_facing) is_front: bool) -> @location(0
     p.V = pbr_functions::calculate_view(in.world_position, p.is_orthographic);
     p.frag_coord = in.position;
     p.world_position = in.world_position;
-    let uv = (p.material.uv_transform * vec3(in.uv, 1.0)).xy;
+    let uv = material_uvs(p.material, in.uv);
     let normal = fragment_normal(p.material, in.part, uv, in.world_normal, in.world_tangent, is_front, view.mip_bias);
     p.world_normal = normal.world;
     p.N = normalize(p.world_normal);
@@ -81,12 +81,13 @@ fn fragment(in: VertexOut, @builtin(front_facing) is_front: bool) -> @location(0
 #ifdef SKINLET_TEXTURES
     // As Bevy's pbr_input_from_standard_material applies them.
     let slots = texture_slots[2u * in.part];
-    p.material.base_color *= sample_slot(slots.x, uv, view.mip_bias);
-    let metallic_roughness = sample_slot(slots.y, uv, view.mip_bias);
+    p.material.base_color *= sample_slot(slots.x, texture_uv(in.part, 0u, uv), view.mip_bias);
+    let metallic_roughness = sample_slot(slots.y, texture_uv(in.part, 1u, uv), view.mip_bias);
     p.material.metallic *= metallic_roughness.b;
     p.material.perceptual_roughness *= metallic_roughness.g;
-    p.material.emissive = vec4(p.material.emissive.rgb * sample_slot(slots.z, uv, view.mip_bias).rgb, p.material.emissive.a);
-    p.diffuse_occlusion = vec3(sample_slot(slots.w, uv, view.mip_bias).r);
+    let emissive = sample_slot(slots.z, texture_uv(in.part, 2u, uv), view.mip_bias).rgb;
+    p.material.emissive = vec4(p.material.emissive.rgb * emissive, p.material.emissive.a);
+    p.diffuse_occlusion = vec3(sample_slot(slots.w, texture_uv(in.part, 3u, uv), view.mip_bias).r);
 #endif
     p.material.base_color = pbr_functions::alpha_discard(p.material, p.material.base_color);
     var color = p.material.base_color;

@@ -309,6 +309,10 @@ fn double_sided_normal_mapped_morphed_parts_look_like_bevys() {
     for &(root, _) in &roots {
         app.world_mut().entity_mut(root).insert(SkinletMeshlets);
     }
+    update_until(&mut app, 300, "the lists grown", |w| {
+        let stats = w.resource::<SkinletMeshletStats>().latest();
+        stats.values().any(|s| s.culled && s.triangles_dropped == 0 && s.list_triangles > 64)
+    });
     let skinlet = settled_image(&mut app);
     let stats = latest_stats_after(&mut app, 1);
     for s in stats.values() {
@@ -343,6 +347,11 @@ fn double_sided_normal_mapped_morphed_parts_look_like_bevys() {
     let images = [true, false].map(|culling| {
         app.world_mut().resource_mut::<SkinletMeshletSettings>().culling = culling;
         let first = settled_image(&mut app);
+        // (And the second camera's last three images equal: its list has grown.)
+        update_until(&mut app, 300, "the second camera's image settled", |_| {
+            let images = second.0.lock().unwrap();
+            matches!(&images[..], [.., a, b, c] if a == b && b == c)
+        });
         let last = second.0.lock().unwrap().last().unwrap().clone();
         (first, last)
     });
@@ -504,12 +513,14 @@ fn bevys_meshes_hide_characters_under_bevys_occlusion_culling() {
         drawn_behind_bevy < drawn_own,
         "{drawn_behind_bevy} meshlets drawn with Bevy's depth, {drawn_own} with skinlet's own occlusion culling"
     );
+    // (Unculled with Bevy's occlusion culling on too: the same Bevy passes.)
+    app.world_mut().entity_mut(camera).insert(OcclusionCulling);
     app.world_mut().resource_mut::<SkinletMeshletSettings>().culling = false;
     let unculled = settled_image(&mut app);
     let differing = skinlet.chunks(4).zip(unculled.chunks(4)).filter(|(a, b)| a != b).count();
     assert_eq!(differing, 0, "culling behind Bevy's depth changed {differing} pixels");
     // 4× MSAA: Bevy's depth has the camera's samples, copied as it is.
-    app.world_mut().entity_mut(camera).insert((Msaa::Sample4, OcclusionCulling));
+    app.world_mut().entity_mut(camera).insert(Msaa::Sample4);
     let unculled_msaa = settled_image(&mut app);
     app.world_mut().resource_mut::<SkinletMeshletSettings>().culling = true;
     let (skinlet_msaa, drawn_msaa) = culled(&mut app, true);

@@ -72,8 +72,9 @@ fn demo_glb() -> Vec<u8> {
 }
 
 /// The demo character with materials, as exporters write them: the body double-sided with a
-/// normal map (texture coordinates projected from its positions; the map, `demo_normal.png`
-/// written into `dir`, a field of bumps), the other meshes single-sided; every fourth
+/// normal map at its second texture coordinates and a base colour texture at its first (two
+/// sets projected from its positions apart; the one image, `demo_normal.png` written into
+/// `dir`, a field of bumps), the other meshes single-sided; every fourth
 /// triangle of every mesh turned around (from outside a back face: a hole in a single-sided
 /// mesh, in the double-sided body a face drawn with its normal reversed).
 pub fn demo_with_materials(dir: &Path) -> Vec<u8> {
@@ -106,19 +107,28 @@ pub fn demo_with_materials(dir: &Path) -> Vec<u8> {
             }
             gltf["meshes"][m]["primitives"][p]["material"] = json!(if m == 0 { 0 } else { 1 });
             if m == 0 {
+                // Two sets of texture coordinates, each from the vertex's x and y.
                 let (at, vertices, _) = place(&gltf, &primitive["attributes"]["POSITION"]);
-                let offset = bin.len().next_multiple_of(4);
-                bin.resize(offset, 0);
-                for v in 0..vertices {
-                    let (x, y) = (f32_at(&bin, at + 12 * v), f32_at(&bin, at + 12 * v + 4));
-                    bin.extend([3.0 * x + 0.5, 3.0 * y].iter().flat_map(|c| c.to_le_bytes()));
+                for (set, uv) in [|x: f32, y: f32| [3.0 * x + 0.5, 3.0 * y], |x: f32, y: f32| [2.0 * y + 0.25, 2.0 * x]]
+                    .iter()
+                    .enumerate()
+                {
+                    let offset = bin.len().next_multiple_of(4);
+                    bin.resize(offset, 0);
+                    for v in 0..vertices {
+                        let (x, y) = (f32_at(&bin, at + 12 * v), f32_at(&bin, at + 12 * v + 4));
+                        bin.extend(uv(x, y).iter().flat_map(|c| c.to_le_bytes()));
+                    }
+                    let views = gltf["bufferViews"].as_array_mut().unwrap();
+                    views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": 8 * vertices}));
+                    let view = views.len() - 1;
+                    let accessors = gltf["accessors"].as_array_mut().unwrap();
+                    let accessor =
+                        json!({"bufferView": view, "componentType": 5126, "count": vertices, "type": "VEC2"});
+                    accessors.push(accessor);
+                    let name = format!("TEXCOORD_{set}");
+                    gltf["meshes"][m]["primitives"][p]["attributes"][name] = json!(accessors.len() - 1);
                 }
-                let views = gltf["bufferViews"].as_array_mut().unwrap();
-                views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": 8 * vertices}));
-                let view = views.len() - 1;
-                let accessors = gltf["accessors"].as_array_mut().unwrap();
-                accessors.push(json!({"bufferView": view, "componentType": 5126, "count": vertices, "type": "VEC2"}));
-                gltf["meshes"][m]["primitives"][p]["attributes"]["TEXCOORD_0"] = json!(accessors.len() - 1);
             }
         }
     }
@@ -127,12 +137,16 @@ pub fn demo_with_materials(dir: &Path) -> Vec<u8> {
         {
             "name": "two-sided, normal-mapped",
             "doubleSided": true,
-            "pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.6, 0.4, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.5},
-            "normalTexture": {"index": 0}
+            "pbrMetallicRoughness": {
+                "baseColorFactor": [0.9, 0.6, 0.4, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.5,
+                "baseColorTexture": {"index": 1}
+            },
+            "normalTexture": {"index": 0, "texCoord": 1}
         },
         {"name": "one-sided", "pbrMetallicRoughness": {"baseColorFactor": [0.3, 0.5, 0.9, 1.0]}}
     ]);
-    gltf["textures"] = json!([{"source": 0, "sampler": 0}]);
+    // The normal map's image is the base colour's too (sampled at the first coordinates).
+    gltf["textures"] = json!([{"source": 0, "sampler": 0}, {"source": 0, "sampler": 0}]);
     gltf["samplers"] = json!([{}]);
     gltf["images"] = json!([{"uri": "demo_normal.png"}]);
     // The normal map: bumps h = sin(2π·4u)·sin(2π·4v), normals (−∂h/∂u, −∂h/∂v, 1) / 4.
