@@ -302,7 +302,8 @@ struct BakeDraw {
     /// The attribute vertices (the parts' source vertices one part after another) as
     /// [`vertex_attributes`] lays them out: normals, tangents and their morph deltas.
     attributes: Vec<[u32; 4]>,
-    /// Per attribute vertex, its texture coordinates (zero where the part has none).
+    /// Per attribute vertex, its first and second texture coordinates (the first zero where
+    /// the part has none, the second the first where it has none).
     uvs: Vec<[f32; 4]>,
     /// Per driver, its inverse bind matrix.
     inverse_bind: Vec<Mat4>,
