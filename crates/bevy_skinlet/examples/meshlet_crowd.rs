@@ -223,7 +223,7 @@ fn compare(
         app.world_mut().entity_mut(camera).remove::<OcclusionCulling>();
         let without = common::settled_image(app);
         app.world_mut().entity_mut(camera).insert(OcclusionCulling);
-        bevy.chunks(4).zip(without.chunks(4)).filter(|(a, b)| a != b).count()
+        common::differing_pixels(&bevy, &without)
     });
     let before: u64 = stats_now(app).values().map(|s| s.frame).max().unwrap_or(0);
     set_pipeline(app.world_mut(), roots, Pipeline::Skinlet);

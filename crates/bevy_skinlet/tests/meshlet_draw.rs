@@ -72,6 +72,15 @@ fn latest_stats_after(
 const WIDTH: u32 = 256;
 const HEIGHT: u32 = 160;
 
+/// How many pixels of skinlet's frame differ from Bevy's by more than 2 levels; both frames
+/// and their difference (× 8) side by side go to `name`.png in the target's temporary folder.
+fn over_2_levels(bevy: &[u8], skinlet: &[u8], name: &str) -> usize {
+    let per_pixel = common::pixel_differences(bevy, skinlet);
+    let side = common::side_by_side(&[bevy, skinlet, &common::difference_image(&per_pixel)], WIDTH);
+    common::write_png(&std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("{name}.png")), &side, 3 * WIDTH);
+    per_pixel.iter().filter(|&&d| d > 2).count()
+}
+
 #[test]
 fn skinlets_meshlet_draw_looks_like_bevys_own() {
     if !common::vulkan_available() {
@@ -164,7 +173,7 @@ fn skinlets_meshlet_draw_looks_like_bevys_own() {
     let occluded_msaa = settled_image(&mut app);
     app.world_mut().resource_mut::<SkinletMeshletSettings>().culling = false;
     let unculled_msaa = settled_image(&mut app);
-    let differing = occluded_msaa.chunks(4).zip(unculled_msaa.chunks(4)).filter(|(a, b)| a != b).count();
+    let differing = common::differing_pixels(&occluded_msaa, &unculled_msaa);
     let [without, with] = drawn_msaa;
     eprintln!("4× MSAA: {with} meshlets drawn with occlusion culling, {without} without; {differing} pixels differ");
     assert_eq!(differing, 0, "with 4× MSAA, occlusion culling changed {differing} pixels");
@@ -193,15 +202,15 @@ fn skinlets_meshlet_draw_looks_like_bevys_own() {
     common::write_png(&out.join("meshlet_draw_bevy.png"), &bevy, WIDTH);
     common::write_png(&out.join("meshlet_draw_skinlet.png"), &skinlet, WIDTH);
     common::write_png(&out.join("meshlet_draw_skinlet_unculled.png"), &unculled, WIDTH);
-    let culled_away = skinlet.chunks(4).zip(unculled.chunks(4)).filter(|(a, b)| a != b).count();
-    let occluded_away = occluded.chunks(4).zip(unculled.chunks(4)).filter(|(a, b)| a != b).count();
+    let culled_away = common::differing_pixels(&skinlet, &unculled);
+    let occluded_away = common::differing_pixels(&occluded, &unculled);
     let per_pixel = common::pixel_differences(&bevy, &skinlet);
     let diff = common::difference_image(&per_pixel);
     common::write_png(&out.join("meshlet_draw_diff.png"), &diff, WIDTH);
     // Bevy's frame, skinlet's, and their difference (× 8) side by side.
     let side = common::side_by_side(&[&bevy, &skinlet, &diff], WIDTH);
     common::write_png(&out.join("meshlet_draw_side_by_side.png"), &side, 3 * WIDTH);
-    let drawn = bevy.chunks(4).zip(empty.chunks(4)).filter(|(a, b)| a != b).count();
+    let drawn = common::differing_pixels(&bevy, &empty);
     let differing = per_pixel.iter().filter(|&&d| d > 0).count();
     let large = per_pixel.iter().filter(|&&d| d > 2).count();
     eprintln!(
@@ -237,11 +246,8 @@ fn skinlets_meshlet_draw_looks_like_bevys_own() {
     }
     let skinlet_prepass = settled_image(&mut app);
     assert!(app.world().get_entity(quad).is_ok());
-    let per_pixel = common::pixel_differences(&bevy_prepass, &skinlet_prepass);
-    let side = common::side_by_side(&[&bevy_prepass, &skinlet_prepass, &common::difference_image(&per_pixel)], WIDTH);
-    common::write_png(&out.join("meshlet_draw_prepass_side_by_side.png"), &side, 3 * WIDTH);
-    let drawn = bevy_prepass.chunks(4).zip(empty_prepass.chunks(4)).filter(|(a, b)| a != b).count();
-    let large = per_pixel.iter().filter(|&&d| d > 2).count();
+    let large = over_2_levels(&bevy_prepass, &skinlet_prepass, "meshlet_draw_prepass_side_by_side");
+    let drawn = common::differing_pixels(&bevy_prepass, &empty_prepass);
     eprintln!("prepass: {drawn} pixels show characters; {large} differ by more than 2 levels");
     assert!(drawn > (WIDTH * HEIGHT / 20) as usize, "the prepass shows no characters: {drawn} pixels");
     assert!(large * 200 < drawn, "prepass: {large} of {drawn} pixels differ by more than 2 levels");
@@ -324,13 +330,9 @@ fn double_sided_normal_mapped_morphed_parts_look_like_bevys() {
     }
     app.world_mut().resource_mut::<SkinletMeshletSettings>().culling = false;
     let unculled = settled_image(&mut app);
-    let out = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
-    let per_pixel = common::pixel_differences(&bevy, &skinlet);
-    let side = common::side_by_side(&[&bevy, &skinlet, &common::difference_image(&per_pixel)], WIDTH);
-    common::write_png(&out.join("meshlet_materials_side_by_side.png"), &side, 3 * WIDTH);
     let drawn = common::drawn_pixels(&bevy);
-    let large = per_pixel.iter().filter(|&&d| d > 2).count();
-    let culled_away = skinlet.chunks(4).zip(unculled.chunks(4)).filter(|(a, b)| a != b).count();
+    let large = over_2_levels(&bevy, &skinlet, "meshlet_materials_side_by_side");
+    let culled_away = common::differing_pixels(&skinlet, &unculled);
     eprintln!(
         "{drawn} pixels drawn; {large} differ by more than 2 levels; culled and unculled differ at {culled_away}"
     );
@@ -356,7 +358,7 @@ fn double_sided_normal_mapped_morphed_parts_look_like_bevys() {
         (first, last)
     });
     let [(first_culled, second_culled), (first_unculled, second_unculled)] = &images;
-    let differ = |a: &[u8], b: &[u8]| a.chunks(4).zip(b.chunks(4)).filter(|(a, b)| a != b).count();
+    let differ = common::differing_pixels;
     let (first_away, second_away) = (differ(first_culled, first_unculled), differ(second_culled, second_unculled));
     eprintln!("two cameras: culled and unculled differ at {first_away} and {second_away} pixels");
     assert_eq!((first_away, second_away), (0, 0), "with two cameras, culling changed pixels");
@@ -392,7 +394,7 @@ fn double_sided_normal_mapped_morphed_parts_look_like_bevys() {
             frames.0.lock().unwrap()[seen..].iter().any(|f| *f != before)
         });
         let first = frames.0.lock().unwrap()[seen..].iter().find(|f| **f != before).unwrap().clone();
-        let changed = first.chunks(4).zip(before.chunks(4)).filter(|(a, b)| a != b).count();
+        let changed = common::differing_pixels(&first, &before);
         (first, changed)
     };
     let by = Vec3::new(0.1, 0.05, 0.0);
@@ -414,10 +416,7 @@ fn double_sided_normal_mapped_morphed_parts_look_like_bevys() {
     // frame before: its prepass pipeline seems specialized before the previous weights
     // existed. skinlet's stay the move's.)
     let (bevy, _) = moved(&mut app, by, 0.0, 0.0);
-    let per_pixel = common::pixel_differences(&bevy, &skinlet);
-    let side = common::side_by_side(&[&bevy, &skinlet, &common::difference_image(&per_pixel)], WIDTH);
-    common::write_png(&out.join("meshlet_motion_side_by_side.png"), &side, 3 * WIDTH);
-    let large = per_pixel.iter().filter(|&&d| d > 2).count();
+    let large = over_2_levels(&bevy, &skinlet, "meshlet_motion_side_by_side");
     eprintln!(
         "motion vectors: {moving} pixels moved, {large} differ by more than 2 levels; {face} moved by the weights; held at 1, {morph_moved} differ from held at 0"
     );
@@ -436,10 +435,7 @@ fn double_sided_normal_mapped_morphed_parts_look_like_bevys() {
         app.world_mut().entity_mut(root).insert(SkinletMeshlets);
     }
     let skinlet = settled_image(&mut app);
-    let per_pixel = common::pixel_differences(&bevy, &skinlet);
-    let side = common::side_by_side(&[&bevy, &skinlet, &common::difference_image(&per_pixel)], WIDTH);
-    common::write_png(&out.join("meshlet_normals_side_by_side.png"), &side, 3 * WIDTH);
-    let (drawn, large) = (common::drawn_pixels(&bevy), per_pixel.iter().filter(|&&d| d > 2).count());
+    let (drawn, large) = (common::drawn_pixels(&bevy), over_2_levels(&bevy, &skinlet, "meshlet_normals_side_by_side"));
     eprintln!("normal prepass: {drawn} pixels drawn; {large} differ by more than 2 levels");
     assert!(drawn > (WIDTH * HEIGHT / 8) as usize, "the normal prepass shows too little: {drawn} pixels");
     assert!(large * 200 < drawn, "normal prepass: {large} of {drawn} pixels differ by more than 2 levels");
@@ -517,23 +513,20 @@ fn bevys_meshes_hide_characters_under_bevys_occlusion_culling() {
     app.world_mut().entity_mut(camera).insert(OcclusionCulling);
     app.world_mut().resource_mut::<SkinletMeshletSettings>().culling = false;
     let unculled = settled_image(&mut app);
-    let differing = skinlet.chunks(4).zip(unculled.chunks(4)).filter(|(a, b)| a != b).count();
+    let differing = common::differing_pixels(&skinlet, &unculled);
     assert_eq!(differing, 0, "culling behind Bevy's depth changed {differing} pixels");
     // 4× MSAA: Bevy's depth has the camera's samples, copied as it is.
     app.world_mut().entity_mut(camera).insert(Msaa::Sample4);
     let unculled_msaa = settled_image(&mut app);
     app.world_mut().resource_mut::<SkinletMeshletSettings>().culling = true;
     let (skinlet_msaa, drawn_msaa) = culled(&mut app, true);
-    let differing = skinlet_msaa.chunks(4).zip(unculled_msaa.chunks(4)).filter(|(a, b)| a != b).count();
+    let differing = common::differing_pixels(&skinlet_msaa, &unculled_msaa);
     eprintln!(
         "meshlets drawn: {drawn_behind_bevy} with Bevy's depth, {drawn_own} without; with 4× MSAA {drawn_msaa}, {differing} pixels differ from unculled"
     );
     assert_eq!(differing, 0, "with 4× MSAA, culling behind Bevy's depth changed {differing} pixels");
-    let per_pixel = common::pixel_differences(&bevy, &skinlet);
-    let out = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
-    let side = common::side_by_side(&[&bevy, &skinlet, &common::difference_image(&per_pixel)], WIDTH);
-    common::write_png(&out.join("meshlet_occluders_side_by_side.png"), &side, 3 * WIDTH);
-    let (drawn, large) = (common::drawn_pixels(&bevy), per_pixel.iter().filter(|&&d| d > 2).count());
+    let (drawn, large) =
+        (common::drawn_pixels(&bevy), over_2_levels(&bevy, &skinlet, "meshlet_occluders_side_by_side"));
     eprintln!("Bevy's frame and skinlet's: {large} of {drawn} drawn pixels differ by more than 2 levels");
     assert!(large * 200 < drawn, "{large} of {drawn} pixels differ by more than 2 levels");
 }

@@ -119,7 +119,7 @@ fn skinlets_bounds_cull_nothing_visible() {
     write_png(&out.join("rendered_displaced.png"), &displaced);
     let drawn = unculled.chunks(4).filter(|p| p[..3] != unculled[..3]).count();
     assert!(drawn > (WIDTH * HEIGHT / 20) as usize, "the crowd covers only {drawn} pixels");
-    let differing = culled_by_skinlet.chunks(4).zip(unculled.chunks(4)).filter(|(a, b)| a != b).count();
+    let differing = common::differing_pixels(&culled_by_skinlet, &unculled);
     assert_eq!(
         differing,
         0,

@@ -460,6 +460,11 @@ pub fn pixel_differences(a: &[u8], b: &[u8]) -> Vec<u8> {
     (a.chunks(4).zip(b.chunks(4))).map(|(a, b)| (0..3).map(|k| a[k].abs_diff(b[k])).max().unwrap()).collect()
 }
 
+/// The pixels of two RGBA images that are not exactly equal.
+pub fn differing_pixels(a: &[u8], b: &[u8]) -> usize {
+    a.chunks(4).zip(b.chunks(4)).filter(|(a, b)| a != b).count()
+}
+
 /// Pixel differences as a gray RGBA8 image, × 8.
 pub fn difference_image(differences: &[u8]) -> Vec<u8> {
     differences.iter().flat_map(|&d| [d.saturating_mul(8), d.saturating_mul(8), d.saturating_mul(8), 255]).collect()
