@@ -1,5 +1,5 @@
 //! `skinlet lod`: what a cluster LOD hierarchy saves on a crowd. Each instance draws the cut
-//! at the pixel threshold projected at the nearest point of the sphere around its per-part
+//! at the pixel threshold projected at the nearest point of the box around its per-part
 //! boxes (`skinlet_runtime::lod_select`), on the CPU, before any culling; the triangles and
 //! vertex references of those cuts are compared with full detail.
 

@@ -458,7 +458,7 @@ enum Command {
     /// Bakes the character with its cluster LOD hierarchy (`bake --lod`; a bake file keeps
     /// its own), lays out the crowd of `gpu-bench` at the image size, poses every instance
     /// for a few frames, and gives each the cut at the pixel threshold projected at the
-    /// nearest point of the sphere around its parts' boxes: no point moves more than that many
+    /// nearest point of the box around its parts' boxes: no point moves more than that many
     /// pixels from where full detail draws it (docs/LOD.md). Counts the cuts' triangles and
     /// vertex references against full detail, on the CPU and before any culling.
     Lod {

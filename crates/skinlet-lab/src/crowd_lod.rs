@@ -1,9 +1,9 @@
 //! Cluster LOD on a crowd: each instance's error threshold (`skinlet_runtime::lod_select`)
-//! from the sphere around its parts' boxes this frame, and how far the silhouettes of an image
+//! from the box around its parts' boxes this frame, and how far the silhouettes of an image
 //! drawn with LOD are from those of the same frame at full detail.
 //!
 //! The threshold holds the screen displacement of every point of the instance's cut within the
-//! pixels asked for (`LodCamera::threshold`), so a silhouette against the background moves by
+//! pixels asked for (`LodCamera::threshold_box`), so a silhouette against the background moves by
 //! at most that much plus rasterization: a pixel is covered when its center is, and a
 //! displaced edge can uncover a pixel center up to half a pixel's diagonal beyond it.
 
@@ -39,7 +39,7 @@ impl CrowdLod {
 
     /// The threshold, in the bake's units, of an instance whose drivers' world matrices are
     /// `joints`, with morph weights `weights`, posed as `pose` says: `pixels` projected at the
-    /// nearest point of the sphere around its parts' boxes (0, full detail, where the sphere
+    /// nearest point of the box around its parts' boxes (0, full detail, where the box
     /// reaches the eye's plane). The instance's model matrix is in `joints` (scale 1).
     pub fn threshold(&self, pixels: f32, joints: &[Affine3A], weights: &[f32], pose: PoseBounds) -> f32 {
         let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
@@ -47,7 +47,7 @@ impl CrowdLod {
             let b = self.bounds.part_box(p, &Affine3A::IDENTITY, joints, weights, pose);
             (lo, hi) = (lo.min(b.min), hi.max(b.max));
         }
-        self.camera.threshold(pixels, (lo + hi) / 2.0, (hi - lo).length() / 2.0, 1.0)
+        self.camera.threshold_box(pixels, lo, hi, 1.0)
     }
 }
 

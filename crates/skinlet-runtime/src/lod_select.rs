@@ -1,6 +1,6 @@
 //! Which clusters of a bake's LOD hierarchy (`LODC`, [`crate::bake_view::LodView`]) an
-//! instance draws: the pixel threshold, projected at the nearest depth of a sphere holding the
-//! whole instance, gives the instance one error threshold in scene units, and the cut at that
+//! instance draws: the pixel threshold, projected at the nearest depth of a sphere or box
+//! holding the whole instance, gives the instance one error threshold in scene units, and the cut at that
 //! threshold is drawn (Nanite's rule with one distance per instance).
 //!
 //! Guarantee: a group's error bounds how far its clusters get from the full detail mesh at
@@ -10,7 +10,8 @@
 //! direction `(x, y, 1)`, that is `f/z` times the point's distance from the eye over its
 //! depth; `k` bounds that ratio over the segment: at the frustum's corners, or over the
 //! instance's sphere grown by the error where that is less). A point of the cut is within `e`
-//! of the full detail mesh, so at depth at least `z − e`, `z` the sphere's nearest depth; with
+//! of the full detail mesh, so at depth at least `z − e`, `z` the nearest depth of the
+//! instance's sphere or box (the box's is nearer the instance where it is known); with
 //! `e = pixels · z / (f·k + pixels)` no point of the cut is displaced by more than `pixels`
 //! from where full detail draws it. One threshold per instance makes the cut
 //! crack-free whatever the distances: every cluster decides with its own group's error and its
@@ -47,12 +48,31 @@ impl LodCamera {
     /// sphere reaches the eye's plane, and for inputs that are not finite and positive where
     /// they must be.
     pub fn threshold(&self, pixels: f32, center: Vec3, radius: f32, scale: f32) -> f32 {
-        let (z, r) = (self.forward.dot(center - self.eye), radius.max(0.0));
-        let depth = z - r;
+        let radius = radius.max(0.0);
+        self.threshold_at(pixels, self.forward.dot(center - self.eye) - radius, center, radius, scale)
+    }
+
+    /// [`Self::threshold`] for an instance inside the world-space box `min`..`max`: at the
+    /// box's nearest view depth, which is nearer the instance than its bounding sphere's
+    /// (a character seen from the front is much shallower than it is tall). 0 for a box whose
+    /// `min` is not at most its `max`.
+    pub fn threshold_box(&self, pixels: f32, min: Vec3, max: Vec3, scale: f32) -> f32 {
+        if !min.cmple(max).all() {
+            return 0.0;
+        }
+        let (center, half) = ((min + max) / 2.0, (max - min) / 2.0);
+        let depth = self.forward.dot(center - self.eye) - self.forward.abs().dot(half);
+        self.threshold_at(pixels, depth, center, half.length(), scale)
+    }
+
+    /// The threshold for an instance whose every point is at view depth `depth` or more,
+    /// inside the sphere (`center`, `radius`).
+    fn threshold_at(&self, pixels: f32, depth: f32, center: Vec3, radius: f32, scale: f32) -> f32 {
+        let z = self.forward.dot(center - self.eye);
         // The segments between the cut and full detail lie in the sphere grown by the error,
-        // which is at most `pixels · z / (f · scale)` (k ≥ 1): there a point's distance from
-        // the eye over its depth is at most (|c − eye| + grown) / (z − grown).
-        let grown = r + pixels * z / (self.focal_px * scale);
+        // which is at most `pixels · z / (f · scale)` (k ≥ 1, depth ≤ z): there a point's
+        // distance from the eye over its depth is at most (|c − eye| + grown) / (z − grown).
+        let grown = radius + pixels * z / (self.focal_px * scale);
         let near = ((center - self.eye).length() + grown) / (z - grown);
         let k = if z - grown > 0.0 && near.is_finite() { self.corner.min(near) } else { self.corner };
         let t = pixels * depth / ((self.focal_px * k + pixels) * scale);
@@ -118,6 +138,41 @@ mod tests {
             if e > 0.0 && in_frustum(p) && in_frustum(q) {
                 let screen = |v: Vec3| glam::DVec2::new(v.x as f64 / -v.z as f64, v.y as f64 / -v.z as f64) * cam.focal_px as f64;
                 let moved = screen(p).distance(screen(q));
+                proptest::prop_assert!(moved <= pixels as f64 * (1.0 + 1e-4), "{moved} px for {pixels}");
+            }
+        }
+
+        /// The same for boxes (any shape, any camera direction): a point of the box and a
+        /// point the box's threshold away land at most `pixels` apart inside the frustum; the
+        /// box's threshold is at least its bounding sphere's.
+        #[test]
+        fn a_point_the_box_threshold_away_moves_at_most_the_pixels(
+            fov in 0.2f32..2.2, aspect in 0.4f32..3.0, height in 64u32..4096,
+            look in proptest::array::uniform3(-1.0f32..1.0), eye in proptest::array::uniform3(-10.0f32..10.0),
+            at in proptest::array::uniform3(-1.0f32..1.0), depth in 0.5f32..300.0,
+            half in proptest::array::uniform3(0.0f32..3.0),
+            scale in 0.25f32..4.0, pixels in 0.25f32..8.0,
+            inside in proptest::array::uniform3(-1.0f32..1.0), dir in proptest::array::uniform3(-1.0f32..1.0),
+        ) {
+            let forward = Vec3::from(look).normalize_or(Vec3::NEG_Z);
+            let eye = Vec3::from(eye);
+            let cam = LodCamera::perspective(eye, forward, fov, aspect, height);
+            let right = forward.any_orthonormal_vector();
+            let up = right.cross(forward);
+            let (ty, tx) = ((fov / 2.0).tan(), (fov / 2.0).tan() * aspect);
+            let center = eye + forward * depth + right * (at[0] * tx * depth) + up * (at[1] * ty * depth);
+            let half = Vec3::from(half);
+            let e = cam.threshold_box(pixels, center - half, center + half, scale) * scale;
+            proptest::prop_assert!(e >= cam.threshold(pixels, center, half.length(), scale) * scale * (1.0 - 1e-5));
+            let p = center + Vec3::from(inside) * half;
+            let q = p + Vec3::from(dir).normalize_or(Vec3::X) * e;
+            // View coordinates: x right, y up, z the depth along `forward`.
+            let view = |v: Vec3| { let d = v - eye; Vec3::new(d.dot(right), d.dot(up), d.dot(forward)) };
+            let in_frustum = |v: Vec3| v.z > 0.0 && v.x.abs() <= tx * v.z && v.y.abs() <= ty * v.z;
+            let (vp, vq) = (view(p), view(q));
+            if e > 0.0 && in_frustum(vp) && in_frustum(vq) {
+                let screen = |v: Vec3| glam::DVec2::new(v.x as f64 / v.z as f64, v.y as f64 / v.z as f64) * cam.focal_px as f64;
+                let moved = screen(vp).distance(screen(vq));
                 proptest::prop_assert!(moved <= pixels as f64 * (1.0 + 1e-4), "{moved} px for {pixels}");
             }
         }
