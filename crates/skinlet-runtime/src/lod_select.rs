@@ -1,7 +1,7 @@
 //! Which clusters of a bake's LOD hierarchy (`LODC`, [`crate::bake_view::LodView`]) an
 //! instance draws: the pixel threshold, projected at the nearest depth of a sphere or box
-//! holding the whole instance, gives the instance one error threshold in scene units, and the cut at that
-//! threshold is drawn (Nanite's rule with one distance per instance).
+//! holding the whole instance, gives the instance one error threshold in scene units, and the
+//! cut at that threshold is drawn (Nanite's rule with one distance per instance).
 //!
 //! Guarantee: a group's error bounds how far its clusters get from the full detail mesh at
 //! every pose of the baked clips. Two points `e` apart, both at view depth at least `z`, land
