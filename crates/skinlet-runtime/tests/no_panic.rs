@@ -424,7 +424,7 @@ proptest! {
         let cam = skinlet_runtime::lod_select::LodCamera::perspective(eye, forward, fov, aspect, height);
         let t = cam.threshold(pixels, center, radius, scale);
         prop_assert!(t.is_finite() && t >= 0.0, "{t}");
-        let t = cam.threshold_box(pixels, center, forward, scale);
+        let t = cam.threshold_box(pixels, center.min(forward), center.max(forward), scale);
         prop_assert!(t.is_finite() && t >= 0.0, "{t}");
     }
 }
