@@ -145,16 +145,17 @@ pub struct SkinletMeshletSettings {
     /// drew; Bevy's passes then draw the survivors of every round. Without Bevy's occlusion
     /// culling on the camera this runs before Bevy's passes and only characters occlude
     /// characters. With it (`OcclusionCulling` and `DepthPrepass` on the camera, its viewport
-    /// the whole target, no `TemporalJitter`, Bevy's 3D schedule), it runs between Bevy's early and late prepasses, in at least one
-    /// round, and skinlet's depth starts as Bevy's after its early prepass: Bevy's meshes
-    /// hide characters too ([`MeshletStats::bevy_occluders`]).
+    /// the whole target, no `TemporalJitter`, Bevy's 3D schedule), it runs between Bevy's
+    /// early and late prepasses, in at least one round, and skinlet's depth starts as Bevy's
+    /// after its early prepass: Bevy's meshes hide characters too
+    /// ([`MeshletStats::bevy_occluders`]).
     pub occlusion_rounds: u32,
     /// Room each view's triangle lists start with, per bake, in triangles (24 bytes each): a
     /// list that overflows (the triangles past its room are not drawn, counted in
     /// [`MeshletStats::triangles_dropped`]) is made again, when its counts are read back a
     /// frame or two later, with room for twice what that frame's culling found (to a power of
-    /// two), and never shrinks; at most every triangle of every instance, up
-    /// to the device's storage binding limit. `u32::MAX`: that room from the start (no frame
+    /// two), and never shrinks; at most every triangle of every instance, up to the device's
+    /// storage binding limit. `u32::MAX`: that room from the start (no frame
     /// drops a triangle; memory for every triangle of every instance in every view).
     pub list_triangles: u32,
 }
