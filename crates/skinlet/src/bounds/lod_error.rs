@@ -19,10 +19,12 @@
 //!   children's groups'. A cut's regions partition the full detail mesh, so each full detail
 //!   point is within its cluster's error of it, and no level adds to another.
 //!
-//! How. Distances are bounded through points paired in the bind pose. Each triangle on one
-//! side is covered by sub-triangles (itself, or midpoint subdivisions where one match would
-//! be loose), each matched with one triangle of the other side, each corner with a fixed
-//! point of it (its bind-pose nearest). A skinned triangle is the affine image of its bind
+//! How. Distances are bounded through fixed pairs of points. Each triangle on one side is
+//! covered by sub-triangles (itself, or midpoint subdivisions where one match would be
+//! loose), each matched with one triangle of the other side, each corner with a fixed point
+//! of it (its nearest in the rest pose); the triangle matched is the one whose pairs stay
+//! nearest over the rest pose and each clip's start, middle and end (pairs nearest in one
+//! pose can part in motion, across a bending joint). A skinned triangle is the affine image of its bind
 //! triangle and the distance to a triangle is convex, so any point of a skinned sub-triangle
 //! is at most its corners' largest distance to their paired points away from the other side.
 //! Such a distance `S(P) − S(Q)`, with `P − Q = Σ cᵥ v` over mesh vertices (`Σ cᵥ = 0`), is
@@ -68,7 +70,8 @@ pub fn bound_errors(
     mesh: &SkinnedMesh,
     lod: &mut LodHierarchy,
 ) -> Result<()> {
-    let own = group_bounds(skeleton, skin, clips, mesh, lod, |ctx, g| {
+    let ctx = Ctx::new(skeleton, skin, clips, mesh)?;
+    let own = group_bounds(&ctx, clips, lod, |ctx, g| {
         let group = &lod.groups[g];
         let (children, made) = (triangles(lod, &group.children), triangles(lod, &group.made));
         let mut pairs = Vec::new();
@@ -77,7 +80,7 @@ pub fn bound_errors(
         (children, pairs)
     })?;
     let regions = regions(mesh, lod);
-    let direct = group_bounds(skeleton, skin, clips, mesh, lod, |ctx, g| {
+    let direct = group_bounds(&ctx, clips, lod, |ctx, g| {
         let made = &lod.groups[g].made;
         let region = triangles_of(&regions, made);
         let mut pairs = Vec::new();
@@ -187,33 +190,21 @@ fn triangles_of(regions: &[Vec<u32>], clusters: &[u32]) -> Vec<u32> {
 /// Per group, the largest paired distance over every interval of `clips`, the pairs and the
 /// triangles whose principal joint they are bounded in given by `pairs_of`.
 fn group_bounds(
-    skeleton: &Skeleton,
-    skin: &Skin,
+    ctx: &Ctx,
     clips: &[&Clip],
-    mesh: &SkinnedMesh,
     lod: &LodHierarchy,
     pairs_of: impl Fn(&Ctx, usize) -> (Vec<u32>, Vec<Vec<(u32, f64)>>) + Sync,
 ) -> Result<Vec<f64>> {
-    if mesh.influences.is_none() {
-        return Err(Error::invalid("cluster LOD errors", "the mesh has no skin weights"));
-    }
+    let (skeleton, mesh) = (ctx.skeleton, ctx.mesh);
     let intervals: Vec<(Option<&Clip>, f32, f32)> = if clips.is_empty() {
         vec![(None, 0.0, 0.0)]
     } else {
         clips.iter().flat_map(|&c| key_intervals(c).into_iter().map(move |(a, b)| (Some(c), a, b))).collect()
     };
-    let ranges = clip_weight_ranges(&mesh.morphs, clips)?;
-    let reach = (0..mesh.positions.len())
-        .map(|v| {
-            let (b, p) = (morph_box(mesh, v, &ranges), mesh.positions[v].as_dvec3());
-            (b.min - p).abs().max((b.max - p).abs()).length()
-        })
-        .collect();
-    let ctx = Ctx { skeleton, skin, mesh, reach };
     (0..lod.groups.len())
         .into_par_iter()
         .map(|g| {
-            let (principal, pairs) = pairs_of(&ctx, g);
+            let (principal, pairs) = pairs_of(ctx, g);
             let terms = ctx.terms(&principal, &pairs)?;
             let (mut poser, mut at) = (Poser::default(), Vec::new());
             let mut bound = |clip: Option<&Clip>, t1: f32, t2: f32| -> Result<f64> {
@@ -223,7 +214,7 @@ fn group_bounds(
                     None => at = skeleton.nodes.iter().map(|n| n.rest).collect(),
                 }
                 let globals = poser.globals(skeleton, clip, t1);
-                Ok(terms.bound(&ctx, &motions, &at, globals))
+                Ok(terms.bound(ctx, &motions, &at, globals))
             };
             let mut heap = std::collections::BinaryHeap::new();
             for &(clip, t1, t2) in &intervals {
@@ -299,7 +290,16 @@ struct Ctx<'a> {
     mesh: &'a SkinnedMesh,
     /// How far each vertex's morph deltas can move it within the weights' ranges over the clips.
     reach: Vec<f64>,
+    /// Each vertex's skinned positions at `poses` poses (vertex after vertex): the rest pose,
+    /// then [`POSES_PER_CLIP`] times of each clip. Pairs are matched where they stay near at
+    /// all of them.
+    posed: Vec<DVec3>,
+    poses: usize,
 }
+
+/// How many poses of each clip pairs are matched at: its start, middle and end (more did not
+/// tighten Xbot's errors; each costs time).
+const POSES_PER_CLIP: usize = 3;
 
 /// One joint `k`'s share of a paired difference: `s · Tₖ(t) m₀` (the carried box of a
 /// vertex, [`Terms::carried`]`[carried]`) plus `Lin Tₖ(t)` (joint [`Terms::joints`]`[joint]`)
@@ -323,9 +323,41 @@ struct Terms {
     carried: Vec<(u32, u16)>,
 }
 
-impl Ctx<'_> {
+impl<'a> Ctx<'a> {
+    fn new(skeleton: &'a Skeleton, skin: &'a Skin, clips: &[&Clip], mesh: &'a SkinnedMesh) -> Result<Ctx<'a>> {
+        if mesh.influences.is_none() {
+            return Err(Error::invalid("cluster LOD errors", "the mesh has no skin weights"));
+        }
+        let ranges = clip_weight_ranges(&mesh.morphs, clips)?;
+        let reach = (0..mesh.positions.len())
+            .map(|v| {
+                let (b, p) = (morph_box(mesh, v, &ranges), mesh.positions[v].as_dvec3());
+                (b.min - p).abs().max((b.max - p).abs()).length()
+            })
+            .collect();
+        let mut times: Vec<(Option<&Clip>, Option<f32>)> = vec![(None, None)];
+        for &c in clips {
+            let last = (POSES_PER_CLIP - 1) as f32;
+            times.extend((0..POSES_PER_CLIP).map(|k| (Some(c), Some(c.start + c.duration() * k as f32 / last))));
+        }
+        let poses = times.len();
+        let mut posed = vec![DVec3::ZERO; mesh.positions.len() * poses];
+        for (p, &(clip, t)) in times.iter().enumerate() {
+            let at = crate::skinning::posed_positions(skeleton, skin, mesh, clip, t)?;
+            for (v, x) in at.iter().enumerate() {
+                posed[v * poses + p] = x.as_dvec3();
+            }
+        }
+        Ok(Ctx { skeleton, skin, mesh, reach, posed, poses })
+    }
+
     fn position(&self, v: u32) -> DVec3 {
         self.mesh.positions[v as usize].as_dvec3()
+    }
+
+    /// Vertex `v` skinned at pose `p` (0: the rest pose).
+    fn posed(&self, v: u32, p: usize) -> DVec3 {
+        self.posed[v as usize * self.poses + p]
     }
 
     fn morph_reach(&self, v: u32) -> f64 {
@@ -452,7 +484,7 @@ fn times(a: f64, b: f64) -> f64 {
     if a == 0.0 || b == 0.0 { 0.0 } else { a * b }
 }
 
-/// A triangle of the side matched against, in the bind pose.
+/// A triangle of the side matched against, in the rest pose.
 struct Target {
     vertices: [u32; 3],
     corners: [DVec3; 3],
@@ -465,7 +497,7 @@ fn match_pairs(ctx: &Ctx, from: &[u32], to: &[u32], out: &mut Vec<Vec<(u32, f64)
     let targets: Vec<Target> = to
         .chunks_exact(3)
         .map(|t| {
-            let corners = [ctx.position(t[0]), ctx.position(t[1]), ctx.position(t[2])];
+            let corners = [ctx.posed(t[0], 0), ctx.posed(t[1], 0), ctx.posed(t[2], 0)];
             let mut bounds = Aabb::point(corners[0]);
             bounds.extend(corners[1]);
             bounds.extend(corners[2]);
@@ -474,53 +506,72 @@ fn match_pairs(ctx: &Ctx, from: &[u32], to: &[u32], out: &mut Vec<Vec<(u32, f64)
         .collect();
     let identity = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
     for t in from.chunks_exact(3) {
-        let source = [t[0], t[1], t[2]];
-        let corners = [ctx.position(t[0]), ctx.position(t[1]), ctx.position(t[2])];
-        subdivide(&targets, &source, &corners, identity, 0, out);
+        subdivide(ctx, &targets, &[t[0], t[1], t[2]], identity, 0, out);
     }
 }
 
 /// Matches the sub-triangle with barycentric corners `bary` (over `source`) or splits it.
+/// Each corner is paired with its nearest point of the target in the rest pose, and the
+/// target is the one whose pairs stay nearest over the sampled poses ([`Ctx::posed`]): the
+/// bound holds for any pairing, and pairs that part in motion make it loose.
 fn subdivide(
+    ctx: &Ctx,
     targets: &[Target],
     source: &[u32; 3],
-    corners: &[DVec3; 3],
     bary: [[f64; 3]; 3],
     depth: u32,
     out: &mut Vec<Vec<(u32, f64)>>,
 ) {
-    let points = bary.map(|b| b[0] * corners[0] + b[1] * corners[1] + b[2] * corners[2]);
-    // The target whose farthest corner distance is least, and each corner's own nearest.
-    let (mut best, mut best_far) = (0usize, f64::INFINITY);
+    let at = |b: [f64; 3], p: usize| {
+        b[0] * ctx.posed(source[0], p) + b[1] * ctx.posed(source[1], p) + b[2] * ctx.posed(source[2], p)
+    };
+    // The corners at every pose (pose after pose).
+    let posed: Vec<[DVec3; 3]> = (0..ctx.poses).map(|p| bary.map(|b| at(b, p))).collect();
+    let points = posed[0];
+    // The target whose farthest pair over the poses is nearest, and each corner's own
+    // nearest such pair. Any pose's distance bounds that from below: the rest pose's boxes
+    // skip targets.
+    let (mut best, mut best_far) = (None, f64::INFINITY);
     let mut nearest = [f64::INFINITY; 3];
-    for (i, t) in targets.iter().enumerate() {
+    for t in targets {
         let gaps = points.map(|p| box_distance(&t.bounds, p));
         if gaps.iter().zip(&nearest).all(|(g, n)| g >= n) && gaps.iter().copied().fold(0.0, f64::max) >= best_far {
             continue;
         }
-        let d = points.map(|p| (closest_point(&t.corners, p).0 - p).length());
+        let w = points.map(|p| closest_point(&t.corners, p).1);
+        let mut d = [0.0f64; 3];
+        for (p, corners) in posed.iter().enumerate() {
+            let [a, b, c] = t.vertices.map(|v| ctx.posed(v, p));
+            for k in 0..3 {
+                d[k] = d[k].max((corners[k] - (w[k][0] * a + w[k][1] * b + w[k][2] * c)).length());
+            }
+            // Distances only grow with more poses: stop once this target improves nothing.
+            if d.iter().zip(&nearest).all(|(d, n)| d >= n) && d.iter().copied().fold(0.0, f64::max) >= best_far {
+                break;
+            }
+        }
         for k in 0..3 {
             nearest[k] = nearest[k].min(d[k]);
         }
         let far = d.iter().copied().fold(0.0, f64::max);
-        if far < best_far {
-            (best, best_far) = (i, far);
+        // (A NaN distance, from a degenerate pose, still gets a target: its bound is infinite.)
+        if far < best_far || best.is_none() {
+            (best, best_far) = (Some((t, w)), far);
         }
     }
     let own = nearest.iter().copied().fold(0.0, f64::max);
-    let size = (corners[1] - corners[0]).length().max((corners[2] - corners[0]).length());
+    let size = (points[1] - points[0]).length().max((points[2] - points[0]).length());
     if depth < MAX_DEPTH && best_far > own * LOOSE + 1e-9 * size {
         let mid = |a: [f64; 3], b: [f64; 3]| [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0, (a[2] + b[2]) / 2.0];
         let [a, b, c] = bary;
         let (ab, bc, ca) = (mid(a, b), mid(b, c), mid(c, a));
         for piece in [[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]] {
-            subdivide(targets, source, corners, piece, depth + 1, out);
+            subdivide(ctx, targets, source, piece, depth + 1, out);
         }
         return;
     }
-    let Some(target) = targets.get(best) else { return };
-    for (p, b) in points.iter().zip(bary) {
-        let w = closest_point(&target.corners, *p).1;
+    let Some((target, w)) = best else { return };
+    for (b, w) in bary.iter().zip(w) {
         let mut coefficients: Vec<(u32, f64)> = Vec::with_capacity(6);
         let mut add = |v: u32, c: f64| match coefficients.iter_mut().find(|e| e.0 == v) {
             Some(e) => e.1 += c,
@@ -591,6 +642,32 @@ pub(crate) fn closest_point(t: &[DVec3; 3], p: DVec3) -> (DVec3, [f64; 3]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn pairs_match_the_triangle_that_stays_near_in_motion() {
+        // A source triangle, a copy 0.1 above it that slides away at the second pose, and one
+        // 0.2 below that stays: at the rest pose alone the first is nearer, over both the second.
+        let triangle = [DVec3::ZERO, DVec3::X, DVec3::Y];
+        let rest: Vec<DVec3> = [0.0, 0.1, -0.2].iter().flat_map(|&z| triangle.map(|p| p + DVec3::Z * z)).collect();
+        let moved: Vec<DVec3> =
+            (rest.iter().enumerate()).map(|(v, &p)| if (3..6).contains(&v) { p + 5.0 * DVec3::X } else { p }).collect();
+        let mesh = SkinnedMesh { positions: rest.iter().map(|p| p.as_vec3()).collect(), ..SkinnedMesh::default() };
+        let (skeleton, skin) =
+            (Skeleton::default(), Skin { name: String::new(), joints: Vec::new(), inverse_bind: Vec::new() });
+        let matched = |poses: &[&[DVec3]]| -> Vec<u32> {
+            let posed = (0..rest.len()).flat_map(|v| poses.iter().map(move |p| p[v])).collect();
+            let ctx =
+                Ctx { skeleton: &skeleton, skin: &skin, mesh: &mesh, reach: Vec::new(), posed, poses: poses.len() };
+            let mut pairs = Vec::new();
+            match_pairs(&ctx, &[0, 1, 2], &[3, 4, 5, 6, 7, 8], &mut pairs);
+            let mut targets: Vec<u32> = pairs.iter().flatten().filter(|e| e.1 < 0.0).map(|e| e.0).collect();
+            targets.sort_unstable();
+            targets.dedup();
+            targets
+        };
+        assert_eq!(matched(&[&rest]), [3, 4, 5]);
+        assert_eq!(matched(&[&rest, &moved]), [6, 7, 8]);
+    }
 
     #[test]
     fn closest_point_barycentrics_reproduce_the_point() {
