@@ -58,6 +58,12 @@ pub struct Args {
     #[arg(long, default_value = "VS,VS-indexed,CS,MS,MS-CI", value_delimiter = ',',
           value_parser = ["VS", "VS-indexed", "CS", "MS", "MS-CI"])]
     pipelines: Vec<String>,
+    /// The cullings measured, comma-separated (default: every one the pipelines have):
+    /// none, frustum, backface, both (frustum and backface), both-by-class (task shaders),
+    /// both+occlusion, both+triangles, both+occl+tri (VS), both+lod, both+occl+lod (`--lod`).
+    /// A crowd too large to draw many times can be measured on a few rows.
+    #[arg(long, value_delimiter = ',', value_parser = CULLINGS)]
+    cullings: Vec<String>,
     /// Timed frames per configuration and repeat.
     #[arg(long, default_value_t = 3)]
     frames: usize,
@@ -110,6 +116,20 @@ pub struct Args {
     #[arg(long)]
     json: bool,
 }
+
+/// Every culling row `gpu-bench` draws.
+const CULLINGS: [&str; 10] = [
+    "none",
+    "frustum",
+    "backface",
+    "both",
+    "both-by-class",
+    "both+occlusion",
+    "both+triangles",
+    "both+occl+tri",
+    "both+lod",
+    "both+occl+lod",
+];
 
 /// One instance in one frame: world-space skinning matrices, morph weights, and
 /// whether the bounds the culling uses hold for the pose (the pose guard's answer).
@@ -450,6 +470,8 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             configs.push(Config { pipeline, skinning, mesh, culler, baked, culling, tests, path, view, lod: false });
         }
     }
+    configs.retain(|c| a.cullings.is_empty() || a.cullings.iter().any(|x| x == c.culling));
+    anyhow::ensure!(!configs.is_empty(), "no row to draw: --pipelines and --cullings (and --lod) have none in common");
     // Task-culled rows: each mesh's meshlets uploaded for culling once.
     let characters = (configs.iter())
         .map(|c| match c.path {
@@ -569,7 +591,9 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             draw(k, 0)?;
         }
         let frame = draw(k, 0)?;
+        // LOD rows draw other triangles than full detail: compared below, not here.
         let reference = match (c.view, c.path) {
+            _ if c.lod => None,
             (Some(CrowdView::Unculled), _) => Some(frame.image.clone()),
             (Some(view), _) => {
                 let same_way = if view == CrowdView::Indexed { view } else { CrowdView::Pulled };

@@ -1,7 +1,9 @@
 //! `skinlet lod`: what a cluster LOD hierarchy saves on a crowd. Each instance draws the cut
 //! at the pixel threshold projected at the nearest point of the box around its per-part
-//! boxes (`skinlet_runtime::lod_select`), on the CPU, before any culling; the triangles and
-//! vertex references of those cuts are compared with full detail.
+//! boxes (`skinlet_runtime::lod_select`), on the CPU; the triangles and vertex references of
+//! those cuts are compared with full detail, before any culling and (`--culled`) after the
+//! frustum and backface tests the GPU crowd's culling pass runs (`MeshletCuller`, the same
+//! test on the CPU): what `gpu-bench --lod` draws, for crowds too large for the device.
 
 use anyhow::Result;
 use serde_json::json;
@@ -10,6 +12,7 @@ use skinlet::pose::global_transforms;
 use skinlet_lab::crowd::{CrowdParams, Layout, instance_pose, posed_crowd};
 use skinlet_lab::crowd_lod::CrowdLod;
 use skinlet_runtime::bake_view::BakeView;
+use skinlet_runtime::meshlet_cull::{JointFrame, Tests};
 use skinlet_runtime::part_bounds::PoseBounds;
 
 #[derive(clap::Args)]
@@ -33,6 +36,10 @@ pub struct Args {
     /// The largest screen displacement allowed, in pixels, comma-separated for several.
     #[arg(long, default_value = "1", value_delimiter = ',')]
     pixels: Vec<f32>,
+    /// Also count what survives frustum and backface culling (the clusters' clip bounds, as
+    /// the GPU crowd culls them), full detail and cuts alike.
+    #[arg(long)]
+    culled: bool,
     #[command(flatten)]
     refine: crate::RefineArgs,
     /// Print JSON.
@@ -50,6 +57,9 @@ struct Measured {
     meshlets: usize,
     full: (u64, u64),
     drawn: Vec<(u64, u64, Vec<u64>)>,
+    /// With `--culled`: triangles and vertex references of full detail, then of each cut, that
+    /// survive frustum and backface culling.
+    culled: Option<Vec<(u64, u64)>>,
 }
 
 pub fn command(file: &str, a: &Args) -> Result<()> {
@@ -65,14 +75,19 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let clips = crate::bake::clips_of(&baked, &asset, a.gltf.as_deref().unwrap_or(file))?;
     let m = skinlet::bake::with_view(&baked, |view| measure(view, &asset, &baked, &clips, a))?;
     let instance_frames = (a.instances * a.frames) as u64;
-    let rows: Vec<_> = (a.pixels.iter().zip(&m.drawn))
-        .map(|(p, d)| {
+    let rows: Vec<_> = (a.pixels.iter().zip(&m.drawn).enumerate())
+        .map(|(k, (p, d))| {
             json!({
                 "pixels": p,
                 "triangles_full_detail": m.full.0 * instance_frames, "triangles_lod": d.0,
                 "vertex_refs_full_detail": m.full.1 * instance_frames, "vertex_refs_lod": d.1,
                 "triangle_reduction": (m.full.0 * instance_frames) as f64 / d.0.max(1) as f64,
                 "clusters_per_level": d.2,
+                "culled": m.culled.as_ref().map(|c| json!({
+                    "triangles_full_detail": c[0].0, "triangles_lod": c[k + 1].0,
+                    "vertex_refs_full_detail": c[0].1, "vertex_refs_lod": c[k + 1].1,
+                    "triangle_reduction": c[0].0 as f64 / c[k + 1].0.max(1) as f64,
+                })),
             })
         })
         .collect();
@@ -105,6 +120,16 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             r["vertex_refs_full_detail"],
             r["clusters_per_level"]
         );
+        if let Some(c) = r.get("culled").filter(|c| !c.is_null()) {
+            println!(
+                "    culled (frustum and backface): {} of {} triangles ({:.1}x fewer), {} of {} vertex references",
+                c["triangles_lod"],
+                c["triangles_full_detail"],
+                c["triangle_reduction"].as_f64().unwrap_or(0.0),
+                c["vertex_refs_lod"],
+                c["vertex_refs_full_detail"]
+            );
+        }
     }
     Ok(())
 }
@@ -137,6 +162,14 @@ fn measure(
     let base = &size[..meshlets.len()];
     let full = (base.iter().map(|s| s.0).sum(), base.iter().map(|s| s.1).sum());
     let mut drawn = vec![(0u64, 0u64, Vec::<u64>::new()); a.pixels.len()];
+    // Frustum and backface culling of every cluster, kept where the instance draws it.
+    let culler = match a.culled {
+        true => Some(view.lod_culler()?.ok_or_else(|| invalid("the bake has no cluster LOD"))?),
+        false => None,
+    };
+    let mut culled = vec![(0u64, 0u64); a.pixels.len() + 1];
+    let (mut joint_frame, mut flags, mut visible, mut kept) =
+        (JointFrame::default(), Vec::new(), Vec::new(), Vec::new());
     let (mut locals, mut weights, mut globals) = (Vec::new(), Vec::new(), Vec::new());
     let (mut joints, mut skinning, mut cut) = (Vec::new(), Vec::new(), Vec::new());
     for frame in 0..a.frames {
@@ -146,11 +179,24 @@ fn measure(
             pl.world_matrices(&palette, &globals, &mut joints, &mut skinning);
             let clip = clips.get(pl.clip).map(|&c| (pl.clip as u32, pl.time(Some(c), frame, params.fps)));
             let pose = clip.map_or(PoseBounds::Clips, |(clip, time)| PoseBounds::ClipAt { clip, time });
+            if let Some(culler) = &culler {
+                culler.prepare(&joints, &scene.camera, Tests::Both, &mut joint_frame);
+                visible.clear();
+                culler.cull(&joint_frame, &mut flags, &mut visible);
+                kept.clear();
+                kept.resize(size.len(), false);
+                visible.iter().for_each(|&c| kept[c as usize] = true);
+                let full = visible.iter().filter(|&&c| (c as usize) < meshlets.len());
+                culled[0] = full.fold(culled[0], |(t, v), &c| (t + size[c as usize].0, v + size[c as usize].1));
+            }
             for (k, &pixels) in a.pixels.iter().enumerate() {
                 let d = &mut drawn[k];
                 lod.cut(thresholds.threshold(pixels, &joints, &weights, pose), &mut cut);
                 for &c in &cut {
                     let (tris, verts, level) = size[c as usize];
+                    if kept.get(c as usize) == Some(&true) {
+                        culled[k + 1] = (culled[k + 1].0 + tris, culled[k + 1].1 + verts);
+                    }
                     (d.0, d.1) = (d.0 + tris, d.1 + verts);
                     if d.2.len() <= level as usize {
                         d.2.resize(level as usize + 1, 0);
@@ -169,6 +215,7 @@ fn measure(
         meshlets: meshlets.len(),
         full,
         drawn,
+        culled: culler.map(|_| culled),
     })
 }
 

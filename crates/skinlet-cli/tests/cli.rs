@@ -387,37 +387,43 @@ fn lod_bakes_and_verifies() {
     let l = &v["lod"];
     assert_eq!((l["cluster_violations"].as_u64(), l["error_violations"].as_u64()), (Some(0), Some(0)), "{v}");
     assert!(l["cluster_vertex_checks"].as_u64().unwrap() > 0 && l["error_points"].as_u64().unwrap() > 0, "{v}");
-    // On a crowd: fewer triangles the larger the threshold, never more than full detail.
-    let j = json_of(&[
-        "lod",
-        with,
-        "--gltf",
-        "@demo:2000",
-        "--instances",
-        "64",
-        "--frames",
-        "1",
-        "--pixels",
-        "1,16",
-        "--json",
-    ]);
+    // On a crowd: fewer triangles the larger the threshold, never more than full detail,
+    // before culling and after (frustum and backface culling on the CPU).
+    let crowd = ["--gltf", "@demo:2000", "--crowd", "dense", "--instances", "48", "--frames", "1", "--width", "480"];
+    let j = json_of(&[&["lod", with][..], &crowd, &["--pixels", "4,16", "--culled", "--json"]].concat());
     let t = &j["thresholds"];
-    let full = t[0]["triangles_full_detail"].as_u64().unwrap();
-    let (fine, coarse) = (t[0]["triangles_lod"].as_u64().unwrap(), t[1]["triangles_lod"].as_u64().unwrap());
-    assert_eq!(full, 64 * b["baked_triangles"].as_u64().unwrap(), "{j}");
+    let count = |v: &Value, key: &str| v[key].as_u64().unwrap_or_else(|| panic!("no {key} in {v}"));
+    let full = count(&t[0], "triangles_full_detail");
+    let (fine, coarse) = (count(&t[0], "triangles_lod"), count(&t[1], "triangles_lod"));
+    assert_eq!(full, 48 * b["baked_triangles"].as_u64().unwrap(), "{j}");
     assert!(coarse < fine && fine <= full, "{j}");
-    // The cuts selected and culled on the GPU: fewer triangles than full detail, both culled,
-    // silhouettes within the pixels (and half a pixel's diagonal for rasterization).
-    let args = ["--gltf", "@demo:2000", "--crowd", "dense", "--pipelines", "VS", "--instances", "48", "--lod"];
-    let more = ["--lod-pixels", "4", "--frames", "1", "--repeats", "1", "--width", "480", "--json"];
-    let g = json_of(&[&["gpu-bench", with][..], &args, &more].concat());
+    let (culled_full, culled_fine) =
+        (count(&t[0]["culled"], "triangles_full_detail"), count(&t[0]["culled"], "triangles_lod"));
+    let culled_coarse = count(&t[1]["culled"], "triangles_lod");
+    assert!(
+        culled_full < full && culled_fine < fine && culled_coarse <= culled_fine && culled_fine <= culled_full,
+        "{j}"
+    );
+    // The cuts selected and culled on the GPU (only the two rows asked for): fewer triangles
+    // than full detail, both culled, as many as the CPU counts for the same still crowd (up to
+    // f32 differences at the planes), silhouettes within the pixels (and half a pixel's
+    // diagonal for rasterization).
+    let args = ["--pipelines", "VS", "--lod", "--lod-pixels", "4", "--cullings", "both,both+lod", "--still"];
+    let g = json_of(&[&["gpu-bench", with][..], &crowd, &args, &["--repeats", "1", "--json"]].concat());
     let l = &g["lod"];
-    let (drawn, full) = (l["triangles_drawn"].as_u64().unwrap(), l["triangles_full_detail"].as_u64().unwrap());
+    let (drawn, full) = (count(l, "triangles_drawn"), count(l, "triangles_full_detail"));
     assert!(drawn < full && l["vertex_refs_drawn"].as_u64() < l["vertex_refs_full_detail"].as_u64(), "{l}");
+    for (gpu, cpu) in [(drawn, culled_fine), (full, culled_full)] {
+        assert!(gpu.abs_diff(cpu) as f64 <= 0.01 * cpu as f64, "GPU {gpu} and CPU {cpu} triangles: {l} {j}");
+    }
     assert!(l["max_silhouette_px"].as_f64().unwrap() <= 4.0 + std::f64::consts::FRAC_1_SQRT_2, "{l}");
     let rows = g["rows"].as_array().unwrap();
-    let lod_row = rows.iter().find(|r| r["culling"] == "both+lod").unwrap();
-    assert!(lod_row["image_equal_to_unculled"].is_null() && lod_row["triangles_per_frame"].as_u64() == Some(drawn));
+    assert_eq!(rows.iter().map(|r| r["culling"].as_str().unwrap()).collect::<Vec<_>>(), ["both", "both+lod"], "{g}");
+    assert!(rows[1]["image_equal_to_unculled"].is_null() && rows[1]["triangles_per_frame"].as_u64() == Some(drawn));
+    // No row left: a clear error.
+    let (code, _, err) =
+        skinlet(&[&["gpu-bench", with][..], &crowd, &["--pipelines", "CS", "--cullings", "both+lod"]].concat());
+    assert!(code != 0 && err.contains("no row to draw"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 
