@@ -1385,7 +1385,7 @@ fn bake_gpu(
     let vertices = view.vertices().positions.len();
     let (_, draws) = skinlet_gpu::mesh::meshlet_index_buffer(&meshlets, vertices).map_err(e)?;
     let character = GpuCharacter::new(device, &culler, &draw.inverse_bind, &draws).map_err(e)?;
-    let survivors = capacity * character.meshlets();
+    let survivors = capacity * character.most_drawn();
     let crowd = match occlusion {
         Some((view, rounds)) => {
             let Raster { width, height, subpixel_bits, multisampled, .. } = raster;
@@ -1515,7 +1515,7 @@ fn view_culling(
     let e = |e: skinlet_gpu::GpuError| e.to_string();
     let bytes = &bytemuck::cast_slice::<u32, u8>(&draw.words)[..draw.len];
     let view = skinlet_runtime::bake_view::BakeView::new(bytes).map_err(|e| e.to_string())?;
-    let survivors = b.capacity * b.character.meshlets();
+    let survivors = b.capacity * b.character.most_drawn();
     let (palette, instances) = (&b.palette, &b.instance_buffer);
     let crowd = CrowdCulling::new(device, pipelines, &b.character, palette, instances, b.capacity, survivors);
     let (margin, relative) = draw.mesh.margins();

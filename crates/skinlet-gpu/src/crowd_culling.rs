@@ -170,6 +170,48 @@ impl CullInstance {
     }
 }
 
+/// The most meshlets of one cut (`LodView::cut`'s rule: a full-detail meshlet `i < base` at a
+/// threshold below its parent's error, a cluster at one from its own error to below its
+/// parent's; full detail, `base`, at a negative threshold): the most intervals of thresholds
+/// that overlap, swept in order (a cluster leaving at an error before one entering at it).
+fn most_drawn(base: usize, errors: &[[f32; 2]]) -> u32 {
+    let mut events: Vec<(f32, i32)> = Vec::with_capacity(2 * errors.len());
+    for (i, &[own, parent]) in errors.iter().enumerate() {
+        events.push((if i < base { 0.0 } else { own }, 1));
+        if parent.is_finite() {
+            events.push((parent, -1));
+        }
+    }
+    events.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    let (mut now, mut most) = (0i64, base as i64);
+    for (_, step) in events {
+        now += step as i64;
+        most = most.max(now);
+    }
+    most as u32
+}
+
+#[cfg(test)]
+mod most_drawn_tests {
+    use super::most_drawn;
+
+    #[test]
+    fn most_drawn_is_the_largest_cut() {
+        let inf = f32::INFINITY;
+        // Two meshlets (parent error 1) made into three clusters (1 to 2), made into a root (2).
+        let errors = [[0.0, 1.0], [0.0, 1.0], [1.0, 2.0], [1.0, 2.0], [1.0, 2.0], [2.0, inf]];
+        assert_eq!(most_drawn(2, &errors), 3);
+        // Made into one cluster: full detail is the largest.
+        assert_eq!(most_drawn(2, &[[0.0, 1.0], [0.0, 1.0], [1.0, inf]]), 2);
+        // Three clusters of error 1 whose parent's error is 1 too are in no cut: leaving and
+        // entering at one error never count together.
+        let errors = [[0.0, 1.0], [0.0, 1.0], [1.0, 1.0], [1.0, 1.0], [1.0, 1.0], [1.0, inf]];
+        assert_eq!(most_drawn(2, &errors), 2);
+        // No hierarchy: every meshlet.
+        assert_eq!(most_drawn(4, &[[0.0, inf]; 4]), 4);
+    }
+}
+
 /// The compute pipelines (prepare, cull to draws, finish, depth pyramid) of one device.
 pub struct CullPipelines {
     prepare: wgpu::ComputePipeline,
@@ -184,6 +226,8 @@ pub struct CullPipelines {
 /// A character's culling data on the GPU (uploaded once).
 pub struct GpuCharacter {
     meshlets: u32,
+    /// [`GpuCharacter::most_drawn`].
+    most_drawn: u32,
     joints: u32,
     /// The largest meshlet's index count.
     corners: u32,
@@ -608,9 +652,11 @@ impl GpuCharacter {
         class_ranges[1][0] = class_ranges[0][1];
         class_ranges[2][0] = class_ranges[1][0] + class_ranges[1][1];
         let storage = wgpu::BufferUsages::STORAGE;
+        let most_drawn = most_drawn(base, errors);
         crate::context::checked(device, location, || GpuCharacter {
             class_ranges,
             meshlets: meshlets as u32,
+            most_drawn,
             joints: joints as u32,
             corners: draws.iter().map(|d| d[0]).max().unwrap_or(0),
             has_boxes: !culler.any_pose_boxes().1.is_empty(),
@@ -629,6 +675,13 @@ impl GpuCharacter {
 
     pub fn meshlets(&self) -> u32 {
         self.meshlets
+    }
+
+    /// The most meshlets one instance can draw: every full-detail meshlet, or the largest LOD
+    /// cut where that has more. `instances × most_drawn()` places hold every survivor of a
+    /// culled list (a hierarchy's clusters all together are never one instance's).
+    pub fn most_drawn(&self) -> u32 {
+        self.most_drawn
     }
 
     pub fn joints(&self) -> u32 {
@@ -665,8 +718,9 @@ impl CrowdCulling {
     /// Buffers and bind groups for up to `capacity` instances of `character` over the
     /// caller's `palette` (at least `capacity × joints` matrices) and `instances` (at least
     /// `capacity` [`CullInstance`]s), both with `STORAGE` usage, and a list of
-    /// `survivor_capacity` survivors (`capacity × meshlets` never overflows; a frame's
-    /// survivors past it are not drawn, [`SurvivorHeader::found`] says how many there were).
+    /// `survivor_capacity` survivors (`capacity ×` [`GpuCharacter::most_drawn`] never
+    /// overflows; a frame's survivors past it are not drawn, [`SurvivorHeader::found`] says how
+    /// many there were).
     /// Errors when a buffer is too small or lacks the usage, or the list or the joint records
     /// exceed the device's storage binding limit.
     pub fn new(

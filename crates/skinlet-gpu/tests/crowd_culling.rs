@@ -536,10 +536,30 @@ fn lod_cuts_are_selected_on_the_gpu_as_on_the_cpu() {
         in_cut.push(cut);
     }
     let tested: Vec<usize> = in_cut.iter().map(|c| c.iter().filter(|&&x| x).count()).collect();
-    let run = |character, tested| {
+    let run = |character: &GpuCharacter, tested| {
         let (palette, instances, camera) = (&palette, &instances, &scene.camera);
-        cull_on_gpu(&gpu, &pipelines, character, &draws, palette, instances, camera, Tests::Both, None, tested)
+        let room = Some(instances.len() as u32 * character.most_drawn());
+        cull_on_gpu(&gpu, &pipelines, character, &draws, palette, instances, camera, Tests::Both, room, tested)
     };
+    // The survivor lists' room: every meshlet per instance without a hierarchy, the largest cut
+    // (every threshold at and between the groups' errors, brute force) with one.
+    assert_eq!(plain.most_drawn() as usize, all.len());
+    let largest = skinlet::bake::with_view(&baked, |view| {
+        let lod = view.lod().unwrap();
+        let mut at: Vec<f32> = group_errors.iter().flat_map(|&e| [e, e.next_up()]).collect();
+        at.extend([-1.0, 0.0]);
+        let mut cut = Vec::new();
+        Ok(at
+            .iter()
+            .map(|&t| {
+                lod.cut(t, &mut cut);
+                cut.len()
+            })
+            .max()
+            .unwrap())
+    })
+    .unwrap();
+    assert_eq!(with_lod.most_drawn() as usize, largest);
     let (everything, cut) = (run(&plain, None), run(&with_lod, Some(&tested)));
     let (mut coarse, mut culled) = (0, 0);
     for (i, (row, whole)) in cut.drawn.iter().zip(&everything.drawn).enumerate() {

@@ -230,7 +230,7 @@ impl GpuCrowd {
         // reads it).
         let weights = gpu.buffer("crowd morph weights", &zeros(4 * morphs.max(1) as u64 * cap), storage);
         let view = gpu.buffer("crowd view", &[0u32; 24], wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST);
-        let survivors = capacity.saturating_mul(character.meshlets());
+        let survivors = capacity.saturating_mul(character.most_drawn());
         let texture = |format, usage| target_texture(device, width, height, format, usage);
         let depth = texture(
             DEPTH,
