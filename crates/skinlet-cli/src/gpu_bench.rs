@@ -605,7 +605,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
                 plain.map(|p| draw(p, 0)).transpose()?.map(|f| f.image)
             }
         };
-        image_equal[k] = (!c.lod).then(|| reference.is_some_and(|r| same(&r, &frame.image)));
+        image_equal[k] = reference.map(|r| same(&r, &frame.image));
         picture.get_or_insert(frame.image);
     }
     // The limit: meshlets with a visible fragment, per timed frame. And what a box test

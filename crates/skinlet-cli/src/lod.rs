@@ -2,8 +2,9 @@
 //! at the pixel threshold projected at the nearest point of the box around its per-part
 //! boxes (`skinlet_runtime::lod_select`), on the CPU; the triangles and vertex references of
 //! those cuts are compared with full detail, before any culling and (`--culled`) after the
-//! frustum and backface tests the GPU crowd's culling pass runs (`MeshletCuller`, the same
-//! test on the CPU): what `gpu-bench --lod` draws, for crowds too large for the device.
+//! frustum and backface tests the GPU crowd's culling pass runs (`MeshletCuller` with the
+//! any-pose boxes, the same tests on the CPU): what `gpu-bench --lod` draws, for crowds too
+//! large for the device.
 
 use anyhow::Result;
 use serde_json::json;
@@ -36,8 +37,8 @@ pub struct Args {
     /// The largest screen displacement allowed, in pixels, comma-separated for several.
     #[arg(long, default_value = "1", value_delimiter = ',')]
     pixels: Vec<f32>,
-    /// Also count what survives frustum and backface culling (the clusters' clip bounds, as
-    /// the GPU crowd culls them), full detail and cuts alike.
+    /// Also count what survives frustum and backface culling (the clusters' clip bounds and
+    /// any-pose boxes, as the GPU crowd culls them), full detail and cuts alike.
     #[arg(long)]
     culled: bool,
     #[command(flatten)]
@@ -162,10 +163,18 @@ fn measure(
     let base = &size[..meshlets.len()];
     let full = (base.iter().map(|s| s.0).sum(), base.iter().map(|s| s.1).sum());
     let mut drawn = vec![(0u64, 0u64, Vec::<u64>::new()); a.pixels.len()];
-    // Frustum and backface culling of every cluster, kept where the instance draws it.
-    let culler = match a.culled {
-        true => Some(view.lod_culler()?.ok_or_else(|| invalid("the bake has no cluster LOD"))?),
-        false => None,
+    // Frustum and backface culling of every cluster, kept where the instance draws it: the
+    // clusters' clip bounds and their any-pose boxes over the clips' morph weights, as the GPU
+    // crowd culls them (`gpu-bench`).
+    let culler = match (a.culled, &baked.lod) {
+        (true, Some(baked_lod)) => {
+            let mut all = baked.meshlets.clone();
+            all.append(&baked_lod.meshlets, 0);
+            let ranges = crate::bake::envelope_of("clips", asset, baked).map_err(|e| invalid(&e.to_string()))?;
+            let boxes = skinlet::cull::any_pose::build(&palette, &baked.mesh, &all, &ranges.weight_ranges())?;
+            Some(view.lod_culler()?.ok_or_else(|| invalid("the bake has no cluster LOD"))?.with_any_pose(&boxes)?)
+        }
+        _ => None,
     };
     let mut culled = vec![(0u64, 0u64); a.pixels.len() + 1];
     let (mut joint_frame, mut flags, mut visible, mut kept) =
@@ -180,7 +189,7 @@ fn measure(
             let clip = clips.get(pl.clip).map(|&c| (pl.clip as u32, pl.time(Some(c), frame, params.fps)));
             let pose = clip.map_or(PoseBounds::Clips, |(clip, time)| PoseBounds::ClipAt { clip, time });
             if let Some(culler) = &culler {
-                culler.prepare(&joints, &scene.camera, Tests::Both, &mut joint_frame);
+                culler.prepare_with_boxes(&joints, &scene.camera, Tests::Both, &mut joint_frame);
                 visible.clear();
                 culler.cull(&joint_frame, &mut flags, &mut visible);
                 kept.clear();

@@ -405,9 +405,9 @@ fn lod_bakes_and_verifies() {
         "{j}"
     );
     // The cuts selected and culled on the GPU (only the two rows asked for): fewer triangles
-    // than full detail, both culled, as many as the CPU counts for the same still crowd (up to
-    // f32 differences at the planes), silhouettes within the pixels (and half a pixel's
-    // diagonal for rasterization).
+    // than full detail, both culled, as many as the CPU counts with the same tests for the same
+    // still crowd (both conservative, they may differ near the margins), silhouettes within
+    // the pixels (and half a pixel's diagonal for rasterization).
     let args = ["--pipelines", "VS", "--lod", "--lod-pixels", "4", "--cullings", "both,both+lod", "--still"];
     let g = json_of(&[&["gpu-bench", with][..], &crowd, &args, &["--repeats", "1", "--json"]].concat());
     let l = &g["lod"];

@@ -535,7 +535,9 @@ fn subdivide(
     let mut nearest = [f64::INFINITY; 3];
     for t in targets {
         let gaps = points.map(|p| box_distance(&t.bounds, p));
-        if gaps.iter().zip(&nearest).all(|(g, n)| g >= n) && gaps.iter().copied().fold(0.0, f64::max) >= best_far {
+        let skip =
+            gaps.iter().zip(&nearest).all(|(g, n)| g >= n) && gaps.iter().copied().fold(0.0, f64::max) >= best_far;
+        if skip && best.is_some() {
             continue;
         }
         let w = points.map(|p| closest_point(&t.corners, p).1);
@@ -543,7 +545,8 @@ fn subdivide(
         for (p, corners) in posed.iter().enumerate() {
             let [a, b, c] = t.vertices.map(|v| ctx.posed(v, p));
             for k in 0..3 {
-                d[k] = d[k].max((corners[k] - (w[k][0] * a + w[k][1] * b + w[k][2] * c)).length());
+                let x = (corners[k] - (w[k][0] * a + w[k][1] * b + w[k][2] * c)).length();
+                d[k] = if x.is_nan() { f64::INFINITY } else { d[k].max(x) };
             }
             // Distances only grow with more poses: stop once this target improves nothing.
             if d.iter().zip(&nearest).all(|(d, n)| d >= n) && d.iter().copied().fold(0.0, f64::max) >= best_far {
@@ -654,19 +657,23 @@ mod tests {
         let mesh = SkinnedMesh { positions: rest.iter().map(|p| p.as_vec3()).collect(), ..SkinnedMesh::default() };
         let (skeleton, skin) =
             (Skeleton::default(), Skin { name: String::new(), joints: Vec::new(), inverse_bind: Vec::new() });
-        let matched = |poses: &[&[DVec3]]| -> Vec<u32> {
+        let matched = |poses: &[&[DVec3]], to: [u32; 6]| -> Vec<u32> {
             let posed = (0..rest.len()).flat_map(|v| poses.iter().map(move |p| p[v])).collect();
             let ctx =
                 Ctx { skeleton: &skeleton, skin: &skin, mesh: &mesh, reach: Vec::new(), posed, poses: poses.len() };
             let mut pairs = Vec::new();
-            match_pairs(&ctx, &[0, 1, 2], &[3, 4, 5, 6, 7, 8], &mut pairs);
+            match_pairs(&ctx, &[0, 1, 2], &to, &mut pairs);
             let mut targets: Vec<u32> = pairs.iter().flatten().filter(|e| e.1 < 0.0).map(|e| e.0).collect();
             targets.sort_unstable();
             targets.dedup();
             targets
         };
-        assert_eq!(matched(&[&rest]), [3, 4, 5]);
-        assert_eq!(matched(&[&rest, &moved]), [6, 7, 8]);
+        assert_eq!(matched(&[&rest], [3, 4, 5, 6, 7, 8]), [3, 4, 5]);
+        assert_eq!(matched(&[&rest, &moved], [3, 4, 5, 6, 7, 8]), [6, 7, 8]);
+        // Either order of the targets (the first seen is no favourite) and of the poses (the
+        // rest pose last: a rule reading one pose, the first or the last, would fail one).
+        assert_eq!(matched(&[&rest, &moved], [6, 7, 8, 3, 4, 5]), [6, 7, 8]);
+        assert_eq!(matched(&[&moved, &rest], [3, 4, 5, 6, 7, 8]), [6, 7, 8]);
     }
 
     #[test]
