@@ -557,7 +557,8 @@ fn subdivide(
             nearest[k] = nearest[k].min(d[k]);
         }
         let far = d.iter().copied().fold(0.0, f64::max);
-        // (A NaN distance, from a degenerate pose, still gets a target: its bound is infinite.)
+        // Every sub-triangle gets a target, whatever its distances (even infinite, from a
+        // degenerate pose): the bound holds for any pairing, and a missing pair would not.
         if far < best_far || best.is_none() {
             (best, best_far) = (Some((t, w)), far);
         }
