@@ -178,10 +178,13 @@ impl<'a> Grid<'a> {
         let c = self.key(p);
         let mut best = f64::INFINITY;
         let reach = self.dims.iter().copied().max().unwrap_or(0) + c.iter().map(|k| k.abs()).max().unwrap_or(0);
-        for k in 0i64..=reach {
-            for x in -k..=k {
-                for y in -k..=k {
-                    for z in -k..=k {
+        // Shells nearer than the grid hold no cell; only the grid's part of a shell is read.
+        let first = (0..3).map(|a| (-c[a]).max(c[a] - (self.dims[a] - 1)).max(0)).max().unwrap_or(0);
+        let span = |a: usize, k: i64| (-k).max(-c[a])..=k.min(self.dims[a] - 1 - c[a]);
+        for k in first..=reach {
+            for x in span(0, k) {
+                for y in span(1, k) {
+                    for z in span(2, k) {
                         if x.abs().max(y.abs()).max(z.abs()) != k {
                             continue;
                         }
