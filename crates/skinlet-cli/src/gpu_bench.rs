@@ -117,6 +117,22 @@ pub struct Args {
     json: bool,
 }
 
+/// The culler of `baked`'s meshlets then its hierarchy's clusters (`all`, in that order),
+/// with their any-pose boxes over the morph weight `ranges`: how the GPU crowd culls a
+/// character drawn with LOD (`skinlet lod --culled` counts with it too).
+pub(crate) fn lod_culler(
+    baked: &skinlet::bake::Baked,
+    lod: &skinlet::bake::BakedLod,
+    all: &skinlet::meshlet::Meshlets,
+    ranges: &[(f64, f64)],
+) -> skinlet::Result<MeshletCuller> {
+    let skin = baked.palette();
+    let bounds = [&baked.bounds[..], &lod.bounds].concat();
+    let classes = [&baked.classes[..], &lod.classes].concat();
+    let boxes = skinlet::cull::any_pose::build(&skin, &baked.mesh, all, ranges)?;
+    Ok(MeshletCuller::new(&bounds, &classes, skin.joints.len())?.with_any_pose(&boxes)?)
+}
+
 /// Every culling row `gpu-bench` draws.
 const CULLINGS: [&str; 10] = [
     "none",
@@ -303,12 +319,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         all
     });
     let crowd_culler = match (&all_meshlets_lod, &baked.lod) {
-        (Some(all), Some(lod)) => {
-            let bounds = [&baked.bounds[..], &lod.bounds].concat();
-            let classes = [&baked.classes[..], &lod.classes].concat();
-            let boxes = skinlet::cull::any_pose::build(skin, &baked.mesh, all, &clip_ranges)?;
-            Some(MeshletCuller::new(&bounds, &classes, skin.joints.len())?.with_any_pose(&boxes)?)
-        }
+        (Some(all), Some(lod)) => Some(lod_culler(&baked, lod, all, &clip_ranges)?),
         _ => None,
     };
     let crowd_lod = match a.lod {

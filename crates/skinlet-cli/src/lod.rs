@@ -171,8 +171,7 @@ fn measure(
             let mut all = baked.meshlets.clone();
             all.append(&baked_lod.meshlets, 0);
             let ranges = crate::bake::envelope_of("clips", asset, baked).map_err(|e| invalid(&e.to_string()))?;
-            let boxes = skinlet::cull::any_pose::build(&palette, &baked.mesh, &all, &ranges.weight_ranges())?;
-            Some(view.lod_culler()?.ok_or_else(|| invalid("the bake has no cluster LOD"))?.with_any_pose(&boxes)?)
+            Some(crate::gpu_bench::lod_culler(baked, baked_lod, &all, &ranges.weight_ranges())?)
         }
         _ => None,
     };
