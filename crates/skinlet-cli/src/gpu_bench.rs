@@ -118,17 +118,25 @@ pub struct Args {
 }
 
 /// The culler of `baked`'s meshlets then its hierarchy's clusters (`all`, in that order),
-/// with their any-pose boxes over the morph weight `ranges`: how the GPU crowd culls a
-/// character drawn with LOD (`skinlet lod --culled` counts with it too).
+/// with the bounds of the clips or, `within_envelope`, of the pose envelope, and any-pose
+/// boxes over the morph weight `ranges`: how the GPU crowd culls a character drawn with LOD
+/// (`skinlet lod --culled` counts with it too).
 pub(crate) fn lod_culler(
     baked: &skinlet::bake::Baked,
     lod: &skinlet::bake::BakedLod,
     all: &skinlet::meshlet::Meshlets,
     ranges: &[(f64, f64)],
+    within_envelope: bool,
 ) -> skinlet::Result<MeshletCuller> {
     let skin = baked.palette();
-    let bounds = [&baked.bounds[..], &lod.bounds].concat();
-    let classes = [&baked.classes[..], &lod.classes].concat();
+    let (bounds, classes) = match (within_envelope, &baked.envelope, &lod.envelope) {
+        (false, ..) => ([&baked.bounds[..], &lod.bounds].concat(), [&baked.classes[..], &lod.classes].concat()),
+        (true, Some(e), Some(l)) => ([&e.bounds[..], &l.bounds].concat(), [&e.classes[..], &l.classes].concat()),
+        _ => {
+            let message = "the bake has no LOD bounds within a pose envelope".into();
+            return Err(skinlet::Error::Invalid { location: "LOD culler".into(), message });
+        }
+    };
     let boxes = skinlet::cull::any_pose::build(&skin, &baked.mesh, all, ranges)?;
     Ok(MeshletCuller::new(&bounds, &classes, skin.joints.len())?.with_any_pose(&boxes)?)
 }
@@ -254,10 +262,7 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     );
     anyhow::ensure!((64..=8192).contains(&a.width), "--width must be between 64 and 8192");
     anyhow::ensure!((0.0..=180.0).contains(&a.additive_deg), "--additive-deg must be from 0 to 180");
-    anyhow::ensure!(
-        !a.lod || (a.animation == "clips" && a.lod_pixels > 0.0 && a.lod_pixels.is_finite()),
-        "--lod needs --animation clips (the LOD errors hold for the baked clips) and a positive --lod-pixels"
-    );
+    anyhow::ensure!(!a.lod || (a.lod_pixels > 0.0 && a.lod_pixels.is_finite()), "--lod needs a positive --lod-pixels");
     let animation = match a.animation.as_str() {
         "blend" => Animation::Blend,
         "additive" => Animation::Additive(a.additive_deg.to_radians()),
@@ -267,13 +272,6 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     let builder = a.builder.as_deref().map(|b| Builder::from_name(b).context("unknown meshlet builder")).transpose()?;
     let (asset, character, mut baked) = crate::crowd::load(file, a.gltf.as_deref(), builder, a.refine, a.json)?;
     let clips = crate::bake::clips_of(&baked, &asset, a.gltf.as_deref().unwrap_or(file))?;
-    // The hierarchy's build time where it is built here.
-    let mut lod_s = None;
-    if a.lod && baked.lod.is_none() {
-        let started = std::time::Instant::now();
-        skinlet::bake::add_lod(&mut baked, &asset, &skinlet::meshlet::lod::LodParams::default())?;
-        lod_s = Some(started.elapsed().as_secs_f64());
-    }
     let envelope_spec = format!("clips:{}", a.additive_deg);
     if animation != Animation::Clips && baked.envelope.is_none() {
         anyhow::ensure!(
@@ -284,6 +282,22 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         let env = crate::bake::envelope_of(&envelope_spec, &asset, &baked)?;
         skinlet::bake::add_envelope(&mut baked, &asset, env)?;
     }
+    // The hierarchy's build time where it is built here (after the envelope: its errors
+    // within it are bounded with the others).
+    let mut lod_s = None;
+    if a.lod && baked.lod.is_none() {
+        let started = std::time::Instant::now();
+        skinlet::bake::add_lod(&mut baked, &asset, &skinlet::meshlet::lod::LodParams::default())?;
+        lod_s = Some(started.elapsed().as_secs_f64());
+    }
+    // Instances posed inside the envelope select and cull their cuts with the hierarchy's
+    // errors and bounds within it.
+    let within_envelope = animation != Animation::Clips;
+    anyhow::ensure!(
+        !(a.lod && within_envelope && baked.lod.as_ref().is_some_and(|l| l.envelope.is_none())),
+        "--animation {} --lod: {file}'s LOD hierarchy has no errors within its pose envelope (bake with --envelope and --lod)",
+        a.animation
+    );
     let palette = baked.palette();
     let skin = &palette;
     let layout = if a.crowd == "dense" { Layout::Dense } else { Layout::Paper };
@@ -318,9 +332,19 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         all.append(&lod.meshlets, 0);
         all
     });
-    let crowd_culler = match (&all_meshlets_lod, &baked.lod) {
-        (Some(all), Some(lod)) => Some(lod_culler(&baked, lod, all, &clip_ranges)?),
+    let crowd_culler = match (&all_meshlets_lod, &baked.lod, &baked.envelope) {
+        (Some(all), Some(lod), Some(e)) if within_envelope => {
+            Some(lod_culler(&baked, lod, all, &e.envelope.weight_ranges(), true)?)
+        }
+        (Some(all), Some(lod), _) => Some(lod_culler(&baked, lod, all, &clip_ranges, false)?),
         _ => None,
+    };
+    // The errors the cuts are selected with (the clips', or within the envelope).
+    let lod_errors = match all_meshlets_lod {
+        Some(_) => skinlet::bake::with_view(&baked, |v| {
+            Ok(v.lod().and_then(|l| if within_envelope { l.envelope().map(|e| e.errors()) } else { Some(l.errors()) }))
+        })?,
+        None => None,
     };
     let crowd_lod = match a.lod {
         true => Some(skinlet::bake::with_view(&baked, |v| CrowdLod::new(v, &scene.camera, a.width, height))?),
@@ -366,9 +390,14 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             pl.world_matrices(skin, &globals, &mut joints, &mut skinning);
             let admitted = guard.as_ref().is_none_or(|g| g.admits(&locals, &weights));
             let boxes = guard.as_ref().is_none_or(|g| g.admits_weights(&weights));
-            let lod_threshold = crowd_lod.as_ref().map_or(-1.0, |l| {
+            // Within the envelope only where the guard admits the pose (full detail otherwise).
+            let lod_threshold = crowd_lod.as_ref().filter(|_| admitted).map_or(-1.0, |l| {
                 let clip = clips.get(pl.clip).map(|&c| (pl.clip as u32, pl.time(Some(c), f, params.fps)));
-                let pose = clip.map_or(PoseBounds::Clips, |(clip, time)| PoseBounds::ClipAt { clip, time });
+                let pose = match clip {
+                    _ if within_envelope => PoseBounds::Envelope,
+                    Some((clip, time)) => PoseBounds::ClipAt { clip, time },
+                    None => PoseBounds::Clips,
+                };
                 l.threshold(a.lod_pixels, &joints, &weights, pose)
             });
             instances.push(InstancePose { skinning, weights: weights.clone(), admitted, boxes, lod_threshold });
@@ -394,7 +423,17 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
         .collect();
     let (n, rounds) = (instances as u32, a.occlusion_rounds);
     let crowd_culler = crowd_culler.as_ref().unwrap_or(&culler);
-    let gpu_crowd = GpuCrowd::with_depth_range(&gpu, &baked, crowd_culler, n, a.width, height, false, rounds)?;
+    let gpu_crowd = GpuCrowd::with_depth_range(
+        &gpu,
+        &baked,
+        crowd_culler,
+        n,
+        a.width,
+        height,
+        false,
+        rounds,
+        lod_errors.as_deref(),
+    )?;
     let keep_all = vec![CullMode::Keep; instances];
     // Frame `f` of the GPU-driven crowd; `keep`: every instance drawn whole; `lod`: each
     // instance's cut.

@@ -171,7 +171,7 @@ fn measure(
             let mut all = baked.meshlets.clone();
             all.append(&baked_lod.meshlets, 0);
             let ranges = crate::bake::envelope_of("clips", asset, baked).map_err(|e| invalid(&e.to_string()))?;
-            Some(crate::gpu_bench::lod_culler(baked, baked_lod, &all, &ranges.weight_ranges())?)
+            Some(crate::gpu_bench::lod_culler(baked, baked_lod, &all, &ranges.weight_ranges(), false)?)
         }
         _ => None,
     };

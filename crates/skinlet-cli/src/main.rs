@@ -1277,15 +1277,37 @@ fn verify(
                 })
                 .collect();
             let poses = if poses.is_empty() { vec![(None, 0.0)] } else { poses };
+            let poses = skinlet::bounds::lod_verify::clip_poses(&asset.skeleton, &b.mesh, &poses);
             let errors = skinlet::bounds::lod_verify::verify_errors(&asset.skeleton, skin, &poses, &b.mesh, &parts)?;
-            Some((bounds, errors))
+            // Within the pose envelope: the clusters' bounds and the errors there, at poses
+            // inside it (as many as per clip above, half on its boundary).
+            let within_envelope = match (&b.envelope, &l.envelope, l.envelope_hierarchies(&b.meshlets, &b.parts)) {
+                (Some(e), Some(le), Some(hierarchies)) => {
+                    let poses = e.envelope.sample_poses(&asset.skeleton, per_clip, 1);
+                    let bounds = skinlet::bounds::verify::verify_poses(
+                        &asset.skeleton,
+                        skin,
+                        &poses,
+                        &b.mesh,
+                        &l.meshlets,
+                        &le.bounds,
+                    )?;
+                    let parts: Vec<_> = hierarchies.iter().map(|(r, h)| (r.clone(), h)).collect();
+                    let verify = skinlet::bounds::lod_verify::verify_errors;
+                    Some((bounds, verify(&asset.skeleton, skin, &poses, &b.mesh, &parts)?))
+                }
+                _ => None,
+            };
+            Some((bounds, errors, within_envelope))
         }
         None => None,
     };
     let violations = r.violations()
         + envelope.map_or(0, |e| e.violations())
         + part_windows.map_or(0, |w| w.1)
-        + lod.as_ref().map_or(0, |(b, e)| b.violations() + e.violations);
+        + lod.as_ref().map_or(0, |(b, e, within)| {
+            b.violations() + e.violations + within.as_ref().map_or(0, |(b, e)| b.violations() + e.violations)
+        });
     if json {
         let out = json!({
             "samples": r.samples, "vertex_checks": r.vertex_checks, "normal_checks": r.normal_checks,
@@ -1294,9 +1316,13 @@ fn verify(
             "envelope": envelope.map(|e| json!({"poses": e.samples, "vertex_checks": e.vertex_checks,
                 "normal_checks": e.normal_checks, "violations": e.violations(), "mean_radius_ratio": e.mean_radius_ratio})),
             "part_windows": part_windows.map(|(checks, violations)| json!({"vertex_checks": checks, "violations": violations})),
-            "lod": lod.as_ref().map(|(b, e)| json!({"cluster_vertex_checks": b.vertex_checks, "cluster_normal_checks": b.normal_checks,
+            "lod": lod.as_ref().map(|(b, e, within)| json!({"cluster_vertex_checks": b.vertex_checks, "cluster_normal_checks": b.normal_checks,
                 "cluster_violations": b.violations(), "error_poses": e.poses, "error_points": e.points, "error_violations": e.violations,
-                "max_distance_per_error": e.max_ratio, "median_distance_per_error": e.median_ratio})),
+                "max_distance_per_error": e.max_ratio, "median_distance_per_error": e.median_ratio,
+                "envelope": within.as_ref().map(|(b, e)| json!({"cluster_vertex_checks": b.vertex_checks,
+                    "cluster_normal_checks": b.normal_checks, "cluster_violations": b.violations(), "error_poses": e.poses,
+                    "error_points": e.points, "error_violations": e.violations, "max_distance_per_error": e.max_ratio,
+                    "median_distance_per_error": e.median_ratio}))})),
         });
         println!("{}", serde_json::to_string_pretty(&out)?);
     } else {
@@ -1338,17 +1364,21 @@ fn verify(
                 "  part boxes per clip window: {checks} vertex checks in each part's anchor space, {violations} violations"
             );
         }
-        if let Some((b, e)) = &lod {
-            println!(
-                "  cluster LOD: clusters' bounds {} vertex and {} normal checks, {} violations; errors at {} poses, {} points, {} violations (largest distance ÷ error {:.3})",
-                b.vertex_checks,
-                b.normal_checks,
-                b.violations(),
-                e.poses,
-                e.points,
-                e.violations,
-                e.max_ratio
-            );
+        if let Some((b, e, within)) = &lod {
+            for (what, (b, e)) in std::iter::once(("cluster LOD", (b, e)))
+                .chain(within.as_ref().map(|(b, e)| ("cluster LOD within the pose envelope", (b, e))))
+            {
+                println!(
+                    "  {what}: clusters' bounds {} vertex and {} normal checks, {} violations; errors at {} poses, {} points, {} violations (largest distance ÷ error {:.3})",
+                    b.vertex_checks,
+                    b.normal_checks,
+                    b.violations(),
+                    e.poses,
+                    e.points,
+                    e.violations,
+                    e.max_ratio
+                );
+            }
         }
     }
     if violations > 0 {

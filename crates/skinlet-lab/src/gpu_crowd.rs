@@ -157,7 +157,7 @@ impl GpuCrowd {
         width: u32,
         height: u32,
     ) -> Result<GpuCrowd> {
-        GpuCrowd::with_depth_range(gpu, baked, culler, capacity, width, height, false, OCCLUSION_ROUNDS)
+        GpuCrowd::with_depth_range(gpu, baked, culler, capacity, width, height, false, OCCLUSION_ROUNDS, None)
     }
 
     /// [`GpuCrowd::new`] with a reversed depth range where `reversed` (near 1, far 0: Bevy's
@@ -166,10 +166,12 @@ impl GpuCrowd {
     /// `rounds` rounds ([`skinlet_gpu::crowd_culling::OcclusionDepth::rounds`]: the frames'
     /// instances are best ordered nearest first).
     ///
-    /// Cluster LOD: where `culler` holds the mesh's meshlets and then `baked`'s LOD
-    /// hierarchy's clusters (as `BakeView::lod_culler` does), each instance culls the clusters
-    /// of its cut at its [`CrowdFrame::lod_thresholds`]; the unculled and ID views draw full
-    /// detail. Errors when `culler` holds neither the meshlets nor meshlets and clusters.
+    /// Cluster LOD: with `lod_errors` (`LodView::errors`, of the clips or within the pose
+    /// envelope: `LodView::envelope`), `culler` holds the mesh's meshlets and then `baked`'s
+    /// LOD hierarchy's clusters (as `BakeView::lod_culler` and `lod_envelope_culler` do), and
+    /// each instance culls the clusters of its cut at its [`CrowdFrame::lod_thresholds`]; the
+    /// unculled and ID views draw full detail. Errors when `culler` holds not the meshlets
+    /// (without `lod_errors`), or not meshlets and clusters (with them).
     #[allow(clippy::too_many_arguments)]
     pub fn with_depth_range(
         gpu: &Gpu,
@@ -180,23 +182,23 @@ impl GpuCrowd {
         height: u32,
         reversed: bool,
         rounds: u32,
+        lod_errors: Option<&[[f32; 2]]>,
     ) -> Result<GpuCrowd> {
         let mesh = &baked.mesh;
         let base = baked.meshlets.len();
         let clusters = baked.lod.as_ref().map_or(0, |l| l.meshlets.len());
-        let (all, errors) = match &baked.lod {
-            _ if culler.len() == base => (None, None),
-            Some(hierarchy) if culler.len() == base + clusters => {
+        let all = match (&baked.lod, lod_errors) {
+            (_, None) if culler.len() == base => None,
+            (Some(hierarchy), Some(_)) if culler.len() == base + clusters => {
                 let mut all = baked.meshlets.clone();
                 all.append(&hierarchy.meshlets, 0);
-                let errors = skinlet::bake::with_view(baked, |view| Ok(view.lod().map(|l| l.errors())))
-                    .map_err(|e| invalid(e.to_string()))?;
-                (Some(all), errors)
+                Some(all)
             }
             _ => {
                 return Err(invalid(format!(
-                    "a culler of {} meshlets for {base} meshlets and {clusters} LOD clusters",
-                    culler.len()
+                    "a culler of {} meshlets for {base} meshlets and {clusters} LOD clusters ({} LOD errors)",
+                    culler.len(),
+                    lod_errors.map_or(0, |e| e.len())
                 )));
             }
         };
@@ -216,7 +218,7 @@ impl GpuCrowd {
         let full_detail = draws.get(base).map_or(indices.len() as u32, |d| d[1]);
         let device = &gpu.device;
         let pipelines = CullPipelines::new(device)?;
-        let character = match &errors {
+        let character = match lod_errors {
             Some(errors) => GpuCharacter::with_lod(device, culler, &baked.inverse_bind, &draws, base, errors)?,
             None => GpuCharacter::new(device, culler, &baked.inverse_bind, &draws)?,
         };

@@ -280,7 +280,7 @@ fn occlusion_culling_misses_nothing_when_the_camera_cuts_or_the_crowd_teleports(
     let pose = |f: usize, order: &[usize]| clip_pose(&demo, &baked, &scene, params.fps, f, order);
     let in_place: Vec<usize> = (0..scene.placements.len()).collect();
     for (reversed, rounds) in [(false, 1), (true, 5)] {
-        let crowd = GpuCrowd::with_depth_range(&gpu, &baked, &culler, 64, 320, 180, reversed, rounds).unwrap();
+        let crowd = GpuCrowd::with_depth_range(&gpu, &baked, &culler, 64, 320, 180, reversed, rounds, None).unwrap();
         let camera = |eye: Vec3, forward: Vec3| {
             let (fov, aspect) = (50f32.to_radians(), 16.0 / 9.0);
             if reversed {
@@ -362,7 +362,7 @@ fn lod_crowd_draws_cuts_whose_silhouettes_stay_within_the_pixels() {
     let scene = crowd(&baked.mesh.positions, clips.len(), &params).unwrap();
     let (width, height, pixels) = (640, 360, 2.0);
     let (mut palette, mut weights, mut poser) = (Vec::new(), Vec::new(), Poser::default());
-    let (culler, thresholds, cuts) = skinlet::bake::with_view(&baked, |view| {
+    let (culler, errors, thresholds, cuts) = skinlet::bake::with_view(&baked, |view| {
         let lod = view.lod().unwrap();
         let crowd_lod = CrowdLod::new(view, &scene.camera, width, height)?;
         let (mut thresholds, mut cuts, mut w) = (Vec::new(), Vec::new(), Vec::new());
@@ -385,11 +385,12 @@ fn lod_crowd_draws_cuts_whose_silhouettes_stay_within_the_pixels() {
             thresholds.push(threshold);
             cuts.push(cut.into_iter().collect::<HashSet<u32>>());
         }
-        Ok((view.lod_culler()?.unwrap(), thresholds, cuts))
+        Ok((view.lod_culler()?.unwrap(), lod.errors(), thresholds, cuts))
     })
     .unwrap();
     let n = scene.placements.len();
-    let crowd = GpuCrowd::with_depth_range(&gpu, &baked, &culler, n as u32, width, height, false, 4).unwrap();
+    let crowd =
+        GpuCrowd::with_depth_range(&gpu, &baked, &culler, n as u32, width, height, false, 4, Some(&errors)).unwrap();
     let modes = vec![CullMode::Bounds; n];
     let frame = |lod: bool| CrowdFrame {
         palette: &palette,

@@ -276,7 +276,13 @@ impl<'a> BakeView<'a> {
             .map(|s| read_contours(s, &vertices, morphs, triangles, drivers, info.clips.len()))
             .transpose()?;
         let sources = find(b"SRCT").map(|s| read_sources(s, &meshlets)).transpose()?;
-        let lod = find(b"LODC").map(|s| read_lod(s, n, &info, parts, drivers)).transpose()?;
+        let mut lod = find(b"LODC").map(|s| read_lod(s, n, &info, parts, drivers)).transpose()?;
+        if let Some(s) = find(b"LODE") {
+            let (Some(l), Some(_)) = (&mut lod, &envelope) else {
+                return Err(Error::invalid("bake section LODE", "the bake has no LODC or no ENVL section"));
+            };
+            l.envelope = Some(read_lod_envelope(s, l, drivers)?);
+        }
         Ok(BakeView {
             sections,
             info,
@@ -394,6 +400,14 @@ impl<'a> BakeView<'a> {
     pub fn lod_culler(&self) -> Result<Option<MeshletCuller>> {
         let Some(lod) = &self.lod else { return Ok(None) };
         let (bounds, classes) = bounds_and_classes(&[self.bounds, lod.bounds].concat());
+        MeshletCuller::new(&bounds, &classes, self.joint_count()).map(Some)
+    }
+
+    /// [`Self::lod_culler`] for the poses inside the pose envelope: `ENVL`'s meshlet bounds,
+    /// then `LODE`'s cluster bounds ([`LodView::envelope`]). `None` without `LODE`.
+    pub fn lod_envelope_culler(&self) -> Result<Option<MeshletCuller>> {
+        let (Some(lod), Some(e)) = (self.lod.and_then(|l| l.envelope()), &self.envelope) else { return Ok(None) };
+        let (bounds, classes) = bounds_and_classes(&[e.bounds, lod.bounds].concat());
         MeshletCuller::new(&bounds, &classes, self.joint_count()).map(Some)
     }
 
@@ -696,9 +710,19 @@ pub struct LodView<'a> {
     /// Per part, its clusters' range (parts in order, covering every cluster).
     pub part_clusters: &'a [[u32; 2]],
     pub meshlets: MeshletView<'a>,
+    /// `LODE`: the groups (same levels) with their errors within the pose envelope, and the
+    /// clusters' bounds there, checked like `LODC`'s ([`Self::envelope`]).
+    pub envelope: Option<(&'a [BakedLodGroup], &'a [BakedBounds])>,
 }
 
-impl LodView<'_> {
+impl<'a> LodView<'a> {
+    /// The hierarchy for the poses inside the bake's pose envelope (the pose guard admits
+    /// them): the same clusters with `LODE`'s errors and bounds. `None` without `LODE`.
+    pub fn envelope(&self) -> Option<LodView<'a>> {
+        let (groups, bounds) = self.envelope?;
+        Some(LodView { groups, bounds, envelope: None, ..*self })
+    }
+
     /// The errors of a cluster's own group (0 at level 0) and parent group (infinite for a
     /// root): `cluster` counts `MLET`'s meshlets first, then this section's clusters.
     pub fn cluster_errors(&self, cluster: usize) -> (f32, f32) {
@@ -841,7 +865,56 @@ fn read_lod<'a>(
     if let Some(i) = seen.iter().position(|x| !(x.1 && x.2)) {
         return Err(bad(format!("group {i}: no clusters it simplified, or none it made")));
     }
-    Ok(LodView { groups, base_parents, clusters, bounds, part_clusters, meshlets })
+    Ok(LodView { groups, base_parents, clusters, bounds, part_clusters, meshlets, envelope: None })
+}
+
+/// `LODE`: per group of `lod` (same levels) its error within the envelope, finite, ≥ 0 and
+/// growing up the hierarchy as `LODC`'s; per cluster its bounds ([`check_bounds`]).
+fn read_lod_envelope<'a>(
+    s: &'a [u8],
+    lod: &LodView,
+    drivers: usize,
+) -> Result<(&'a [BakedLodGroup], &'a [BakedBounds])> {
+    let location = "bake section LODE";
+    let bad = |what: String| Error::invalid(location, what);
+    let word = |at: usize| u32_at(s, at).ok_or_else(|| bad(format!("byte {at}: truncated")));
+    let [g, c] = [word(0)?, word(4)?].map(|x| x as usize);
+    if g != lod.groups.len() || c != lod.clusters.len() {
+        return Err(bad(format!(
+            "byte 0: {g} groups and {c} clusters, where LODC has {} and {}",
+            lod.groups.len(),
+            lod.clusters.len()
+        )));
+    }
+    let bounds_at = (16 + 8 * g).next_multiple_of(16);
+    if s.len() != bounds_at + 48 * c
+        || s[16 + 8 * g..bounds_at].iter().any(|&b| b != 0)
+        || word(8)? != 0
+        || word(12)? != 0
+    {
+        return Err(bad(format!(
+            "{} bytes, reserved words or padding not zero, for {g} groups and {c} clusters",
+            s.len()
+        )));
+    }
+    let groups: &[BakedLodGroup] = cast(&s[16..16 + 8 * g], "LODE")?;
+    let bounds: &[BakedBounds] = cast(&s[bounds_at..], "LODE")?;
+    check_bounds(bounds, drivers, location)?;
+    for (i, (x, y)) in groups.iter().zip(lod.groups).enumerate() {
+        if x.level != y.level || !(x.error >= 0.0 && x.error.is_finite()) {
+            return Err(bad(format!(
+                "group {i}: level {} (LODC's: {}) and error {} (finite, ≥ 0)",
+                x.level, y.level, x.error
+            )));
+        }
+    }
+    let parent_ok = |own: f32, parent: u32| parent == NO_GROUP || groups[parent as usize].error >= own;
+    let below = lod.base_parents.iter().map(|&p| (0.0, p));
+    let above = lod.clusters.iter().map(|&[own, parent]| (groups[own as usize].error, parent));
+    if let Some((i, _)) = below.chain(above).enumerate().find(|(_, (own, parent))| !parent_ok(*own, *parent)) {
+        return Err(bad(format!("cluster {i} (meshlets first): its parent group's error is below its own")));
+    }
+    Ok((groups, bounds))
 }
 
 /// `MLET`: the layout ([`MeshletView::new`]) and every meshlet ([`MeshletView::check`]).

@@ -119,6 +119,20 @@ pub struct BakedLod {
     pub classes: Vec<Class>,
     /// Per part, the range of its clusters.
     pub part_clusters: Vec<Range<u32>>,
+    /// Errors and cluster bounds for the poses inside the bake's pose envelope (optional
+    /// section LODE): present when the bake has both.
+    pub envelope: Option<BakedLodEnvelope>,
+}
+
+/// A LOD hierarchy's errors and cluster bounds within a pose envelope
+/// ([`crate::bounds::lod_error::bound_errors`], [`envelope_bounds`]): what an instance the
+/// pose guard admits selects and culls its cut with.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BakedLodEnvelope {
+    /// Per group (as [`BakedLod::groups`]), its error within the envelope (scene units).
+    pub errors: Vec<f32>,
+    pub bounds: Vec<MeshletBounds>,
+    pub classes: Vec<Class>,
 }
 
 impl BakedLod {
@@ -165,6 +179,21 @@ impl BakedLod {
             out.push((part.triangles.clone(), lod));
         }
         out
+    }
+
+    /// [`Self::hierarchies`] with the errors within the pose envelope (`None` without them).
+    pub fn envelope_hierarchies(
+        &self,
+        meshlets: &Meshlets,
+        parts: &[BakedPart],
+    ) -> Option<Vec<(Range<u32>, LodHierarchy)>> {
+        let errors = &self.envelope.as_ref()?.errors;
+        let mut out = self.hierarchies(meshlets, parts);
+        let mut next = errors.iter();
+        for (_, lod) in &mut out {
+            lod.groups.iter_mut().zip(&mut next).for_each(|(g, &e)| g.error = e);
+        }
+        Some(out)
     }
 }
 
@@ -319,7 +348,8 @@ pub fn add_contours(baked: &mut Baked, asset: &Asset, params: &SkinnedParams, vi
 
 /// Adds a cluster LOD hierarchy to a bake, part by part ([`crate::meshlet::lod::build`] with
 /// the vertices' positions at sampled poses of the baked clips as attributes), with errors
-/// and cluster bounds that hold over those clips.
+/// and cluster bounds that hold over those clips, and within the bake's pose envelope where
+/// it has one.
 pub fn add_lod(baked: &mut Baked, asset: &Asset, params: &LodParams) -> Result<()> {
     let palette = baked.palette();
     let clips = baked_clips(baked, asset)?;
@@ -333,14 +363,19 @@ pub fn add_lod(baked: &mut Baked, asset: &Asset, params: &LodParams) -> Result<(
         bounds: Vec::new(),
         classes: Vec::new(),
         part_clusters: Vec::new(),
+        envelope: None,
     };
+    let envelope = baked.envelope.as_ref().map(|e| &e.envelope);
+    let mut within_envelope = Vec::new();
     let limits = baked.settings.limits;
     for part in &baked.parts {
         let first = out.clusters.len() as u32;
         let base = part.meshlets.start as usize..part.meshlets.end as usize;
         let mine = baked.meshlets.subset(base.clone());
         let mut lod = crate::meshlet::lod::build(&mesh.positions, &attributes, &mine, limits, *params)?;
-        crate::bounds::lod_error::bound_errors(&asset.skeleton, &palette, &clips, mesh, &mut lod)?;
+        let within =
+            crate::bounds::lod_error::bound_errors(&asset.skeleton, &palette, &clips, envelope, mesh, &mut lod)?;
+        within_envelope.extend(within.unwrap_or_default().iter().map(|e| e.min(f32::MAX)));
         let group_offset = out.groups.len() as u32;
         let global = |g: Option<u32>| g.map_or(NO_GROUP, |g| g + group_offset);
         // An unbounded error (a scale through zero) as the largest finite one: never coarser.
@@ -361,14 +396,46 @@ pub fn add_lod(baked: &mut Baked, asset: &Asset, params: &LodParams) -> Result<(
     for b in out.bounds.iter_mut().filter(|b| !b.radius.is_finite()) {
         b.radius = f32::MAX;
     }
+    if let Some(e) = envelope {
+        out.envelope = Some(lod_envelope(baked, asset, e, &out.meshlets, within_envelope)?);
+    }
     baked.lod = Some(out);
     Ok(())
 }
 
+/// The clusters' bounds within `envelope`, with the groups' `errors` there.
+fn lod_envelope(
+    baked: &Baked,
+    asset: &Asset,
+    envelope: &Envelope,
+    clusters: &Meshlets,
+    errors: Vec<f32>,
+) -> Result<BakedLodEnvelope> {
+    let mut bounds = envelope_bounds(&asset.skeleton, &baked.palette(), &baked.mesh, clusters, envelope)?;
+    let classes = bounds.iter().map(|b| classify(b, baked.settings.s_r, baked.settings.alpha_t)).collect();
+    for b in bounds.iter_mut().filter(|b| !b.radius.is_finite()) {
+        b.radius = f32::MAX;
+    }
+    Ok(BakedLodEnvelope { errors, bounds, classes })
+}
+
 /// Adds a pose envelope to a bake: meshlet bounds for every pose inside it, classified with
-/// the bake's thresholds, and the any-pose boxes for morph weights inside its ranges.
+/// the bake's thresholds, and the any-pose boxes for morph weights inside its ranges; with a
+/// LOD hierarchy, its errors and cluster bounds within the envelope too (bounding the errors
+/// again: adding the envelope first, then the hierarchy, bounds them once).
 pub fn add_envelope(baked: &mut Baked, asset: &Asset, envelope: Envelope) -> Result<()> {
     let palette = baked.palette();
+    if let Some(lod) = &baked.lod {
+        let clips = baked_clips(baked, asset)?;
+        let mut errors = Vec::with_capacity(lod.groups.len());
+        for (_, mut h) in lod.hierarchies(&baked.meshlets, &baked.parts) {
+            let bound = crate::bounds::lod_error::bound_errors;
+            let within = bound(&asset.skeleton, &palette, &clips, Some(&envelope), &baked.mesh, &mut h)?;
+            errors.extend(within.unwrap_or_default().iter().map(|e| e.min(f32::MAX)));
+        }
+        let within = lod_envelope(baked, asset, &envelope, &lod.meshlets, errors)?;
+        baked.lod.as_mut().expect("checked above").envelope = Some(within);
+    }
     let bounds = envelope_bounds(&asset.skeleton, &palette, &baked.mesh, &baked.meshlets, &envelope)?;
     let classes = bounds.iter().map(|b| classify(b, baked.settings.s_r, baked.settings.alpha_t)).collect();
     let any_pose = crate::cull::any_pose::build(&palette, &baked.mesh, &baked.meshlets, &envelope.weight_ranges())?;
@@ -398,10 +465,11 @@ fn baked_clips<'a>(baked: &Baked, asset: &'a Asset) -> Result<Vec<&'a Clip>> {
 }
 
 /// Section tags: the seven required ones, then the optional overdraw orders, contours, morph
-/// targets, pose envelope, part windows, source triangles and cluster LOD.
-const TAGS: [&[u8; 4]; 14] = [
+/// targets, pose envelope, part windows, source triangles, cluster LOD and its errors and
+/// bounds within the envelope.
+const TAGS: [&[u8; 4]; 15] = [
     b"INFO", b"SKIN", b"VERT", b"TRIS", b"MLET", b"BNDS", b"PART", b"OVDR", b"CONT", b"MRPH", b"ENVL", b"PWIN",
-    b"SRCT", b"LODC",
+    b"SRCT", b"LODC", b"LODE",
 ];
 const HEADER: usize = 16;
 const ENTRY: usize = 24;
@@ -671,6 +739,21 @@ pub fn to_bytes(b: &Baked) -> Vec<u8> {
         }
         lo.0.extend_from_slice(&flat::to_bytes(&l.meshlets));
         sections.push(lo.0);
+        // Written only beside the envelope it holds within (a reader refuses it alone).
+        if let (Some(e), Some(_)) = (&l.envelope, &b.envelope) {
+            tags.push(TAGS[14]);
+            let mut le = Out::default();
+            for x in [l.groups.len(), l.clusters.len(), 0, 0] {
+                le.u32(x as u32);
+            }
+            for (&(level, _), &error) in l.groups.iter().zip(&e.errors) {
+                le.u32(level);
+                le.f32(error);
+            }
+            le.0.resize(le.0.len().next_multiple_of(16), 0);
+            le.bounds(&e.bounds, &e.classes);
+            sections.push(le.0);
+        }
     }
     let mut out = Vec::new();
     out.extend_from_slice(&MAGIC);
@@ -765,6 +848,9 @@ pub fn check_consumers(b: &Baked) -> Result<()> {
     }
     if let Some(l) = &b.lod {
         cull(&l.bounds, &l.classes, None)?;
+        if let Some(e) = &l.envelope {
+            cull(&e.bounds, &e.classes, None)?;
+        }
     }
     if let Some(c) = &b.contours {
         let edges = skinned_edges(&b.mesh, c.visible_only)?;
@@ -900,6 +986,10 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Baked> {
                 bounds,
                 classes,
                 part_clusters: l.part_clusters.iter().map(|r| r[0]..r[1]).collect(),
+                envelope: l.envelope().map(|e| {
+                    let (bounds, classes) = bounds_and_classes(e.bounds);
+                    BakedLodEnvelope { errors: e.groups.iter().map(|g| g.error).collect(), bounds, classes }
+                }),
             }
         }),
     })

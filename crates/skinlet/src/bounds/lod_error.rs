@@ -38,9 +38,15 @@
 //! that interval is halved (up to 4 times) while its halves bound tighter. Exact arithmetic:
 //! the f32 rounding of skinning (about 1e-7 of the positions' magnitude) is not included.
 //!
+//! Within a pose envelope ([`super::envelope`]: crossfades, additive layers, IK), the same
+//! pairs are bounded over the envelope's motions as over one more interval, from a pose inside
+//! it (the caps' centres, the boxes' middles) and with the morph deltas' reach over its weight
+//! ranges: a second set of errors, for the instances the pose guard admits.
+//!
 //! The hierarchy's shape is the simplifier's; only the errors are replaced.
 
 use super::Aabb;
+use super::envelope::Envelope;
 use super::motion::spectral_bound;
 use super::sphere_cone::key_intervals;
 use super::vertex::{IntervalMotions, clip_weight_ranges, morph_box};
@@ -62,15 +68,18 @@ const LOOSE: f64 = 1.05;
 
 /// Replaces every group's error by one that holds at every pose of `clips` (none: the rest
 /// pose), summed or direct (above), whichever draws fewer triangles. `lod` is over `mesh`'s
-/// vertices (the mesh the meshlets were built on), skinned by `skin`.
+/// vertices (the mesh the meshlets were built on), skinned by `skin`. With an `envelope`, also
+/// returns per group an error that holds at every pose inside it (chosen the same way, on its
+/// own: the same pairs bounded over the envelope's motions instead of the clips').
 pub fn bound_errors(
     skeleton: &Skeleton,
     skin: &Skin,
     clips: &[&Clip],
+    envelope: Option<&Envelope>,
     mesh: &SkinnedMesh,
     lod: &mut LodHierarchy,
-) -> Result<()> {
-    let ctx = Ctx::new(skeleton, skin, clips, mesh)?;
+) -> Result<Option<Vec<f32>>> {
+    let ctx = Ctx::new(skeleton, skin, clips, envelope, mesh)?;
     let own = group_bounds(&ctx, clips, lod, |ctx, g| {
         let group = &lod.groups[g];
         let (children, made) = (triangles(lod, &group.children), triangles(lod, &group.made));
@@ -91,8 +100,6 @@ pub fn bound_errors(
         }
         (region, pairs)
     })?;
-    let summed = stored(lod, &own, |own, below| own + below);
-    let largest = stored(lod, &direct, f64::max);
     // Triangles of the cuts at thresholds from 1/8 to 1/512 of the part's size.
     let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
     for c in lod.clusters.iter().filter(|c| c.group.is_none()) {
@@ -101,16 +108,24 @@ pub fn bound_errors(
         }
     }
     let size = (hi - lo).length() as f32;
-    // The log of the cuts' triangles, summed (each threshold counts alike).
-    let mut drawn = |errors: &[f32]| -> f64 {
-        errors.iter().zip(&mut lod.groups).for_each(|(&e, g)| g.error = e);
-        let cut_triangles =
-            |e: f32| lod.cut(e).iter().map(|&c| lod.clusters[c as usize].triangles.len()).sum::<usize>();
-        (3..=9).map(|k| (cut_triangles(size * 0.5f32.powi(k)).max(1) as f64).ln()).sum()
+    // Summed or direct errors, from the bounds `at` (0: the clips', 1: the envelope's).
+    let mut choose = |at: usize| -> Vec<f32> {
+        let pick = |b: &[[f64; 2]]| b.iter().map(|b| b[at]).collect::<Vec<f64>>();
+        let summed = stored(lod, &pick(&own), |own, below| own + below);
+        let largest = stored(lod, &pick(&direct), f64::max);
+        // The log of the cuts' triangles, summed (each threshold counts alike).
+        let mut drawn = |errors: &[f32]| -> f64 {
+            errors.iter().zip(&mut lod.groups).for_each(|(&e, g)| g.error = e);
+            let cut_triangles =
+                |e: f32| lod.cut(e).iter().map(|&c| lod.clusters[c as usize].triangles.len()).sum::<usize>();
+            (3..=9).map(|k| (cut_triangles(size * 0.5f32.powi(k)).max(1) as f64).ln()).sum()
+        };
+        if drawn(&largest) <= drawn(&summed) { largest } else { summed }
     };
-    let keep = if drawn(&largest) <= drawn(&summed) { largest } else { summed };
+    let within_envelope = envelope.map(|_| choose(1));
+    let keep = choose(0);
     keep.iter().zip(&mut lod.groups).for_each(|(&e, g)| g.error = e);
-    Ok(())
+    Ok(within_envelope)
 }
 
 /// Stored errors from each group's `own` bound and its children's groups' largest stored
@@ -187,14 +202,15 @@ fn triangles_of(regions: &[Vec<u32>], clusters: &[u32]) -> Vec<u32> {
     clusters.iter().flat_map(|&c| regions[c as usize].iter().copied()).collect()
 }
 
-/// Per group, the largest paired distance over every interval of `clips`, the pairs and the
-/// triangles whose principal joint they are bounded in given by `pairs_of`.
+/// Per group, the largest paired distance over every interval of `clips` and over the
+/// envelope's motions (0 without one), the pairs and the triangles whose principal joint they
+/// are bounded in given by `pairs_of`.
 fn group_bounds(
     ctx: &Ctx,
     clips: &[&Clip],
     lod: &LodHierarchy,
     pairs_of: impl Fn(&Ctx, usize) -> (Vec<u32>, Vec<Vec<(u32, f64)>>) + Sync,
-) -> Result<Vec<f64>> {
+) -> Result<Vec<[f64; 2]>> {
     let (skeleton, mesh) = (ctx.skeleton, ctx.mesh);
     let intervals: Vec<(Option<&Clip>, f32, f32)> = if clips.is_empty() {
         vec![(None, 0.0, 0.0)]
@@ -205,7 +221,11 @@ fn group_bounds(
         .into_par_iter()
         .map(|g| {
             let (principal, pairs) = pairs_of(ctx, g);
-            let terms = ctx.terms(&principal, &pairs)?;
+            let terms = ctx.terms(&principal, &pairs, &ctx.reach)?;
+            let within_envelope = match &ctx.envelope {
+                Some(e) => ctx.terms(&principal, &pairs, &e.reach)?.bound(ctx, &e.motions, &e.at, &e.globals, true),
+                None => 0.0,
+            };
             let (mut poser, mut at) = (Poser::default(), Vec::new());
             let mut bound = |clip: Option<&Clip>, t1: f32, t2: f32| -> Result<f64> {
                 let motions = IntervalMotions::new(skeleton, &mesh.morphs, clip, t1, t2)?;
@@ -214,7 +234,7 @@ fn group_bounds(
                     None => at = skeleton.nodes.iter().map(|n| n.rest).collect(),
                 }
                 let globals = poser.globals(skeleton, clip, t1);
-                Ok(terms.bound(ctx, &motions, &at, globals))
+                Ok(terms.bound(ctx, &motions, &at, globals, false))
             };
             let mut heap = std::collections::BinaryHeap::new();
             for &(clip, t1, t2) in &intervals {
@@ -231,7 +251,7 @@ fn group_bounds(
                     || !(worst.t1 < mid && mid < worst.t2)
                     || !worst.bound.is_finite()
                 {
-                    return Ok(worst.bound);
+                    return Ok([worst.bound, within_envelope]);
                 }
                 halvings -= 1;
                 let halves = [
@@ -240,11 +260,11 @@ fn group_bounds(
                 ];
                 // No tighter: the whole interval's bound is the largest.
                 if halves.iter().any(|h| h.bound >= worst.bound) {
-                    return Ok(worst.bound);
+                    return Ok([worst.bound, within_envelope]);
                 }
                 heap.extend(halves);
             }
-            Ok(0.0)
+            Ok([0.0, within_envelope])
         })
         .collect()
 }
@@ -290,11 +310,22 @@ struct Ctx<'a> {
     mesh: &'a SkinnedMesh,
     /// How far each vertex's morph deltas can move it within the weights' ranges over the clips.
     reach: Vec<f64>,
+    envelope: Option<EnvelopeMotions>,
     /// Each vertex's skinned positions at `poses` poses (vertex after vertex): the rest pose,
     /// then [`POSES_PER_CLIP`] times of each clip. Pairs are matched where they stay near at
     /// all of them.
     posed: Vec<DVec3>,
     poses: usize,
+}
+
+/// What the errors within a pose envelope are bounded over: its motions, a pose inside it
+/// (each listed node at its centre rotation and the centres of its boxes; the others at rest)
+/// with its nodes' global transforms, and each vertex's morph reach within its weight ranges.
+struct EnvelopeMotions {
+    motions: IntervalMotions,
+    at: Vec<Trs>,
+    globals: Vec<DMat4>,
+    reach: Vec<f64>,
 }
 
 /// How many poses of each clip pairs are matched at: its start, middle and end (more did not
@@ -324,17 +355,44 @@ struct Terms {
 }
 
 impl<'a> Ctx<'a> {
-    fn new(skeleton: &'a Skeleton, skin: &'a Skin, clips: &[&Clip], mesh: &'a SkinnedMesh) -> Result<Ctx<'a>> {
+    fn new(
+        skeleton: &'a Skeleton,
+        skin: &'a Skin,
+        clips: &[&Clip],
+        envelope: Option<&Envelope>,
+        mesh: &'a SkinnedMesh,
+    ) -> Result<Ctx<'a>> {
         if mesh.influences.is_none() {
             return Err(Error::invalid("cluster LOD errors", "the mesh has no skin weights"));
         }
-        let ranges = clip_weight_ranges(&mesh.morphs, clips)?;
-        let reach = (0..mesh.positions.len())
-            .map(|v| {
-                let (b, p) = (morph_box(mesh, v, &ranges), mesh.positions[v].as_dvec3());
-                (b.min - p).abs().max((b.max - p).abs()).length()
-            })
-            .collect();
+        let reach = |ranges: &[(f64, f64)]| -> Vec<f64> {
+            (0..mesh.positions.len())
+                .map(|v| {
+                    let (b, p) = (morph_box(mesh, v, ranges), mesh.positions[v].as_dvec3());
+                    (b.min - p).abs().max((b.max - p).abs()).length()
+                })
+                .collect()
+        };
+        let envelope = match envelope {
+            Some(e) => {
+                e.check(skeleton.nodes.len(), mesh.morphs.weights.len())?;
+                let mut at: Vec<Trs> = skeleton.nodes.iter().map(|n| n.rest).collect();
+                for r in &e.nodes {
+                    let middle = |(lo, hi): (glam::Vec3, glam::Vec3)| (lo + hi) / 2.0;
+                    at[r.node as usize] = Trs {
+                        rotation: r.centre.normalize(),
+                        translation: middle(r.translation),
+                        scale: middle(r.scale),
+                    };
+                }
+                let mut globals = Vec::new();
+                crate::pose::global_transforms(skeleton, &at, &mut globals);
+                let reach = reach(&e.weight_ranges());
+                Some(EnvelopeMotions { motions: e.motions(skeleton), at, globals, reach })
+            }
+            None => None,
+        };
+        let reach = reach(&clip_weight_ranges(&mesh.morphs, clips)?);
         let mut times: Vec<(Option<&Clip>, Option<f32>)> = vec![(None, None)];
         for &c in clips {
             let last = (POSES_PER_CLIP - 1) as f32;
@@ -348,7 +406,7 @@ impl<'a> Ctx<'a> {
                 posed[v * poses + p] = x.as_dvec3();
             }
         }
-        Ok(Ctx { skeleton, skin, mesh, reach, posed, poses })
+        Ok(Ctx { skeleton, skin, mesh, reach, envelope, posed, poses })
     }
 
     fn position(&self, v: u32) -> DVec3 {
@@ -360,13 +418,10 @@ impl<'a> Ctx<'a> {
         self.posed[v as usize * self.poses + p]
     }
 
-    fn morph_reach(&self, v: u32) -> f64 {
-        self.reach[v as usize]
-    }
-
     /// Paired differences (coefficients over mesh vertices, [`match_pairs`]) as joint terms,
-    /// in the space of the principal joint of `triangles`' vertices.
-    fn terms(&self, triangles: &[u32], pairs: &[Vec<(u32, f64)>]) -> Result<Terms> {
+    /// in the space of the principal joint of `triangles`' vertices, each vertex's morph
+    /// deltas moving it at most `reach`.
+    fn terms(&self, triangles: &[u32], pairs: &[Vec<(u32, f64)>], reach: &[f64]) -> Result<Terms> {
         let inf = self.mesh.influences.as_ref().expect("checked by group_bounds");
         let mut vertices: Vec<u32> = triangles.to_vec();
         vertices.sort_unstable();
@@ -395,13 +450,13 @@ impl<'a> Ctx<'a> {
                 }
             }
             for &(k, s, v0, _) in &joints {
-                let (p0, mut offset, mut reach) = (self.position(v0), DVec3::ZERO, 0.0);
+                let (p0, mut offset, mut reach_sum) = (self.position(v0), DVec3::ZERO, 0.0);
                 for &(v, c) in coefficients {
                     let w: f64 = inf.of(v as usize).filter(|j| j.0 == k).map(|j| j.1 as f64).sum();
                     offset += c * w * (self.position(v) - p0);
-                    reach += (c * w).abs() * self.morph_reach(v);
+                    reach_sum += (c * w).abs() * reach[v as usize];
                 }
-                let reach = reach + s.abs() * self.morph_reach(v0);
+                let reach = reach_sum + s.abs() * reach[v0 as usize];
                 if s != 0.0 || offset != DVec3::ZERO || reach != 0.0 {
                     let joint = *joint_slot.entry(k).or_insert_with(|| {
                         out.joints.push(k);
@@ -428,7 +483,15 @@ impl Terms {
     /// The largest paired distance over one interval, in scene units. `at`: every node's
     /// local transform at the interval's start, `globals` their global transforms: `Lin Tₖ`
     /// is split into its value there (applied exactly) and its deviation over the interval.
-    fn bound(&self, ctx: &Ctx, motions: &IntervalMotions, at: &[Trs], globals: &[DMat4]) -> f64 {
+    ///
+    /// `relative` (wide motions, a pose envelope's): each pair's bound is also taken with
+    /// the carried boxes relative to one of its joints `j`, and the smallest kept. The boxes
+    /// of `Tₖ m₀` in the principal joint's space each span the whole motion of `k` relative
+    /// to it, independently, where their weighted sum only moves with the joints' motions
+    /// relative to each other: with `Σₖ sₖ = σ` (0 up to rounding for normalized weights),
+    /// `Σₖ sₖ Tₖ m₀ = Lin Tⱼ Σₖ sₖ Uⱼₖ m₀ + σ tⱼ`, `Uⱼₖ = Tⱼ⁻¹ Tₖ` (`k`'s motion relative to
+    /// `j`, a short chain for the joints of one vertex) and `tⱼ` the translation of `Tⱼ`.
+    fn bound(&self, ctx: &Ctx, motions: &IntervalMotions, at: &[Trs], globals: &[DMat4], relative: bool) -> f64 {
         let (skeleton, skin) = (ctx.skeleton, ctx.skin);
         let r = skin.joints[self.principal as usize];
         let to_r = globals[r as usize].inverse();
@@ -451,25 +514,31 @@ impl Terms {
                 )
             })
             .collect();
+        let mut cache = RelativeCache::default();
         let mut worst = 0.0f64;
         let mut start = 0usize;
         for &end in &self.ends {
-            let (mut lo, mut hi, mut ball) = (DVec3::ZERO, DVec3::ZERO, 0.0);
-            for t in &self.terms[start..end as usize] {
-                if t.s != 0.0 {
-                    let b = &boxes[t.carried as usize];
-                    let (a, c) = (b.min * t.s, b.max * t.s);
-                    lo += a.min(c);
-                    hi += a.max(c);
-                }
-                let (start_linear, deviation, stretch) = &linear[t.joint as usize];
-                let shift = *start_linear * t.offset;
-                lo += shift;
-                hi += shift;
-                ball += times(*deviation, t.offset.length()) + times(*stretch, t.reach);
-            }
+            let pair_terms = &self.terms[start..end as usize];
             start = end as usize;
-            let pair = lo.abs().max(hi.abs()).length() + ball;
+            let mut sums = PairSums { shifts: DVec3::ZERO, offsets: 0.0, reach: 0.0 };
+            for t in pair_terms {
+                let (start_linear, deviation, stretch) = &linear[t.joint as usize];
+                sums.shifts += *start_linear * t.offset;
+                sums.offsets += times(*deviation, t.offset.length());
+                sums.reach += times(*stretch, t.reach);
+            }
+            let (mut lo, mut hi) = (sums.shifts, sums.shifts);
+            for t in pair_terms.iter().filter(|t| t.s != 0.0) {
+                let b = &boxes[t.carried as usize];
+                let (a, c) = (b.min * t.s, b.max * t.s);
+                lo += a.min(c);
+                hi += a.max(c);
+            }
+            let mut pair = lo.abs().max(hi.abs()).length() + sums.offsets + sums.reach;
+            for j in pair_terms.iter().filter(|t| relative && t.s != 0.0) {
+                pair =
+                    pair.min(self.relative_bound(ctx, motions, at, r, &linear, pair_terms, j.joint, &sums, &mut cache));
+            }
             // Unbounded (a scale through zero, a singular joint): NaN or ∞ is no bound.
             worst = if pair.is_nan() { f64::INFINITY } else { worst.max(pair) };
         }
@@ -477,6 +546,102 @@ impl Terms {
         let out = times(worst, scene);
         if out.is_nan() { f64::INFINITY } else { out }
     }
+
+    /// One pair's bound with the carried part relative to its joint `self.joints[slot]`
+    /// (see [`Terms::bound`]), in the principal joint `r`'s space: `Y = Σₖ sₖ Uⱼₖ m₀` as a
+    /// box and as a ball (whichever bounds tighter), the offsets' part as `Lin Tⱼ Σₖ Lin Uⱼₖ
+    /// offₖ` where that is tighter than [`PairSums::offsets`].
+    #[allow(clippy::too_many_arguments)]
+    fn relative_bound(
+        &self,
+        ctx: &Ctx,
+        motions: &IntervalMotions,
+        at: &[Trs],
+        r: u32,
+        linear: &[(DMat3, f64, f64)],
+        pair_terms: &[Term],
+        slot: u32,
+        sums: &PairSums,
+        cache: &mut RelativeCache,
+    ) -> f64 {
+        let (skeleton, skin) = (ctx.skeleton, ctx.skin);
+        let joint = self.joints[slot as usize];
+        let (node_j, ibm_j) = (skin.joints[joint as usize], skin.inverse_bind[joint as usize].as_dmat4());
+        let bind_j = ibm_j.inverse();
+        let (mut y_lo, mut y_hi, mut y_centre, mut y_radius, mut sigma) =
+            (DVec3::ZERO, DVec3::ZERO, DVec3::ZERO, 0.0, 0.0);
+        for t in pair_terms.iter().filter(|t| t.s != 0.0) {
+            let (v, k) = self.carried[t.carried as usize];
+            let (b, ball) = cache.carried.entry((v, k, joint)).or_insert_with(|| {
+                let (ibm_k, node_k) = (skin.inverse_bind[k as usize].as_dmat4(), skin.joints[k as usize]);
+                let rest = motions.rest_box(ctx.mesh, v as usize);
+                let b = motions.carry(skeleton, node_k, node_j, rest.transformed(&ibm_k)).transformed(&bind_j);
+                let (c, radius) = ((rest.min + rest.max) / 2.0, (rest.max - rest.min).length() / 2.0);
+                let moved = (ibm_k.transform_point3(c), radius * spectral_bound(&DMat3::from_mat4(ibm_k)));
+                let (c, radius) = motions.carry_ball(skeleton, node_k, node_j, at, moved);
+                let ball = (bind_j.transform_point3(c), radius * spectral_bound(&DMat3::from_mat4(bind_j)));
+                // Both hold: the box is also within the ball's.
+                (Aabb { min: b.min.max(ball.0 - ball.1), max: b.max.min(ball.0 + ball.1) }, ball)
+            });
+            let (a, c) = (b.min * t.s, b.max * t.s);
+            y_lo += a.min(c);
+            y_hi += a.max(c);
+            y_centre += t.s * ball.0;
+            y_radius += times(t.s.abs(), ball.1);
+            sigma += t.s;
+        }
+        let (linear_j, deviation_j, _) = &linear[slot as usize];
+        let norm_j = spectral_bound(linear_j);
+        // `Lin Tⱼ Y`: its value at the start applied exactly (to the box, or the ball's
+        // centre), and its deviation.
+        let abs = DMat3::from_cols(linear_j.x_axis.abs(), linear_j.y_axis.abs(), linear_j.z_axis.abs());
+        let (moved, spread) = (*linear_j * ((y_lo + y_hi) / 2.0), abs * ((y_hi - y_lo) / 2.0));
+        let (lo, hi) = (sums.shifts + moved - spread, sums.shifts + moved + spread);
+        let by_box = lo.abs().max(hi.abs()).length() + times(*deviation_j, y_lo.abs().max(y_hi.abs()).length());
+        let by_ball = (sums.shifts + *linear_j * y_centre).length()
+            + times(norm_j, y_radius)
+            + times(*deviation_j, y_centre.length() + y_radius);
+        // The offsets: `E` the inner sum at the start, `f` how far it gets from it.
+        let e = (linear_j.inverse() * sums.shifts).length();
+        let mut f = 0.0;
+        for t in pair_terms {
+            let k = self.joints[t.joint as usize];
+            let deviation = *cache.deviations.entry((k, joint)).or_insert_with(|| {
+                let ibm_k = DMat3::from_mat4(skin.inverse_bind[k as usize].as_dmat4());
+                motions.deviation(skeleton, skin.joints[k as usize], node_j, at)
+                    * spectral_bound(&ibm_k)
+                    * spectral_bound(&DMat3::from_mat4(bind_j))
+            });
+            f += times(deviation, t.offset.length());
+        }
+        let offsets = sums.offsets.min(times(norm_j, f) + times(*deviation_j, e + f));
+        // `σ tⱼ`: weights summing to 1 up to rounding leave a little of `Tⱼ`'s translation.
+        let translation = *cache.translations.entry(joint).or_insert_with(|| {
+            let b = motions.carry(skeleton, node_j, r, Aabb::point(ibm_j.w_axis.truncate()));
+            b.min.abs().max(b.max.abs()).length()
+        });
+        by_box.min(by_ball) + offsets + sums.reach + times(sigma.abs(), translation)
+    }
+}
+
+/// One pair's sums over its terms: the offsets' parts at the start (`Σₖ Lin Tₖ(start) offₖ`)
+/// and their deviation, and the morph deltas' reach.
+struct PairSums {
+    shifts: DVec3,
+    offsets: f64,
+    reach: f64,
+}
+
+/// A ball: centre and radius.
+type Ball = (DVec3, f64);
+
+/// What [`Terms::relative_bound`] computes once per interval: `Uⱼₖ m₀` per (vertex, k, j) as
+/// a box and a ball, the deviation of `Lin Uⱼₖ` per (k, j), `|tⱼ|` per j.
+#[derive(Default)]
+struct RelativeCache {
+    carried: HashMap<(u32, u16, u16), (Aabb, Ball)>,
+    deviations: HashMap<(u16, u16), f64>,
+    translations: HashMap<u16, f64>,
 }
 
 /// `a · b` for bounds ≥ 0, where a zero factor wins over an unbounded one.
@@ -660,8 +825,15 @@ mod tests {
             (Skeleton::default(), Skin { name: String::new(), joints: Vec::new(), inverse_bind: Vec::new() });
         let matched = |poses: &[&[DVec3]], to: [u32; 6]| -> Vec<u32> {
             let posed = (0..rest.len()).flat_map(|v| poses.iter().map(move |p| p[v])).collect();
-            let ctx =
-                Ctx { skeleton: &skeleton, skin: &skin, mesh: &mesh, reach: Vec::new(), posed, poses: poses.len() };
+            let ctx = Ctx {
+                skeleton: &skeleton,
+                skin: &skin,
+                mesh: &mesh,
+                reach: Vec::new(),
+                envelope: None,
+                posed,
+                poses: poses.len(),
+            };
             let mut pairs = Vec::new();
             match_pairs(&ctx, &[0, 1, 2], &to, &mut pairs);
             let mut targets: Vec<u32> = pairs.iter().flatten().filter(|e| e.1 < 0.0).map(|e| e.0).collect();

@@ -8,7 +8,7 @@
 
 use crate::clip::Clip;
 use crate::meshlet::lod::LodHierarchy;
-use crate::model::{Skeleton, Skin, SkinnedMesh};
+use crate::model::{Skeleton, Skin, SkinnedMesh, Trs};
 use crate::{Error, Result};
 use glam::{Affine3A, DVec3, Vec3};
 use std::ops::Range;
@@ -37,16 +37,46 @@ pub struct LodReport {
     pub median_ratio: f64,
 }
 
+/// The poses of clips at times (`None`: the rest pose), as [`verify_errors`] takes them: every
+/// node's local transform and the morph weights' values.
+pub fn clip_poses(
+    skeleton: &Skeleton,
+    mesh: &SkinnedMesh,
+    times: &[(Option<&Clip>, f32)],
+) -> Vec<(Vec<Trs>, Vec<f32>)> {
+    (times.iter())
+        .map(|&(clip, t)| {
+            let (mut locals, mut weights) = (Vec::new(), Vec::new());
+            match clip {
+                Some(c) => c.sample_locals(skeleton, t, &mut locals),
+                None => locals.extend(skeleton.nodes.iter().map(|n| n.rest)),
+            }
+            mesh.morphs.weights_at(clip, t, &mut weights);
+            (locals, weights)
+        })
+        .collect()
+}
+
 /// Checks the hierarchies `parts` (each with the range of its part's triangles in `mesh`) at
-/// `poses` (a clip and a time; `None`: the rest pose).
+/// `poses`: every node's local transform and the morph weights' values ([`clip_poses`]; or
+/// poses inside a pose envelope, against the errors within it). Errors when a pose has not
+/// one transform per node and one value per morph weight.
 pub fn verify_errors(
     skeleton: &Skeleton,
     skin: &Skin,
-    poses: &[(Option<&Clip>, f32)],
+    poses: &[(Vec<Trs>, Vec<f32>)],
     mesh: &SkinnedMesh,
     parts: &[(Range<u32>, &LodHierarchy)],
 ) -> Result<LodReport> {
     let n = mesh.positions.len();
+    if let Some(k) =
+        poses.iter().position(|(l, w)| l.len() != skeleton.nodes.len() || w.len() != mesh.morphs.weights.len())
+    {
+        return Err(Error::invalid(
+            "verify cluster LOD",
+            format!("pose {k} has {} local transforms and {} morph weight values", poses[k].0.len(), poses[k].1.len()),
+        ));
+    }
     for (range, lod) in parts {
         let inside = range.end as usize <= mesh.triangles.len()
             && lod.clusters.iter().all(|c| c.triangles.iter().all(|&v| (v as usize) < n));
@@ -59,12 +89,12 @@ pub fn verify_errors(
     let mut report = LodReport { poses: poses.len(), ..LodReport::default() };
     // Per group over all poses: (largest distance to full, error).
     let mut groups: Vec<(f64, f64)> = Vec::new();
-    let (mut matrices, mut weights, mut poser) = (Vec::new(), Vec::new(), crate::pose::Poser::default());
-    for (pose, &(clip, t)) in poses.iter().enumerate() {
-        poser.skinning_matrices(skeleton, skin, clip, t, &mut matrices);
-        mesh.morphs.weights_at(clip, t, &mut weights);
+    let (mut matrices, mut globals) = (Vec::new(), Vec::new());
+    for (pose, (locals, weights)) in poses.iter().enumerate() {
+        crate::pose::global_transforms(skeleton, locals, &mut globals);
+        crate::pose::skinning_matrices(skin, &globals, &mut matrices);
         let mut posed = vec![Vec3::ZERO; n];
-        crate::skinning::skin_mesh(mesh, &weights, &matrices as &[Affine3A], &mut posed, &mut [])?;
+        crate::skinning::skin_mesh(mesh, weights, &matrices as &[Affine3A], &mut posed, &mut [])?;
         let posed: Vec<DVec3> = posed.iter().map(|p| p.as_dvec3()).collect();
         let mut at = 0;
         for (range, lod) in parts {

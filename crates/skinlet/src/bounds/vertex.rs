@@ -13,7 +13,7 @@
 //! from the joints' motion only adds points, so the result stays a superset.
 
 use super::Aabb;
-use super::motion::{Motion, node_motion, weight_range};
+use super::motion::{Motion, SAMPLING_ROUNDING, node_motion, spectral_bound, weight_range};
 use crate::Result;
 use crate::clip::Clip;
 use crate::model::{Morphs, Skeleton, Skin, SkinnedMesh, Trs};
@@ -94,6 +94,34 @@ impl IntervalMotions {
         }
         // Unbounded (a scale through zero): keep it unbounded rather than NaN.
         if b.is_finite() { b } else { Aabb::EVERYWHERE }
+    }
+
+    /// A ball holding every point `global(to)⁻¹ · global(from) · x`, x in the ball (`centre`,
+    /// `radius`), over the interval: [`Self::carry`] with balls, each rotation taken about the
+    /// node's rotation in `at` (a rotation within angle θ of it moves a point `c` by at most
+    /// `2 sin(θ/2)|c|`). Boxes grow at every rotation of a chain (a rotated box's box is
+    /// larger); balls only by the motion, so over wide motions (a pose envelope's) this is the
+    /// tighter one. Infinite radius where unbounded.
+    pub fn carry_ball(&self, skeleton: &Skeleton, from: u32, to: u32, at: &[Trs], ball: (DVec3, f64)) -> (DVec3, f64) {
+        let parent = |n: u32| skeleton.nodes[n as usize].parent;
+        let depth = |n: Option<u32>| n.map_or(-1, |n| self.depth[n as usize] as i64);
+        let (mut a, mut t, mut ball) = (Some(from), Some(to), ball);
+        let mut down = Vec::new();
+        while a != t {
+            if depth(a) >= depth(t) {
+                let n = a.expect("deeper side is a node");
+                ball = ball_motion(&self.motions[n as usize], &at[n as usize], ball, false);
+                a = parent(n);
+            } else {
+                let n = t.expect("deeper side is a node");
+                down.push(n);
+                t = parent(n);
+            }
+        }
+        for &n in down.iter().rev() {
+            ball = ball_motion(&self.motions[n as usize], &at[n as usize], ball, true);
+        }
+        if ball.0.is_finite() && !ball.1.is_nan() { ball } else { (DVec3::ZERO, f64::INFINITY) }
     }
 
     /// An upper bound of how far the linear part of `global(to)⁻¹ · global(from)` gets over
@@ -222,4 +250,44 @@ pub fn vertex_box(
         sum.max += w * b.max;
     }
     sum
+}
+
+/// A ball holding `L·x` (or `L⁻¹·x` where `inverse`) for x in `ball` and every local
+/// transform `L` of `motion`, rotations taken about `at`'s (see
+/// [`IntervalMotions::carry_ball`]); grown by [`SAMPLING_ROUNDING`] as boxes are.
+fn ball_motion(motion: &Motion, at: &Trs, (c, r): (DVec3, f64), inverse: bool) -> (DVec3, f64) {
+    let (c, r) = match motion {
+        Motion::Matrix(m) => {
+            let m = if inverse { m.inverse() } else { *m };
+            (m.transform_point3(c), r * spectral_bound(&glam::DMat3::from_mat4(m)))
+        }
+        Motion::Trs { translation, rotation, scale } => {
+            let q = at.rotation.as_dquat().normalize();
+            let m = rotation.min_abs_dot(q).min(1.0);
+            let turn = 2.0 * (1.0 - m * m).max(0.0).sqrt();
+            let (t_mid, t_half) =
+                ((translation.min + translation.max) / 2.0, (translation.max - translation.min) / 2.0);
+            // Per axis, the range of the scale (or of its reciprocal) as middle and half width,
+            // and the largest magnitude.
+            let range = |lo: DVec3, hi: DVec3| ((lo + hi) / 2.0, (hi - lo) / 2.0, lo.abs().max(hi.abs()).max_element());
+            if inverse {
+                let (c, r) = (c - t_mid, r + t_half.length());
+                let (c, r) = (q.inverse() * c, r + turn * c.length());
+                let straddles = (0..3).any(|k| scale.min[k] <= 0.0 && scale.max[k] >= 0.0);
+                if straddles {
+                    return (DVec3::ZERO, f64::INFINITY);
+                }
+                let (a, b) = (DVec3::ONE / scale.min, DVec3::ONE / scale.max);
+                let (mid, half, largest) = range(a.min(b), a.max(b));
+                (mid * c, (half * c).length() + r * largest)
+            } else {
+                let (mid, half, largest) = range(scale.min, scale.max);
+                let (c, r) = (mid * c, (half * c).length() + r * largest);
+                let (c, r) = (q * c, r + turn * c.length());
+                (c + t_mid, r + t_half.length())
+            }
+        }
+    };
+    // The box's growth (`Aabb::inflated`) on every axis of the ball's box.
+    (c, r + SAMPLING_ROUNDING * (c.abs().max_element() + r).max(1.0) * 3f64.sqrt())
 }
