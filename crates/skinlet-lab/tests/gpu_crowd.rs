@@ -12,6 +12,7 @@
 mod common;
 use common::{assets, bake, gpu};
 use glam::{Mat4, Vec3};
+use skinlet::bounds::envelope::Envelope;
 use skinlet::pose::Poser;
 use skinlet_gpu::Gpu;
 use skinlet_gpu::crowd_culling::CullMode;
@@ -351,41 +352,76 @@ fn occlusion_culling_misses_nothing_when_the_camera_cuts_or_the_crowd_teleports(
 /// with a subset of the survivors.
 #[test]
 fn lod_crowd_draws_cuts_whose_silhouettes_stay_within_the_pixels() {
+    lod_crowd(false);
+}
+
+/// The same with every instance posed inside the pose envelope (10° around the clips, half
+/// the poses on its boundary: what crossfades, additive layers and IK reach), drawing the cuts
+/// of the errors within it (`LodView::envelope`) culled with its bounds
+/// (`BakeView::lod_envelope_culler`).
+#[test]
+fn lod_crowd_within_the_envelope_draws_cuts_whose_silhouettes_stay_within_the_pixels() {
+    lod_crowd(true);
+}
+
+fn lod_crowd(within_envelope: bool) {
     let Some(gpu) = gpu() else { return };
     let demo =
         skinlet_lab::demo::demo_character(&skinlet_lab::demo::DemoParams { triangles: 4000, ..Default::default() });
     let mut baked = bake(&demo, &demo.character().unwrap());
+    let clips: Vec<&skinlet::clip::Clip> = demo.clips.iter().collect();
+    if within_envelope {
+        let margin = 10f64.to_radians();
+        let envelope = Envelope::from_clips(&demo.skeleton, &baked.palette(), &baked.mesh, &clips, margin).unwrap();
+        skinlet::bake::add_envelope(&mut baked, &demo, envelope).unwrap();
+    }
     skinlet::bake::add_lod(&mut baked, &demo, &skinlet::meshlet::lod::LodParams::default()).unwrap();
     let skin = baked.palette();
-    let clips: Vec<&skinlet::clip::Clip> = demo.clips.iter().collect();
     let params = CrowdParams { instances: 64, layout: Layout::Dense, ..Default::default() };
     let scene = crowd(&baked.mesh.positions, clips.len(), &params).unwrap();
-    let (width, height, pixels) = (640, 360, 2.0);
-    let (mut palette, mut weights, mut poser) = (Vec::new(), Vec::new(), Poser::default());
+    // Within the envelope, errors are larger (it holds every pose around the clips): a coarser
+    // threshold draws visible coarse clusters there too.
+    let (width, height, pixels) = (640, 360, if within_envelope { 4.0 } else { 2.0 });
+    // Poses inside the envelope, one per instance.
+    let inside = baked.envelope.as_ref().map(|e| e.envelope.sample_poses(&demo.skeleton, scene.placements.len(), 3));
+    let guard = baked.envelope.as_ref().map(|e| e.envelope.guard().unwrap());
+    let (mut palette, mut weights, mut poser, mut globals) = (Vec::new(), Vec::new(), Poser::default(), Vec::new());
     let (culler, errors, thresholds, cuts) = skinlet::bake::with_view(&baked, |view| {
-        let lod = view.lod().unwrap();
+        let lod = if within_envelope { view.lod().unwrap().envelope().unwrap() } else { *view.lod().unwrap() };
         let crowd_lod = CrowdLod::new(view, &scene.camera, width, height)?;
         let (mut thresholds, mut cuts, mut w) = (Vec::new(), Vec::new(), Vec::new());
-        for pl in &scene.placements {
+        for (i, pl) in scene.placements.iter().enumerate() {
             let clip = clips.get(pl.clip).copied();
             let t = pl.time(clip, 0, params.fps);
-            let globals = poser.globals(&demo.skeleton, clip, t);
-            let (mut joints, mut skinning) = (Vec::new(), Vec::new());
-            pl.world_matrices(&skin, globals, &mut joints, &mut skinning);
-            palette.extend(skinning.iter().map(|&m| Mat4::from(m)));
-            baked.mesh.morphs.weights_at(clip, t, &mut w);
-            weights.extend(&w);
-            let pose = match clip {
-                Some(_) => PoseBounds::ClipAt { clip: pl.clip as u32, time: t },
-                None => PoseBounds::Clips,
+            let pose = match (&inside, clip) {
+                (Some(inside), _) => {
+                    let (locals, pose_weights) = &inside[i];
+                    assert!(guard.as_ref().unwrap().admits(locals, pose_weights), "a pose inside the envelope");
+                    skinlet::pose::global_transforms(&demo.skeleton, locals, &mut globals);
+                    w.clone_from(pose_weights);
+                    PoseBounds::Envelope
+                }
+                (None, clip) => {
+                    globals = poser.globals(&demo.skeleton, clip, t).to_vec();
+                    baked.mesh.morphs.weights_at(clip, t, &mut w);
+                    match clip {
+                        Some(_) => PoseBounds::ClipAt { clip: pl.clip as u32, time: t },
+                        None => PoseBounds::Clips,
+                    }
+                }
             };
+            let (mut joints, mut skinning) = (Vec::new(), Vec::new());
+            pl.world_matrices(&skin, &globals, &mut joints, &mut skinning);
+            palette.extend(skinning.iter().map(|&m| Mat4::from(m)));
+            weights.extend(&w);
             let threshold = crowd_lod.threshold(pixels, &joints, &w, pose);
             let mut cut = Vec::new();
             lod.cut(threshold, &mut cut);
             thresholds.push(threshold);
             cuts.push(cut.into_iter().collect::<HashSet<u32>>());
         }
-        Ok((view.lod_culler()?.unwrap(), lod.errors(), thresholds, cuts))
+        let culler = if within_envelope { view.lod_envelope_culler()? } else { view.lod_culler()? };
+        Ok((culler.unwrap(), lod.errors(), thresholds, cuts))
     })
     .unwrap();
     let n = scene.placements.len();
@@ -433,7 +469,7 @@ fn lod_crowd_draws_cuts_whose_silhouettes_stay_within_the_pixels() {
     assert!(occluded.iter().all(|s| pulled.contains(s)) && occluded.len() < cut.len());
     assert!(occluded_covered == cut_covered, "occlusion culling changed the covered pixels");
     eprintln!(
-        "LOD at {pixels} px: {} of {} triangles drawn ({coarse} coarse clusters), {} survivors with occlusion \
+        "LOD at {pixels} px (within the envelope: {within_envelope}): {} of {} triangles drawn ({coarse} coarse clusters), {} survivors with occlusion \
          culling; silhouettes moved up to {moved:.2} px",
         triangles(&cut),
         triangles(&full),
