@@ -146,6 +146,64 @@ mod bake {
     }
 
     #[test]
+    fn lod_within_the_envelope_round_trips_keeps_the_boundaries_and_is_checked() {
+        let asset = demo_character(&DemoParams { triangles: 2000, ..DemoParams::default() });
+        let mut b = baked();
+        let clips: Vec<_> = asset.clips.iter().collect();
+        let envelope = Envelope::from_clips(&asset.skeleton, &b.palette(), &b.mesh, &clips, 0.1).unwrap();
+        add_envelope(&mut b, &asset, envelope.clone()).unwrap();
+        add_lod(&mut b, &asset, &skinlet::meshlet::lod::LodParams::default()).unwrap();
+        let l = b.lod.as_ref().unwrap();
+        let e = l.envelope.as_ref().expect("a bake with an envelope gets LOD errors within it");
+        assert_eq!((e.errors.len(), e.bounds.len()), (l.groups.len(), l.clusters.len()));
+        // The envelope added after the hierarchy gives the same errors and bounds.
+        let mut later = baked();
+        add_lod(&mut later, &asset, &skinlet::meshlet::lod::LodParams::default()).unwrap();
+        add_envelope(&mut later, &asset, envelope).unwrap();
+        assert_eq!(later.lod.as_ref().unwrap().envelope.as_ref(), Some(e));
+        let bytes = to_bytes(&b);
+        assert_eq!(from_bytes(&bytes).unwrap(), b);
+        let view = BakeView::new(&bytes).unwrap();
+        let v = view.lod().unwrap().envelope().unwrap();
+        assert!(view.lod_envelope_culler().unwrap().is_some());
+        let cluster_triangles = |c: usize| -> Vec<[u32; 3]> {
+            let (m, i) = if c < b.meshlets.len() { (&b.meshlets, c) } else { (&l.meshlets, c - b.meshlets.len()) };
+            m.mesh_triangles(&m.meshlets[i]).collect()
+        };
+        let whole = super::common::boundary(b.mesh.triangles.iter().copied());
+        let mut cut = Vec::new();
+        for t in e.errors.iter().copied().chain([0.0, f32::MAX]) {
+            v.cut(t, &mut cut);
+            let found = super::common::boundary(cut.iter().flat_map(|&c| cluster_triangles(c as usize)));
+            assert!(found == whole, "threshold {t}");
+        }
+        // Damaged: counts, a level, an error, a parent's error below its child's, the
+        // section without ENVL.
+        let lode = section(&bytes, b"LODE");
+        let damaged = |at: usize, value: [u8; 4], want: &str| {
+            let mut bad = bytes.clone();
+            bad[lode.start + at..lode.start + at + 4].copy_from_slice(&value);
+            let e = from_bytes(&bad).unwrap_err().to_string();
+            assert!(e.contains("LODE") && e.contains(want), "{want}: {e}");
+        };
+        let g = l.groups.len() as u32;
+        damaged(0, (g + 1).to_le_bytes(), "groups");
+        damaged(16, (l.groups[0].0 + 1).to_le_bytes(), "group 0: level");
+        damaged(16 + 4, f32::INFINITY.to_le_bytes(), "group 0");
+        let (c, &[own, parent]) = (l.clusters.iter().enumerate())
+            .find(|(_, c)| c[1] != skinlet_runtime::bake_view::NO_GROUP && e.errors[c[0] as usize] > 0.0)
+            .expect("a cluster with a parent and an error");
+        assert!(e.errors[own as usize] > 0.0);
+        damaged(16 + 8 * parent as usize + 4, 0f32.to_le_bytes(), &format!("cluster {}", b.meshlets.len() + c));
+        let table_entry = bytes.windows(4).position(|w| w == b"ENVL").unwrap();
+        let mut bad = bytes.clone();
+        bad[table_entry..table_entry + 4].copy_from_slice(b"XNVL");
+        let err = from_bytes(&bad).unwrap_err().to_string();
+        assert!(err.contains("LODE") && err.contains("ENVL"), "{err}");
+        assert!(from_bytes(&bytes[..lode.end - 4]).is_err());
+    }
+
+    #[test]
     fn part_windows_round_trip_and_are_checked() {
         let b = baked();
         let w = b.part_windows.as_ref().expect("a bake with clips has part windows");
