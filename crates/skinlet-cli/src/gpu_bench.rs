@@ -101,7 +101,9 @@ pub struct Args {
     /// `both+lod` and `both+occl+lod` (each instance draws the visible part of its cut at
     /// `--lod-pixels`) and per timed frame compares the cuts with full detail, both culled:
     /// triangles and vertex references drawn, pixels differing, and how far the silhouettes
-    /// moved (`max_silhouette_px`). Clips only (the errors hold for the baked clips).
+    /// moved (`max_silhouette_px`). With `--animation blend|additive|ik`, the instances the
+    /// pose guard admits use the errors and bounds within the envelope (a bake made with
+    /// `--envelope` and `--lod`); the others draw full detail.
     #[arg(long)]
     lod: bool,
     /// The LOD threshold: the largest screen displacement allowed, in pixels.

@@ -264,7 +264,9 @@ enum Command {
         /// adjacent clusters simplified to about half with their borders locked and the
         /// vertices' positions at 8 poses of the clips as attributes, level by level; each
         /// group's error bounds how far its clusters get from the full detail mesh at every
-        /// pose of the clips, and its clusters get conservative bounds like the meshlets'.
+        /// pose of the clips, and its clusters get conservative bounds like the meshlets'. With
+        /// --envelope, also errors and cluster bounds that hold at every pose inside the
+        /// envelope (`LODE`: for crossfades, additive layers and IK).
         #[arg(long)]
         lod: bool,
         /// Print a JSON summary: meshlets, both_pct, frustum_only_pct, none_pct, precompute_s, ...
@@ -281,7 +283,7 @@ enum Command {
     /// every sample time; a bake's cluster LOD hierarchy (`bake --lod`): its clusters' bounds like
     /// the meshlets', its errors at up to 16 evenly spaced times per clip (every point of every
     /// group's clusters within the group's error of the full detail mesh, the full detail mesh
-    /// within three cuts' errors of the cuts). The bounds are computed afresh, or read from a bake file (--baked; its
+    /// within three cuts' errors of the cuts), and with an envelope the same within it. The bounds are computed afresh, or read from a bake file (--baked; its
     /// clips are checked, and FILE must be the file it was baked from). Exits with status 1 on
     /// any violation beyond float rounding.
     Verify {
