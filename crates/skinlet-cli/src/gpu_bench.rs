@@ -423,7 +423,10 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
             FlatFrame { palette, modes, weights, lod_thresholds }
         })
         .collect();
-    let (n, rounds) = (instances as u32, a.occlusion_rounds);
+    // No occlusion culling where no row asked for uses it: one survivor list, not two (room
+    // for more instances in the device's storage bindings).
+    let occlusion = a.cullings.is_empty() || a.cullings.iter().any(|c| c.contains("occl"));
+    let (n, rounds) = (instances as u32, if occlusion { a.occlusion_rounds } else { 0 });
     let crowd_culler = crowd_culler.as_ref().unwrap_or(&culler);
     let gpu_crowd = GpuCrowd::with_depth_range(
         &gpu,

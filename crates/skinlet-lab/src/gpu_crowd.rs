@@ -164,7 +164,8 @@ impl GpuCrowd {
     /// infinite reverse-Z; the frames' cameras must project so): depth cleared to 0, nearer
     /// fragments the greater, occlusion culling's pyramid of the nearest; occlusion culling in
     /// `rounds` rounds ([`skinlet_gpu::crowd_culling::OcclusionDepth::rounds`]: the frames'
-    /// instances are best ordered nearest first).
+    /// instances are best ordered nearest first), or none with 0 rounds (the occluded views
+    /// then error; one survivor list instead of two: room for more instances).
     ///
     /// Cluster LOD: with `lod_errors` (`LodView::errors`, of the clips or within the pose
     /// envelope: `LodView::envelope`), `culler` holds the mesh's meshlets and then `baked`'s
@@ -245,9 +246,12 @@ impl GpuCrowd {
         let multisampled = false;
         let occlusion =
             OcclusionDepth { view: &depth_view, width, height, reversed, subpixel_bits, multisampled, rounds };
-        let culling = CrowdCulling::with_occlusion(
-            device, &pipelines, &character, &palette, &instances, capacity, survivors, occlusion,
-        )?;
+        let culling = match rounds {
+            0 => CrowdCulling::new(device, &pipelines, &character, &palette, &instances, capacity, survivors)?,
+            _ => CrowdCulling::with_occlusion(
+                device, &pipelines, &character, &palette, &instances, capacity, survivors, occlusion,
+            )?,
+        };
         let commands = culling.commands().clone();
         let packed = CrowdMesh::pack(&mesh.mesh_data(None), joints)?;
         let triangle_meshlets: Vec<u32> =
@@ -664,10 +668,11 @@ impl GpuCrowd {
     /// then (occlusion culling) the second's.
     pub fn survivors(&self, gpu: &Gpu) -> Result<Vec<[u32; 2]>> {
         let crowd = self.culling.crowd();
-        let words = gpu.read(crowd.survivors(), 2 * SurvivorHeader::SIZE)?;
+        let lists = if crowd.occlusion_rounds() > 0 { 2 } else { 1 };
+        let words = gpu.read(crowd.survivors(), lists * SurvivorHeader::SIZE)?;
         let headers: Vec<SurvivorHeader> = bytemuck::pod_collect_to_vec(&words);
         let places = crowd.survivor_capacity() as u64;
-        let all = bytemuck::pod_collect_to_vec::<u8, u32>(&gpu.read(crowd.commands(), 40 * places)?);
+        let all = bytemuck::pod_collect_to_vec::<u8, u32>(&gpu.read(crowd.commands(), lists * 20 * places)?);
         let meshlet = |first: u32| self.firsts.binary_search(&first).unwrap_or(usize::MAX) as u32;
         let mut out = Vec::new();
         // Every round's survivors (the second list's header counts its last round).
