@@ -377,8 +377,10 @@ fn lod_bakes_and_verifies() {
     std::fs::create_dir_all(&dir).unwrap();
     let (plain, with) = (dir.join("plain.skinlet"), dir.join("lod.skinlet"));
     let (plain, with) = (plain.to_str().unwrap(), with.to_str().unwrap());
-    let a = json_of(&["bake", "@demo:2000", "-o", plain, "--rounds", "0", "--json"]);
-    let b = json_of(&["bake", "@demo:2000", "-o", with, "--rounds", "0", "--lod", "--json"]);
+    // Both with a pose envelope: the hierarchy gets errors and bounds within it too (`LODE`).
+    let envelope = ["--envelope", "clips:10"];
+    let a = json_of(&[&["bake", "@demo:2000", "-o", plain, "--rounds", "0", "--json"][..], &envelope].concat());
+    let b = json_of(&[&["bake", "@demo:2000", "-o", with, "--rounds", "0", "--lod", "--json"][..], &envelope].concat());
     assert!(a["lod_groups"].is_null() && b["lod_groups"].as_u64().unwrap() > 0, "{b}");
     assert!(b["lod_clusters"].as_u64().unwrap() > 0 && b["lod_levels"].as_u64().unwrap() >= 2, "{b}");
     let ratio = b["bytes"].as_f64().unwrap() / a["bytes"].as_f64().unwrap();
@@ -387,6 +389,9 @@ fn lod_bakes_and_verifies() {
     let l = &v["lod"];
     assert_eq!((l["cluster_violations"].as_u64(), l["error_violations"].as_u64()), (Some(0), Some(0)), "{v}");
     assert!(l["cluster_vertex_checks"].as_u64().unwrap() > 0 && l["error_points"].as_u64().unwrap() > 0, "{v}");
+    let e = &l["envelope"];
+    assert_eq!((e["cluster_violations"].as_u64(), e["error_violations"].as_u64()), (Some(0), Some(0)), "{v}");
+    assert!(e["cluster_vertex_checks"].as_u64().unwrap() > 0 && e["error_points"].as_u64().unwrap() > 0, "{v}");
     // On a crowd: fewer triangles the larger the threshold, never more than full detail,
     // before culling and after (frustum and backface culling on the CPU).
     let crowd = ["--gltf", "@demo:2000", "--crowd", "dense", "--instances", "48", "--frames", "1", "--width", "480"];
@@ -420,6 +425,14 @@ fn lod_bakes_and_verifies() {
     let rows = g["rows"].as_array().unwrap();
     assert_eq!(rows.iter().map(|r| r["culling"].as_str().unwrap()).collect::<Vec<_>>(), ["both", "both+lod"], "{g}");
     assert!(rows[1]["image_equal_to_unculled"].is_null() && rows[1]["triangles_per_frame"].as_u64() == Some(drawn));
+    // Crossfades: the instances the guard admits draw the cuts of the errors within the
+    // envelope, culled with its bounds there.
+    let blend = [&args[..], &["--animation", "blend", "--repeats", "1", "--json"]].concat();
+    let g = json_of(&[&["gpu-bench", with][..], &crowd, &blend].concat());
+    let l = &g["lod"];
+    assert_eq!(g["animation"], "blend", "{g}");
+    assert!(count(l, "triangles_drawn") < count(l, "triangles_full_detail"), "{l}");
+    assert!(l["max_silhouette_px"].as_f64().unwrap() <= 4.0 + std::f64::consts::FRAC_1_SQRT_2, "{l}");
     // No row left: a clear error.
     let (code, _, err) =
         skinlet(&[&["gpu-bench", with][..], &crowd, &["--pipelines", "CS", "--cullings", "both+lod"]].concat());
