@@ -355,9 +355,10 @@ const SECOND_OFFSET: usize = 512;
 pub(crate) const OCCLUSION_OFFSET: usize = 768;
 const ROUNDS_OFFSET: usize = 1024;
 const ROUND_STRIDE: usize = 256;
-/// Bytes per (instance, joint) record (`RECORD` floats and 16 for occlusion) and per draw
-/// command; per instance counts.
-const RECORD_BYTES: u64 = (40 + 16) * 4;
+/// Bytes per (instance, joint) record (`RECORD` floats) and its part for occlusion culling
+/// (16 floats, only with it), per draw command; per instance counts.
+const RECORD_BYTES: u64 = 40 * 4;
+const OCCLUSION_RECORD_BYTES: u64 = 16 * 4;
 const COMMAND_BYTES: u64 = 20;
 const COUNT_BYTES: u64 = 16;
 /// The pyramid's level 0 from a single-sample depth buffer, and from a multisampled one (each
@@ -800,8 +801,9 @@ impl CrowdCulling {
         let lists = if depth.is_some() { 2 } else { 1 };
         let (levels, texels) = depth.map_or((0, 0), |d| pyramid_levels(d.width, d.height));
         let state_size = (cap * meshlets + texels) * 4;
-        // The joints' records, then each instance's LOD threshold.
-        let records_size = cap * joints * RECORD_BYTES + cap * 4;
+        // The joints' records, each instance's LOD threshold, the records' occlusion part.
+        let occlusion_bytes = if depth.is_some() { OCCLUSION_RECORD_BYTES } else { 0 };
+        let records_size = cap * joints * (RECORD_BYTES + occlusion_bytes) + cap * 4;
         let commands_size = lists * survivor_capacity as u64 * COMMAND_BYTES;
         if records_size.max(commands_size).max(state_size).max(cap * COUNT_BYTES) > limit
             || cap * meshlets.max(joints) > u32::MAX as u64 / 2

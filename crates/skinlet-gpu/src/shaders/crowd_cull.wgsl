@@ -29,11 +29,11 @@
 
 @group(0) @binding(0) var<uniform> cull_params: CullParams;
 @group(0) @binding(1) var<storage, read> slots: array<Slot>;
-// The joint records (RECORD floats per instance and joint), then per instance and joint 16
+// The joint records (RECORD floats per instance and joint), then per instance its LOD
+// threshold, negative for full detail, then with occlusion culling per instance and joint 16
 // floats: the joint's world matrix as three rows (x, y, z, t), a bound on its spectral norm,
 // the occlusion mode (0 none, 1 the bounds' spheres, 2 the any-pose boxes, 3 both), the rounding
-// bounds of forming it; then per instance its LOD threshold, negative for full detail
-// (prepare.wgsl).
+// bounds of forming it (prepare.wgsl).
 @group(0) @binding(2) var<storage, read> joint_records: array<f32>;
 // Per instance: visible, culled by the frustum, culled as back-facing only, occluded.
 @group(0) @binding(3) var<storage, read_write> counts: array<atomic<u32>>;
@@ -60,7 +60,7 @@
 // threshold and its parent group's above it (full detail where the threshold is negative).
 fn in_cut(id: u32, instance: u32) -> bool {
     let e = bitcast<vec2<f32>>(meshlet_draws[id].zw);
-    let threshold = joint_records[cull_params.instances * cull_params.joints * (RECORD + 16u) + instance];
+    let threshold = joint_records[cull_params.instances * cull_params.joints * RECORD + instance];
     if threshold < 0.0 {
         return e.x < 0.0;
     }
@@ -80,7 +80,7 @@ fn invocation(gid: vec3<u32>) -> u32 {
 
 // Where (instance, joint)'s world matrix starts.
 fn world_of(instance: u32, joint: u32) -> u32 {
-    return cull_params.instances * cull_params.joints * RECORD + (instance * cull_params.joints + joint) * 16u;
+    return cull_params.instances * (cull_params.joints * RECORD + 1u) + (instance * cull_params.joints + joint) * 16u;
 }
 
 fn row(b: u32, r: u32) -> vec4<f32> {

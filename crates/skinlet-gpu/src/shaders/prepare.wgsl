@@ -79,13 +79,13 @@ fn sum(v: vec3<f32>) -> f32 {
     return v.x + v.y + v.z;
 }
 
-// After the records, per instance and joint 16 floats for occlusion culling
-// (crowd_cull.wgsl): the world matrix's three rows, a bound on its spectral norm, the mode
+// After the records and the instances' LOD thresholds, with occlusion culling, per instance
+// and joint 16 floats (crowd_cull.wgsl): the world matrix's three rows, a bound on its spectral norm, the mode
 // (0 not occluded, 1 by the spheres, 2 by the any-pose boxes, 3 by both), and for the rounding of the
 // product G was formed by, the largest row sum of |model|·|S|·|bind|'s linear part and its
 // largest translation entry.
 fn write_world(index: u32, g: mat4x4<f32>, m: mat4x4<f32>, mode: f32) {
-    let b = params.instances * params.joints * RECORD + index * 16u;
+    let b = params.instances * params.joints * RECORD + params.instances + index * 16u;
     for (var r = 0u; r < 3u; r++) {
         records[b + 4u * r] = g[0][r];
         records[b + 4u * r + 1u] = g[1][r];
@@ -105,6 +105,12 @@ fn write_world(index: u32, g: mat4x4<f32>, m: mat4x4<f32>, mode: f32) {
     let rows = m[0].xyz + m[1].xyz + m[2].xyz;
     records[b + 14u] = max(max(rows.x, rows.y), rows.z);
     records[b + 15u] = max(max(m[3].x, m[3].y), m[3].z);
+}
+
+// Whether the records have occlusion culling's part: its rounds (the `first` word's second
+// byte, crowd_cull.wgsl's `round`) are 0 without it.
+fn occlusion_records() -> bool {
+    return (params.first >> 8u) != 0u;
 }
 
 // A record that culls nothing: planes no point is outside of, every group inside, no
@@ -136,7 +142,7 @@ fn prepare(@builtin(global_invocation_id) gid: vec3<u32>) {
     // the poses the bounds hold for).
     if index % params.joints == 0u {
         let lod = instance.mode <= 1u && instance.lod_threshold >= 0.0;
-        records[params.instances * params.joints * (RECORD + 16u) + index / params.joints] =
+        records[params.instances * params.joints * RECORD + index / params.joints] =
             select(-1.0, instance.lod_threshold, lod);
     }
     let base = index * RECORD;
@@ -145,7 +151,9 @@ fn prepare(@builtin(global_invocation_id) gid: vec3<u32>) {
     let m = abs_matrix(instance.model) * abs_matrix(s) * abs_matrix(joint.bind);
     if instance.mode > 2u || !(finite(g[0]) && finite(g[1]) && finite(g[2]) && finite(g[3]) && finite(m[3])) {
         keep(base);
-        write_world(index, mat4x4<f32>(), mat4x4<f32>(), 0.0);
+        if occlusion_records() {
+            write_world(index, mat4x4<f32>(), mat4x4<f32>(), 0.0);
+        }
         return;
     }
     let x = g[0].xyz;
@@ -158,7 +166,9 @@ fn prepare(@builtin(global_invocation_id) gid: vec3<u32>) {
     let at = m[3].xyz;
     let bounds = instance.mode <= 1u;
     let boxes = instance.mode >= 1u && camera.has_boxes != 0u;
-    write_world(index, g, m, select(0.0, 1.0, bounds) + select(0.0, 2.0, boxes));
+    if occlusion_records() {
+        write_world(index, g, m, select(0.0, 1.0, bounds) + select(0.0, 2.0, boxes));
+    }
     let ext = joint.extent;
     // Frustum: n_j = Aᵀn, w_j = n·t + w, |n_j|, and the margin over the planes.
     let t_len = length(at);
