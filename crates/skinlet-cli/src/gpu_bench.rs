@@ -103,7 +103,7 @@ pub struct Args {
     /// triangles and vertex references drawn, pixels differing, and how far the silhouettes
     /// moved (`max_silhouette_px`). With `--animation blend|additive|ik`, the instances the
     /// pose guard admits use the errors and bounds within the envelope (a bake made with
-    /// `--envelope` and `--lod`); the others draw full detail.
+    /// `--envelope` and `--lod`, or bounded here for a glTF file); the others draw full detail.
     #[arg(long)]
     lod: bool,
     /// The LOD threshold: the largest screen displacement allowed, in pixels.
@@ -295,11 +295,14 @@ pub fn command(file: &str, a: &Args) -> Result<()> {
     // Instances posed inside the envelope select and cull their cuts with the hierarchy's
     // errors and bounds within it.
     let within_envelope = animation != Animation::Clips;
-    anyhow::ensure!(
-        !(a.lod && within_envelope && baked.lod.as_ref().is_some_and(|l| l.envelope.is_none())),
-        "--animation {} --lod: {file}'s LOD hierarchy has no errors within its pose envelope (bake with --envelope and --lod)",
-        a.animation
-    );
+    if a.lod && within_envelope && baked.lod.as_ref().is_some_and(|l| l.envelope.is_none()) {
+        anyhow::ensure!(
+            a.gltf.is_none(),
+            "--animation {} --lod: {file}'s LOD hierarchy has no errors within its pose envelope (bake with --envelope and --lod)",
+            a.animation
+        );
+        skinlet::bake::add_lod_envelope(&mut baked, &asset)?;
+    }
     let palette = baked.palette();
     let skin = &palette;
     let layout = if a.crowd == "dense" { Layout::Dense } else { Layout::Paper };

@@ -420,27 +420,41 @@ fn lod_envelope(
 }
 
 /// Adds a pose envelope to a bake: meshlet bounds for every pose inside it, classified with
-/// the bake's thresholds, and the any-pose boxes for morph weights inside its ranges; with a
-/// LOD hierarchy, its errors and cluster bounds within the envelope too (bounding the errors
-/// again: adding the envelope first, then the hierarchy, bounds them once).
+/// the bake's thresholds, and the any-pose boxes for morph weights inside its ranges. A LOD
+/// hierarchy's errors and bounds within an earlier envelope are dropped (they hold for that
+/// one): [`add_lod_envelope`] bounds them for this one; adding the envelope before the
+/// hierarchy ([`add_lod`]) bounds them once.
 pub fn add_envelope(baked: &mut Baked, asset: &Asset, envelope: Envelope) -> Result<()> {
     let palette = baked.palette();
-    if let Some(lod) = &baked.lod {
-        let clips = baked_clips(baked, asset)?;
-        let mut errors = Vec::with_capacity(lod.groups.len());
-        for (_, mut h) in lod.hierarchies(&baked.meshlets, &baked.parts) {
-            let bound = crate::bounds::lod_error::bound_errors;
-            let within = bound(&asset.skeleton, &palette, &clips, Some(&envelope), &baked.mesh, &mut h)?;
-            errors.extend(within.unwrap_or_default().iter().map(|e| e.min(f32::MAX)));
-        }
-        let within = lod_envelope(baked, asset, &envelope, &lod.meshlets, errors)?;
-        baked.lod.as_mut().expect("checked above").envelope = Some(within);
-    }
     let bounds = envelope_bounds(&asset.skeleton, &palette, &baked.mesh, &baked.meshlets, &envelope)?;
     let classes = bounds.iter().map(|b| classify(b, baked.settings.s_r, baked.settings.alpha_t)).collect();
     let any_pose = crate::cull::any_pose::build(&palette, &baked.mesh, &baked.meshlets, &envelope.weight_ranges())?;
     let names = envelope.nodes.iter().map(|r| asset.skeleton.nodes[r.node as usize].name.clone()).collect();
     baked.envelope = Some(BakedEnvelope { envelope, names, bounds, classes, any_pose });
+    if let Some(lod) = &mut baked.lod {
+        lod.envelope = None;
+    }
+    Ok(())
+}
+
+/// Bounds a bake's LOD hierarchy's errors and cluster bounds within its pose envelope
+/// (section LODE), for a bake that got its envelope after its hierarchy. Errors without both.
+pub fn add_lod_envelope(baked: &mut Baked, asset: &Asset) -> Result<()> {
+    let (Some(lod), Some(e)) = (&baked.lod, &baked.envelope) else {
+        return Err(Error::invalid("LOD within the envelope", "the bake has no LOD hierarchy or no pose envelope"));
+    };
+    let (palette, clips) = (baked.palette(), baked_clips(baked, asset)?);
+    let mut errors = Vec::with_capacity(lod.groups.len());
+    for (_, mut h) in lod.hierarchies(&baked.meshlets, &baked.parts) {
+        let bound = crate::bounds::lod_error::bound_errors;
+        let within = bound(&asset.skeleton, &palette, &clips, Some(&e.envelope), &baked.mesh, &mut h)?;
+        errors.extend(within.unwrap_or_default().iter().map(|e| e.min(f32::MAX)));
+    }
+    if errors.len() != lod.groups.len() {
+        return Err(Error::invalid("LOD within the envelope", "the hierarchies do not cover every group"));
+    }
+    let within = lod_envelope(baked, asset, &e.envelope, &lod.meshlets, errors)?;
+    baked.lod.as_mut().expect("checked above").envelope = Some(within);
     Ok(())
 }
 

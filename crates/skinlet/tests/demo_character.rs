@@ -156,10 +156,12 @@ mod bake {
         let l = b.lod.as_ref().unwrap();
         let e = l.envelope.as_ref().expect("a bake with an envelope gets LOD errors within it");
         assert_eq!((e.errors.len(), e.bounds.len()), (l.groups.len(), l.clusters.len()));
-        // The envelope added after the hierarchy gives the same errors and bounds.
+        // The envelope added after the hierarchy, then its LOD errors: the same errors and bounds.
         let mut later = baked();
         add_lod(&mut later, &asset, &skinlet::meshlet::lod::LodParams::default()).unwrap();
         add_envelope(&mut later, &asset, envelope).unwrap();
+        assert!(later.lod.as_ref().unwrap().envelope.is_none(), "an envelope added later has no LOD errors yet");
+        add_lod_envelope(&mut later, &asset).unwrap();
         assert_eq!(later.lod.as_ref().unwrap().envelope.as_ref(), Some(e));
         let bytes = to_bytes(&b);
         assert_eq!(from_bytes(&bytes).unwrap(), b);

@@ -575,7 +575,9 @@ impl Terms {
             let (b, ball) = cache.carried.entry((v, k, joint)).or_insert_with(|| {
                 let (ibm_k, node_k) = (skin.inverse_bind[k as usize].as_dmat4(), skin.joints[k as usize]);
                 let rest = motions.rest_box(ctx.mesh, v as usize);
-                let b = motions.carry(skeleton, node_k, node_j, rest.transformed(&ibm_k)).transformed(&bind_j);
+                let b = motions.carry(skeleton, node_k, node_j, rest.transformed(&ibm_k));
+                // An unbounded box stays unbounded (0 · ∞ would make it NaN).
+                let b = if b.is_finite() { b.transformed(&bind_j) } else { Aabb::EVERYWHERE };
                 let (c, radius) = ((rest.min + rest.max) / 2.0, (rest.max - rest.min).length() / 2.0);
                 let moved = (ibm_k.transform_point3(c), radius * spectral_bound(&DMat3::from_mat4(ibm_k)));
                 let (c, radius) = motions.carry_ball(skeleton, node_k, node_j, at, moved);
