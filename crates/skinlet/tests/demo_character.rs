@@ -98,6 +98,28 @@ mod bake {
         assert!(e.contains("CONT") && e.contains("window bound"), "{e}");
     }
 
+    /// `lod`'s cuts (read back from `b`'s bytes) at every threshold of `thresholds`, 0 and
+    /// `f32::MAX` have the mesh's boundary: no cracks.
+    fn cuts_keep_the_boundary(
+        b: &Baked,
+        lod: &skinlet_runtime::bake_view::LodView,
+        thresholds: impl Iterator<Item = f32>,
+    ) {
+        let clusters = &b.lod.as_ref().unwrap().meshlets;
+        // A cluster's triangles, numbered as the view numbers them (meshlets first).
+        let cluster_triangles = |c: usize| -> Vec<[u32; 3]> {
+            let (m, i) = if c < b.meshlets.len() { (&b.meshlets, c) } else { (clusters, c - b.meshlets.len()) };
+            m.mesh_triangles(&m.meshlets[i]).collect()
+        };
+        let whole = super::common::boundary(b.mesh.triangles.iter().copied());
+        let mut cut = Vec::new();
+        for t in thresholds.chain([0.0, f32::MAX]) {
+            lod.cut(t, &mut cut);
+            let found = super::common::boundary(cut.iter().flat_map(|&c| cluster_triangles(c as usize)));
+            assert!(found == whole, "threshold {t}");
+        }
+    }
+
     #[test]
     fn lod_round_trips_every_cut_keeps_the_part_boundaries_and_is_checked() {
         let asset = demo_character(&DemoParams { triangles: 2000, ..DemoParams::default() });
@@ -110,20 +132,8 @@ mod bake {
         let view = BakeView::new(&bytes).unwrap();
         let v = view.lod().unwrap();
         let meshlets = view.meshlets();
-        // A cluster's triangles, numbered as the view numbers them (meshlets first).
-        let cluster_triangles = |c: usize| -> Vec<[u32; 3]> {
-            let (m, i) = if c < b.meshlets.len() { (&b.meshlets, c) } else { (&l.meshlets, c - b.meshlets.len()) };
-            m.mesh_triangles(&m.meshlets[i]).collect()
-        };
-        let whole = super::common::boundary(b.mesh.triangles.iter().copied());
-        let mut thresholds: Vec<f32> = l.groups.iter().map(|g| g.1).collect();
-        thresholds.extend([0.0, f32::MAX]);
+        cuts_keep_the_boundary(&b, v, l.groups.iter().map(|g| g.1));
         let mut cut = Vec::new();
-        for t in thresholds {
-            v.cut(t, &mut cut);
-            let found = super::common::boundary(cut.iter().flat_map(|&c| cluster_triangles(c as usize)));
-            assert!(found == whole, "threshold {t}");
-        }
         v.cut(0.0, &mut cut);
         assert_eq!(cut.len(), meshlets.len(), "threshold 0 draws the meshlets");
         // Damaged: counts, a group's error, a cluster's parent.
@@ -168,17 +178,7 @@ mod bake {
         let view = BakeView::new(&bytes).unwrap();
         let v = view.lod().unwrap().envelope().unwrap();
         assert!(view.lod_envelope_culler().unwrap().is_some());
-        let cluster_triangles = |c: usize| -> Vec<[u32; 3]> {
-            let (m, i) = if c < b.meshlets.len() { (&b.meshlets, c) } else { (&l.meshlets, c - b.meshlets.len()) };
-            m.mesh_triangles(&m.meshlets[i]).collect()
-        };
-        let whole = super::common::boundary(b.mesh.triangles.iter().copied());
-        let mut cut = Vec::new();
-        for t in e.errors.iter().copied().chain([0.0, f32::MAX]) {
-            v.cut(t, &mut cut);
-            let found = super::common::boundary(cut.iter().flat_map(|&c| cluster_triangles(c as usize)));
-            assert!(found == whole, "threshold {t}");
-        }
+        cuts_keep_the_boundary(&b, &v, e.errors.iter().copied());
         // Damaged: counts, a level, an error, a parent's error below its child's, the
         // section without ENVL.
         let lode = section(&bytes, b"LODE");
